@@ -1,0 +1,33 @@
+"""The FMU runtime: friction laws, hybrid model and exact stepper.
+
+Pure Python and ``math`` only (no numpy/scipy), and only relative imports, so
+``build_fmu.py`` can bundle this folder into the FMU under a name that only the
+FMU uses.
+"""
+
+from .errors import ParameterError, SolverError, StickSlipError
+from .laws import (
+    KINETIC_LAWS,
+    STATIC_LAWS,
+    CallableKinetic,
+    CallableStatic,
+    Constant,
+    Coulomb,
+    Logarithmic,
+    Lubricated,
+    Saturating,
+    Sigmoid,
+    Stribeck,
+    Viscous,
+    kinetic_law,
+    static_law,
+)
+from .model import BACKWARD, FORWARD, STUCK, Parameters
+from .trajectory import Trajectory
+
+__all__ = [
+    "BACKWARD", "FORWARD", "STUCK", "KINETIC_LAWS", "STATIC_LAWS",
+    "CallableKinetic", "CallableStatic", "Constant", "Coulomb", "Logarithmic", "Lubricated",
+    "Parameters", "ParameterError", "Saturating", "Sigmoid", "SolverError", "StickSlipError",
+    "Stribeck", "Trajectory", "Viscous", "kinetic_law", "static_law",
+]

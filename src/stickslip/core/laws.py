@@ -1,0 +1,378 @@
+"""Friction laws (SPEC section 2): pure functions of the sliding speed or the stick time.
+
+Kinetic laws give ``F_K(u) >= 0`` in N for the sliding speed ``u = |v_rel| >= 0``
+in m/s, with ``slope(u) = dF_K/du`` in N s/m. Static laws give the largest holding
+force ``F_S(t) > 0`` in N after sticking for ``t >= 0`` s, with ``rate(t) = dF_S/dt``
+in N/s.
+
+Every law is a small immutable object built from keyword parameters whose names
+are the FMU's (``kinetic.F0`` is ``F0`` of the kinetic law). ``check()`` raises
+:class:`~.errors.ParameterError` naming the parameter and its allowed range.
+A Python user may pass any callable through :class:`CallableKinetic` or
+:class:`CallableStatic`.
+"""
+
+import math
+
+from .errors import ParameterError
+from .ranges import NON_NEGATIVE, POSITIVE, Range, check
+
+
+class _Law:
+    """Common parts: parameter storage, validation and a readable repr."""
+
+    PREFIX = ""
+    CODE = 0
+    NAME = ""
+    PARAMETERS = {}  # name -> (default, allowed Range, unit)
+
+    def __init__(self, **values):
+        unknown = set(values) - set(self.PARAMETERS)
+        if unknown:
+            raise ParameterError(
+                f"{self.NAME} law has no parameter {sorted(unknown)}; "
+                f"its parameters are {sorted(self.PARAMETERS)}"
+            )
+        for name, (default, _, _) in self.PARAMETERS.items():
+            setattr(self, name, float(values.get(name, default)))
+
+    def parameters(self):
+        """The law's parameters as ``{name: value}``."""
+        return {name: getattr(self, name) for name in self.PARAMETERS}
+
+    def check(self):
+        """Raise ParameterError for the first parameter outside its range."""
+        for name, (_, allowed, unit) in self.PARAMETERS.items():
+            check(f"{self.PREFIX}.{name}", getattr(self, name), allowed, unit)
+
+    def __repr__(self):
+        args = ", ".join(f"{k}={v!r}" for k, v in self.parameters().items())
+        return f"{type(self).__name__}({args})"
+
+
+# --------------------------------------------------------------------------
+# kinetic laws
+# --------------------------------------------------------------------------
+
+
+class KineticLaw(_Law):
+    """Base of the kinetic laws ``F_K(u)``, ``u >= 0`` in m/s, force in N."""
+
+    PREFIX = "kinetic"
+
+    def force(self, u):
+        raise NotImplementedError
+
+    def slope(self, u):
+        raise NotImplementedError
+
+    def affine(self):
+        """``(F0, gamma)`` if ``F_K(u) = F0 + gamma u`` exactly, else None.
+
+        Affine laws make slip a (damped) harmonic oscillation with a closed form.
+        """
+        return None
+
+    def at_rest(self):
+        """``F_K(0+)`` in N, the kinetic force just after sliding starts."""
+        return self.force(0.0)
+
+
+class Coulomb(KineticLaw):
+    """``F_K(u) = F0``."""
+
+    CODE, NAME = 1, "coulomb"
+    PARAMETERS = {"F0": (0.5, NON_NEGATIVE, "N")}
+
+    def force(self, u):
+        return self.F0
+
+    def slope(self, u):
+        return 0.0
+
+    def affine(self):
+        return self.F0, 0.0
+
+
+class Viscous(KineticLaw):
+    """``F_K(u) = F0 + gamma u``."""
+
+    CODE, NAME = 2, "viscous"
+    PARAMETERS = {"F0": (0.5, NON_NEGATIVE, "N"), "gamma": (0.1, NON_NEGATIVE, "N s/m")}
+
+    def force(self, u):
+        return self.F0 + self.gamma * u
+
+    def slope(self, u):
+        return self.gamma
+
+    def affine(self):
+        return self.F0, self.gamma
+
+
+class Stribeck(KineticLaw):
+    """``F_K(u) = F0 + F_stribeck exp(-(u/v_stribeck)^delta) + gamma u``."""
+
+    CODE, NAME = 3, "stribeck"
+    PARAMETERS = {
+        "F0": (0.5, NON_NEGATIVE, "N"),
+        "F_stribeck": (0.3, NON_NEGATIVE, "N"),
+        "v_stribeck": (0.1, POSITIVE, "m/s"),
+        "delta": (1.0, Range(1.0, 10.0), "1"),
+        "gamma": (0.0, NON_NEGATIVE, "N s/m"),
+    }
+
+    def force(self, u):
+        return self.F0 + self.F_stribeck * math.exp(-((u / self.v_stribeck) ** self.delta)) + self.gamma * u
+
+    def slope(self, u):
+        s = u / self.v_stribeck
+        decay = math.exp(-(s**self.delta))
+        return self.gamma - self.F_stribeck * self.delta * s ** (self.delta - 1.0) * decay / self.v_stribeck
+
+    def affine(self):
+        return (self.F0 + self.F_stribeck, self.gamma) if self.F_stribeck == 0.0 else None
+
+
+class Lubricated(KineticLaw):
+    """Boundary lubrication (Elmer 1997, fig. 3).
+
+    ``F_K(u) = u (g1 + g2 + (g2 - g1) w / sqrt(dv^2 + w^2)) / 2`` with ``w = u - v_tilde``.
+    """
+
+    CODE, NAME = 4, "lubricated"
+    PARAMETERS = {
+        "gamma1": (3.0, NON_NEGATIVE, "N s/m"),
+        "gamma2": (0.1, NON_NEGATIVE, "N s/m"),
+        "v_tilde": (0.2, NON_NEGATIVE, "m/s"),
+        "dv": (0.05, POSITIVE, "m/s"),
+    }
+
+    def force(self, u):
+        w = u - self.v_tilde
+        return 0.5 * u * (self.gamma1 + self.gamma2 + (self.gamma2 - self.gamma1) * w / math.hypot(self.dv, w))
+
+    def slope(self, u):
+        w = u - self.v_tilde
+        s = math.hypot(self.dv, w)
+        half_jump = 0.5 * (self.gamma2 - self.gamma1)
+        return 0.5 * (self.gamma1 + self.gamma2) + half_jump * (w / s + u * self.dv * self.dv / (s * s * s))
+
+
+class CallableKinetic(KineticLaw):
+    """Any Python callable ``force(u)`` with its derivative ``slope(u)`` (Python API only)."""
+
+    CODE, NAME = 0, "callable"
+    PARAMETERS = {}
+
+    def __init__(self, force, slope):
+        super().__init__()
+        self._force = force
+        self._slope = slope
+
+    def force(self, u):
+        return float(self._force(u))
+
+    def slope(self, u):
+        return float(self._slope(u))
+
+    def check(self):
+        for u in (0.0, 1e-6, 1.0):
+            value = self.force(u)
+            if not math.isfinite(value) or value < 0.0:
+                raise ParameterError(f"kinetic law callable gives F_K({u}) = {value!r}; allowed is a finite value >= 0")
+
+    def __repr__(self):
+        return f"CallableKinetic({self._force!r})"
+
+
+# --------------------------------------------------------------------------
+# static laws
+# --------------------------------------------------------------------------
+
+
+class StaticLaw(_Law):
+    """Base of the static laws ``F_S(t)``, stick time ``t >= 0`` in s, force in N."""
+
+    PREFIX = "static"
+
+    def force(self, t):
+        raise NotImplementedError
+
+    def rate(self, t):
+        raise NotImplementedError
+
+    def is_constant(self):
+        """True when ``F_S`` does not age: no stick-time bookkeeping is needed."""
+        return False
+
+    def curvature(self, t):
+        """``d2F_S/dt2`` in N/s^2; its sign tells whether ``F_S`` is convex or concave at ``t``."""
+        raise NotImplementedError
+
+    def convexity_breaks(self):
+        """Stick times in s where ``F_S''`` changes sign (empty: convex or concave throughout)."""
+        return ()
+
+
+class Constant(StaticLaw):
+    """``F_S(t) = F0``."""
+
+    CODE, NAME = 1, "constant"
+    PARAMETERS = {"F0": (1.0, POSITIVE, "N")}
+
+    def force(self, t):
+        return self.F0
+
+    def rate(self, t):
+        return 0.0
+
+    def curvature(self, t):
+        return 0.0
+
+    def is_constant(self):
+        return True
+
+
+class Logarithmic(StaticLaw):
+    """``F_S(t) = F0 + A ln(1 + t/tau)``: concave aging."""
+
+    CODE, NAME = 2, "logarithmic"
+    PARAMETERS = {"F0": (1.0, POSITIVE, "N"), "A": (0.1, NON_NEGATIVE, "N"), "tau": (1.0, POSITIVE, "s")}
+
+    def force(self, t):
+        return self.F0 + self.A * math.log1p(t / self.tau)
+
+    def rate(self, t):
+        return self.A / (self.tau + t)
+
+    def curvature(self, t):
+        return -self.A / (self.tau + t) ** 2
+
+    def is_constant(self):
+        return self.A == 0.0
+
+
+class Saturating(StaticLaw):
+    """``F_S(t) = F0 + (F_inf - F0)(1 - exp(-t/tau))``: concave (or convex if F_inf < F0)."""
+
+    CODE, NAME = 3, "saturating"
+    PARAMETERS = {"F0": (1.0, POSITIVE, "N"), "F_inf": (1.5, POSITIVE, "N"), "tau": (1.0, POSITIVE, "s")}
+
+    def force(self, t):
+        return self.F0 - (self.F_inf - self.F0) * math.expm1(-t / self.tau)
+
+    def rate(self, t):
+        return (self.F_inf - self.F0) * math.exp(-t / self.tau) / self.tau
+
+    def curvature(self, t):
+        return -self.rate(t) / self.tau
+
+    def is_constant(self):
+        return self.F_inf == self.F0
+
+
+class Sigmoid(StaticLaw):
+    """``F_S(t) = F0 + (F_inf - F0) t^n / (tau^n + t^n)``: non-convex aging for ``n > 1``."""
+
+    CODE, NAME = 4, "sigmoid"
+    PARAMETERS = {
+        "F0": (1.0, POSITIVE, "N"),
+        "F_inf": (1.5, POSITIVE, "N"),
+        "tau": (1.0, POSITIVE, "s"),
+        "n": (2.0, Range(0.5, 20.0), "1"),
+    }
+
+    def force(self, t):
+        r = (t / self.tau) ** self.n
+        return self.F0 + (self.F_inf - self.F0) * r / (1.0 + r)
+
+    def rate(self, t):
+        if t <= 0.0:
+            return 0.0 if self.n > 1.0 else (math.inf if self.n < 1.0 else (self.F_inf - self.F0) / self.tau)
+        r = (t / self.tau) ** self.n
+        return (self.F_inf - self.F0) * self.n * r / (t * (1.0 + r) ** 2)
+
+    def curvature(self, t):
+        if t <= 0.0:
+            return math.copysign(math.inf, (self.F_inf - self.F0) * (self.n - 1.0)) if self.n != 1.0 else 0.0
+        r = (t / self.tau) ** self.n
+        shape = (self.n - 1.0) - (self.n + 1.0) * r
+        return (self.F_inf - self.F0) * self.n * r * shape / (t * t * (1.0 + r) ** 3)
+
+    def is_constant(self):
+        return self.F_inf == self.F0
+
+    def convexity_breaks(self):
+        if self.n <= 1.0:
+            return ()
+        return (self.tau * ((self.n - 1.0) / (self.n + 1.0)) ** (1.0 / self.n),)
+
+
+class CallableStatic(StaticLaw):
+    """Any Python callables ``force(t)``, ``rate(t)``, ``curvature(t)`` and the stick
+    times where the curvature changes sign (Python API only)."""
+
+    CODE, NAME = 0, "callable"
+    PARAMETERS = {}
+
+    def __init__(self, force, rate, curvature, convexity_breaks=()):
+        super().__init__()
+        self._force = force
+        self._rate = rate
+        self._curvature = curvature
+        self._breaks = tuple(float(b) for b in convexity_breaks)
+
+    def force(self, t):
+        return float(self._force(t))
+
+    def rate(self, t):
+        return float(self._rate(t))
+
+    def curvature(self, t):
+        return float(self._curvature(t))
+
+    def convexity_breaks(self):
+        return self._breaks
+
+    def check(self):
+        value = self.force(0.0)
+        if not math.isfinite(value) or value <= 0.0:
+            raise ParameterError(f"static law callable gives F_S(0) = {value!r}; allowed is a finite value > 0")
+
+    def __repr__(self):
+        return f"CallableStatic({self._force!r})"
+
+
+KINETIC_LAWS = {law.CODE: law for law in (Coulomb, Viscous, Stribeck, Lubricated)}
+STATIC_LAWS = {law.CODE: law for law in (Constant, Logarithmic, Saturating, Sigmoid)}
+
+
+def _law_class(table, kind, code_or_name):
+    for law in table.values():
+        if code_or_name in (law.CODE, law.NAME):
+            return law
+    choices = ", ".join(f"{law.CODE} ({law.NAME})" for law in table.values())
+    raise ParameterError(f"{kind}.law = {code_or_name!r} is not a known law: allowed are {choices}")
+
+
+def kinetic_law(code_or_name, **parameters):
+    """Build a kinetic law from its code (1..4) or name and its parameters."""
+    return _law_class(KINETIC_LAWS, "kinetic", code_or_name)(**parameters)
+
+
+def static_law(code_or_name, **parameters):
+    """Build a static law from its code (1..4) or name and its parameters."""
+    return _law_class(STATIC_LAWS, "static", code_or_name)(**parameters)
+
+
+def check_pair(kinetic, static):
+    """Check both laws and ``F_K(0+) <= F_S(0)``, the condition for a block to stick at all."""
+    kinetic.check()
+    static.check()
+    fk0, fs0 = kinetic.at_rest(), static.force(0.0)
+    if not fk0 <= fs0:
+        raise ParameterError(
+            f"kinetic friction at rest F_K(0+) = {fk0!r} N exceeds static friction F_S(0) = {fs0!r} N: "
+            f"allowed is F_K(0+) <= F_S(0) (lower kinetic.F0 / kinetic.F_stribeck or raise static.F0)"
+        )

@@ -1,0 +1,136 @@
+"""The hybrid spring-block model (SPEC section 1) as pure functions of state and parameters.
+
+Sign conventions: ``x`` (m) is the block position from the spring's relaxed
+length, ``v = dx/dt`` (m/s); the surface moves at ``v_drive``; the relative
+sliding velocity is ``v_rel = v_drive - v``. Forces (N) are positive along +x.
+``F_ext`` acts on the block; the spring force on the block is ``-kappa x``;
+``F_f`` is the friction force of the surface on the block.
+
+Modes follow Modelica's ``PartialFriction``: FORWARD (+1, the surface drags the
+block forward, ``v < v_drive``), STUCK (0) and BACKWARD (-1, the block overtakes
+the surface). Transitions are decided from the previous mode.
+"""
+
+import math
+
+from .errors import ParameterError
+from .laws import check_pair
+from .ranges import ANY_FINITE, POSITIVE, check
+
+FORWARD = 1
+STUCK = 0
+BACKWARD = -1
+
+
+class Parameters:
+    """Mass ``M`` (kg), stiffness ``kappa`` (N/m) and the two friction laws."""
+
+    __slots__ = ("M", "kappa", "kinetic", "static")
+
+    def __init__(self, M, kappa, kinetic, static):
+        self.M = float(M)
+        self.kappa = float(kappa)
+        self.kinetic = kinetic
+        self.static = static
+
+    def check(self):
+        """Raise ParameterError naming the first parameter outside its range."""
+        check("M", self.M, POSITIVE, "kg")
+        check("kappa", self.kappa, POSITIVE, "N/m")
+        check_pair(self.kinetic, self.static)
+
+    def __repr__(self):
+        return f"Parameters(M={self.M!r}, kappa={self.kappa!r}, kinetic={self.kinetic!r}, static={self.static!r})"
+
+
+def check_inputs(v_drive, F_ext):
+    """Raise ParameterError unless both inputs are finite."""
+    check("v_drive", v_drive, ANY_FINITE, "m/s")
+    check("F_ext", F_ext, ANY_FINITE, "N")
+
+
+def check_state(x, v):
+    """Raise ParameterError unless the initial state is finite."""
+    check("x_start", x, ANY_FINITE, "m")
+    check("v_start", v, ANY_FINITE, "m/s")
+
+
+def holding_force(x, F_ext, p):
+    """Friction force (N) that holds a stuck block in place: ``kappa x - F_ext``."""
+    return p.kappa * x - F_ext
+
+
+def slip_friction(mode, v_rel, p):
+    """Friction force (N) while slipping in ``mode`` (+1 or -1): ``mode * F_K(|v_rel|)``."""
+    return mode * p.kinetic.force(mode * v_rel)
+
+
+def slip_acceleration(mode, x, v, v_drive, F_ext, p):
+    """``dv/dt`` (m/s^2) while slipping in ``mode``."""
+    return (F_ext - p.kappa * x + slip_friction(mode, v_drive - v, p)) / p.M
+
+
+def slip_acceleration_slope(mode, v, v_drive, p):
+    """``d(dv/dt)/dv`` (1/s) while slipping: ``-F_K'(|v_rel|)/M``."""
+    return -p.kinetic.slope(mode * (v_drive - v)) / p.M
+
+
+def friction_force(mode, x, v, v_drive, F_ext, p):
+    """Friction force on the block (N) in any mode."""
+    if mode == STUCK:
+        return holding_force(x, F_ext, p)
+    return slip_friction(mode, v_drive - v, p)
+
+
+def z_slip(x, F_ext, t_stick, p):
+    """Stick-to-slip indicator (N): ``F_S(t_stick) - |kappa x - F_ext|``."""
+    return p.static.force(t_stick) - abs(holding_force(x, F_ext, p))
+
+
+def breakaway_direction(x, F_ext, p):
+    """Slip mode when the contact cannot hold: +1 if ``F_ext - kappa x < 0`` else -1."""
+    return FORWARD if F_ext - p.kappa * x < 0.0 else BACKWARD
+
+
+def mode_at_zero_v_rel(x, F_ext, p):
+    """Mode when ``v_rel`` reaches 0 from slip: STUCK if ``F_S(0)`` holds, else overshoot."""
+    if abs(holding_force(x, F_ext, p)) <= p.static.force(0.0):
+        return STUCK
+    return breakaway_direction(x, F_ext, p)
+
+
+def stuck_or_breakaway(x, F_ext, t_stick, p):
+    """Mode of a block at ``v_rel = 0`` that has stuck for ``t_stick`` s: STUCK while ``z_slip >= 0``."""
+    if z_slip(x, F_ext, t_stick, p) >= 0.0:
+        return STUCK
+    return breakaway_direction(x, F_ext, p)
+
+
+def initial_mode(x, v, v_drive, F_ext, p):
+    """Mode at the start: stuck if ``v == v_drive`` and the contact holds, else slipping."""
+    v_rel = v_drive - v
+    if v_rel == 0.0:
+        return stuck_or_breakaway(x, F_ext, 0.0, p)
+    return FORWARD if v_rel > 0.0 else BACKWARD
+
+
+def mode_after_input_change(mode, x, v, t_stick, v_drive, F_ext, p):
+    """Mode after the inputs jumped to ``(v_drive, F_ext)`` at fixed ``x``.
+
+    A stuck block moves with the surface (``v`` becomes ``v_drive``) and stays
+    stuck while the contact holds; a slipping block keeps its velocity, and its
+    mode follows the sign of the new ``v_rel``.
+    """
+    if mode == STUCK:
+        return stuck_or_breakaway(x, F_ext, t_stick, p)
+    v_rel = v_drive - v
+    if v_rel == 0.0:
+        return mode_at_zero_v_rel(x, F_ext, p)
+    return FORWARD if v_rel > 0.0 else BACKWARD
+
+
+def require_finite(name, value, time):
+    """Guard the outputs: raise if ``value`` is NaN or infinite (never let one leak)."""
+    if not math.isfinite(value):
+        raise ParameterError(f"{name} became {value!r} at t = {time!r} s; the parameters make the state overflow")
+    return value

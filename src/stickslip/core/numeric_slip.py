@@ -1,0 +1,134 @@
+"""Adaptive stepping of a slip phase under a general (non-affine) kinetic law.
+
+:class:`SlipStepper` keeps the step size and the method (explicit Dormand-Prince,
+or Rosenbrock when the slip is stiff) across steps. ``step()`` returns one
+accepted step, cut at the first point where ``v`` reaches ``v_drive`` from the
+slip side. That point is searched on the step's dense output between the
+extrema of ``v`` (so a short excursion of ``v_rel`` through 0 inside one step
+is found), then the step is redone to end exactly there.
+"""
+
+import math
+
+from . import poly
+from .errors import SolverError
+from .integrators import dopri5_step, rosenbrock_step
+from .model import slip_acceleration, slip_acceleration_slope
+from .rootfind import first_crossing
+
+_SAFETY = 0.9
+_MAX_GROWTH = 5.0
+_MIN_SHRINK = 0.2
+_EXPLICIT_STABILITY = 3.3  # DOPRI5's stability limit of h * |lambda| on the negative real axis
+_SWITCH_AFTER = 8  # consecutive steps that must agree before the method changes
+
+
+class SlipStepper:
+    """Step-size and method state of the numeric slip integration (serializable)."""
+
+    __slots__ = ("rtol", "h", "stiff", "votes", "n_steps", "n_rejected")
+
+    def __init__(self, rtol, h=None, stiff=False, votes=0, n_steps=0, n_rejected=0):
+        self.rtol = rtol
+        self.h = h
+        self.stiff = stiff
+        self.votes = votes
+        self.n_steps = n_steps
+        self.n_rejected = n_rejected
+
+    def snapshot(self):
+        return [self.h, self.stiff, self.votes, self.n_steps, self.n_rejected]
+
+    @classmethod
+    def from_snapshot(cls, rtol, values):
+        return cls(rtol, *values)
+
+    def step(self, t0, x0, v0, mode, v_drive, F_ext, p):
+        """One accepted step from ``(t0, x0, v0)``; returns ``(step, ends_in_event)``.
+
+        When the step ends in an event, ``step.x1`` is the position where
+        ``v = v_drive`` (``step.v1`` is within the tolerance of ``v_drive``).
+        """
+
+        def accel(x, v):
+            return slip_acceleration(mode, x, v, v_drive, F_ext, p)
+
+        a0 = accel(x0, v0)
+        scale_x, scale_v = _scales(x0, v0, v_drive, F_ext, p)
+        stiffness = max(0.0, -slip_acceleration_slope(mode, v0, v_drive, p))
+        omega0 = math.sqrt(p.kappa / p.M)
+        h_max = 1.0 / omega0
+        if self.h is None:
+            self.h = min(h_max, 0.5 / max(stiffness, omega0) * self.rtol ** 0.2 * 10.0)
+        h = min(self.h, h_max)
+        while True:
+            step = self._try(accel, mode, v_drive, p, x0, v0, a0, h)
+            err = _error_norm(step, x0, v0, self.rtol, scale_x, scale_v)
+            if err <= 1.0 and math.isfinite(step.x1) and math.isfinite(step.v1):
+                break
+            self.n_rejected += 1
+            shrink = _SAFETY * err ** (-1.0 / step.order) if math.isfinite(err) and err > 0.0 else _MIN_SHRINK
+            h *= max(_MIN_SHRINK, min(shrink, 1.0))
+            if h <= 1e-15 * max(1.0, abs(t0)) or h < 1e-300:
+                raise SolverError(
+                    f"step size underflow at t = {t0!r} s in slip mode {mode:+d}: "
+                    f"the slip dynamics are too stiff or singular for rtol = {self.rtol:g}"
+                )
+        self.n_steps += 1
+        grow = _SAFETY * err ** (-1.0 / step.order) if err > 0.0 else _MAX_GROWTH
+        self.h = h * max(_MIN_SHRINK, min(grow, _MAX_GROWTH))
+        self._vote_on_stiffness(h, stiffness)
+        theta = _slip_end(step.cv, mode, v_drive)
+        if theta is None:
+            return step, False
+        return self._try(accel, mode, v_drive, p, x0, v0, a0, theta * h), True
+
+    def _try(self, accel, mode, v_drive, p, x0, v0, a0, h):
+        if not self.stiff:
+            return dopri5_step(accel, x0, v0, a0, h)
+        slope_v = slip_acceleration_slope(mode, v0, v_drive, p)
+        return rosenbrock_step(accel, -p.kappa / p.M, slope_v, x0, v0, a0, h)
+
+    def _vote_on_stiffness(self, h, stiffness):
+        """Switch method after several steps agree that stability, not accuracy, limits ``h``."""
+        if not self.stiff:
+            stiff_now = h * stiffness > 0.8 * _EXPLICIT_STABILITY
+        else:
+            stiff_now = self.h * stiffness > 0.5 * _EXPLICIT_STABILITY
+        self.votes = self.votes + 1 if stiff_now != self.stiff else 0
+        if self.votes >= _SWITCH_AFTER:
+            self.stiff = not self.stiff
+            self.votes = 0
+
+
+def _scales(x0, v0, v_drive, F_ext, p):
+    """Natural position (m) and velocity (m/s) scales for the absolute tolerance."""
+    scale_x = (p.static.force(0.0) + abs(F_ext)) / p.kappa
+    scale_v = max(abs(v_drive), math.sqrt(p.kappa / p.M) * scale_x)
+    return scale_x, scale_v
+
+
+def _error_norm(step, x0, v0, rtol, scale_x, scale_v):
+    """RMS of the error relative to ``rtol * max(|y|, scale)`` per component."""
+    ex = step.err_x / (rtol * max(abs(x0), abs(step.x1), scale_x))
+    ev = step.err_v / (rtol * max(abs(v0), abs(step.v1), scale_v))
+    return math.sqrt(0.5 * (ex * ex + ev * ev))
+
+
+def _slip_end(cv, mode, v_drive):
+    """First step fraction where ``v`` (dense output ``cv``) reaches ``v_drive`` from the slip side.
+
+    ``g = mode * (v_drive - v)`` is positive while slipping; between
+    consecutive extrema of ``v`` it is monotonic, so its first fall to ``<= 0``
+    is bracketed exactly. A start at ``g = 0`` (right after a breakaway) is not an end.
+    """
+
+    def g(theta):
+        return mode * (v_drive - poly.evaluate(cv, theta))
+
+    breaks = poly.monotone_breaks(cv)
+    for a, b in zip(breaks, breaks[1:]):
+        ga, gb = g(a), g(b)
+        if ga > 0.0 and gb <= 0.0:
+            return first_crossing(g, a, b, ga, gb)
+    return None

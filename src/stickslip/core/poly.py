@@ -1,0 +1,44 @@
+"""Small polynomials in the step fraction ``theta`` in [0, 1], as coefficient lists (lowest first)."""
+
+from .rootfind import brent
+
+
+def evaluate(coeffs, theta):
+    """``sum(c_k theta^k)`` by Horner's rule."""
+    result = 0.0
+    for c in reversed(coeffs):
+        result = result * theta + c
+    return result
+
+
+def derivative(coeffs):
+    """Coefficients of ``d/dtheta``."""
+    return [k * c for k, c in enumerate(coeffs)][1:]
+
+
+def monotone_breaks(coeffs, a=0.0, b=1.0):
+    """Sorted points ``a = p0 < p1 < ... = b`` between which the polynomial is monotonic.
+
+    The interior points are the real roots of the derivative in ``(a, b)``,
+    found recursively (each derivative is split where its own derivative
+    vanishes, so every root is bracketed exactly: no sampling, no missed pair).
+    """
+    return [a] + _roots(derivative(coeffs), a, b) + [b]
+
+
+def _roots(coeffs, a, b):
+    """Real roots of the polynomial strictly inside ``(a, b)`` where it changes sign."""
+    while coeffs and coeffs[-1] == 0.0:
+        coeffs = coeffs[:-1]
+    if len(coeffs) < 2:
+        return []
+    if len(coeffs) == 2:
+        root = -coeffs[0] / coeffs[1]
+        return [root] if a < root < b else []
+    points = [a] + _roots(derivative(coeffs), a, b) + [b]
+    roots = []
+    for left, right in zip(points, points[1:]):
+        f_left, f_right = evaluate(coeffs, left), evaluate(coeffs, right)
+        if (f_left < 0.0 < f_right) or (f_right < 0.0 < f_left):
+            roots.append(brent(lambda th: evaluate(coeffs, th), left, right, f_left, f_right))
+    return roots

@@ -1,0 +1,117 @@
+"""Pieces of a trajectory between consecutive events or solver steps.
+
+A segment starts at ``t0`` in one ``mode`` with the inputs held constant, and
+reaches to ``t1`` (``inf`` when nothing ever ends it). ``ends_in_event`` says
+whether a mode transition is due at ``t1`` (breakaway when stuck, ``v_rel = 0``
+when slipping); otherwise the next segment just continues from ``t1``.
+Each segment evaluates ``(x, v)`` anywhere in ``[t0, t1]`` and serializes to a
+list of numbers (``kind`` first) so a trajectory can be saved and restored bit for bit.
+"""
+
+import math
+
+from . import poly
+from .linear_slip import HarmonicSlip
+from .model import STUCK
+
+
+class StuckSegment:
+    """Stuck: ``x = x0 + v_drive (t - t0)``, ``v = v_drive``, ``t_stick = t_stick0 + t - t0``."""
+
+    KIND = "stuck"
+    __slots__ = ("t0", "t1", "ends_in_event", "x0", "v_drive", "t_stick0")
+    mode = STUCK
+
+    def __init__(self, t0, t1, ends_in_event, x0, v_drive, t_stick0):
+        self.t0, self.t1, self.ends_in_event = t0, t1, ends_in_event
+        self.x0, self.v_drive, self.t_stick0 = x0, v_drive, t_stick0
+
+    def state(self, t):
+        return self.x0 + self.v_drive * (t - self.t0), self.v_drive
+
+    def t_stick(self, t):
+        return self.t_stick0 + (t - self.t0)
+
+    def end_state(self):
+        return self.state(self.t1)
+
+    def to_list(self):
+        return [self.KIND, self.t0, self.t1, self.ends_in_event, self.x0, self.v_drive, self.t_stick0]
+
+
+class HarmonicSegment:
+    """Slip under an affine kinetic law, in closed form (see :mod:`.linear_slip`)."""
+
+    KIND = "harmonic"
+    __slots__ = ("t0", "t1", "ends_in_event", "mode", "x0", "v0", "v_drive", "F_ext", "motion")
+
+    def __init__(self, t0, t1, ends_in_event, mode, x0, v0, v_drive, F_ext, p):
+        self.t0, self.t1, self.ends_in_event = t0, t1, ends_in_event
+        self.mode, self.x0, self.v0, self.v_drive, self.F_ext = mode, x0, v0, v_drive, F_ext
+        self.motion = HarmonicSlip(mode, x0, v0, v_drive, F_ext, p)
+
+    @classmethod
+    def start(cls, t0, mode, x0, v0, v_drive, F_ext, p):
+        """The slip from ``(t0, x0, v0)`` up to its end (``v = v_drive``) or forever."""
+        segment = cls(t0, math.inf, False, mode, x0, v0, v_drive, F_ext, p)
+        delay = segment.motion.stick_delay(mode, v_drive)
+        if delay is not None:
+            segment.t1, segment.ends_in_event = t0 + delay, True
+        return segment
+
+    def state(self, t):
+        return self.motion.state(t - self.t0)
+
+    def t_stick(self, t):
+        return 0.0
+
+    def end_state(self):
+        x, v = self.state(self.t1)
+        return (x, self.v_drive) if self.ends_in_event else (x, v)
+
+    def to_list(self):
+        return [self.KIND, self.t0, self.t1, self.ends_in_event, self.mode, self.x0, self.v0, self.v_drive, self.F_ext]
+
+
+class StepSegment:
+    """One Runge-Kutta step of a slip under a general law; ``(x, v)`` from its dense output."""
+
+    KIND = "step"
+    __slots__ = ("t0", "t1", "ends_in_event", "mode", "h", "cx", "cv", "x1", "v1")
+
+    def __init__(self, t0, t1, ends_in_event, mode, h, cx, cv, x1, v1):
+        self.t0, self.t1, self.ends_in_event = t0, t1, ends_in_event
+        self.mode, self.h, self.cx, self.cv = mode, h, list(cx), list(cv)
+        self.x1, self.v1 = x1, v1
+
+    @classmethod
+    def from_step(cls, t0, mode, step, ends_in_event, v_drive):
+        v1 = v_drive if ends_in_event else step.v1
+        return cls(t0, t0 + step.h, ends_in_event, mode, step.h, step.cx, step.cv, step.x1, v1)
+
+    def state(self, t):
+        if t == self.t1:
+            return self.x1, self.v1
+        theta = (t - self.t0) / self.h
+        return poly.evaluate(self.cx, theta), poly.evaluate(self.cv, theta)
+
+    def t_stick(self, t):
+        return 0.0
+
+    def end_state(self):
+        return self.x1, self.v1
+
+    def to_list(self):
+        return [self.KIND, self.t0, self.t1, self.ends_in_event, self.mode, self.h, self.cx, self.cv, self.x1, self.v1]
+
+
+def segment_from_list(values, p):
+    """Rebuild a segment from :meth:`to_list` output."""
+    kind, *fields = values
+    if kind == StuckSegment.KIND:
+        return StuckSegment(*fields)
+    if kind == HarmonicSegment.KIND:
+        return HarmonicSegment(*fields, p)
+    if kind == StepSegment.KIND:
+        return StepSegment(*fields)
+    raise ValueError(f"unknown segment kind {kind!r} in a saved trajectory state")

@@ -1,0 +1,248 @@
+"""The stepper's public face: a trajectory of the hybrid model that advances in time.
+
+Usage (the whole contract the FMU slave and the Python API rely on)::
+
+    traj = Trajectory(params, x0, v0, v_drive=0.1, F_ext=0.0, t0=0.0, rtol=1e-10)
+    traj.set_inputs(v_drive, F_ext)   # inputs held constant from now on; no-op if unchanged
+    traj.advance_to(t)                # t >= traj.t; processes every event up to and at t
+    traj.x, traj.v, traj.mode, ...    # state at traj.t (see the properties below)
+    snap = traj.snapshot()            # JSON-serializable dict, exact floats
+    traj = Trajectory.from_snapshot(params, snap)   # continues bit for bit
+
+Internally the trajectory is a chain of segments (:mod:`.segments`): a stuck
+phase or an affine slip (closed form, up to the next event), or one step of a
+Runge-Kutta method with dense output. The current segment may reach beyond
+``traj.t``; values at ``traj.t`` come from its closed form or dense output, so
+the result at a time does not depend on how the caller slices time, only on
+when the inputs change.
+"""
+
+import math
+
+from .errors import SolverError
+from .model import (
+    STUCK,
+    breakaway_direction,
+    check_inputs,
+    check_state,
+    friction_force,
+    initial_mode,
+    mode_after_input_change,
+    mode_at_zero_v_rel,
+    z_slip,
+)
+from .numeric_slip import SlipStepper
+from .ranges import Range, check
+from .segments import HarmonicSegment, StepSegment, StuckSegment, segment_from_list
+from .stuck import breakaway_delay
+
+RTOL_RANGE = Range(1e-14, 1e-2)
+_MAX_EVENT_CHAIN = 100  # mode changes in a row without time advancing
+_STUCK_HORIZON_PERIODS = 1e6  # an aging stick is searched for a breakaway this far ahead, then re-searched
+
+
+class Trajectory:
+    """Solution of the hybrid spring-block model with piecewise-constant inputs."""
+
+    def __init__(self, params, x0, v0, v_drive=0.0, F_ext=0.0, t0=0.0, rtol=1e-10):
+        params.check()
+        check_state(x0, v0)
+        check_inputs(v_drive, F_ext)
+        check("solver.rtol", rtol, RTOL_RANGE)
+        self.params = params
+        self.rtol = float(rtol)
+        self.t = float(t0)
+        self.v_drive = float(v_drive)
+        self.F_ext = float(F_ext)
+        self.n_stick_events = 0
+        self.n_slip_events = 0
+        self.n_overshoots = 0
+        self.t_last_event = math.nan
+        self._chain = 0
+        self._stepper = SlipStepper(self.rtol)
+        mode = initial_mode(x0, v0, self.v_drive, self.F_ext, params)
+        self._segment = self._start_segment(self.t, x0, v0, mode, 0.0)
+        self._x, self._v = self._segment.state(self.t)
+
+    # ------------------------------------------------------------------
+    # driving
+    # ------------------------------------------------------------------
+
+    def set_inputs(self, v_drive, F_ext):
+        """Hold new inputs from ``self.t`` on; a stuck block moves with the new surface speed."""
+        if v_drive == self.v_drive and F_ext == self.F_ext:
+            return
+        check_inputs(v_drive, F_ext)
+        segment = self._segment
+        t_stick = segment.t_stick(self.t)
+        old_mode = segment.mode
+        new_mode = mode_after_input_change(old_mode, self._x, self._v, t_stick, v_drive, F_ext, self.params)
+        self.v_drive, self.F_ext = float(v_drive), float(F_ext)
+        v = self.v_drive if new_mode == STUCK or old_mode == STUCK else self._v
+        if new_mode != old_mode:
+            self._count_event(old_mode, new_mode)
+        if new_mode != STUCK or old_mode != STUCK:
+            t_stick = 0.0
+        self._segment = self._start_segment(self.t, self._x, v, new_mode, t_stick)
+        self._x, self._v = self._segment.state(self.t)
+
+    def advance_to(self, t):
+        """Advance to time ``t >= self.t`` (s), through every event up to and at ``t``."""
+        if not t >= self.t:
+            raise SolverError(f"cannot advance from t = {self.t!r} s back to t = {t!r} s")
+        while self._segment.t1 <= t:
+            self._finish_segment()
+        self.t = float(t)
+        self._x, self._v = self._segment.state(self.t)
+        if not (math.isfinite(self._x) and math.isfinite(self._v)):
+            raise SolverError(f"the state overflowed at t = {self.t!r} s (x = {self._x!r}, v = {self._v!r})")
+
+    # ------------------------------------------------------------------
+    # state and outputs at self.t
+    # ------------------------------------------------------------------
+
+    @property
+    def x(self):
+        """Block position (m) from the spring's relaxed length."""
+        return self._x
+
+    @property
+    def v(self):
+        """Block velocity (m/s)."""
+        return self._v
+
+    @property
+    def mode(self):
+        """+1 slipping forward (v < v_drive), 0 stuck, -1 slipping backward."""
+        return self._segment.mode
+
+    @property
+    def t_stick(self):
+        """Time (s) since the current stick began; 0 while slipping."""
+        return self._segment.t_stick(self.t)
+
+    @property
+    def v_rel(self):
+        """Relative sliding velocity ``v_drive - v`` (m/s); exactly 0 while stuck."""
+        return 0.0 if self.mode == STUCK else self.v_drive - self._v
+
+    @property
+    def friction_force(self):
+        """Friction force of the surface on the block (N, + along x)."""
+        return friction_force(self.mode, self._x, self._v, self.v_drive, self.F_ext, self.params)
+
+    @property
+    def spring_force(self):
+        """Spring force on the block (N): ``-kappa x``."""
+        return -self.params.kappa * self._x
+
+    @property
+    def z_slip(self):
+        """Stick-to-slip indicator (N): ``F_S(t_stick) - |kappa x - F_ext|``."""
+        return z_slip(self._x, self.F_ext, self.t_stick, self.params)
+
+    @property
+    def z_stick(self):
+        """Slip-to-stick indicator (m/s): ``v_rel``."""
+        return self.v_rel
+
+    @property
+    def n_events(self):
+        """Mode changes since the start."""
+        return self.n_stick_events + self.n_slip_events + self.n_overshoots
+
+    @property
+    def n_steps(self):
+        """Runge-Kutta steps taken (closed-form phases take none)."""
+        return self._stepper.n_steps
+
+    # ------------------------------------------------------------------
+    # save and restore
+    # ------------------------------------------------------------------
+
+    def snapshot(self):
+        """Everything needed to continue bit for bit, as JSON-serializable values."""
+        return {
+            "t": self.t,
+            "v_drive": self.v_drive,
+            "F_ext": self.F_ext,
+            "rtol": self.rtol,
+            "counts": [self.n_stick_events, self.n_slip_events, self.n_overshoots, self._chain],
+            "t_last_event": self.t_last_event,
+            "stepper": self._stepper.snapshot(),
+            "segment": self._segment.to_list(),
+        }
+
+    @classmethod
+    def from_snapshot(cls, params, snap):
+        """Rebuild a trajectory saved by :meth:`snapshot` (with the same parameters)."""
+        traj = cls.__new__(cls)
+        traj.params = params
+        traj.rtol = snap["rtol"]
+        traj.t = snap["t"]
+        traj.v_drive = snap["v_drive"]
+        traj.F_ext = snap["F_ext"]
+        traj.n_stick_events, traj.n_slip_events, traj.n_overshoots, traj._chain = snap["counts"]
+        traj.t_last_event = snap["t_last_event"]
+        traj._stepper = SlipStepper.from_snapshot(traj.rtol, snap["stepper"])
+        traj._segment = segment_from_list(snap["segment"], params)
+        traj._x, traj._v = traj._segment.state(traj.t)
+        return traj
+
+    # ------------------------------------------------------------------
+    # segments and transitions
+    # ------------------------------------------------------------------
+
+    def _finish_segment(self):
+        """Move to the end of the current segment, apply its event, start the next one."""
+        segment = self._segment
+        t1 = segment.t1
+        x1, v1 = segment.end_state()
+        mode = segment.mode
+        t_stick = segment.t_stick(t1)
+        if segment.ends_in_event:
+            new_mode = (
+                breakaway_direction(x1, self.F_ext, self.params)
+                if mode == STUCK
+                else mode_at_zero_v_rel(x1, self.F_ext, self.params)
+            )
+            self._check_chain(t1, segment.t0, new_mode)
+            self._count_event(mode, new_mode)
+            self.t_last_event = t1
+            mode, t_stick = new_mode, 0.0
+        self._segment = self._start_segment(t1, x1, v1, mode, t_stick)
+
+    def _start_segment(self, t0, x0, v0, mode, t_stick):
+        p = self.params
+        if mode == STUCK:
+            horizon = _STUCK_HORIZON_PERIODS * math.sqrt(p.M / p.kappa)
+            delay = breakaway_delay(x0, self.v_drive, self.F_ext, t_stick, p, horizon)
+            if delay is not None:
+                return StuckSegment(t0, t0 + delay, True, x0, self.v_drive, t_stick)
+            t1 = math.inf if p.static.is_constant() else t0 + horizon
+            return StuckSegment(t0, t1, False, x0, self.v_drive, t_stick)
+        if p.kinetic.affine() is not None:
+            return HarmonicSegment.start(t0, mode, x0, v0, self.v_drive, self.F_ext, p)
+        step, ends_in_event = self._stepper.step(t0, x0, v0, mode, self.v_drive, self.F_ext, p)
+        return StepSegment.from_step(t0, mode, step, ends_in_event, self.v_drive)
+
+    def _count_event(self, old_mode, new_mode):
+        if new_mode == STUCK:
+            self.n_stick_events += 1
+        elif old_mode == STUCK:
+            self.n_slip_events += 1
+        else:
+            self.n_overshoots += 1
+
+    def _check_chain(self, t_event, t_segment_start, new_mode):
+        """Guard against endless event chains at one instant (never hang)."""
+        if t_event - t_segment_start > 1e-13 * max(1.0, abs(t_event)):
+            self._chain = 0
+            return
+        self._chain += 1
+        if self._chain > _MAX_EVENT_CHAIN:
+            raise SolverError(
+                f"event chain at t = {t_event!r} s: more than {_MAX_EVENT_CHAIN} mode changes without time "
+                f"advancing (now entering mode {new_mode:+d}); the contact cannot decide between sticking "
+                f"and slipping; check that F_K(0+) < F_S(0) and the inputs"
+            )

@@ -1,0 +1,112 @@
+"""Friction laws: values, derivatives against finite differences, validation messages."""
+
+import math
+
+import pytest
+
+from stickslip.core import ParameterError, Parameters, kinetic_law, static_law
+from stickslip.core.laws import KINETIC_LAWS, STATIC_LAWS, CallableKinetic, Coulomb, Constant
+
+KINETIC_CASES = {
+    "coulomb": {"F0": 0.4},
+    "viscous": {"F0": 0.4, "gamma": 0.3},
+    "stribeck": {"F0": 0.4, "F_stribeck": 0.3, "v_stribeck": 0.2, "delta": 2.0, "gamma": 0.1},
+    "lubricated": {"gamma1": 3.0, "gamma2": 0.1, "v_tilde": 0.2, "dv": 0.05},
+}
+STATIC_CASES = {
+    "constant": {"F0": 1.0},
+    "logarithmic": {"F0": 1.0, "A": 0.2, "tau": 0.5},
+    "saturating": {"F0": 1.0, "F_inf": 1.6, "tau": 2.0},
+    "sigmoid": {"F0": 1.0, "F_inf": 1.6, "tau": 2.0, "n": 3.0},
+}
+
+
+def _central_difference(f, x, h=1e-6):
+    return (f(x + h) - f(x - h)) / (2 * h)
+
+
+@pytest.mark.parametrize("name", KINETIC_CASES)
+def test_kinetic_slope_is_the_derivative(name):
+    law = kinetic_law(name, **KINETIC_CASES[name])
+    for u in (0.01, 0.1, 0.2, 0.35, 1.0, 3.0):
+        assert law.slope(u) == pytest.approx(_central_difference(law.force, u), rel=1e-6, abs=1e-8)
+
+
+@pytest.mark.parametrize("name", STATIC_CASES)
+def test_static_rate_and_curvature_are_the_derivatives(name):
+    law = static_law(name, **STATIC_CASES[name])
+    for t in (0.05, 0.5, 1.0, 2.0, 7.0):
+        assert law.rate(t) == pytest.approx(_central_difference(law.force, t), rel=1e-6, abs=1e-9)
+        assert law.curvature(t) == pytest.approx(_central_difference(law.rate, t), rel=1e-5, abs=1e-8)
+
+
+def test_kinetic_values_follow_the_spec_formulas():
+    u = 0.37
+    assert kinetic_law(1, F0=0.4).force(u) == 0.4
+    assert kinetic_law(2, F0=0.4, gamma=0.3).force(u) == pytest.approx(0.4 + 0.3 * u)
+    stribeck = kinetic_law(3, **KINETIC_CASES["stribeck"])
+    assert stribeck.force(u) == pytest.approx(0.4 + 0.3 * math.exp(-((u / 0.2) ** 2)) + 0.1 * u)
+    lub = kinetic_law(4, **KINETIC_CASES["lubricated"])
+    w = u - 0.2
+    assert lub.force(u) == pytest.approx(u * (3.1 + (0.1 - 3.0) * w / math.sqrt(0.05**2 + w * w)) / 2)
+    assert lub.force(0.0) == 0.0
+
+
+def test_static_values_follow_the_spec_formulas():
+    t = 1.3
+    assert static_law(2, F0=1, A=0.2, tau=0.5).force(t) == pytest.approx(1 + 0.2 * math.log(1 + t / 0.5))
+    assert static_law(3, F0=1, F_inf=1.6, tau=2).force(t) == pytest.approx(1 + 0.6 * (1 - math.exp(-t / 2)))
+    assert static_law(4, F0=1, F_inf=1.6, tau=2, n=3).force(t) == pytest.approx(1 + 0.6 * t**3 / (8 + t**3))
+
+
+def test_sigmoid_convexity_break_is_the_inflection():
+    law = static_law("sigmoid", **STATIC_CASES["sigmoid"])
+    (t_inflection,) = law.convexity_breaks()
+    assert law.curvature(t_inflection * 0.99) > 0 > law.curvature(t_inflection * 1.01)
+
+
+def test_affine_laws_report_their_coefficients():
+    assert kinetic_law("viscous", F0=0.4, gamma=0.3).affine() == (0.4, 0.3)
+    assert kinetic_law("stribeck", F0=0.4, F_stribeck=0.0, v_stribeck=0.1).affine() == (0.4, 0.0)
+    assert kinetic_law("lubricated").affine() is None
+
+
+def test_law_tables_have_spec_codes():
+    assert [KINETIC_LAWS[c].NAME for c in (1, 2, 3, 4)] == ["coulomb", "viscous", "stribeck", "lubricated"]
+    assert [STATIC_LAWS[c].NAME for c in (1, 2, 3, 4)] == ["constant", "logarithmic", "saturating", "sigmoid"]
+
+
+@pytest.mark.parametrize(
+    "build, name",
+    [
+        (lambda: Parameters(-1, 1, Coulomb(F0=0.5), Constant(F0=1)), "M"),
+        (lambda: Parameters(1, 0, Coulomb(F0=0.5), Constant(F0=1)), "kappa"),
+        (lambda: Parameters(math.nan, 1, Coulomb(F0=0.5), Constant(F0=1)), "M"),
+        (lambda: Parameters(1, math.inf, Coulomb(F0=0.5), Constant(F0=1)), "kappa"),
+        (lambda: Parameters(1, 1, Coulomb(F0=-0.1), Constant(F0=1)), "kinetic.F0"),
+        (lambda: Parameters(1, 1, kinetic_law(3, v_stribeck=0.0), Constant(F0=1)), "kinetic.v_stribeck"),
+        (lambda: Parameters(1, 1, kinetic_law(4, dv=-1.0), Constant(F0=1)), "kinetic.dv"),
+        (lambda: Parameters(1, 1, Coulomb(F0=0.5), static_law(2, tau=-1.0)), "static.tau"),
+        (lambda: Parameters(1, 1, Coulomb(F0=0.5), static_law(4, n=0.0)), "static.n"),
+        (lambda: Parameters(1, 1, Coulomb(F0=1.5), Constant(F0=1)), "F_K(0+)"),
+    ],
+)
+def test_invalid_parameters_name_the_parameter_and_range(build, name):
+    with pytest.raises(ParameterError) as info:
+        build().check()
+    message = str(info.value)
+    assert name in message
+    assert "allowed" in message
+
+
+@pytest.mark.parametrize("table_lookup", [lambda: kinetic_law(7), lambda: static_law("glue")])
+def test_unknown_law_codes_list_the_allowed_ones(table_lookup):
+    with pytest.raises(ParameterError, match="allowed are 1 .*4"):
+        table_lookup()
+
+
+def test_callable_law_is_accepted_and_checked():
+    law = CallableKinetic(lambda u: 0.3 + 0.1 * u, lambda u: 0.1)
+    Parameters(1, 1, law, Constant(F0=1)).check()
+    with pytest.raises(ParameterError, match="kinetic law callable"):
+        CallableKinetic(lambda u: -1.0, lambda u: 0.0).check()

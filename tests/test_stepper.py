@@ -1,0 +1,242 @@
+"""The exact stepper (stickslip.core.Trajectory) against closed forms and tight scipy runs."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+from stickslip.core import (
+    FORWARD,
+    STUCK,
+    BACKWARD,
+    Constant,
+    Coulomb,
+    Logarithmic,
+    Lubricated,
+    Parameters,
+    Sigmoid,
+    SolverError,
+    Stribeck,
+    Trajectory,
+    Viscous,
+)
+from stickslip.core import poly
+from stickslip.core.integrators import dopri5_step
+from stickslip.core.numeric_slip import _slip_end
+
+
+def event_log(traj, t_end, dt):
+    """(time, mode after) of every event, sampling the trajectory every dt."""
+    events, seen = [], traj.n_events
+    for k in range(1, int(round(t_end / dt)) + 1):
+        traj.advance_to(k * dt)
+        if traj.n_events != seen:
+            assert traj.n_events == seen + 1, "sampling too coarse to see every event"
+            events.append((traj.t_last_event, traj.mode))
+            seen = traj.n_events
+    return events
+
+
+def test_coulomb_stick_and_slip_durations_are_the_closed_form():
+    F_S, F_K, kappa, M, vd = 1.0, 0.3, 2.0, 0.5, 0.2
+    traj = Trajectory(Parameters(M, kappa, Coulomb(F0=F_K), Constant(F0=F_S)), F_S / kappa - 1e-3, vd, v_drive=vd)
+    events = event_log(traj, 60.0, 0.01)
+    omega = math.sqrt(kappa / M)
+    # slip from (y, v) = ((F_S - F_K)/kappa, vd) about F_K/kappa until v = vd again, at y = -(F_S - F_K)/kappa
+    y0 = (F_S - F_K) / kappa
+    phase0, phase1 = math.atan2(-vd / omega, y0), math.atan2(-vd / omega, -y0)
+    slip_time = ((phase1 - phase0) % (2 * math.pi)) / omega
+    stick_time = 2 * (F_S - F_K) / (kappa * vd)
+    durations = np.diff([t for t, _ in events])
+    modes = [m for _, m in events]
+    assert modes[:4] == [FORWARD, STUCK, FORWARD, STUCK]
+    for (t_a, mode), duration in zip(events, durations):
+        expected = slip_time if mode == FORWARD else stick_time
+        assert duration == pytest.approx(expected, rel=1e-12)
+    assert len(events) >= 8
+
+
+def test_coulomb_stick_position_is_2FK_minus_FS():
+    F_S, F_K = 1.0, 0.3
+    traj = Trajectory(Parameters(1.0, 1.0, Coulomb(F0=F_K), Constant(F0=F_S)), F_S, 0.1, v_drive=0.1)
+    traj.advance_to(0.0)
+    assert traj.mode == FORWARD  # holding force exactly F_S: the contact gives (strict >) only after
+    traj.advance_to(10.0)  # slip ~3.9 s, then a stick of 2 (F_S - F_K)/(kappa v_drive) = 14 s
+    stick_start = traj.t_last_event
+    assert traj.mode == STUCK
+    assert traj.x - 0.1 * (10.0 - stick_start) == pytest.approx(2 * F_K - F_S, abs=1e-13)
+
+
+@pytest.mark.parametrize("gamma", [0.3, 2.0, 2 * math.sqrt(2.0), 5.0])  # under-, critically near, over-damped
+def test_viscous_slip_is_the_damped_harmonic_solution(gamma):
+    M, kappa, F0, vd, x0 = 0.5, 1.0, 0.2, 0.05, 3.0
+    p = Parameters(M, kappa, Viscous(F0=F0, gamma=gamma), Constant(F0=4.0))
+    traj = Trajectory(p, x0, 0.0, v_drive=vd)  # v < vd: mode +1, the spring pulls the block back
+    xc = (F0 + gamma * vd) / kappa
+    rhs = lambda t, y: [y[1], (-kappa * y[0] - gamma * y[1] + F0 + gamma * vd) / M]
+    ts = np.linspace(0, 4.0, 41)
+    exact = solve_ivp(rhs, (0, 4.0), [x0, 0.0], t_eval=ts, rtol=1e-13, atol=1e-15, method="DOP853")
+    for t, x_ref in zip(ts, exact.y[0]):
+        traj.advance_to(t)
+        if traj.n_events:
+            break
+        assert traj.x == pytest.approx(x_ref, abs=1e-11 * (1 + abs(x0 - xc)))
+
+
+def test_damped_slip_ends_where_the_formula_says():
+    """Underdamped viscous slip from rest: the end time solves v(t) = v_drive in closed form."""
+    M, kappa, F0, gamma, vd, x0 = 1.0, 1.0, 0.3, 0.4, 0.1, 2.0
+    traj = Trajectory(Parameters(M, kappa, Viscous(F0=F0, gamma=gamma), Constant(F0=1.0)), x0, 0.0, v_drive=vd)
+    alpha, w = gamma / (2 * M), math.sqrt(kappa / M - (gamma / (2 * M)) ** 2)
+    y0 = x0 - (F0 + gamma * vd) / kappa
+    velocity = lambda t: -y0 * (kappa / M) / w * math.exp(-alpha * t) * math.sin(w * t)
+    t_peak = (math.pi + math.atan(w / alpha)) / w  # the first positive velocity maximum
+    t_end = brentq(lambda t: velocity(t) - vd, math.pi / w, t_peak)
+    events = event_log(traj, 8.0, 0.01)
+    assert events[0][0] == pytest.approx(t_end, rel=1e-12)
+
+
+def test_logarithmic_aging_breakaway_time_solves_FS_equals_holding_force():
+    F0, A, tau, vd = 1.0, 0.2, 0.5, 0.1
+    p = Parameters(1.0, 1.0, Coulomb(F0=0.5), Logarithmic(F0=F0, A=A, tau=tau))
+    traj = Trajectory(p, 0.0, vd, v_drive=vd)
+    assert traj.mode == STUCK
+    t_break = brentq(lambda t: F0 + A * math.log1p(t / tau) - vd * t, 1e-9, 100.0)
+    events = event_log(traj, 25.0, 0.01)
+    assert events[0] == (pytest.approx(t_break, rel=1e-13), FORWARD)
+
+
+def test_sigmoid_aging_tangential_dip_is_not_missed():
+    """With a non-convex F_S the holding force may exceed it only briefly: breakaway there."""
+    law = Sigmoid(F0=1.0, F_inf=3.0, tau=10.0, n=4.0)
+    vd = 0.1
+    # holding force x(t) = x0 + vd t; choose x0 so it touches F_S near the inflection from below, then crosses
+    dip = lambda x0: min(law.force(t) - (x0 + vd * t) for t in np.linspace(0, 20, 20001))
+    x0 = brentq(lambda x0: dip(x0) + 1e-7, 0.0, 1.0)
+    traj = Trajectory(Parameters(1.0, 1.0, Coulomb(F0=0.5), law), x0, vd, v_drive=vd)
+    events = event_log(traj, 30.0, 0.05)
+    t_first_negative = next(t for t in np.linspace(0, 20, 200001) if law.force(t) - (x0 + vd * t) < 0)
+    assert events[0][1] == FORWARD
+    assert events[0][0] == pytest.approx(t_first_negative, abs=1e-3)
+
+
+def test_graze_inside_one_step_is_found_on_the_dense_output():
+    """v peaks just above v_drive in mid-step: the step-end signs agree, the crossing is still found."""
+    cv = [0.0, 0.4, -0.4]  # v(theta) peaks at 0.1 at theta = 0.5
+    vd = 0.1 - 1e-12
+    assert vd - poly.evaluate(cv, 0.0) > 0 and vd - poly.evaluate(cv, 1.0) > 0  # a sign-only check sees nothing
+    theta = _slip_end(cv, FORWARD, vd)
+    assert theta is not None and 0.49 < theta < 0.5
+    assert _slip_end(cv, FORWARD, 0.1 + 1e-12) is None
+
+
+def test_graze_in_a_numeric_slip_sticks():
+    """Stribeck slip whose velocity maximum exceeds v_drive by 1e-9 for a moment: the block sticks."""
+    law = Stribeck(F0=0.3, F_stribeck=0.2, v_stribeck=0.3, delta=2.0, gamma=0.05)
+    x0 = -2.5  # released behind the spring's rest length: pushed forward towards the surface speed
+
+    def peak(vd):
+        """(time, velocity) of the first velocity maximum of the forward slip from rest."""
+        rhs = lambda t, y: [y[1], -y[0] + law.force(vd - y[1])]
+        sol = solve_ivp(rhs, (0, 3.0), [x0, 0.0], rtol=1e-13, atol=1e-15, method="DOP853", dense_output=True)
+        t_peak = brentq(lambda t: rhs(t, sol.sol(t))[1], 0.5, 3.0, xtol=1e-15)
+        return t_peak, sol.sol(t_peak)[1]
+
+    vd = brentq(lambda vd: peak(vd)[1] - vd - 1e-9, 1.0, 5.0, xtol=1e-14)
+    t_peak, v_peak = peak(vd)
+    assert 0 < v_peak - vd < 2e-9  # v_rel < 0 for only ~1e-4 s around t_peak
+    traj = Trajectory(Parameters(1.0, 1.0, law, Constant(F0=3.0)), x0, 0.0, v_drive=vd, rtol=1e-12)
+    traj.advance_to(t_peak + 0.01)
+    assert traj.n_stick_events == 1 and traj.mode == STUCK
+    assert traj.t_last_event == pytest.approx(t_peak, abs=1e-3)
+
+
+def test_overshoot_is_not_mistaken_for_sticking():
+    """F_S/F_K = 20 and a far-stretched spring: the block swings through v_rel = 0 without sticking."""
+    p = Parameters(1.0, 1.0, Coulomb(F0=0.045), Constant(F0=1.0))
+    traj = Trajectory(p, 5.0, 0.0, v_drive=0.0)  # released 5 F_S/kappa away on a still surface
+    events = event_log(traj, 150.0, 0.01)
+    # each half swing (pi s) loses 2 F_K/kappa = 0.09 of amplitude: turning points 5, -4.91, 4.82, ...
+    # overshoot while |x| > F_S/kappa = 1, stick at the first turning point inside: |x| = 5 - 45 * 0.09 = 0.95
+    assert [mode for _, mode in events] == [BACKWARD, FORWARD] * 22 + [STUCK]
+    for k, (t, _) in enumerate(events):
+        assert t == pytest.approx((k + 1) * math.pi, rel=1e-12)
+    assert traj.x == pytest.approx(-0.95, abs=1e-12)
+
+
+def test_drive_velocity_jump_while_stuck_carries_the_block():
+    p = Parameters(1.0, 1.0, Coulomb(F0=0.5), Constant(F0=1.0))
+    traj = Trajectory(p, 0.0, 0.1, v_drive=0.1)
+    traj.advance_to(1.0)
+    traj.set_inputs(0.3, 0.0)
+    assert traj.mode == STUCK and traj.v == 0.3
+    traj.advance_to(2.0)
+    assert traj.x == pytest.approx(0.1 + 0.3, abs=1e-15)
+    assert traj.n_events == 0
+
+
+def test_force_jump_breaks_the_stick_and_drive_reversal_flips_the_slip():
+    p = Parameters(1.0, 1.0, Coulomb(F0=0.5), Constant(F0=1.0))
+    traj = Trajectory(p, 0.0, 0.1, v_drive=0.1)
+    traj.set_inputs(0.1, 1.5)  # external force beyond F_S pushes the block forward
+    assert traj.mode == BACKWARD and traj.n_slip_events == 1
+    traj.advance_to(0.5)
+    traj.set_inputs(5.0, 1.5)  # the surface now runs faster than the block
+    assert traj.mode == FORWARD and traj.n_overshoots == 1
+
+
+def test_result_does_not_depend_on_the_communication_step():
+    for law in (Coulomb(F0=0.5), Lubricated()):
+        p = Parameters(40.0 if isinstance(law, Lubricated) else 1.0, 1.0, law, Constant(F0=1.0))
+        fine, coarse = Trajectory(p, 0.0, 0.0, v_drive=0.3), Trajectory(p, 0.0, 0.0, v_drive=0.3)
+        for k in range(1, 30001):
+            fine.advance_to(k * 1e-2)
+            if k % 1000 == 0:
+                coarse.advance_to(k * 1e-2)
+                assert (fine.x, fine.v, fine.mode) == (coarse.x, coarse.v, coarse.mode)
+
+
+def test_snapshot_restores_the_continuation_bit_for_bit():
+    p = Parameters(40.0, 1.0, Lubricated(), Constant(F0=1.0))
+    traj = Trajectory(p, 0.0, 0.0, v_drive=0.3)
+    traj.advance_to(123.4)
+    saved = json.loads(json.dumps(traj.snapshot()))
+    traj.advance_to(300.0)
+    restored = Trajectory.from_snapshot(p, saved)
+    restored.advance_to(300.0)
+    assert (restored.x, restored.v, restored.mode, restored.n_events) == (traj.x, traj.v, traj.mode, traj.n_events)
+
+
+def test_stiff_overdamped_slip_switches_method_and_stays_accurate():
+    """|F_K'| = 1000 sqrt(kappa M): fast relaxation onto kappa x = F_K(v_rel), then slow drift."""
+    M, vd = 1e-4, 0.3
+    law = Stribeck(F0=0.3, F_stribeck=0.2, v_stribeck=0.1, delta=2.0, gamma=10.0)
+    traj = Trajectory(Parameters(M, 1.0, law, Constant(F0=1.0)), 0.8, 0.0, v_drive=vd, rtol=1e-8)
+    rhs = lambda t, y: [y[1], (-y[0] + law.force(vd - y[1])) / M]
+    ref = solve_ivp(rhs, (0, 1.0), [0.8, 0.0], method="Radau", rtol=1e-12, atol=1e-14, dense_output=True)
+    for t in np.linspace(0.01, 1.0, 100):
+        traj.advance_to(t)
+        assert traj.mode == FORWARD
+        assert traj.x == pytest.approx(ref.sol(t)[0], abs=1e-7)
+    assert traj._stepper.stiff
+    assert traj.n_steps < 2000  # an explicit method would need > 1e4 steps (h < 3.3e-4 by stability)
+
+
+def test_dopri5_step_and_dense_output_converge_at_fifth_order():
+    accel = lambda x, v: -x
+    errors = []
+    for h in (0.2, 0.1):
+        step = dopri5_step(accel, 1.0, 0.0, -1.0, h)
+        errors.append((abs(step.x1 - math.cos(h)), abs(poly.evaluate(step.cx, 0.37) - math.cos(0.37 * h))))
+    assert math.log2(errors[0][0] / errors[1][0]) == pytest.approx(6, abs=0.3)  # local error O(h^6)
+    assert math.log2(errors[0][1] / errors[1][1]) >= 5 - 0.3  # dense output local error O(h^5) or better
+
+
+def test_backwards_time_is_refused():
+    traj = Trajectory(Parameters(1.0, 1.0, Coulomb(F0=0.5), Constant(F0=1.0)), 0.0, 0.0, v_drive=0.1)
+    traj.advance_to(1.0)
+    with pytest.raises(SolverError, match="back"):
+        traj.advance_to(0.5)
