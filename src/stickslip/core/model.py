@@ -11,9 +11,6 @@ block forward, ``v < v_drive``), STUCK (0) and BACKWARD (-1, the block overtakes
 the surface). Transitions are decided from the previous mode.
 """
 
-import math
-
-from .errors import ParameterError
 from .laws import check_pair
 from .ranges import ANY_FINITE, POSITIVE, check
 
@@ -128,9 +125,3 @@ def mode_after_input_change(mode, x, v, t_stick, v_drive, F_ext, p):
         return mode_at_zero_v_rel(x, F_ext, p)
     return FORWARD if v_rel > 0.0 else BACKWARD
 
-
-def require_finite(name, value, time):
-    """Guard the outputs: raise if ``value`` is NaN or infinite (never let one leak)."""
-    if not math.isfinite(value):
-        raise ParameterError(f"{name} became {value!r} at t = {time!r} s; the parameters make the state overflow")
-    return value
