@@ -240,3 +240,11 @@ def test_backwards_time_is_refused():
     traj.advance_to(1.0)
     with pytest.raises(SolverError, match="back"):
         traj.advance_to(0.5)
+
+
+def test_stribeck_with_fractional_exponent_runs_through_its_slip_ends():
+    """Stages near a slip's end probe v_rel slightly past 0, where (u/v_s)^1.5 has no real value."""
+    law = Stribeck(F0=0.4, F_stribeck=0.3, v_stribeck=0.1, delta=1.5, gamma=0.05)
+    traj = Trajectory(Parameters(1.0, 1.0, law, Constant(F0=1.0)), 0.0, 0.0, v_drive=0.2)
+    traj.advance_to(60.0)
+    assert traj.n_stick_events >= 3 and math.isfinite(traj.x)

@@ -58,8 +58,16 @@ def holding_force(x, F_ext, p):
 
 
 def slip_friction(mode, v_rel, p):
-    """Friction force (N) while slipping in ``mode`` (+1 or -1): ``mode * F_K(|v_rel|)``."""
-    return mode * p.kinetic.force(mode * v_rel)
+    """Friction force (N) while slipping in ``mode`` (+1 or -1): ``mode * F_K(mode * v_rel)``.
+
+    Runge-Kutta stages next to a slip's end may probe ``mode * v_rel < 0``
+    slightly; there ``F_K`` is continued by its tangent at 0 (smooth, and
+    defined for every law), which never becomes part of the solution.
+    """
+    u = mode * v_rel
+    if u < 0.0:
+        return mode * (p.kinetic.force(0.0) + p.kinetic.slope(0.0) * u)
+    return mode * p.kinetic.force(u)
 
 
 def slip_acceleration(mode, x, v, v_drive, F_ext, p):
@@ -68,8 +76,8 @@ def slip_acceleration(mode, x, v, v_drive, F_ext, p):
 
 
 def slip_acceleration_slope(mode, v, v_drive, p):
-    """``d(dv/dt)/dv`` (1/s) while slipping: ``-F_K'(|v_rel|)/M``."""
-    return -p.kinetic.slope(mode * (v_drive - v)) / p.M
+    """``d(dv/dt)/dv`` (1/s) while slipping: ``-F_K'(mode * v_rel)/M`` (tangent-continued below 0)."""
+    return -p.kinetic.slope(max(mode * (v_drive - v), 0.0)) / p.M
 
 
 def friction_force(mode, x, v, v_drive, F_ext, p):
