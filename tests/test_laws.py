@@ -67,7 +67,7 @@ def test_sigmoid_convexity_break_is_the_inflection():
 
 def test_affine_laws_report_their_coefficients():
     assert kinetic_law("viscous", F0=0.4, gamma=0.3).affine() == (0.4, 0.3)
-    assert kinetic_law("stribeck", F0=0.4, F_stribeck=0.0, v_stribeck=0.1).affine() == (0.4, 0.0)
+    assert kinetic_law("stribeck", F0=0.4, F_stribeck=0.0, v_stribeck=0.1, gamma=0.0).affine() == (0.4, 0.0)
     assert kinetic_law("lubricated").affine() is None
 
 

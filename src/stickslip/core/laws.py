@@ -119,7 +119,7 @@ class Stribeck(KineticLaw):
         "F_stribeck": (0.3, NON_NEGATIVE, "N"),
         "v_stribeck": (0.1, POSITIVE, "m/s"),
         "delta": (1.0, Range(1.0, 10.0), "1"),
-        "gamma": (0.0, NON_NEGATIVE, "N s/m"),
+        "gamma": (0.1, NON_NEGATIVE, "N s/m"),
     }
 
     def force(self, u):

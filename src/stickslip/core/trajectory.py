@@ -57,7 +57,7 @@ class Trajectory:
         self.n_stick_events = 0
         self.n_slip_events = 0
         self.n_overshoots = 0
-        self.t_last_event = math.nan
+        self.t_last_event = self.t  # the start time until the first event
         self._chain = 0
         self._stepper = SlipStepper(self.rtol)
         mode = initial_mode(x0, v0, self.v_drive, self.F_ext, params)
@@ -81,6 +81,7 @@ class Trajectory:
         v = self.v_drive if new_mode == STUCK or old_mode == STUCK else self._v
         if new_mode != old_mode:
             self._count_event(old_mode, new_mode)
+            self.t_last_event = self.t
         if new_mode != STUCK or old_mode != STUCK:
             t_stick = 0.0
         self._segment = self._start_segment(self.t, self._x, v, new_mode, t_stick)

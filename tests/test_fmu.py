@@ -1,0 +1,302 @@
+"""The SpringBlockFriction FMU as an importer sees it (FMPy): model description, errors, state, stepping."""
+
+import math
+import shutil
+import sys
+import zipfile
+from pathlib import Path
+
+import fmpy
+import numpy as np
+import pytest
+from fmpy.fmi2 import FMU2Slave
+from fmpy.validation import validate_fmu
+
+from stickslip.core import Parameters, StickSlipError, Trajectory, kinetic_law, static_law
+from stickslip.fmu_build import REPO, source_tag
+from stickslip.fmu_driver import FMUError, default_fmu_path, ensure_fmu, run_fmu
+
+STICK_SLIP = {"M": 1.0, "kappa": 1.0, "kinetic.F0": 0.5, "static.F0": 1.0}  # coulomb, stick time 10 s
+STRIBECK = {"kinetic.law": 3, "kinetic.F0": 0.4, "kinetic.F_stribeck": 0.3, "kinetic.v_stribeck": 0.05,
+            "kinetic.gamma": 0.0, "static.F0": 1.0, "M": 1.0, "kappa": 1.0}
+SPEC_VARIABLES = {  # SPEC section 4: name -> (causality, type, unit)
+    "M": ("parameter", "Real", "kg"), "kappa": ("parameter", "Real", "N/m"),
+    "x_start": ("parameter", "Real", "m"), "v_start": ("parameter", "Real", "m/s"),
+    "kinetic.law": ("parameter", "Integer", None), "static.law": ("parameter", "Integer", None),
+    "kinetic.F0": ("parameter", "Real", "N"), "kinetic.gamma": ("parameter", "Real", "N.s/m"),
+    "kinetic.F_stribeck": ("parameter", "Real", "N"), "kinetic.v_stribeck": ("parameter", "Real", "m/s"),
+    "kinetic.delta": ("parameter", "Real", None), "kinetic.gamma1": ("parameter", "Real", "N.s/m"),
+    "kinetic.gamma2": ("parameter", "Real", "N.s/m"), "kinetic.v_tilde": ("parameter", "Real", "m/s"),
+    "kinetic.dv": ("parameter", "Real", "m/s"), "static.F0": ("parameter", "Real", "N"),
+    "static.A": ("parameter", "Real", "N"), "static.tau": ("parameter", "Real", "s"),
+    "static.F_inf": ("parameter", "Real", "N"), "static.n": ("parameter", "Real", None),
+    "v_drive": ("input", "Real", "m/s"), "F_ext": ("input", "Real", "N"),
+    "x": ("output", "Real", "m"), "v": ("output", "Real", "m/s"), "v_rel": ("output", "Real", "m/s"),
+    "F_friction": ("output", "Real", "N"), "F_spring": ("output", "Real", "N"),
+    "mode": ("output", "Integer", None), "t_stick": ("output", "Real", "s"),
+    "z_slip": ("output", "Real", "N"), "z_stick": ("output", "Real", "m/s"),
+    "n_events": ("output", "Integer", None),
+}
+
+
+# ---------------------------------------------------------------------------
+# direct access through FMPy's FMU2Slave
+# ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def unzipped(fmu_path):
+    """(extracted folder, model description, {name: variable}) of the FMU."""
+    folder = fmpy.extract(str(fmu_path))
+    description = fmpy.read_model_description(str(fmu_path))
+    yield folder, description, {v.name: v for v in description.modelVariables}
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def instantiate(unzipped, name, start):
+    """An initialized instance with the given start values."""
+    folder, description, variables = unzipped
+    fmu = FMU2Slave(guid=description.guid, unzipDirectory=folder,
+                    modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
+    fmu.instantiate(loggingOn=True)
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    for key, value in start.items():
+        variable = variables[key]
+        setter = fmu.setInteger if variable.type == "Integer" else fmu.setReal
+        setter([variable.valueReference], [value])
+    fmu.exitInitializationMode()
+    return fmu
+
+
+def read(fmu, unzipped, names=("x", "v")):
+    variables = unzipped[2]
+    return fmu.getReal([variables[name].valueReference for name in names])
+
+
+def step_through(fmu, unzipped, t_start, t_end, h):
+    """doStep on the grid t_start + k h up to t_end; (x, v) after every step."""
+    n = round((t_end - t_start) / h)
+    rows = []
+    for k in range(n):
+        t = t_start + k * h
+        fmu.doStep(t, t_start + (k + 1) * h - t)
+        rows.append(read(fmu, unzipped))
+    return rows
+
+
+# ---------------------------------------------------------------------------
+# model description
+# ---------------------------------------------------------------------------
+
+
+def test_fmpy_validate_reports_no_problems(fmu_path):
+    assert validate_fmu(str(fmu_path)) == []
+
+
+def test_spec_variables_with_units_and_declared_types(fmu_path):
+    description = fmpy.read_model_description(str(fmu_path))
+    variables = {v.name: v for v in description.modelVariables}
+    units = {u.name: u for u in description.unitDefinitions}
+    declared = {t.name: t for t in description.typeDefinitions}
+    for name, (causality, kind, unit) in SPEC_VARIABLES.items():
+        variable = variables[name]
+        assert (variable.causality, variable.type, variable.unit) == (causality, kind, unit), name
+        if unit is not None:
+            assert declared[variable.declaredType.name].unit == unit, name
+    for name in ("n_stick_events", "n_slip_events", "n_overshoots", "n_steps"):
+        assert (variables[name].causality, variables[name].type) == ("output", "Integer")
+    assert variables["t_last_event"].unit == "s"
+    assert variables["solver.rtol"].start == "1e-10"
+    newton = units["N"].baseUnit
+    assert (newton.kg, newton.m, newton.s) == (1, 1, -2)
+    damping = units["N.s/m"].baseUnit
+    assert (damping.kg, damping.m, damping.s) == (1, 0, -1)
+    assert variables["kinetic.F0"].min == "0.0" and variables["M"].min is None  # M > 0 is exclusive
+    assert (variables["kinetic.law"].min, variables["kinetic.law"].max) == ("1", "4")
+
+
+def test_capabilities_structure_and_default_experiment(fmu_path):
+    description = fmpy.read_model_description(str(fmu_path))
+    cs = description.coSimulation
+    assert cs.modelIdentifier == "SpringBlockFriction"
+    assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
+    outputs = {v.name for v in description.modelVariables if v.causality == "output"}
+    assert {u.variable.name for u in description.outputs} == outputs
+    assert {u.variable.name for u in description.initialUnknowns} == outputs
+    experiment = description.defaultExperiment
+    assert (experiment.startTime, experiment.stopTime, experiment.tolerance) == ("0.0", "100.0", "1e-10")
+
+
+def test_runtime_is_bundled_under_a_private_name(fmu_path):
+    tag = source_tag()
+    with zipfile.ZipFile(fmu_path) as fmu:
+        names = fmu.namelist()
+        slave = fmu.read(f"resources/springblockfriction_{tag}.py").decode()
+        assert fmu.read("resources/slavemodule.txt").decode() == f"springblockfriction_{tag}"
+    assert f"resources/sbf_runtime_{tag}/trajectory.py" in names
+    assert f"from sbf_runtime_{tag} import" in slave and "stickslip.core" not in slave
+    run_fmu(fmu_path, {}, 1.0, 1.0)
+    runtime = sys.modules[f"sbf_runtime_{tag}"]  # the FMU's copy, though this host imported stickslip
+    assert Path(runtime.__file__).parent != Path(sys.modules["stickslip.core"].__file__).parent
+
+
+def test_ensure_fmu_builds_only_when_the_sources_changed(tmp_path, fmu_path):
+    assert default_fmu_path() == REPO / "dist" / "SpringBlockFriction.fmu"
+    target = tmp_path / "SpringBlockFriction.fmu"
+    assert ensure_fmu(target) == target and target.is_file()
+    built = target.stat().st_mtime_ns
+    assert ensure_fmu(target) == target and target.stat().st_mtime_ns == built
+    with zipfile.ZipFile(target, "w") as stale:
+        stale.writestr("resources/slavemodule.txt", "springblockfriction_0000000000")
+    ensure_fmu(target)
+    assert validate_fmu(str(target)) == []
+
+
+# ---------------------------------------------------------------------------
+# errors
+# ---------------------------------------------------------------------------
+
+INVALID = [  # start values, text the FMU's error must contain
+    ({"M": -1.0}, "M = -1.0 kg"),
+    ({"M": 0.0}, "M = 0.0 kg"),
+    ({"M": math.nan}, "M = nan"),
+    ({"kappa": 0.0}, "kappa = 0.0 N/m"),
+    ({"kappa": math.inf}, "kappa = inf"),
+    ({"x_start": math.nan}, "x_start = nan"),
+    ({"v_start": -math.inf}, "v_start = -inf"),
+    ({"kinetic.law": 7}, "kinetic.law = 7"),
+    ({"static.law": 0}, "static.law = 0"),
+    ({"kinetic.F0": -0.1}, "kinetic.F0 = -0.1"),
+    ({"kinetic.F0": 1.5}, "F_K(0+) = 1.5 N exceeds static friction F_S(0) = 1.0 N"),
+    ({"kinetic.law": 3, "kinetic.F0": 0.8, "kinetic.F_stribeck": 0.5}, "F_K(0+) = 1.3 N"),
+    ({"kinetic.law": 3, "kinetic.v_stribeck": 0.0}, "kinetic.v_stribeck = 0.0"),
+    ({"kinetic.law": 3, "kinetic.delta": 0.5}, "kinetic.delta = 0.5"),
+    ({"kinetic.law": 4, "kinetic.dv": -0.05}, "kinetic.dv = -0.05"),
+    ({"static.F0": 0.0}, "static.F0 = 0.0 N"),
+    ({"static.law": 2, "static.tau": -1.0}, "static.tau = -1.0 s"),
+    ({"static.law": 3, "static.F_inf": math.nan}, "static.F_inf = nan"),
+    ({"static.law": 4, "static.n": 30.0}, "static.n = 30.0"),
+    ({"solver.rtol": 0.0}, "solver.rtol = 0.0"),
+    ({"v_drive": math.nan}, "v_drive = nan"),
+    ({"F_ext": math.inf}, "F_ext = inf"),
+]
+
+
+@pytest.mark.parametrize("start, text", INVALID, ids=[text.split(" ")[0] for _, text in INVALID])
+def test_invalid_parameter_gives_fmu_error_then_valid_run_works(fmu_path, start, text):
+    with pytest.raises(FMUError) as error:
+        run_fmu(fmu_path, start, 10.0, 1.0)
+    assert isinstance(error.value, StickSlipError)
+    assert text in str(error.value)
+    assert "allowed" in str(error.value)
+    result = run_fmu(fmu_path, STICK_SLIP, 10.0, 1.0)
+    assert result["n_events"][-1] == 1 and result["mode"][-1] == 0
+
+
+def test_nan_input_during_the_run_names_the_input(fmu_path):
+    signal = np.array([(0.0, 0.1, 0.0), (2.0, 0.1, 0.0), (2.0, math.nan, 0.0), (5.0, math.nan, 0.0)],
+                      dtype=[("time", float), ("v_drive", float), ("F_ext", float)])
+    with pytest.raises(FMUError, match="v_drive = nan"):
+        run_fmu(fmu_path, STICK_SLIP, 5.0, 0.5, input_signal=signal)
+
+
+def test_fixed_parameter_cannot_change_after_initialization(unzipped):
+    fmu = instantiate(unzipped, "fixed", STICK_SLIP)
+    with pytest.raises(fmpy.fmi1.FMICallException):  # fatal: the instance is gone, so it is not freed
+        fmu.setReal([unzipped[2]["M"].valueReference], [2.0])
+
+
+# ---------------------------------------------------------------------------
+# results
+# ---------------------------------------------------------------------------
+
+
+def test_fmu_matches_the_python_trajectory_bit_for_bit(fmu_path):
+    result = run_fmu(fmu_path, STRIBECK, 30.0, 0.5, outputs=["x", "v", "mode", "n_events"])
+    kinetic = kinetic_law(3, F0=0.4, F_stribeck=0.3, v_stribeck=0.05, gamma=0.0, delta=1.0)
+    traj = Trajectory(Parameters(1.0, 1.0, kinetic, static_law(1, F0=1.0)), 0.0, 0.0, v_drive=0.1)
+    for row in result:
+        traj.advance_to(row["time"])
+        assert (row["x"], row["v"], row["mode"], row["n_events"]) == (traj.x, traj.v, traj.mode, traj.n_events)
+
+
+@pytest.mark.parametrize("start", [STICK_SLIP, STRIBECK], ids=["coulomb", "stribeck"])
+def test_communication_step_does_not_change_the_results(fmu_path, start):
+    fine = run_fmu(fmu_path, start, 100.0, 1e-3, outputs=["x", "v", "n_events"])
+    coarse = run_fmu(fmu_path, start, 100.0, 10.0, outputs=["x", "v", "n_events"])
+    fine = fine[np.isclose(np.mod(fine["time"] + 5.0, 10.0), 5.0)]  # t = 0, 10, ..., 100
+    np.testing.assert_array_equal(np.round(fine["time"], 9), coarse["time"])
+    np.testing.assert_allclose(fine["x"], coarse["x"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fine["v"], coarse["v"], rtol=0, atol=1e-9)
+    assert coarse["n_events"][-1] >= 10  # many stick-slip cycles were crossed
+
+
+def test_input_steps_are_applied_at_the_same_time_for_any_step(fmu_path):
+    signal = np.array([(0.0, 0.1, 0.0), (30.0, 0.1, 0.0), (30.0, 0.3, 0.2), (60.0, 0.3, 0.2)],
+                      dtype=[("time", float), ("v_drive", float), ("F_ext", float)])
+    runs = [run_fmu(fmu_path, STICK_SLIP, 60.0, h, input_signal=signal, outputs=["x", "v"]) for h in (1e-2, 10.0)]
+    fine, coarse = runs[0][::1000], runs[1]
+    np.testing.assert_allclose(fine["x"], coarse["x"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fine["v"], coarse["v"], rtol=0, atol=1e-9)
+
+
+def test_stuck_block_follows_a_new_drive_velocity_before_the_next_step(unzipped):
+    fmu = instantiate(unzipped, "feedthrough", dict(STICK_SLIP, v_start=0.1))
+    variables = unzipped[2]
+    assert fmu.getInteger([variables["mode"].valueReference]) == [0]
+    fmu.setReal([variables["v_drive"].valueReference], [0.25])
+    assert read(fmu, unzipped, ("v", "v_rel")) == [0.25, 0.0]
+    fmu.terminate()
+    fmu.freeInstance()
+
+
+# ---------------------------------------------------------------------------
+# FMU state and instances
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("start", [STICK_SLIP, STRIBECK], ids=["coulomb", "stribeck"])
+def test_restored_state_continues_bit_for_bit(unzipped, start):
+    fmu = instantiate(unzipped, "saved", start)
+    step_through(fmu, unzipped, 0.0, 11.5, 0.25)  # mid-slip, after a stick
+    state = fmu.getFMUstate()
+    serialized = fmu.serializeFMUstate(state)
+    reference = step_through(fmu, unzipped, 11.5, 40.0, 0.25)
+
+    fmu.setFMUstate(state)
+    assert step_through(fmu, unzipped, 11.5, 40.0, 0.25) == reference
+    fmu.setFMUstate(state)  # the same state twice
+    assert step_through(fmu, unzipped, 11.5, 40.0, 0.25) == reference
+
+    other = instantiate(unzipped, "restored", {})  # default parameters: the state brings its own
+    restored = other.deSerializeFMUstate(serialized)
+    other.setFMUstate(restored)
+    assert step_through(other, unzipped, 11.5, 40.0, 0.25) == reference
+
+    for instance, saved in ((fmu, state), (other, restored)):
+        instance.freeFMUstate(saved)
+        instance.terminate()
+        instance.freeInstance()
+
+
+def test_two_instances_in_one_process_stay_independent(unzipped):
+    alone = {}
+    for name, start in (("a", STICK_SLIP), ("b", dict(STRIBECK, M=4.0, v_start=-0.2))):
+        fmu = instantiate(unzipped, name, start)
+        alone[name] = step_through(fmu, unzipped, 0.0, 30.0, 0.5)
+        fmu.terminate()
+        fmu.freeInstance()
+
+    a = instantiate(unzipped, "a", STICK_SLIP)
+    b = instantiate(unzipped, "b", dict(STRIBECK, M=4.0, v_start=-0.2))
+    together = {"a": [], "b": []}
+    for k in range(60):
+        for name, fmu in (("a", a), ("b", b)):
+            fmu.doStep(k * 0.5, (k + 1) * 0.5 - k * 0.5)
+            together[name].append(read(fmu, unzipped))
+    assert together == alone
+    assert alone["a"] != alone["b"]
+    for fmu in (a, b):
+        fmu.terminate()
+        fmu.freeInstance()
