@@ -1,0 +1,59 @@
+"""Command line: ``stickslip <command> ...``.
+
+Each command is a function ``add_<command>(subparsers)`` that adds its parser and
+sets ``handler``, a function of the parsed arguments returning the exit code.
+"""
+
+import argparse
+import sys
+
+from .core.errors import StickSlipError
+
+
+def add_run(subparsers):
+    p = subparsers.add_parser("run", help="run scenarios through the FMU and the reference and report")
+    p.add_argument("paths", nargs="+", metavar="PATH", help="scenario files or directories of *.toml files")
+    p.add_argument("--out", default="results", help="output directory (default: results)")
+    p.add_argument("--jobs", type=int, default=2, help="worker processes (default: 2)")
+    p.add_argument("--fmu", help="FMU to test (default: dist/SpringBlockFriction.fmu, built if missing or stale)")
+    p.set_defaults(handler=_run)
+
+
+def _run(args):
+    from .runner import run_suite
+
+    return 0 if run_suite(args.paths, args.out, jobs=args.jobs, fmu_path=args.fmu).ok else 1
+
+
+def add_build_fmu(subparsers):
+    p = subparsers.add_parser("build-fmu", help="build dist/SpringBlockFriction.fmu if missing or stale")
+    p.set_defaults(handler=_build_fmu)
+
+
+def _build_fmu(args):
+    from .fmu_driver import ensure_fmu
+
+    print(ensure_fmu())
+    return 0
+
+
+COMMANDS = (add_run, add_build_fmu)
+
+
+def main(argv=None):
+    """Entry point of the ``stickslip`` script; returns the exit code (0 success, 1 failure, 2 usage)."""
+    parser = argparse.ArgumentParser(
+        prog="stickslip", description="Spring-block dry friction: FMU, reference integrator and scenario suite.")
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for add in COMMANDS:
+        add(subparsers)
+    args = parser.parse_args(argv)
+    try:
+        return args.handler(args)
+    except StickSlipError as exc:
+        print(f"stickslip {args.command}: {exc}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,101 @@
+"""The main job: run every scenario through the FMU and the reference, compare, and report.
+
+For each scenario: the FMU under FMPy (:func:`~stickslip.fmu_driver.run_fmu`),
+the reference on the FMU's output grid with the inputs the FMU actually saw,
+:func:`~stickslip.compare.compare`, then ``OUT/<name>.csv`` (FMU result),
+``OUT/<name>.png`` and finally ``OUT/report.md``.
+"""
+
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from multiprocessing import get_context
+from pathlib import Path
+
+from tqdm import tqdm
+
+from .compare import compare
+from .core.errors import StickSlipError
+from .fmu_driver import ensure_fmu, run_fmu
+from .plots import plot_scenario
+from .reference import simulate_reference
+from .report import Outcome, failure_lines, summary_table, write_report, write_result_csv
+from .scenario import load_scenarios
+
+#: FMU variables recorded for every scenario (SPEC section 4, the extra counters, and the inputs).
+OUTPUTS = ("x", "v", "v_rel", "F_friction", "F_spring", "mode", "t_stick", "z_slip", "z_stick", "n_events",
+           "n_stick_events", "n_slip_events", "n_overshoots", "t_last_event", "n_steps", "v_drive", "F_ext")
+
+
+@dataclass(frozen=True)
+class SuiteResult:
+    """Outcomes in scenario order and the wall time (s)."""
+
+    outcomes: tuple
+    seconds: float
+
+    @property
+    def ok(self):
+        return all(o.passed for o in self.outcomes)
+
+
+def simulate(scenario, fmu_path):
+    """Run the FMU and the reference for ``scenario``: ``(fmu_result, ref_result, fmu_s, ref_s)``."""
+    start = time.perf_counter()
+    fmu = run_fmu(fmu_path, scenario.start_values(), scenario.stop_time, scenario.output_interval,
+                  input_signal=scenario.input_table(), outputs=list(OUTPUTS))
+    middle = time.perf_counter()
+    ref = simulate_reference(scenario.params, scenario.x0, scenario.v0, scenario.breakpoints(), fmu["time"])
+    return fmu, ref, middle - start, time.perf_counter() - middle
+
+
+def run_scenario(scenario, fmu_path, out_dir=None):
+    """Simulate and compare one scenario; write its CSV and PNG into ``out_dir`` if given."""
+    try:
+        fmu, ref, fmu_s, ref_s = simulate(scenario, fmu_path)
+    except StickSlipError as exc:
+        return Outcome(scenario.name, scenario.expected_attractor, error=f"{type(exc).__name__}: {exc}")
+    if out_dir is not None:
+        write_result_csv(Path(out_dir) / f"{scenario.name}.csv", fmu, OUTPUTS)
+        plot_scenario(Path(out_dir) / f"{scenario.name}.png", scenario.name, fmu, ref)
+    return Outcome(scenario.name, scenario.expected_attractor, compare(fmu, ref, scenario), fmu_s, ref_s)
+
+
+def run_suite(paths, out_dir, jobs=2, fmu_path=None):
+    """Run the scenarios in ``paths`` (files or directories) with ``jobs`` worker processes.
+
+    ``fmu_path``: the FMU to test; by default ``dist/SpringBlockFriction.fmu``, built
+    if missing or stale (an explicit path is used as it is).
+
+    Writes the per-scenario files and ``report.md`` into ``out_dir``, prints the
+    summary table, and returns a :class:`SuiteResult` (``.ok`` is False if any
+    scenario missed its tolerance or its attractor). A malformed scenario file
+    raises :class:`~stickslip.scenario.ScenarioError` before anything runs.
+    """
+    start = time.perf_counter()
+    scenarios = load_scenarios(paths)
+    fmu_path = ensure_fmu() if fmu_path is None else Path(fmu_path)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    progress = tqdm(total=len(scenarios), desc="scenarios", unit="scenario")
+    if jobs <= 1:
+        outcomes = []
+        for s in scenarios:
+            outcomes.append(run_scenario(s, fmu_path, out_dir))
+            progress.update()
+    else:
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
+            futures = {pool.submit(run_scenario, s, fmu_path, out_dir): i for i, s in enumerate(scenarios)}
+            outcomes = [None] * len(scenarios)
+            for future in as_completed(futures):
+                outcomes[futures[future]] = future.result()
+                progress.update()
+    progress.close()
+    result = SuiteResult(tuple(outcomes), time.perf_counter() - start)
+    write_report(out_dir / "report.md", result.outcomes, result.seconds)
+    print(summary_table(result.outcomes))
+    for line in failure_lines(result.outcomes):
+        print(line)
+    print(f"{sum(o.passed for o in result.outcomes)}/{len(result.outcomes)} passed in {result.seconds:.1f} s;"
+          f" report: {out_dir / 'report.md'}")
+    return result

@@ -1,0 +1,50 @@
+"""Every scenario file: FMU vs reference within its tolerances, and the expected attractor.
+
+Plus the main job end to end: files written, exit status on success and on a failing scenario.
+"""
+
+from pathlib import Path
+
+import pytest
+
+from stickslip.cli import main
+from stickslip.runner import run_scenario, run_suite
+from stickslip.scenario import load_scenario
+
+SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
+SCENARIOS = sorted(SCENARIO_DIR.glob("*.toml"))
+
+
+def test_the_suite_has_the_required_scenarios():
+    names = {p.stem for p in SCENARIOS}
+    assert {f"elmer-fig3-v{v}" for v in ("0.03", "0.07", "0.1", "0.3", "1.0")} <= names
+    assert len(SCENARIOS) >= 12
+
+
+@pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
+def test_fmu_matches_reference_and_expected_attractor(path, fmu_path):
+    scenario = load_scenario(path)
+    outcome = run_scenario(scenario, fmu_path)
+    assert outcome.passed, outcome.problems
+    assert outcome.comparison.attractor_fmu == scenario.expected_attractor
+
+
+def test_cli_run_writes_csv_png_report_and_exits_0(tmp_path, fmu_path):
+    out = tmp_path / "out"
+    paths = [str(SCENARIO_DIR / f"{name}.toml") for name in ("coulomb-stick-slip", "viscous-above-critical")]
+    code = main(["run", *paths, "--out", str(out), "--jobs", "2", "--fmu", str(fmu_path)])
+    assert code == 0
+    header = (out / "coulomb-stick-slip.csv").read_text().splitlines()[0]
+    assert header.startswith('"time","x","v",')
+    assert (out / "viscous-above-critical.png").stat().st_size > 0
+    assert "| coulomb-stick-slip " in (out / "report.md").read_text()
+
+
+def test_a_scenario_that_misses_its_attractor_fails_the_suite(tmp_path, fmu_path):
+    text = (SCENARIO_DIR / "viscous-above-critical.toml").read_text()
+    wrong = tmp_path / "wrong.toml"
+    wrong.write_text(text.replace('expected_attractor = "continuous-sliding"', 'expected_attractor = "stick-slip"'))
+    result = run_suite([wrong], tmp_path / "out", jobs=1, fmu_path=fmu_path)
+    assert not result.ok
+    assert "FMU attractor continuous-sliding" in result.outcomes[0].problems
+    assert main(["run", str(wrong), "--out", str(tmp_path / "out"), "--jobs", "1", "--fmu", str(fmu_path)]) == 1
