@@ -70,6 +70,7 @@ class SpringBlockFriction(Fmi2Slave):
         self.bounds = {}  # FMU name -> inclusive (min, max), None where unbounded; read by stickslip.fmu_build
         self.start_time = 0.0
         self.trajectory = None  # built when initialization ends
+        self._output_values = None  # {output name: value} at the current state, computed once per state
 
         self._parameter("M", Real, 1.0, "kg", "block mass")
         self._parameter("kappa", Real, 1.0, "N/m", "spring stiffness")
@@ -110,7 +111,7 @@ class SpringBlockFriction(Fmi2Slave):
         self._declare(
             Real(
                 name, causality=Fmi2Causality.input, variability=CONTINUOUS, description=description,
-                getter=lambda: self.values[name], setter=lambda value: self.values.__setitem__(name, value),
+                getter=lambda: self.values[name], setter=lambda value: self._set_value(name, value),
             ),
             unit,
         )
@@ -119,7 +120,7 @@ class SpringBlockFriction(Fmi2Slave):
         self._declare(
             kind(
                 name, causality=Fmi2Causality.output, variability=variability, description=description,
-                getter=lambda: getattr(self._current(), attribute),
+                getter=lambda: self._outputs()[name],
             ),
             unit,
         )
@@ -127,7 +128,18 @@ class SpringBlockFriction(Fmi2Slave):
     def _set_parameter(self, name, value):
         if self.trajectory is not None:
             raise ParameterError(f"{name} is a fixed parameter: it cannot change after initialization")
+        self._set_value(name, value)
+
+    def _set_value(self, name, value):
         self.values[name] = value
+        self._output_values = None
+
+    def _outputs(self):
+        """All outputs at the current state, computed on the first read after a change."""
+        if self._output_values is None:
+            trajectory = self._current()
+            self._output_values = {name: getattr(trajectory, attribute) for name, attribute, *_ in OUTPUTS}
+        return self._output_values
 
     # ---- model -------------------------------------------------------------------
 
@@ -162,10 +174,12 @@ class SpringBlockFriction(Fmi2Slave):
 
     def exit_initialization_mode(self):
         self.trajectory = self._new_trajectory()
+        self._output_values = None
 
     def do_step(self, current_time, step_size):
         """Hold the inputs and advance to ``current_time + step_size`` s (raises on failure, never discards)."""
         self._current().advance_to(current_time + step_size)
+        self._output_values = None
         return True
 
     def _get_fmu_state(self):
@@ -178,3 +192,4 @@ class SpringBlockFriction(Fmi2Slave):
         self.start_time = state["start_time"]
         snapshot = state["trajectory"]
         self.trajectory = None if snapshot is None else Trajectory.from_snapshot(self._parameters(), snapshot)
+        self._output_values = None
