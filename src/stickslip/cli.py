@@ -7,6 +7,7 @@ sets ``handler``, a function of the parsed arguments returning the exit code.
 import argparse
 import sys
 
+from .bench.cli import add_bench_parser
 from .core.errors import StickSlipError
 
 
@@ -37,7 +38,7 @@ def _build_fmu(args):
     return 0
 
 
-COMMANDS = (add_run, add_build_fmu)
+COMMANDS = (add_run, add_build_fmu, add_bench_parser)
 
 
 def main(argv=None):

@@ -123,6 +123,10 @@ def _slip_end(cv, mode, v_drive):
     is bracketed exactly. A start at ``g = 0`` (right after a breakaway) is not an end.
     """
 
+    margin = mode * (v_drive - cv[0]) - sum(abs(c) for c in cv[1:])
+    if margin > 0.0:
+        return None  # |v(theta) - v(0)| <= sum |c_k| on [0, 1]: v cannot reach v_drive in this step
+
     def g(theta):
         return mode * (v_drive - poly.evaluate(cv, theta))
 

@@ -1,0 +1,57 @@
+"""The ``bench`` command: ``add_bench_parser(subparsers)`` adds it, ``run_bench(args)`` runs it."""
+
+import sys
+
+
+def add_bench_parser(subparsers):
+    p = subparsers.add_parser("bench", help="work-precision benchmark of the FMU and the stepper against peers")
+    p.add_argument("--quick", action="store_true",
+                   help="20 s scenes, a few configurations, one timed run each (a smoke test, not a measurement)")
+    p.add_argument("--out", default="bench-results", help="output directory (default: bench-results)")
+    p.add_argument("--scenes", nargs="+", metavar="NAME", help="scenes to run (default: all; see benchmarks/README.md)")
+    p.add_argument("--fmu", help="FMU to measure (default: dist/SpringBlockFriction.fmu, built if missing or stale)")
+    p.set_defaults(handler=run_bench)
+
+
+def run_bench(args):
+    """Run the benchmark; write ``bench.json``, ``bench.md`` and ``<scene>.png`` into ``args.out``. Exit code."""
+    import datetime
+    import os
+    import platform
+    from pathlib import Path
+
+    import fmpy
+    import numpy
+    import scipy
+
+    from ..fmu_driver import ensure_fmu
+    from .fmus import ExtractedFMU, ensure_floor_fmu
+    from .harness import run_scenes
+    from .report import markdown, plot, write_json
+    from .scenes import select_scenes
+
+    try:
+        scenes = select_scenes(args.scenes, args.quick)
+    except ValueError as exc:
+        print(f"stickslip bench: {exc}", file=sys.stderr)
+        return 2
+    meta = {
+        "date": datetime.datetime.now().isoformat(timespec="seconds"),
+        "machine": f"{platform.platform()}, {os.cpu_count()} CPUs",
+        "python": platform.python_version(),
+        "versions": f"numpy {numpy.__version__}, scipy {scipy.__version__}, fmpy {fmpy.__version__}",
+        "repeats": sorted({s.sweep.repeats for s in scenes}),
+        "load": [round(x, 2) for x in os.getloadavg()],
+        "quick": args.quick,
+    }
+    fmu_path = Path(args.fmu) if args.fmu else ensure_fmu()
+    with ExtractedFMU(fmu_path) as fmu, ExtractedFMU(ensure_floor_fmu()) as floor:
+        records = run_scenes(scenes, fmu, floor)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / "bench.json", meta, scenes, records)
+    (out / "bench.md").write_text(markdown(meta, scenes, records))
+    for scene in scenes:
+        plot(out / f"{scene.name}.png", scene, records[scene.name])
+    print(f"wrote {out / 'bench.json'}, {out / 'bench.md'} and {len(scenes)} plots")
+    return 0

@@ -1,0 +1,63 @@
+"""FMUs under ``fmpy.simulate_fmu``: ours and the trivial floor FMU the benchmark builds.
+
+An FMU is extracted once (outside the timing); each timed call is one
+``fmpy.simulate_fmu`` on the extracted folder: instantiate, initialize, every
+communication step, record, free.
+"""
+
+import os
+import shutil
+import sys
+from pathlib import Path
+
+import fmpy
+
+from ..fmu_build import REPO
+
+FLOOR_SOURCE = REPO / "benchmarks" / "floor_fmu" / "TrivialFloorSlave_sbfbench.py"
+BUILD_DIR = REPO / "benchmarks" / "build"
+
+
+class ExtractedFMU:
+    """An FMU extracted to a temporary folder; use as a context manager."""
+
+    def __init__(self, fmu_path):
+        self.model_description = fmpy.read_model_description(str(fmu_path))
+        self.folder = fmpy.extract(str(fmu_path))
+
+    def simulate(self, start_values, stop_time, output_interval, outputs):
+        """FMPy's result array from t = 0 to ``stop_time`` s with communication step ``output_interval`` s."""
+        path_before = list(sys.path)
+        try:
+            return fmpy.simulate_fmu(
+                self.folder, model_description=self.model_description, start_time=0.0, stop_time=stop_time,
+                output_interval=output_interval, start_values=start_values, output=list(outputs),
+            )
+        finally:
+            sys.path[:] = path_before  # PythonFMU puts the FMU's resources on sys.path
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def ensure_floor_fmu(build_dir=None):
+    """Build ``TrivialFloor.fmu`` from :data:`FLOOR_SOURCE` into ``build_dir`` (default :data:`BUILD_DIR`)
+    unless it is newer than the source; return its path."""
+    from pythonfmu import FmuBuilder
+
+    dest = Path(build_dir or BUILD_DIR) / "TrivialFloor.fmu"
+    if dest.is_file() and dest.stat().st_mtime >= FLOOR_SOURCE.stat().st_mtime:
+        return dest
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    partial = dest.with_name(f".{dest.name}.{os.getpid()}.part.fmu")
+    path_before = list(sys.path)
+    try:
+        FmuBuilder.build_FMU(FLOOR_SOURCE, dest=partial)
+    finally:  # PythonFMU leaves the source folder on sys.path and the module imported
+        sys.path[:] = path_before
+        sys.modules.pop(FLOOR_SOURCE.stem, None)
+    os.replace(partial, dest)
+    return dest

@@ -1,0 +1,164 @@
+"""Run every configuration of every scene: time it and measure its error against the reference.
+
+A configuration is timed as one whole simulation call (build, integrate, record
+the outputs on its grid), once as warm-up and then ``repeats`` times with the
+garbage collector off; the median is reported. Each call is cut off after the
+sweep's ``time_limit`` (SIGALRM: Unix, main thread). The warm-up's result is the one
+compared with the reference: max |dx| on the scene's grid (m, and relative to the
+amplitude), event-time error (s), final |dx| (m) and |dv| (m/s).
+"""
+
+import gc
+import signal
+import statistics
+import time
+import traceback
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from tqdm import tqdm
+
+from ..compare import fmu_events, match_events, reference_events
+from ..core import Trajectory
+from .peers import Run, hybrid_solve_ivp, regularized_solve_ivp
+
+FMU_OUTPUTS = ("x", "v", "n_stick_events", "n_slip_events", "n_overshoots", "t_last_event")  # the floor has them too
+
+
+@dataclass
+class Config:
+    """One configuration: ``simulate()`` is the timed call, ``to_run`` turns its result into a :class:`Run`
+    (None for the floor, which has nothing to compare)."""
+
+    family: str
+    label: str
+    settings: dict
+    simulate: Callable
+    to_run: Callable | None
+
+
+def stepper_outputs(scene, rtol):
+    """Our stepper on the scene's grid: FMPy-like columns (time, x, v, event counters, ``t_last_event``)."""
+    v_drive, F_ext = scene.inputs
+    traj = Trajectory(scene.params, scene.scenario.x0, scene.scenario.v0, v_drive, F_ext, 0.0, rtol)
+    grid = scene.grid()
+    rows = []
+    for t in grid:
+        traj.advance_to(t)
+        rows.append((traj.x, traj.v, traj.n_stick_events, traj.n_slip_events, traj.n_overshoots, traj.t_last_event))
+    return {"time": grid, **dict(zip(FMU_OUTPUTS, map(np.array, zip(*rows))))}
+
+
+def _from_columns(result):
+    return Run(result["time"], result["x"], result["v"], fmu_events(result))
+
+
+def configs(scene, fmu, floor):
+    """Every configuration of ``scene``'s sweep; ``fmu`` and ``floor`` are :class:`~.fmus.ExtractedFMU`."""
+    s, T = scene.sweep, scene.stop_time
+    p, (v_drive, F_ext), x0, v0, grid = scene.params, scene.inputs, scene.scenario.x0, scene.scenario.v0, scene.grid()
+    out = []
+    fmu_points = {(rtol, scene.grid_step) for rtol in s.fmu_rtols} | {(s.comm_rtol, h) for h in scene.comm_steps()}
+    for rtol, h in sorted(fmu_points, key=lambda c: (-c[0], c[1])):
+        out.append(Config("fmu", f"FMU rtol={rtol:.0e} h={h:g}", {"rtol": rtol, "comm_step": h},
+                          lambda rtol=rtol, h=h: fmu.simulate(scene.start_values(rtol), T, h, FMU_OUTPUTS),
+                          _from_columns))
+    for rtol in s.stepper_rtols:
+        out.append(Config("stepper", f"stepper rtol={rtol:.0e}", {"rtol": rtol},
+                          lambda rtol=rtol: stepper_outputs(scene, rtol), _from_columns))
+    for method, rtols in s.ivp.items():
+        for rtol in rtols:
+            out.append(Config("solve_ivp", f"{method} rtol={rtol:.0e}", {"method": method, "rtol": rtol, "atol": rtol},
+                              lambda m=method, r=rtol: hybrid_solve_ivp(p, x0, v0, v_drive, F_ext, grid, m, r, r),
+                              lambda run: run))
+    for method, rtols in s.regularized.items():
+        for v_eps in s.v_eps:
+            for rtol in rtols:
+                out.append(Config(
+                    "regularized", f"{method} v_eps={v_eps:.0e} rtol={rtol:.0e}",
+                    {"method": method, "v_eps": v_eps, "rtol": rtol, "atol": rtol},
+                    lambda m=method, e=v_eps, r=rtol:
+                        regularized_solve_ivp(p, x0, v0, v_drive, F_ext, grid, e, m, r, r),
+                    lambda run: run))
+    for h in sorted(set(scene.comm_steps()) | {scene.grid_step}):
+        out.append(Config("floor", f"floor h={h:g}", {"comm_step": h},
+                          lambda h=h: floor.simulate({}, T, h, FMU_OUTPUTS), None))
+    return out
+
+
+def timed(call, repeats, limit):
+    """``(result of the warm-up call, [seconds of each of the repeats])``; TimeoutError past ``limit`` s a call."""
+    result = _limited(call, limit)
+    seconds = []
+    for _ in range(repeats):
+        gc.collect()
+        gc.disable()
+        try:
+            seconds.append(_limited(call, limit, clock=True))
+        finally:
+            gc.enable()
+    return result, seconds
+
+
+def _limited(call, limit, clock=False):
+    """``call()`` (or, with ``clock``, its duration in s), interrupted by SIGALRM after ``limit`` s."""
+
+    def expire(signum, frame):
+        raise TimeoutError(f"exceeded the time limit of {limit:g} s per call")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, limit)
+    try:
+        start = time.perf_counter()
+        result = call()
+        return time.perf_counter() - start if clock else result
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def accuracy(run, scene, window):
+    """Errors of ``run`` against the scene's reference; event pairs within ``window`` s."""
+    ref, step = scene.reference, scene.grid_step
+    k = np.rint(run.t / step).astype(int)
+    on_grid = (np.abs(run.t - k * step) <= 1e-9 * scene.stop_time) & (k < ref.t.size)
+    dx = float(np.abs(run.x[on_grid] - ref.x[k[on_grid]]).max())
+    errors = {"max_abs_dx": dx, "rel_dx": dx / scene.amplitude, "final_abs_dx": float(abs(run.x[-1] - ref.x[-1])),
+              "final_abs_dv": float(abs(run.v[-1] - ref.v[-1]))}
+    if run.events is not None:
+        match = match_events(run.events, reference_events(ref), window)
+        timed_events = sum(e.timed for e in run.events)
+        errors.update(event_time_error=float(match.max_time_error) if timed_events else None,
+                      events_timed=int(timed_events), events_matched=int(match.n_matched),
+                      events_unmatched=int(match.n_unmatched))
+    return errors
+
+
+def measure(config, scene):
+    """The JSON record of one configuration (``error`` holds the exception text if it failed)."""
+    record = {"family": config.family, "label": config.label, "settings": config.settings}
+    if "comm_step" in config.settings:
+        record["n_comm_steps"] = round(scene.stop_time / config.settings["comm_step"])
+    try:
+        result, seconds = timed(config.simulate, scene.sweep.repeats, scene.sweep.time_limit)
+    except Exception as exc:  # a peer that fails is a result, not a crash of the benchmark
+        record["error"] = "".join(traceback.format_exception_only(exc)).strip()
+        return record
+    record.update(times_s=seconds, median_s=statistics.median(seconds), min_s=min(seconds), error=None)
+    if config.to_run is not None:
+        window = max(config.settings.get("comm_step", 0.0), scene.grid_step)
+        record.update(accuracy(config.to_run(result), scene, window))
+    return record
+
+
+def run_scenes(scenes, fmu, floor):
+    """``{scene name: [record, ...]}`` for every configuration, with a tqdm progress bar."""
+    plan = [(scene, config) for scene in scenes for config in configs(scene, fmu, floor)]
+    records = {scene.name: [] for scene in scenes}
+    with tqdm(plan, unit="config", dynamic_ncols=True) as bar:
+        for scene, config in bar:
+            bar.set_postfix_str(f"{scene.name}: {config.label}")
+            scene.reference  # noqa: B018 -- computed once, outside every timing
+            records[scene.name].append(measure(config, scene))
+    return records
