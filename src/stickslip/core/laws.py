@@ -289,7 +289,9 @@ class Sigmoid(StaticLaw):
 
     def rate(self, t):
         if t <= 0.0:
-            return 0.0 if self.n > 1.0 else (math.inf if self.n < 1.0 else (self.F_inf - self.F0) / self.tau)
+            if self.n > 1.0 or self.F_inf == self.F0:
+                return 0.0
+            return (self.F_inf - self.F0) / self.tau if self.n == 1.0 else math.copysign(math.inf, self.F_inf - self.F0)
         r = (t / self.tau) ** self.n
         return (self.F_inf - self.F0) * self.n * r / (t * (1.0 + r) ** 2)
 

@@ -80,6 +80,17 @@ def slip_acceleration_slope(mode, v, v_drive, p):
     return -p.kinetic.slope(max(mode * (v_drive - v), 0.0)) / p.M
 
 
+def slip_departs(mode, x, v_drive, F_ext, p):
+    """True if a slip in ``mode`` starting at ``v_rel = 0`` moves into its own side (``mode * v_rel > 0``).
+
+    ``v_rel' = -a`` decides; where the acceleration ``a`` is 0, ``v_rel'' = kappa v_drive / M`` does.
+    """
+    a = slip_acceleration(mode, x, v_drive, v_drive, F_ext, p)
+    if a != 0.0:
+        return mode * a < 0.0
+    return mode * v_drive > 0.0
+
+
 def friction_force(mode, x, v, v_drive, F_ext, p):
     """Friction force on the block (N) in any mode."""
     if mode == STUCK:

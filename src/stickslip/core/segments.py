@@ -85,6 +85,11 @@ class StepSegment:
         self.x1, self.v1 = x1, v1
 
     @classmethod
+    def instant(cls, t0, mode, x0, v0):
+        """A slip of zero length that ends in an event at once (it cannot leave ``v_rel = 0``)."""
+        return cls(t0, t0, True, mode, 0.0, [x0], [v0], x0, v0)
+
+    @classmethod
     def from_step(cls, t0, mode, step, ends_in_event, v_drive):
         v1 = v_drive if ends_in_event else step.v1
         return cls(t0, t0 + step.h, ends_in_event, mode, step.h, step.cx, step.cv, step.x1, v1)

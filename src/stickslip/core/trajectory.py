@@ -29,6 +29,7 @@ from .model import (
     initial_mode,
     mode_after_input_change,
     mode_at_zero_v_rel,
+    slip_departs,
     z_slip,
 )
 from .numeric_slip import SlipStepper
@@ -216,12 +217,15 @@ class Trajectory:
     def _start_segment(self, t0, x0, v0, mode, t_stick):
         p = self.params
         if mode == STUCK:
-            horizon = _STUCK_HORIZON_PERIODS * math.sqrt(p.M / p.kappa)
+            # a constant F_S gives the breakaway in closed form; an aging one is searched piecewise
+            aging = not p.static.is_constant()
+            horizon = _STUCK_HORIZON_PERIODS * math.sqrt(p.M / p.kappa) if aging else math.inf
             delay = breakaway_delay(x0, self.v_drive, self.F_ext, t_stick, p, horizon)
             if delay is not None:
                 return StuckSegment(t0, t0 + delay, True, x0, self.v_drive, t_stick)
-            t1 = math.inf if p.static.is_constant() else t0 + horizon
-            return StuckSegment(t0, t1, False, x0, self.v_drive, t_stick)
+            return StuckSegment(t0, t0 + horizon, False, x0, self.v_drive, t_stick)
+        if v0 == self.v_drive and not slip_departs(mode, x0, self.v_drive, self.F_ext, p):
+            return StepSegment.instant(t0, mode, x0, v0)  # v_rel cannot leave 0 this way: decide again now
         if p.kinetic.affine() is not None:
             return HarmonicSegment.start(t0, mode, x0, v0, self.v_drive, self.F_ext, p)
         step, ends_in_event = self._stepper.step(t0, x0, v0, mode, self.v_drive, self.F_ext, p)
