@@ -70,7 +70,7 @@ class SpringBlockFriction(Fmi2Slave):
         self.bounds = {}  # FMU name -> inclusive (min, max), None where unbounded; read by stickslip.fmu_build
         self.start_time = 0.0
         self.trajectory = None  # built when initialization ends
-        self._output_values = None  # {output name: value} at the current state, computed once per state
+        self._output_cache = {}  # {output name: value} at the current state, filled as outputs are read
 
         self._parameter("M", Real, 1.0, "kg", "block mass")
         self._parameter("kappa", Real, 1.0, "N/m", "spring stiffness")
@@ -120,7 +120,7 @@ class SpringBlockFriction(Fmi2Slave):
         self._declare(
             kind(
                 name, causality=Fmi2Causality.output, variability=variability, description=description,
-                getter=lambda: self._outputs()[name],
+                getter=lambda: self._read_output(name, attribute),
             ),
             unit,
         )
@@ -132,14 +132,14 @@ class SpringBlockFriction(Fmi2Slave):
 
     def _set_value(self, name, value):
         self.values[name] = value
-        self._output_values = None
+        self._output_cache.clear()
 
-    def _outputs(self):
-        """All outputs at the current state, computed on the first read after a change."""
-        if self._output_values is None:
-            trajectory = self._current()
-            self._output_values = {name: getattr(trajectory, attribute) for name, attribute, *_ in OUTPUTS}
-        return self._output_values
+    def _read_output(self, name, attribute):
+        """An output at the current state, computed on its first read after a change (none is ever None)."""
+        value = self._output_cache.get(name)
+        if value is None:
+            value = self._output_cache[name] = getattr(self._current(), attribute)
+        return value
 
     # ---- model -------------------------------------------------------------------
 
@@ -174,12 +174,12 @@ class SpringBlockFriction(Fmi2Slave):
 
     def exit_initialization_mode(self):
         self.trajectory = self._new_trajectory()
-        self._output_values = None
+        self._output_cache.clear()
 
     def do_step(self, current_time, step_size):
         """Hold the inputs and advance to ``current_time + step_size`` s (raises on failure, never discards)."""
         self._current().advance_to(current_time + step_size)
-        self._output_values = None
+        self._output_cache.clear()
         return True
 
     def _get_fmu_state(self):
@@ -192,4 +192,4 @@ class SpringBlockFriction(Fmi2Slave):
         self.start_time = state["start_time"]
         snapshot = state["trajectory"]
         self.trajectory = None if snapshot is None else Trajectory.from_snapshot(self._parameters(), snapshot)
-        self._output_values = None
+        self._output_cache.clear()
