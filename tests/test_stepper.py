@@ -248,3 +248,16 @@ def test_stribeck_with_fractional_exponent_runs_through_its_slip_ends():
     traj = Trajectory(Parameters(1.0, 1.0, law, Constant(F0=1.0)), 0.0, 0.0, v_drive=0.2)
     traj.advance_to(60.0)
     assert traj.n_stick_events >= 3 and math.isfinite(traj.x)
+
+
+def test_breakaway_after_the_holding_force_changes_sign_in_a_convex_stretch():
+    """The kink of |kappa x - F_ext| inside a convex stretch of F_S must not hide the breakaway."""
+    from stickslip.core.stuck import breakaway_delay
+
+    law = Sigmoid(F0=0.8, F_inf=1.5, tau=5.0, n=4.0)
+    p = Parameters(1.0, 1.0, Coulomb(F0=0.5), law)
+    x0, vd = -0.06147859922112879, 0.4  # the holding force crosses 0 at tau = x0 / vd to rounding
+    taus = np.linspace(0.0, 10.0, 1_000_001)
+    margin = np.array([law.force(t) for t in taus]) - np.abs(x0 + vd * taus)
+    first_negative = taus[np.argmax(margin < 0)]
+    assert breakaway_delay(x0, vd, 0.0, 0.0, p, 1e4) == pytest.approx(first_negative, abs=2e-5)

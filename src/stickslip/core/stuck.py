@@ -26,21 +26,15 @@ def breakaway_delay(x0, v_drive, F_ext, t_stick0, p, horizon):
     if static.is_constant():
         return _constant_law_delay(L0, dL, static.force(0.0), horizon)
 
-    def h(tau):
-        return static.force(t_stick0 + tau) - abs(L0 + dL * tau)
-
-    def dh(tau):
-        L = L0 + dL * tau
-        sign = 1.0 if L > 0.0 or (L == 0.0 and dL > 0.0) else -1.0
-        return static.rate(t_stick0 + tau) - sign * dL
-
     cuts = {0.0, horizon}
     if dL != 0.0:
         cuts.add(-L0 / dL)
     cuts.update(b - t_stick0 for b in static.convexity_breaks())
     cuts = sorted(c for c in cuts if 0.0 <= c <= horizon)
     for a, b in zip(cuts, cuts[1:]):
-        root = _first_root_on_piece(h, dh, a, b, static, t_stick0)
+        # |L| = sign * L on the whole piece; its sign is read mid-piece, away from the kink's rounding
+        sign = 1.0 if L0 + dL * 0.5 * (a + b) >= 0.0 else -1.0
+        root = _first_root_on_piece(static, t_stick0, sign * L0, sign * dL, a, b)
         if root is not None:
             return root
     return None
@@ -56,19 +50,28 @@ def _constant_law_delay(L0, dL, F_S, horizon):
     return delay if delay <= horizon else None
 
 
-def _first_root_on_piece(h, dh, a, b, static, t_stick0):
-    """First tau in [a, b] where h turns negative; h is convex or concave on the piece."""
+def _first_root_on_piece(static, t_stick0, L0, dL, a, b):
+    """First tau in [a, b] where ``h = F_S(t_stick0 + tau) - (L0 + dL tau)`` turns negative.
+
+    ``h`` is convex or concave on the piece, as ``F_S`` is.
+    """
+
+    def h(tau):
+        return static.force(t_stick0 + tau) - (L0 + dL * tau)
+
+    def dh(tau):
+        return static.rate(t_stick0 + tau) - dL
+
     ha = h(a)
     if ha < 0.0:
         return a
-    mid = 0.5 * (a + b)
-    if static.curvature(t_stick0 + mid) <= 0.0:
+    if static.curvature(t_stick0 + 0.5 * (a + b)) <= 0.0:
         hb = h(b)
         return first_crossing(h, a, b, ha, hb) if hb < 0.0 else None
     # Convex: h' increases; the minimum is at a, at b, or where h' = 0.
     da, db = dh(a), dh(b)
     if da >= 0.0:
-        return a if ha == 0.0 and da == 0.0 and h(b) < 0.0 else None
+        return None
     low = b
     if db > 0.0:
         low = first_crossing(dh, a, b, da, db)

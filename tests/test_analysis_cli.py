@@ -1,0 +1,109 @@
+"""The analysis commands: stickslip bifurcation | vc | map | slow-manifold | chart."""
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from stickslip.cli import main
+
+SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+
+#: elmer-fig3 bifurcation points (kind, v_drive), refined to 1e-7 (the grid does not matter)
+ELMER_POINTS = [
+    ("stick-slip-boundary", 0.0585126), ("stick-slip-boundary", 0.0821024), ("fold", 0.1492599),
+    ("boundary-switch", 0.1620558), ("grazing", 0.1620558), ("hopf", 0.1625725),
+    ("stick-slip-boundary", 0.3346823), ("hopf", 0.4168818), ("stick-slip-boundary", 0.6288116),
+    ("grazing", 0.7850776), ("boundary-switch", 0.7850776), ("stick-slip-boundary", 0.9600452),
+    ("fold", 1.1572381),
+]
+
+
+def test_bifurcation_command(tmp_path, capsys):
+    out = tmp_path / "bif"
+    assert main(["bifurcation", "--preset", "elmer-fig3", "--v-min", "0.01", "--v-max", "1.2", "-n", "60",
+                 "--jobs", "1", "--out", str(out)]) == 0
+    assert (out / "bifurcation.png").stat().st_size > 10000
+    points = json.loads((out / "bifurcation_points.json").read_text())
+    got = sorted((round(p["v_drive"], 5), p["kind"], p["v_drive"]) for p in points)
+    want = sorted((round(v, 5), k, v) for k, v in ELMER_POINTS)
+    assert [k for _, k, _ in got] == [k for _, k, _ in want]
+    assert [v for _, _, v in got] == pytest.approx([v for _, _, v in want], abs=1e-6)
+    hopf = [p for p in points if p["kind"] == "hopf"]
+    assert [p["criticality"] for p in hopf] == ["subcritical", "subcritical"]
+    with open(out / "branches.csv") as f:
+        rows = list(csv.DictReader(f))
+    kinds = {r["branch"] for r in rows}
+    assert kinds == {"continuous-sliding", "oscillatory-sliding", "stick-slip", "overshoot-sliding",
+                     "special-boundary"}
+    assert {r["stable"] for r in rows if r["branch"] == "oscillatory-sliding"} == {"True", "False"}
+    assert "13 bifurcation points" in capsys.readouterr().out
+
+
+def test_vc_command_for_a_viscous_law(tmp_path, capsys):
+    out = tmp_path / "vc"
+    assert main(["vc", "--kinetic", "viscous", "--static", "constant", "--set", "kinetic.F0=0.5",
+                 "--set", "kinetic.gamma=0.3", "--set", "static.F0=1", "--v-min", "0.01", "--v-max", "1",
+                 "-n", "30", "--jobs", "1", "--out", str(out)]) == 0
+    data = json.loads((out / "vc.json").read_text())
+    assert len(data["critical"]) == 1 and 0.01 < data["critical"][0] < 1.0
+    assert (out / "margin.png").exists()
+    assert "critical drive velocities" in capsys.readouterr().out
+
+
+def test_vc_command_with_a_scenario_file(tmp_path, capsys):
+    assert main(["vc", "--scenario", str(SCENARIOS / "elmer-fig3-v0.07.toml"), "--v-min", "0.03",
+                 "--v-max", "0.12", "-n", "10", "--jobs", "1"]) == 0
+    assert "0.0585126" in capsys.readouterr().out
+
+
+def test_map_command(tmp_path, capsys):
+    out = tmp_path / "map"
+    assert main(["map", "--scenario", str(SCENARIOS / "aging-logarithmic.toml"), "--v-min", "0.01",
+                 "--v-max", "0.2", "-n", "8", "--orbit", "--transient", "10", "--keep", "5", "--jobs", "1",
+                 "--out", str(out)]) == 0
+    data = json.loads((out / "map.json").read_text())
+    assert data["v_drive"] == 0.05
+    (fp,) = data["fixed_points"]
+    assert fp["stable"] and fp["period"] == pytest.approx(28.339, abs=1e-3)
+    assert all(e["exponent"] < 0.0 for e in data["lyapunov"])
+    for name in ("map.png", "fixed_points.png", "orbit_diagram.png"):
+        assert (out / name).exists()
+
+
+def test_slow_manifold_command(tmp_path):
+    out = tmp_path / "sm"
+    assert main(["slow-manifold", "--scenario", str(SCENARIOS / "overdamped-stribeck.toml"), "--t-end", "30",
+                 "--out", str(out)]) == 0
+    data = json.loads((out / "slow_manifold.json").read_text())
+    assert data["folds"][0]["v_rel"] == pytest.approx(0.1 * math.log(3.0), abs=1e-9)
+    assert (out / "slow_manifold.png").exists()
+
+
+def test_chart_command(tmp_path):
+    out = tmp_path / "chart"
+    assert main(["chart", "--preset", "elmer-fig3", "--param", "kinetic.gamma1", "--values", "2.5:3.5:3",
+                 "--v-min", "0.05", "--v-max", "0.5", "-n", "10", "--jobs", "1", "--out", str(out)]) == 0
+    with open(out / "chart.csv") as f:
+        assert len(list(csv.DictReader(f))) == 30
+
+
+def test_bad_arguments_are_reported(capsys):
+    assert main(["vc", "--set", "M=2"]) == 1
+    assert "no friction laws" in capsys.readouterr().err
+    assert main(["vc", "--preset", "nope"]) == 1
+
+
+def test_bifurcation_with_aging_reports_the_map_saddle_nodes(tmp_path):
+    out = tmp_path / "aging"
+    assert main(["bifurcation", "--kinetic", "coulomb", "--static", "sigmoid", "--set", "kinetic.F0=0.5",
+                 "--set", "static.F0=0.8", "--set", "static.F_inf=1.5", "--set", "static.tau=5", "--set",
+                 "static.n=4", "--v-min", "0.2", "--v-max", "0.3", "-n", "21", "--jobs", "1", "--out", str(out)]) == 0
+    points = json.loads((out / "bifurcation_points.json").read_text())
+    assert [(p["kind"], p["cycles"]) for p in points] == [("fold", "stick-slip")] * 2
+    assert [p["v_drive"] for p in points] == pytest.approx([0.2488727, 0.2606055], abs=1e-6)
+    with open(out / "branches.csv") as f:
+        rows = [r for r in csv.DictReader(f) if r["branch"] == "stick-slip"]
+    assert {r["stable"] for r in rows} == {"True", "False"}
