@@ -10,6 +10,7 @@ import sys
 from .bench.cli import add_bench_parser
 from .analysis.cli import add_bifurcation, add_chart, add_map, add_slow_manifold, add_vc
 from .core.errors import StickSlipError
+from .stress.cli import add_stress_parser
 
 
 def add_run(subparsers):
@@ -40,7 +41,7 @@ def _build_fmu(args):
 
 
 COMMANDS = (add_run, add_build_fmu, add_bench_parser,
-            add_bifurcation, add_vc, add_map, add_slow_manifold, add_chart)
+            add_bifurcation, add_vc, add_map, add_slow_manifold, add_chart, add_stress_parser)
 
 
 def main(argv=None):

@@ -9,7 +9,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from .core import KINETIC_LAWS, STATIC_LAWS, Parameters
+from .core import KINETIC_LAWS, RTOL_RANGE, STATIC_LAWS, Parameters
 from .core.errors import ParameterError, StickSlipError
 from .core.ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, Range
 from .inputs import INPUT_NAMES, Signal, input_table, zoh_breakpoints
@@ -130,7 +130,7 @@ def load_scenario(path):
     try:
         with open(path, "rb") as stream:
             data = tomllib.load(stream)
-    except (OSError, tomllib.TOMLDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ScenarioError(f"{path}: cannot read a TOML file: {exc}") from exc
     unknown = sorted(set(data) - _TOP_KEYS)
     if unknown:
@@ -154,7 +154,7 @@ def load_scenario(path):
         signals=_signals(f, data),
         stop_time=stop_time,
         output_interval=f.number(simulation, "simulation.output_interval", up_to_stop),
-        rtol=f.number(simulation, "simulation.rtol", Range(0.0, 1.0, low_open=True, high_open=True),
+        rtol=f.number(simulation, "simulation.rtol", RTOL_RANGE,
                       default=DEFAULT_RTOL),
         tail=f.number(simulation, "simulation.tail", up_to_stop, default=stop_time / 3.0),
         tolerance=_tolerance(f, data),

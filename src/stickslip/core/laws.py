@@ -300,7 +300,7 @@ class Sigmoid(StaticLaw):
             return math.copysign(math.inf, (self.F_inf - self.F0) * (self.n - 1.0)) if self.n != 1.0 else 0.0
         r = (t / self.tau) ** self.n
         shape = (self.n - 1.0) - (self.n + 1.0) * r
-        return (self.F_inf - self.F0) * self.n * r * shape / (t * t * (1.0 + r) ** 3)
+        return (self.F_inf - self.F0) * self.n * r * shape / t / t / (1.0 + r) ** 3
 
     def is_constant(self):
         return self.F_inf == self.F0

@@ -92,6 +92,8 @@ class Trajectory:
         """Advance to time ``t >= self.t`` (s), through every event up to and at ``t``."""
         if not t >= self.t:
             raise SolverError(f"cannot advance from t = {self.t!r} s back to t = {t!r} s")
+        if not math.isfinite(t):
+            raise SolverError(f"cannot advance from t = {self.t!r} s to t = {t!r} s: the end time must be finite")
         while self._segment.t1 <= t:
             self._finish_segment()
         self.t = float(t)
