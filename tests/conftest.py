@@ -1,5 +1,8 @@
 """Shared fixtures: the FMU built once per test session from the current sources."""
 
+import shutil
+
+import fmpy
 import pytest
 
 from stickslip.fmu_build import build
@@ -9,3 +12,12 @@ from stickslip.fmu_build import build
 def fmu_path(tmp_path_factory):
     """Path of a SpringBlockFriction.fmu freshly built from the working tree (dist/ is left alone)."""
     return build(tmp_path_factory.mktemp("fmu") / "SpringBlockFriction.fmu")
+
+
+@pytest.fixture(scope="session")
+def unzipped(fmu_path):
+    """(extracted folder, model description, {name: variable}) of the session's FMU."""
+    folder = fmpy.extract(str(fmu_path))
+    description = fmpy.read_model_description(str(fmu_path))
+    yield folder, description, {v.name: v for v in description.modelVariables}
+    shutil.rmtree(folder, ignore_errors=True)

@@ -21,6 +21,8 @@ from stickslip.fmu_driver import FMUError, run_fmu
 from stickslip.scenario import ScenarioError, load_scenario, load_scenarios
 from stickslip.stress.session import FmuCallError, FmuSession, fmi2Error, fmi2Fatal
 
+from scenario_texts import VALID
+
 STICK_SLIP = {"M": 1.0, "kappa": 1.0, "kinetic.F0": 0.5, "static.F0": 1.0}
 
 
@@ -324,38 +326,6 @@ def test_overflowing_parameter_combinations_are_rejected_clearly(session, start)
 # malformed scenario files (beyond tests/test_scenario_files.py)
 # ---------------------------------------------------------------------------
 
-VALID = """
-name = "case"
-expected_attractor = "stick-slip"
-
-[model]
-M = 1.0
-kappa = 1.0
-
-[initial]
-x = 0.0
-v = 0.1
-
-[kinetic]
-law = "coulomb"
-F0 = 0.5
-
-[static]
-law = "constant"
-F0 = 1.0
-
-[inputs.v_drive]
-constant = 0.1
-
-[simulation]
-stop_time = 10.0
-output_interval = 0.1
-
-[tolerance]
-max_abs_dx = 1e-9
-max_abs_dv = 1e-9
-event_time = 1e-9
-"""
 
 # (test id, text to replace, replacement, key the message must name, text that says what was expected)
 MALFORMED = [

@@ -1,7 +1,6 @@
 """The SpringBlockFriction FMU as an importer sees it (FMPy): model description, errors, state, stepping."""
 
 import math
-import shutil
 import sys
 import zipfile
 from pathlib import Path
@@ -9,12 +8,13 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
-from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
 from stickslip.core import Parameters, StickSlipError, Trajectory, kinetic_law, static_law
 from stickslip.fmu_build import REPO, source_tag
 from stickslip.fmu_driver import FMUError, default_fmu_path, ensure_fmu, run_fmu
+
+from fmu_instances import instantiate
 
 STICK_SLIP = {"M": 1.0, "kappa": 1.0, "kinetic.F0": 0.5, "static.F0": 1.0}  # coulomb, stick time 10 s
 STRIBECK = {"kinetic.law": 3, "kinetic.F0": 0.4, "kinetic.F_stribeck": 0.3, "kinetic.v_stribeck": 0.05,
@@ -42,31 +42,6 @@ SPEC_VARIABLES = {  # SPEC section 4: name -> (causality, type, unit)
 # ---------------------------------------------------------------------------
 # direct access through FMPy's FMU2Slave
 # ---------------------------------------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def unzipped(fmu_path):
-    """(extracted folder, model description, {name: variable}) of the FMU."""
-    folder = fmpy.extract(str(fmu_path))
-    description = fmpy.read_model_description(str(fmu_path))
-    yield folder, description, {v.name: v for v in description.modelVariables}
-    shutil.rmtree(folder, ignore_errors=True)
-
-
-def instantiate(unzipped, name, start):
-    """An initialized instance with the given start values."""
-    folder, description, variables = unzipped
-    fmu = FMU2Slave(guid=description.guid, unzipDirectory=folder,
-                    modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
-    fmu.instantiate(loggingOn=True)
-    fmu.setupExperiment(startTime=0.0)
-    fmu.enterInitializationMode()
-    for key, value in start.items():
-        variable = variables[key]
-        setter = fmu.setInteger if variable.type == "Integer" else fmu.setReal
-        setter([variable.valueReference], [value])
-    fmu.exitInitializationMode()
-    return fmu
 
 
 def read(fmu, unzipped, names=("x", "v")):

@@ -15,13 +15,14 @@ import sys
 import fmpy
 import numpy as np
 import pytest
-from fmpy.fmi2 import FMU2Slave
 
 from stickslip.core import Parameters, Trajectory, kinetic_law, static_law
 from stickslip.fmu_driver import run_fmu
 from stickslip.inputs import zoh_breakpoints
 from stickslip.reference import simulate_reference
 from stickslip.stress import cosim
+
+from fmu_instances import instantiate
 
 try:
     import libcosimpy.CosimExecution  # noqa: F401
@@ -216,30 +217,6 @@ def test_fmpy_simulate_fmu_with_an_input_table_matches_the_reference(fmu_path):
 # ---------------------------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def unzipped(fmu_path):
-    folder = fmpy.extract(str(fmu_path))
-    description = fmpy.read_model_description(str(fmu_path))
-    yield folder, description, {v.name: v for v in description.modelVariables}
-    import shutil
-
-    shutil.rmtree(folder, ignore_errors=True)
-
-
-def _instance(unzipped, name, start):
-    folder, description, variables = unzipped
-    fmu = FMU2Slave(guid=description.guid, unzipDirectory=folder,
-                    modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
-    fmu.instantiate(loggingOn=True)
-    fmu.setupExperiment(startTime=0.0)
-    fmu.enterInitializationMode()
-    for key, value in start.items():
-        v = variables[key]
-        (fmu.setInteger if v.type == "Integer" else fmu.setReal)([v.valueReference], [value])
-    fmu.exitInitializationMode()
-    return fmu
-
-
 def _run(fmu, unzipped, t0, steps, inputs):
     """doStep from t0 with steps of 0.3 s; ``inputs[k]`` = (v_drive, F_ext) set before step k."""
     variables = unzipped[2]
@@ -256,7 +233,7 @@ def _run(fmu, unzipped, t0, steps, inputs):
 
 
 def test_rollback_after_a_different_input_history_continues_bit_for_bit(unzipped):
-    fmu = _instance(unzipped, "rollback", AGING)
+    fmu = instantiate(unzipped, "rollback", AGING)
     _run(fmu, unzipped, 0.0, 30, {0: (0.1, 0.0), 10: (0.3, 0.2)})  # t = 9 s
     state = fmu.getFMUstate()
     original = _run(fmu, unzipped, 9.0, 60, {5: (0.0, -0.4), 20: (0.2, 0.1)})
@@ -296,7 +273,7 @@ print("ROWS" + json.dumps([[float.hex(float(v)) for v in row] for row in rows]))
 
 @pytest.mark.parametrize("start", [AGING, STRIBECK], ids=["aging", "stribeck"])
 def test_serialized_state_continues_bit_for_bit_in_another_process(unzipped, fmu_path, start):
-    fmu = _instance(unzipped, "serializer", start)
+    fmu = instantiate(unzipped, "serializer", start)
     _run(fmu, unzipped, 0.0, 37, {})  # t = 11.1 s
     serialized = fmu.serializeFMUstate(fmu.getFMUstate())
     here = _run(fmu, unzipped, 11.1, 80, {})
@@ -313,7 +290,7 @@ def test_serialized_state_continues_bit_for_bit_in_another_process(unzipped, fmu
 
 def test_state_of_the_python_runtime_equals_the_fmu(unzipped):
     """The FMU is the runtime: after rollback the FMU still equals a fresh Trajectory bit for bit."""
-    fmu = _instance(unzipped, "vs-runtime", STRIBECK)
+    fmu = instantiate(unzipped, "vs-runtime", STRIBECK)
     _run(fmu, unzipped, 0.0, 20, {})
     state = fmu.getFMUstate()
     _run(fmu, unzipped, 6.0, 10, {0: (0.7, 0.4)})

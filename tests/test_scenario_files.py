@@ -7,40 +7,10 @@ import pytest
 from stickslip.core.errors import StickSlipError
 from stickslip.scenario import ScenarioError, load_scenario, load_scenarios
 
+from scenario_texts import VALID
+
 SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 
-VALID = """
-name = "case"
-expected_attractor = "stick-slip"
-
-[model]
-M = 1.0
-kappa = 1.0
-
-[initial]
-x = 0.0
-v = 0.1
-
-[kinetic]
-law = "coulomb"
-F0 = 0.5
-
-[static]
-law = "constant"
-F0 = 1.0
-
-[inputs.v_drive]
-constant = 0.1
-
-[simulation]
-stop_time = 10.0
-output_interval = 0.1
-
-[tolerance]
-max_abs_dx = 1e-9
-max_abs_dv = 1e-9
-event_time = 1e-9
-"""
 
 # (test id, text to replace in VALID, replacement, key the message must name)
 MALFORMED = [
