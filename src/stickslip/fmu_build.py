@@ -20,6 +20,8 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
+from .fmi_host import preserved_sys_path
+
 REPO = Path(__file__).resolve().parents[2]
 RUNTIME = Path(__file__).resolve().parent / "core"
 SLAVE = REPO / "fmu_src" / "SpringBlockFriction.py"
@@ -79,15 +81,14 @@ def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu"):
         tmp = Path(tmp)
         shutil.copytree(RUNTIME, tmp / package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
         (tmp / f"{module}.py").write_text(slave_code)
-        path_before = list(sys.path)
         try:
-            built = FmuBuilder.build_FMU(
-                tmp / f"{module}.py", dest=tmp / "out", project_files=[tmp / package],
-                canGetAndSetFMUstate=True, canSerializeFMUstate=True,
-            )
+            with preserved_sys_path():  # PythonFMU leaves the temporary folder on sys.path
+                built = FmuBuilder.build_FMU(
+                    tmp / f"{module}.py", dest=tmp / "out", project_files=[tmp / package],
+                    canGetAndSetFMUstate=True, canSerializeFMUstate=True,
+                )
             slave = getattr(sys.modules[module], MODEL_NAME)(instance_name="build")
-        finally:  # PythonFMU leaves the temporary folder on sys.path and the modules imported
-            sys.path[:] = path_before
+        finally:  # ... and the modules imported
             for name in [m for m in sys.modules if m == module or m.split(".")[0] == package]:
                 del sys.modules[name]
         partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")

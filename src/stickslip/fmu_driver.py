@@ -5,17 +5,16 @@ FMU's own log text (for a bad parameter: its name, value and allowed range).
 PythonFMU passes that text only when debug logging is on, so it always is.
 """
 
+import itertools
 import shutil
-import sys
-from ctypes import byref
 from pathlib import Path
 
 import fmpy
-from fmpy.fmi1 import FMICallException, printLogMessage
-from fmpy.fmi2 import fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Fatal
-from fmpy.logging import addLoggerProxy
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Slave, fmi2Fatal
 
 from .core.errors import StickSlipError
+from .fmi_host import callbacks, log_mark, messages_since, preserved_sys_path
 from .fmu_build import REPO, MODEL_NAME, build, built_tag, source_tag
 
 
@@ -47,47 +46,28 @@ def run_fmu(fmu_path, start_values, stop_time, output_interval, input_signal=Non
     each step and held during it). ``outputs``: names to record (default: all outputs).
     Returns FMPy's structured result array (field ``time`` plus the outputs).
     """
-    messages = []
-
-    def collect(_env, _instance, status, _category, message):
-        if status >= 1:  # warning, discard, error or fatal
-            messages.append(message.decode())
-
     model_description = fmpy.read_model_description(str(fmu_path))
     unzipdir = fmpy.extract(str(fmu_path))
-    path_before = list(sys.path)
-    fmu = None
+    name = f"run{next(_RUN_NUMBERS)}"
+    mark = log_mark()
+    fmu = FMU2Slave(guid=model_description.guid, unzipDirectory=unzipdir, instanceName=name,
+                    modelIdentifier=model_description.coSimulation.modelIdentifier, fmiCallLogger=fmi_call_logger)
     try:
-        fmu = fmpy.instantiate_fmu(
-            unzipdir, model_description, "CoSimulation", debug_logging=True, logger=collect,
-            fmi_call_logger=fmi_call_logger,
-        )
-        return fmpy.simulate_fmu(
-            unzipdir, model_description=model_description, fmu_instance=fmu, start_time=0.0, stop_time=stop_time,
-            output_interval=output_interval, start_values=start_values, input=input_signal, output=outputs,
-        )
+        with preserved_sys_path():  # PythonFMU puts the FMU's resources on sys.path
+            fmu.instantiate(callbacks=callbacks(), loggingOn=True)
+            return fmpy.simulate_fmu(
+                unzipdir, model_description=model_description, fmu_instance=fmu, start_time=0.0,
+                stop_time=stop_time, output_interval=output_interval, start_values=start_values,
+                input=input_signal, output=outputs,
+            )
     except FMICallException as error:
         if error.status == fmi2Fatal:  # PythonFMU already released the slave: freeing it again corrupts memory
             fmu = None
-        raise FMUError("\n".join([str(error), *messages])) from None
+        raise FMUError("\n".join([str(error), *messages_since(mark, name)])) from None
     finally:
         if fmu is not None:
             fmu.freeInstance()
-        sys.path[:] = path_before  # PythonFMU put the FMU's resources on sys.path
         shutil.rmtree(unzipdir, ignore_errors=True)
-        _restore_fmpy_logger()
 
 
-_PRINTING_LOGGER = fmi2CallbackLoggerTYPE(printLogMessage)  # lives as long as the process
-
-
-def _restore_fmpy_logger():
-    """Make FMPy's default printing logger the process-wide one again.
-
-    FMPy's native logging proxy forwards every FMU's messages to ONE process-wide
-    logger, the last one registered: after a run it would point to that run's
-    freed callback, and the next instance that logs would crash the process.
-    """
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = _PRINTING_LOGGER
-    addLoggerProxy(byref(callbacks))
+_RUN_NUMBERS = itertools.count(1)  # instance names, so each run reads only its own log messages

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import fmpy
 
+from ..fmi_host import preserved_sys_path
 from ..fmu_build import REPO
 
 FLOOR_SOURCE = REPO / "benchmarks" / "floor_fmu" / "TrivialFloorSlave_sbfbench.py"
@@ -27,14 +28,11 @@ class ExtractedFMU:
 
     def simulate(self, start_values, stop_time, output_interval, outputs):
         """FMPy's result array from t = 0 to ``stop_time`` s with communication step ``output_interval`` s."""
-        path_before = list(sys.path)
-        try:
+        with preserved_sys_path():  # PythonFMU puts the FMU's resources on sys.path
             return fmpy.simulate_fmu(
                 self.folder, model_description=self.model_description, start_time=0.0, stop_time=stop_time,
                 output_interval=output_interval, start_values=start_values, output=list(outputs),
             )
-        finally:
-            sys.path[:] = path_before  # PythonFMU puts the FMU's resources on sys.path
 
     def __enter__(self):
         return self
@@ -53,11 +51,10 @@ def ensure_floor_fmu(build_dir=None):
         return dest
     dest.parent.mkdir(parents=True, exist_ok=True)
     partial = dest.with_name(f".{dest.name}.{os.getpid()}.part.fmu")
-    path_before = list(sys.path)
     try:
-        FmuBuilder.build_FMU(FLOOR_SOURCE, dest=partial)
-    finally:  # PythonFMU leaves the source folder on sys.path and the module imported
-        sys.path[:] = path_before
+        with preserved_sys_path():  # PythonFMU leaves the source folder on sys.path
+            FmuBuilder.build_FMU(FLOOR_SOURCE, dest=partial)
+    finally:  # ... and the module imported
         sys.modules.pop(FLOOR_SOURCE.stem, None)
     os.replace(partial, dest)
     return dest

@@ -33,7 +33,8 @@ import subprocess
 import sys
 
 from ..fmu_driver import FMUError
-from .session import INTEGER_OUTPUTS, FmuSession, Instance, _callbacks
+from ..fmi_host import callbacks
+from .session import INTEGER_OUTPUTS, FmuSession, Instance
 
 RESULT_MARK = "@@cosim-results@@"
 
@@ -161,7 +162,7 @@ def _instantiate_in_init(session, name, start):
 
     fmu = FMU2Slave(guid=session.description.guid, unzipDirectory=session.folder,
                     modelIdentifier=session.description.coSimulation.modelIdentifier, instanceName=name)
-    fmu.instantiate(callbacks=_callbacks(), loggingOn=True)
+    fmu.instantiate(callbacks=callbacks(), loggingOn=True)
     inst = Instance(session, fmu, name)
     for key, value in start.items():
         inst.set_value(key, value)

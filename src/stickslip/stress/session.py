@@ -5,35 +5,26 @@ the exact communication points, inputs that change at any step, the FMU's own
 log text and status code, FMU states, and timing per ``doStep``. A
 :class:`FmuSession` extracts the FMU once and makes :class:`Instance` objects.
 
-Two crash hazards of FMPy + PythonFMU are avoided here, as in
-:mod:`stickslip.fmu_driver`:
-
-- PythonFMU reports every Python exception as ``fmi2Fatal`` and releases the
-  slave itself; freeing such an instance again corrupts memory, so an instance
-  that returned ``fmi2Fatal`` is never terminated or freed.
-- FMPy's native logging proxy forwards the messages of every FMU to the one
-  logger registered last. Ours is a module-level callback that lives as long as
-  the process, so no instance can ever call a freed logger.
+PythonFMU reports every Python exception as ``fmi2Fatal`` and releases the
+slave itself; freeing such an instance again corrupts memory, so an instance
+that returned ``fmi2Fatal`` is never terminated or freed. Instances log through
+the process-wide logger of :mod:`stickslip.fmi_host`.
 """
 
 import shutil
 import time
-from ctypes import byref
 
 import fmpy
 import numpy as np
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
     FMU2Slave,
-    defaultCallbacks,
-    fmi2CallbackFunctions,
-    fmi2CallbackLoggerTYPE,
     fmi2Error,
     fmi2Fatal,
     fmi2LastSuccessfulTime,
 )
-from fmpy.logging import addLoggerProxy
 
+from ..fmi_host import callbacks, log_mark, messages_since
 from ..fmu_driver import FMUError
 
 REAL_OUTPUTS = ("x", "v", "v_rel", "F_friction", "F_spring", "t_stick", "z_slip", "z_stick", "t_last_event")
@@ -42,30 +33,6 @@ INPUTS = ("v_drive", "F_ext")
 #: every column a sample holds (besides ``time``)
 COLUMNS = REAL_OUTPUTS + INPUTS + INTEGER_OUTPUTS
 STATUS_NAMES = ("ok", "warning", "discard", "error", "fatal", "pending")
-
-_MESSAGES = []  # (instance name, status, category, message) of every logged message with status >= warning
-_KEEP_ALIVE = []  # callback structs handed to FMUs: never garbage collected (an FMU may keep the pointer)
-
-
-def _collect(_env, instance, status, category, message):
-    if status >= 1:
-        _MESSAGES.append((instance.decode(errors="replace") if instance else "", int(status),
-                          category.decode(errors="replace") if category else "",
-                          message.decode(errors="replace") if message else ""))
-
-
-_LOGGER = fmi2CallbackLoggerTYPE(_collect)  # lives as long as the process
-
-
-def _callbacks():
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = _LOGGER
-    callbacks.allocateMemory = defaultCallbacks.allocateMemory
-    callbacks.freeMemory = defaultCallbacks.freeMemory
-    addLoggerProxy(byref(callbacks))  # makes _LOGGER the process-wide target of FMPy's proxy
-    _KEEP_ALIVE.append(callbacks)
-    return callbacks
-
 
 class FmuCallError(FMUError):
     """An FMI call failed: ``function``, ``status`` (3 error, 4 fatal) and the FMU's log ``messages``."""
@@ -118,7 +85,7 @@ class FmuSession:
         name = name or f"stress{self._count}"
         fmu = FMU2Slave(guid=self.description.guid, unzipDirectory=self.folder,
                         modelIdentifier=self.description.coSimulation.modelIdentifier, instanceName=name)
-        fmu.instantiate(callbacks=_callbacks(), loggingOn=logging_on)
+        fmu.instantiate(callbacks=callbacks(), loggingOn=logging_on)
         instance = Instance(self, fmu, name)
         try:
             instance.call("fmi2SetupExperiment", fmu.setupExperiment, startTime=start_time)
@@ -149,7 +116,7 @@ class Instance:
 
     def call(self, function, method, *args, **kwargs):
         """Call an FMPy method; raise FmuCallError with this instance's new log messages on failure."""
-        first = len(_MESSAGES)
+        first = log_mark()
         try:
             return method(*args, **kwargs)
         except FMICallException as exc:
@@ -158,8 +125,8 @@ class Instance:
             raise FmuCallError(function, exc.status, self.messages(first)) from None
 
     def messages(self, first=0):
-        """Log messages (status >= warning) of this instance since index ``first`` of the process log."""
-        return [m for inst, _, _, m in _MESSAGES[first:] if inst == self.name]
+        """Log messages (status >= warning) of this instance since ``first`` (a :func:`log_mark`)."""
+        return messages_since(first, self.name)
 
     def set_value(self, name, value):
         variable = self.session.variables[name]
