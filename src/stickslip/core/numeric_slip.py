@@ -54,7 +54,7 @@ class SlipStepper:
             return slip_acceleration(mode, x, v, v_drive, F_ext, p)
 
         a0 = accel(x0, v0)
-        scale_x, scale_v = _scales(x0, v0, v_drive, F_ext, p)
+        scale_x, scale_v = _scales(v_drive, F_ext, p)
         stiffness = max(0.0, -slip_acceleration_slope(mode, v0, v_drive, p))
         omega0 = math.sqrt(p.kappa / p.M)
         h_max = 1.0 / omega0
@@ -101,7 +101,7 @@ class SlipStepper:
             self.votes = 0
 
 
-def _scales(x0, v0, v_drive, F_ext, p):
+def _scales(v_drive, F_ext, p):
     """Natural position (m) and velocity (m/s) scales for the absolute tolerance."""
     scale_x = (p.static.force(0.0) + abs(F_ext)) / p.kappa
     scale_v = max(abs(v_drive), math.sqrt(p.kappa / p.M) * scale_x)
