@@ -6,9 +6,19 @@ Parameters are checked when initialization ends: an invalid one raises the
 runtime's ``ParameterError``, which reaches the importer as an FMI error with
 the parameter's name and allowed range. ``build_fmu.py`` bundles the runtime
 under a name only this FMU uses and rewrites the import below to it.
+
+PythonFMU (0.7.0) reports every exception of the slave as ``fmi2Fatal``. Its
+only other failure status, ``fmi2Discard`` for a ``do_step`` that returns
+False, comes with ``fmi2Terminated = true``, which FMPy's ``simulate_fmu``
+takes for a normal early end (no exception, the results cut short), so every
+failure raises. PythonFMU's release of the slave on an exception is balanced
+here (:func:`_survives_release`): an importer that terminates and frees the
+instance after the error, as libcosim does, does not crash.
 """
 
 import copy
+import ctypes
+import functools
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
@@ -193,3 +203,47 @@ class SpringBlockFriction(Fmi2Slave):
         snapshot = state["trajectory"]
         self.trajectory = None if snapshot is None else Trajectory.from_snapshot(self._parameters(), snapshot)
         self._output_cache.clear()
+
+
+# ---- PythonFMU's release of the slave on an exception -----------------------------
+
+# The methods PythonFMU's C++ wrapper calls on the slave (PyObject_CallMethod(pInstance_, ...) in PySlaveInstance.cpp).
+# Not covered: the static _fmu_state_to_bytes/_fmu_state_from_bytes, called on the class; an exception there
+# (corrupt serialized state) still releases the slave unbalanced.
+ENTRY_POINTS = (
+    "setup_experiment", "enter_initialization_mode", "exit_initialization_mode", "do_step", "terminate",
+    "get_real", "get_integer", "get_boolean", "get_string", "set_real", "set_integer", "set_boolean", "set_string",
+    "_get_fmu_state", "_set_fmu_state",
+)
+
+
+def _survives_release(method):
+    """``method``, which on an exception first takes the references that PythonFMU will drop once too often.
+
+    PythonFMU 0.7.0 (PySlaveInstance.cpp) turns an exception into fmi2Fatal in ``handle_py_exception``, which
+    calls ``cleanPyObject``: that releases the wrapper's references to the slave (``pInstance_``), its class
+    (``pClass_``, ``type(slave)``) and its log queue (``pMessages_``) but keeps the pointers, and
+    ``fmi2FreeInstance`` (the destructor) releases them a second time. Each failed instance that is then
+    freed takes one reference too many from the slave and from the class, and the process crashes once the
+    garbage collector frees them while they are in use (libcosim, which terminates and frees every instance,
+    died with SIGSEGV after a few failed runs). One extra reference to each, taken here before the exception
+    leaves the slave, balances the release: the slave stays usable until it is freed and is freed exactly
+    then. An importer that never frees an instance after fmi2Fatal (stickslip's FMPy hosts) leaves that slave
+    allocated until the process ends.
+    """
+
+    @functools.wraps(method)
+    def entry_point(self, *args, **kwargs):
+        try:
+            return method(self, *args, **kwargs)
+        except BaseException:
+            for reference in (self, type(self), self.log_queue):
+                ctypes.pythonapi.Py_IncRef(ctypes.py_object(reference))
+            raise
+
+    return entry_point
+
+
+for _name in ENTRY_POINTS:
+    setattr(SpringBlockFriction, _name, _survives_release(getattr(SpringBlockFriction, _name)))
+del _name

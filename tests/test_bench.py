@@ -61,9 +61,10 @@ def test_quick_bench_writes_json_markdown_and_plots(tmp_path, fmu_path, monkeypa
     assert args.handler(args) == 0
 
     records = json.loads((out / "bench.json").read_text())["scenes"]["coulomb"]["records"]
-    assert {r["family"] for r in records} == {"fmu", "stepper", "solve_ivp", "regularized", "floor"}
+    assert {r["family"] for r in records} == {"fmu", "stepper", "stepper-integrating", "solve_ivp", "regularized",
+                                              "floor"}
     assert all(r["error"] is None and len(r["times_s"]) >= 1 for r in records)
-    exact = [r for r in records if r["family"] in ("fmu", "stepper")]
+    exact = [r for r in records if r["family"] in ("fmu", "stepper", "stepper-integrating")]
     assert max(r["rel_dx"] for r in exact) < 1e-12  # Coulomb slips are closed forms in the stepper
     assert "## Matched accuracy" in (out / "bench.md").read_text()
     assert (out / "coulomb.png").stat().st_size > 0

@@ -25,7 +25,7 @@ from stickslip.core import (
 )
 from stickslip.core import poly
 from stickslip.core.integrators import dopri5_step
-from stickslip.core.numeric_slip import _slip_end
+from stickslip.core.numeric_slip import SlipStepper, _slip_end
 
 
 def event_log(traj, t_end, dt):
@@ -261,3 +261,60 @@ def test_breakaway_after_the_holding_force_changes_sign_in_a_convex_stretch():
     margin = np.array([law.force(t) for t in taus]) - np.abs(x0 + vd * taus)
     first_negative = taus[np.argmax(margin < 0)]
     assert breakaway_delay(x0, vd, 0.0, 0.0, p, 1e4) == pytest.approx(first_negative, abs=2e-5)
+
+
+PERIODIC = [  # stick-slip scenes whose slips start from bit-identical states once the cycle has settled,
+    # with the largest fraction of steps that may still be integrated (an aging stick settles more slowly)
+    ("lubricated-constant", Parameters(40.0, 1.0, Lubricated(), Constant(F0=1.0)), 0.1, 0.2),
+    ("stribeck-aging", Parameters(1.0, 1.0, Stribeck(F0=0.4, F_stribeck=0.3, v_stribeck=0.1, delta=2.0, gamma=0.05),
+                                  Logarithmic(F0=1.0, A=0.1, tau=1.0)), 0.2, 0.7),
+]
+
+
+@pytest.mark.parametrize("p, vd, integrated_fraction", [c[1:] for c in PERIODIC], ids=[c[0] for c in PERIODIC])
+def test_replayed_steps_give_exactly_the_integrated_numbers(p, vd, integrated_fraction, monkeypatch):
+    """The step memo is an exact shortcut: the same trajectory, bit for bit, with most steps replayed."""
+    integrated = Trajectory(p, 0.0, vd, v_drive=vd, rtol=1e-9, reuse_steps=False)
+    replayed = Trajectory(p, 0.0, vd, v_drive=vd, rtol=1e-9)
+    work = []
+    original = SlipStepper._integrate
+
+    def counting(stepper, *args):
+        if stepper is replayed._stepper:
+            work.append(args[0])
+        return original(stepper, *args)
+
+    monkeypatch.setattr(SlipStepper, "_integrate", counting)
+    for t in np.arange(1, 3001) * 0.1:
+        integrated.advance_to(t)
+        replayed.advance_to(t)
+        assert (replayed.x, replayed.v, replayed.mode) == (integrated.x, integrated.v, integrated.mode)
+    assert replayed.n_steps == integrated.n_steps and replayed.n_stick_events >= 5
+    assert len(work) < integrated_fraction * replayed.n_steps, (len(work), replayed.n_steps)
+
+
+def test_a_stick_ends_in_the_same_state_whenever_it_starts():
+    """The end of a stuck phase does not carry the rounding of its absolute start time."""
+    from stickslip.core.segments import StuckSegment
+
+    starts, x0, vd, duration = (0.0, 12.345, 1e6 + 0.1), -0.3, 0.1, 13.0
+    ends = {StuckSegment(t0, duration, True, x0, vd, 0.0).end_state() for t0 in starts}
+    assert len(ends) == 1
+    assert len({x0 + vd * ((t0 + duration) - t0) for t0 in starts}) > 1  # what the absolute times would give
+
+
+def test_sample_is_advance_to_at_each_time_and_records_the_events():
+    p = Parameters(40.0, 1.0, Lubricated(), Constant(F0=1.0))
+    grid = np.linspace(0.0, 200.0, 2001)
+    stepped = Trajectory(p, 0.0, 0.1, v_drive=0.1)
+    rows = []
+    for t in grid:
+        stepped.advance_to(t)
+        rows.append((stepped.x, stepped.v))
+    sampled = Trajectory(p, 0.0, 0.1, v_drive=0.1, record_events=True)
+    assert list(zip(*sampled.sample(grid))) == rows
+    assert len(sampled.events) == sampled.n_events == stepped.n_events >= 8
+    assert [after for _, _, after in sampled.events[:2]] == [FORWARD, STUCK]
+    assert sampled.events[-1][0] == sampled.t_last_event
+    with pytest.raises(SolverError, match="back"):
+        sampled.sample([100.0])

@@ -19,7 +19,7 @@ from typing import Callable
 import numpy as np
 from tqdm import tqdm
 
-from ..compare import fmu_events, match_events, reference_events
+from ..compare import Event, fmu_events, match_events, reference_events, transition_kind
 from ..core import Trajectory
 from .peers import Run, hybrid_solve_ivp, regularized_solve_ivp
 
@@ -38,16 +38,17 @@ class Config:
     to_run: Callable | None
 
 
-def stepper_outputs(scene, rtol):
-    """Our stepper on the scene's grid: FMPy-like columns (time, x, v, event counters, ``t_last_event``)."""
+def stepper_run(scene, rtol, reuse_steps=True):
+    """Our stepper on the scene's grid, with its recorded events (their exact times); ``reuse_steps=False``
+    integrates every step instead of replaying steps from bit-identical states."""
     v_drive, F_ext = scene.inputs
-    traj = Trajectory(scene.params, scene.scenario.x0, scene.scenario.v0, v_drive, F_ext, 0.0, rtol)
+    traj = Trajectory(scene.params, scene.scenario.x0, scene.scenario.v0, v_drive, F_ext, 0.0, rtol,
+                      record_events=True, reuse_steps=reuse_steps)
     grid = scene.grid()
-    rows = []
-    for t in grid:
-        traj.advance_to(t)
-        rows.append((traj.x, traj.v, traj.n_stick_events, traj.n_slip_events, traj.n_overshoots, traj.t_last_event))
-    return {"time": grid, **dict(zip(FMU_OUTPUTS, map(np.array, zip(*rows))))}
+    x, v = traj.sample(grid)
+    events = [Event(kind, t, t) for t, before, after in traj.events
+              if (kind := transition_kind(before, after)) is not None]
+    return Run(grid, np.array(x), np.array(v), events)
 
 
 def _from_columns(result):
@@ -59,14 +60,17 @@ def configs(scene, fmu, floor):
     s, T = scene.sweep, scene.stop_time
     p, (v_drive, F_ext), x0, v0, grid = scene.params, scene.inputs, scene.scenario.x0, scene.scenario.v0, scene.grid()
     out = []
-    fmu_points = {(rtol, scene.grid_step) for rtol in s.fmu_rtols} | {(s.comm_rtol, h) for h in scene.comm_steps()}
+    coarse = [h for h in scene.comm_steps() if h >= scene.grid_step] + [scene.grid_step]
+    fmu_points = {(rtol, h) for rtol in s.fmu_rtols for h in coarse} | {(s.comm_rtol, h) for h in scene.comm_steps()}
     for rtol, h in sorted(fmu_points, key=lambda c: (-c[0], c[1])):
         out.append(Config("fmu", f"FMU rtol={rtol:.0e} h={h:g}", {"rtol": rtol, "comm_step": h},
                           lambda rtol=rtol, h=h: fmu.simulate(scene.start_values(rtol), T, h, FMU_OUTPUTS),
                           _from_columns))
     for rtol in s.stepper_rtols:
         out.append(Config("stepper", f"stepper rtol={rtol:.0e}", {"rtol": rtol},
-                          lambda rtol=rtol: stepper_outputs(scene, rtol), _from_columns))
+                          lambda rtol=rtol: stepper_run(scene, rtol), lambda run: run))
+        out.append(Config("stepper-integrating", f"stepper, no replay, rtol={rtol:.0e}", {"rtol": rtol},
+                          lambda rtol=rtol: stepper_run(scene, rtol, reuse_steps=False), lambda run: run))
     for method, rtols in s.ivp.items():
         for rtol in rtols:
             out.append(Config("solve_ivp", f"{method} rtol={rtol:.0e}", {"method": method, "rtol": rtol, "atol": rtol},

@@ -22,16 +22,16 @@ REFERENCE_RTOL = 1e-13  # the reference integrator's tightest useful tolerance
 class Sweep:
     """Configurations: tolerances (relative), communication steps (s), ``v_eps`` (m/s), repeats."""
 
-    fmu_rtols: tuple = (1e-6, 1e-8, 1e-10, 1e-12)
+    fmu_rtols: tuple = (1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)  # every decade, like every other family
     comm_steps: tuple = (1e-3, 1e-2, 0.1, 1.0, 10.0)
-    comm_rtol: float = 1e-10  # FMU tolerance of the communication-step sweep
+    comm_rtol: float = 1e-10  # FMU tolerance of the communication steps finer than the grid's
     max_comm_steps: int = 100_000  # communication steps above this many per run are skipped
     stepper_rtols: tuple = (1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13)
     ivp: dict = field(default_factory=lambda: {
-        "RK45": (1e-4, 1e-6, 1e-8, 1e-10, 1e-12),
-        "DOP853": (1e-4, 1e-6, 1e-8, 1e-10, 1e-12),
-        "LSODA": (1e-4, 1e-6, 1e-8, 1e-10, 1e-12),
-        "Radau": (1e-4, 1e-6, 1e-8),  # 1e-10 costs seconds per call and is never the fastest
+        "RK45": (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12),
+        "DOP853": (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12),
+        "LSODA": (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12),
+        "Radau": (1e-4, 1e-5, 1e-6, 1e-7, 1e-8),  # 1e-10 costs seconds per call and is never the fastest
     })
     v_eps: tuple = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
     regularized: dict = field(default_factory=lambda: {"LSODA": (1e-6, 1e-8, 1e-10), "Radau": (1e-8,)})

@@ -11,6 +11,9 @@ block forward, ``v < v_drive``), STUCK (0) and BACKWARD (-1, the block overtakes
 the surface). Transitions are decided from the previous mode.
 """
 
+import math
+
+from .errors import ParameterError
 from .laws import check_pair
 from .ranges import ANY_FINITE, POSITIVE, check
 
@@ -52,27 +55,93 @@ def check_state(x, v):
     check("v_start", v, ANY_FINITE, "m/s")
 
 
+MAX_FORCE_SCALE = 1e150  # N: forces, and the products that build them, stay far from float overflow
+OMEGA_SQUARED_RANGE = (1e-100, 1e100)  # 1/s^2: kappa / M, so sqrt(kappa/M) and its inverse are finite
+
+
+def check_scales(x, v, v_drive, F_ext, p, state_names=("x", "v")):
+    """Raise ParameterError if values that are each in range combine into forces or rates that overflow.
+
+    Every force scale of the problem must be at most :data:`MAX_FORCE_SCALE`:
+    ``|F_ext|``, the laws' force parameters, ``F_S(0)``, ``kappa |x|`` and
+    ``sqrt(kappa M) |v|`` for both velocities (the spring force built over
+    ``1/omega0`` at that speed); and ``kappa / M`` must lie in
+    :data:`OMEGA_SQUARED_RANGE`. The message names the variables involved
+    (the state by ``state_names``: ``("x_start", "v_start")`` at the start).
+    """
+    x_name, v_name = state_names
+    low, high = OMEGA_SQUARED_RANGE
+    omega_squared = p.kappa / p.M
+    if not low <= omega_squared <= high:
+        raise ParameterError(
+            f"kappa / M = {omega_squared!r} 1/s^2 (kappa = {p.kappa!r} N/m, M = {p.M!r} kg) is out of range: "
+            f"allowed is [{low:g}, {high:g}] 1/s^2; rescale the units of time or mass"
+        )
+    impedance = math.sqrt(p.kappa) * math.sqrt(p.M)  # N s/m; the product kappa M itself may overflow
+    scales = [("|F_ext|", f"F_ext = {F_ext!r} N", abs(F_ext))]
+    for prefix, law in (("kinetic", p.kinetic), ("static", p.static)):
+        scales += [(f"{prefix}.{name}", f"{prefix}.{name} = {value!r} N", value)
+                   for name, value in law.parameters().items() if law.PARAMETERS[name][2] == "N"]
+    scales += [
+        ("F_S(0)", f"static law {p.static!r}", p.static.force(0.0)),
+        (f"kappa * |{x_name}|", f"kappa = {p.kappa!r} N/m, {x_name} = {x!r} m", p.kappa * abs(x)),
+        (f"sqrt(kappa M) * |{v_name}|", f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, {v_name} = {v!r} m/s",
+         impedance * abs(v)),
+        ("sqrt(kappa M) * |v_drive|", f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, v_drive = {v_drive!r} m/s",
+         impedance * abs(v_drive)),
+    ]
+    for what, values, force in scales:
+        if not force <= MAX_FORCE_SCALE:
+            raise ParameterError(
+                f"the force scale {what} = {force!r} N ({values}) is out of range: allowed is at most "
+                f"{MAX_FORCE_SCALE:g} N; rescale the units of force or length"
+            )
+
+
 def holding_force(x, F_ext, p):
     """Friction force (N) that holds a stuck block in place: ``kappa x - F_ext``."""
     return p.kappa * x - F_ext
 
 
-def slip_friction(mode, v_rel, p):
-    """Friction force (N) while slipping in ``mode`` (+1 or -1): ``mode * F_K(mode * v_rel)``.
+def continued_kinetic_force(law):
+    """``F_K(u)`` (N) as a function of every real ``u`` (m/s): the law for ``u >= 0``, its tangent at 0 below.
 
-    Runge-Kutta stages next to a slip's end may probe ``mode * v_rel < 0``
-    slightly; there ``F_K`` is continued by its tangent at 0 (smooth, and
-    defined for every law), which never becomes part of the solution.
+    Runge-Kutta stages next to a slip's end may probe ``u < 0`` slightly; the
+    tangent continuation is smooth, defined for every law, and never becomes
+    part of the solution.
     """
-    u = mode * v_rel
-    if u < 0.0:
-        return mode * (p.kinetic.force(0.0) + p.kinetic.slope(0.0) * u)
-    return mode * p.kinetic.force(u)
+    force = law.force
+    force0, slope0 = force(0.0), law.slope(0.0)
+
+    def continued(u):
+        return force(u) if u >= 0.0 else force0 + slope0 * u
+
+    return continued
+
+
+def slip_friction(mode, v_rel, p):
+    """Friction force (N) while slipping in ``mode`` (+1 or -1): ``mode * F_K(mode * v_rel)``."""
+    return mode * continued_kinetic_force(p.kinetic)(mode * v_rel)
+
+
+def slip_accelerator(mode, v_drive, F_ext, p):
+    """``a(x, v)``: ``dv/dt`` (m/s^2) while slipping in ``mode`` with constant inputs.
+
+    The constants are bound once, so an integrator's many evaluations per step
+    cost little more than the law's own.
+    """
+    kinetic_force = continued_kinetic_force(p.kinetic)
+    kappa, M = p.kappa, p.M
+
+    def accel(x, v):
+        return (F_ext - kappa * x + mode * kinetic_force(mode * (v_drive - v))) / M
+
+    return accel
 
 
 def slip_acceleration(mode, x, v, v_drive, F_ext, p):
     """``dv/dt`` (m/s^2) while slipping in ``mode``."""
-    return (F_ext - p.kappa * x + slip_friction(mode, v_drive - v, p)) / p.M
+    return slip_accelerator(mode, v_drive, F_ext, p)(x, v)
 
 
 def slip_acceleration_slope(mode, v, v_drive, p):

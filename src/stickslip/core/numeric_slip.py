@@ -13,7 +13,7 @@ import math
 from . import poly
 from .errors import SolverError
 from .integrators import dopri5_step, rosenbrock_step
-from .model import slip_acceleration, slip_acceleration_slope
+from .model import slip_acceleration_slope, slip_accelerator
 from .rootfind import first_crossing
 
 _SAFETY = 0.9
@@ -21,55 +21,86 @@ _MAX_GROWTH = 5.0
 _MIN_SHRINK = 0.2
 _EXPLICIT_STABILITY = 3.3  # DOPRI5's stability limit of h * |lambda| on the negative real axis
 _SWITCH_AFTER = 8  # consecutive steps that must agree before the method changes
+MEMO_SIZE = 4096  # accepted steps remembered for replay (0: integrate every step)
 
 
 class SlipStepper:
-    """Step-size and method state of the numeric slip integration (serializable)."""
+    """Step-size and method state of the numeric slip integration (serializable).
 
-    __slots__ = ("rtol", "h", "stiff", "votes", "n_steps", "n_rejected")
+    Every slip phase starts from the same initial step size (:meth:`restart`), so
+    a step depends only on its start state and the stepper's state. Accepted steps
+    are kept in a bounded memo under exactly that key: a periodic stick-slip,
+    whose slips start from bit-identical states, replays them instead of
+    integrating again, and gets exactly the numbers a new integration would.
+    """
 
-    def __init__(self, rtol, h=None, stiff=False, votes=0, n_steps=0, n_rejected=0):
+    __slots__ = ("rtol", "h", "stiff", "votes", "n_steps", "n_rejected", "_slip", "_memo", "_memo_size")
+
+    def __init__(self, rtol, h=None, stiff=False, votes=0, n_steps=0, n_rejected=0, memo_size=MEMO_SIZE):
         self.rtol = rtol
         self.h = h
         self.stiff = stiff
         self.votes = votes
         self.n_steps = n_steps
         self.n_rejected = n_rejected
+        self._slip = None  # constants of the current slip, rebuilt when the mode or the inputs change
+        self._memo = {}  # step key -> (step, ends_in_event, h, stiff, votes, rejected trials)
+        self._memo_size = memo_size
 
     def snapshot(self):
         return [self.h, self.stiff, self.votes, self.n_steps, self.n_rejected]
 
     @classmethod
-    def from_snapshot(cls, rtol, values):
-        return cls(rtol, *values)
+    def from_snapshot(cls, rtol, values, memo_size=MEMO_SIZE):
+        return cls(rtol, *values, memo_size=memo_size)
+
+    def restart(self):
+        """A new slip phase begins (after an event or an input change): forget the step size."""
+        self.h = None
 
     def step(self, t0, x0, v0, mode, v_drive, F_ext, p):
         """One accepted step from ``(t0, x0, v0)``; returns ``(step, ends_in_event)``.
 
         When the step ends in an event, ``step.x1`` is the position where
         ``v = v_drive`` (``step.v1`` is within the tolerance of ``v_drive``).
+        The step does not depend on ``t0`` (the slip is autonomous), which is what
+        lets the memo replay it at another time.
         """
+        key = (x0, v0, mode, v_drive, F_ext, self.h, self.stiff, self.votes)
+        known = self._memo.get(key)
+        if known is not None and _advances(t0, known[0].h):
+            step, ends_in_event, self.h, self.stiff, self.votes, rejected = known
+            self.n_steps += 1
+            self.n_rejected += rejected
+            return step, ends_in_event
+        rejected_before = self.n_rejected
+        step, ends_in_event = self._integrate(t0, x0, v0, mode, v_drive, F_ext, p)
+        if self._memo_size:
+            if len(self._memo) >= self._memo_size:
+                self._memo.clear()  # bounded memory: a long aperiodic run keeps only recent steps
+            self._memo[key] = (step, ends_in_event, self.h, self.stiff, self.votes, self.n_rejected - rejected_before)
+        return step, ends_in_event
 
-        def accel(x, v):
-            return slip_acceleration(mode, x, v, v_drive, F_ext, p)
-
+    def _integrate(self, t0, x0, v0, mode, v_drive, F_ext, p):
+        slip = self._slip
+        if slip is None or slip.key != (mode, v_drive, F_ext):
+            slip = self._slip = _Slip(mode, v_drive, F_ext, p)
+        accel = slip.accel
         a0 = accel(x0, v0)
-        scale_x, scale_v = _scales(v_drive, F_ext, p)
         stiffness = max(0.0, -slip_acceleration_slope(mode, v0, v_drive, p))
-        omega0 = math.sqrt(p.kappa / p.M)
-        h_max = 1.0 / omega0
+        h_max = 1.0 / slip.omega0
         if self.h is None:
-            self.h = min(h_max, 0.5 / max(stiffness, omega0) * self.rtol ** 0.2 * 10.0)
+            self.h = min(h_max, 0.5 / max(stiffness, slip.omega0) * self.rtol ** 0.2 * 10.0)
         h = min(self.h, h_max)
         while True:
             step = self._try(accel, mode, v_drive, p, x0, v0, a0, h)
-            err = _error_norm(step, x0, v0, self.rtol, scale_x, scale_v)
+            err = _error_norm(step, x0, v0, self.rtol, slip.scale_x, slip.scale_v)
             if err <= 1.0 and math.isfinite(step.x1) and math.isfinite(step.v1):
                 break
             self.n_rejected += 1
             shrink = _SAFETY * err ** (-1.0 / step.order) if math.isfinite(err) and err > 0.0 else _MIN_SHRINK
             h *= max(_MIN_SHRINK, min(shrink, 1.0))
-            if h <= 1e-15 * max(1.0, abs(t0)) or h < 1e-300:
+            if not _advances(t0, h):
                 raise SolverError(
                     f"step size underflow at t = {t0!r} s in slip mode {mode:+d}: "
                     f"the slip dynamics are too stiff or singular for rtol = {self.rtol:g}"
@@ -101,11 +132,24 @@ class SlipStepper:
             self.votes = 0
 
 
-def _scales(v_drive, F_ext, p):
-    """Natural position (m) and velocity (m/s) scales for the absolute tolerance."""
-    scale_x = (p.static.force(0.0) + abs(F_ext)) / p.kappa
-    scale_v = max(abs(v_drive), math.sqrt(p.kappa / p.M) * scale_x)
-    return scale_x, scale_v
+def _advances(t0, h):
+    """True if a step of ``h`` s from ``t0`` moves time by more than rounding (the underflow test)."""
+    return h > 1e-15 * max(1.0, abs(t0)) and h >= 1e-300
+
+
+class _Slip:
+    """Constants of a slip with fixed mode and inputs: the acceleration ``a(x, v)``, the natural position
+    (m) and velocity (m/s) scales of the absolute tolerance, and the natural frequency ``omega0`` (1/s),
+    whose inverse is the largest step."""
+
+    __slots__ = ("key", "accel", "scale_x", "scale_v", "omega0")
+
+    def __init__(self, mode, v_drive, F_ext, p):
+        self.key = (mode, v_drive, F_ext)
+        self.accel = slip_accelerator(mode, v_drive, F_ext, p)
+        self.omega0 = math.sqrt(p.kappa / p.M)
+        self.scale_x = (p.static.force(0.0) + abs(F_ext)) / p.kappa
+        self.scale_v = max(abs(v_drive), self.omega0 * self.scale_x)
 
 
 def _error_norm(step, x0, v0, rtol, scale_x, scale_v):
@@ -123,7 +167,7 @@ def _slip_end(cv, mode, v_drive):
     is bracketed exactly. A start at ``g = 0`` (right after a breakaway) is not an end.
     """
 
-    margin = mode * (v_drive - cv[0]) - sum(abs(c) for c in cv[1:])
+    margin = mode * (v_drive - cv[0]) - sum(map(abs, cv[1:]))
     if margin > 0.0:
         return None  # |v(theta) - v(0)| <= sum |c_k| on [0, 1]: v cannot reach v_drive in this step
 

@@ -11,6 +11,20 @@ def evaluate(coeffs, theta):
     return result
 
 
+def evaluate_pair(coeffs_a, coeffs_b, theta):
+    """Both polynomials (of equal length) at ``theta``, in one Horner pass."""
+    if len(coeffs_a) == 5:  # the Dormand-Prince dense output, sampled at every output point: unrolled
+        a0, a1, a2, a3, a4 = coeffs_a
+        b0, b1, b2, b3, b4 = coeffs_b
+        return (a0 + theta * (a1 + theta * (a2 + theta * (a3 + theta * a4))),
+                b0 + theta * (b1 + theta * (b2 + theta * (b3 + theta * b4))))
+    a = b = 0.0
+    for ca, cb in zip(reversed(coeffs_a), reversed(coeffs_b)):
+        a = a * theta + ca
+        b = b * theta + cb
+    return a, b
+
+
 def derivative(coeffs):
     """Coefficients of ``d/dtheta``."""
     return [k * c for k, c in enumerate(coeffs)][1:]

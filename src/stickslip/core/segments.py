@@ -16,27 +16,33 @@ from .model import STUCK
 
 
 class StuckSegment:
-    """Stuck: ``x = x0 + v_drive (t - t0)``, ``v = v_drive``, ``t_stick = t_stick0 + t - t0``."""
+    """Stuck for ``duration`` s: ``x = x0 + v_drive (t - t0)``, ``v = v_drive``, ``t_stick = t_stick0 + t - t0``.
+
+    The end state is computed from ``duration``, not from ``t1 - t0``, so a stick
+    ends in the same state whenever it starts (no rounding from the absolute time).
+    """
 
     KIND = "stuck"
-    __slots__ = ("t0", "t1", "ends_in_event", "x0", "v_drive", "t_stick0")
+    __slots__ = ("t0", "duration", "t1", "ends_in_event", "x0", "v_drive", "t_stick0")
     mode = STUCK
 
-    def __init__(self, t0, t1, ends_in_event, x0, v_drive, t_stick0):
-        self.t0, self.t1, self.ends_in_event = t0, t1, ends_in_event
+    def __init__(self, t0, duration, ends_in_event, x0, v_drive, t_stick0):
+        self.t0, self.duration, self.t1, self.ends_in_event = t0, duration, t0 + duration, ends_in_event
         self.x0, self.v_drive, self.t_stick0 = x0, v_drive, t_stick0
 
     def state(self, t):
+        if t == self.t1:
+            return self.end_state()
         return self.x0 + self.v_drive * (t - self.t0), self.v_drive
 
     def t_stick(self, t):
-        return self.t_stick0 + (t - self.t0)
+        return self.t_stick0 + (self.duration if t == self.t1 else t - self.t0)
 
     def end_state(self):
-        return self.state(self.t1)
+        return self.x0 + self.v_drive * self.duration, self.v_drive
 
     def to_list(self):
-        return [self.KIND, self.t0, self.t1, self.ends_in_event, self.x0, self.v_drive, self.t_stick0]
+        return [self.KIND, self.t0, self.duration, self.ends_in_event, self.x0, self.v_drive, self.t_stick0]
 
 
 class HarmonicSegment:
@@ -98,7 +104,7 @@ class StepSegment:
         if t == self.t1:
             return self.x1, self.v1
         theta = (t - self.t0) / self.h
-        return poly.evaluate(self.cx, theta), poly.evaluate(self.cv, theta)
+        return poly.evaluate_pair(self.cx, self.cv, theta)
 
     def t_stick(self, t):
         return 0.0

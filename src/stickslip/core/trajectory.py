@@ -5,9 +5,10 @@ Usage (the whole contract the FMU slave and the Python API rely on)::
     traj = Trajectory(params, x0, v0, v_drive=0.1, F_ext=0.0, t0=0.0, rtol=1e-10)
     traj.set_inputs(v_drive, F_ext)   # inputs held constant from now on; no-op if unchanged
     traj.advance_to(t)                # t >= traj.t; processes every event up to and at t
+    xs, vs = traj.sample(times)       # advance_to each of the increasing times, collecting x and v
     traj.x, traj.v, traj.mode, ...    # state at traj.t (see the properties below)
     snap = traj.snapshot()            # JSON-serializable dict, exact floats
-    traj = Trajectory.from_snapshot(params, snap)   # continues bit for bit
+    traj = Trajectory.from_snapshot(params, snap)   # continues bit for bit (without the event record)
 
 Internally the trajectory is a chain of segments (:mod:`.segments`): a stuck
 phase or an affine slip (closed form, up to the next event), or one step of a
@@ -24,6 +25,7 @@ from .model import (
     STUCK,
     breakaway_direction,
     check_inputs,
+    check_scales,
     check_state,
     friction_force,
     initial_mode,
@@ -32,7 +34,7 @@ from .model import (
     slip_departs,
     z_slip,
 )
-from .numeric_slip import SlipStepper
+from .numeric_slip import MEMO_SIZE, SlipStepper
 from .ranges import Range, check
 from .segments import HarmonicSegment, StepSegment, StuckSegment, segment_from_list
 from .stuck import breakaway_delay
@@ -45,11 +47,17 @@ _STUCK_HORIZON_PERIODS = 1e6  # an aging stick is searched for a breakaway this 
 class Trajectory:
     """Solution of the hybrid spring-block model with piecewise-constant inputs."""
 
-    def __init__(self, params, x0, v0, v_drive=0.0, F_ext=0.0, t0=0.0, rtol=1e-10):
+    def __init__(self, params, x0, v0, v_drive=0.0, F_ext=0.0, t0=0.0, rtol=1e-10, record_events=False,
+                 reuse_steps=True):
+        """``record_events``: keep every mode change as ``(t, mode_before, mode_after)`` in ``self.events``
+        (memory grows with the run; otherwise ``self.events`` is None and only the counters are kept).
+        ``reuse_steps``: replay remembered Runge-Kutta steps from bit-identical states (the same numbers,
+        less work, see :class:`~.numeric_slip.SlipStepper`); False integrates every step."""
         params.check()
         check_state(x0, v0)
         check_inputs(v_drive, F_ext)
         check("solver.rtol", rtol, RTOL_RANGE)
+        check_scales(x0, v0, v_drive, F_ext, params, ("x_start", "v_start"))
         self.params = params
         self.rtol = float(rtol)
         self.t = float(t0)
@@ -59,8 +67,9 @@ class Trajectory:
         self.n_slip_events = 0
         self.n_overshoots = 0
         self.t_last_event = self.t  # the start time until the first event
+        self.events = [] if record_events else None
         self._chain = 0
-        self._stepper = SlipStepper(self.rtol)
+        self._stepper = SlipStepper(self.rtol, memo_size=MEMO_SIZE if reuse_steps else 0)
         mode = initial_mode(x0, v0, self.v_drive, self.F_ext, params)
         self._segment = self._start_segment(self.t, x0, v0, mode, 0.0)
         self._x, self._v = self._segment.state(self.t)
@@ -74,6 +83,7 @@ class Trajectory:
         if v_drive == self.v_drive and F_ext == self.F_ext:
             return
         check_inputs(v_drive, F_ext)
+        check_scales(self._x, self._v, v_drive, F_ext, self.params)
         segment = self._segment
         t_stick = segment.t_stick(self.t)
         old_mode = segment.mode
@@ -81,8 +91,7 @@ class Trajectory:
         self.v_drive, self.F_ext = float(v_drive), float(F_ext)
         v = self.v_drive if new_mode == STUCK or old_mode == STUCK else self._v
         if new_mode != old_mode:
-            self._count_event(old_mode, new_mode)
-            self.t_last_event = self.t
+            self._log_event(self.t, old_mode, new_mode)
         if new_mode != STUCK or old_mode != STUCK:
             t_stick = 0.0
         self._segment = self._start_segment(self.t, self._x, v, new_mode, t_stick)
@@ -100,6 +109,24 @@ class Trajectory:
         self._x, self._v = self._segment.state(self.t)
         if not (math.isfinite(self._x) and math.isfinite(self._v)):
             raise SolverError(f"the state overflowed at t = {self.t!r} s (x = {self._x!r}, v = {self._v!r})")
+
+    def sample(self, times):
+        """Advance through the increasing ``times`` (s); the lists of ``x`` (m) and ``v`` (m/s) there."""
+        times = [float(t) for t in times]  # plain floats: numpy scalars would slow every step's arithmetic
+        xs, vs = [], []
+        for t in times:
+            segment = self._segment
+            if self.t <= t < segment.t1:  # inside the current segment: no event to process, just evaluate
+                self.t = t
+                self._x, self._v = segment.state(t)
+            else:
+                self.advance_to(t)
+            xs.append(self._x)
+            vs.append(self._v)
+        if not (all(map(math.isfinite, xs)) and all(map(math.isfinite, vs))):
+            bad = next(i for i, (x, v) in enumerate(zip(xs, vs)) if not (math.isfinite(x) and math.isfinite(v)))
+            raise SolverError(f"the state overflowed at t = {times[bad]!r} s (x = {xs[bad]!r}, v = {vs[bad]!r})")
+        return xs, vs
 
     # ------------------------------------------------------------------
     # state and outputs at self.t
@@ -188,6 +215,7 @@ class Trajectory:
         traj.F_ext = snap["F_ext"]
         traj.n_stick_events, traj.n_slip_events, traj.n_overshoots, traj._chain = snap["counts"]
         traj.t_last_event = snap["t_last_event"]
+        traj.events = None
         traj._stepper = SlipStepper.from_snapshot(traj.rtol, snap["stepper"])
         traj._segment = segment_from_list(snap["segment"], params)
         traj._x, traj._v = traj._segment.state(traj.t)
@@ -211,12 +239,12 @@ class Trajectory:
                 else mode_at_zero_v_rel(x1, self.F_ext, self.params)
             )
             self._check_chain(t1, segment.t0, new_mode)
-            self._count_event(mode, new_mode)
-            self.t_last_event = t1
+            self._log_event(t1, mode, new_mode)
             mode, t_stick = new_mode, 0.0
-        self._segment = self._start_segment(t1, x1, v1, mode, t_stick)
+        self._segment = self._start_segment(t1, x1, v1, mode, t_stick, continues=not segment.ends_in_event)
 
-    def _start_segment(self, t0, x0, v0, mode, t_stick):
+    def _start_segment(self, t0, x0, v0, mode, t_stick, continues=False):
+        """The segment from ``(t0, x0, v0)`` in ``mode``; ``continues``: the phase goes on from the last one."""
         p = self.params
         if mode == STUCK:
             # a constant F_S gives the breakaway in closed form; an aging one is searched piecewise
@@ -224,16 +252,21 @@ class Trajectory:
             horizon = _STUCK_HORIZON_PERIODS * math.sqrt(p.M / p.kappa) if aging else math.inf
             delay = breakaway_delay(x0, self.v_drive, self.F_ext, t_stick, p, horizon)
             if delay is not None:
-                return StuckSegment(t0, t0 + delay, True, x0, self.v_drive, t_stick)
-            return StuckSegment(t0, t0 + horizon, False, x0, self.v_drive, t_stick)
+                return StuckSegment(t0, delay, True, x0, self.v_drive, t_stick)
+            return StuckSegment(t0, horizon, False, x0, self.v_drive, t_stick)
         if v0 == self.v_drive and not slip_departs(mode, x0, self.v_drive, self.F_ext, p):
             return StepSegment.instant(t0, mode, x0, v0)  # v_rel cannot leave 0 this way: decide again now
         if p.kinetic.affine() is not None:
             return HarmonicSegment.start(t0, mode, x0, v0, self.v_drive, self.F_ext, p)
+        if not continues:
+            self._stepper.restart()
         step, ends_in_event = self._stepper.step(t0, x0, v0, mode, self.v_drive, self.F_ext, p)
         return StepSegment.from_step(t0, mode, step, ends_in_event, self.v_drive)
 
-    def _count_event(self, old_mode, new_mode):
+    def _log_event(self, t, old_mode, new_mode):
+        self.t_last_event = t
+        if self.events is not None:
+            self.events.append((t, old_mode, new_mode))
         if new_mode == STUCK:
             self.n_stick_events += 1
         elif old_mode == STUCK:
@@ -243,7 +276,8 @@ class Trajectory:
 
     def _check_chain(self, t_event, t_segment_start, new_mode):
         """Guard against endless event chains at one instant (never hang)."""
-        if t_event - t_segment_start > 1e-13 * max(1.0, abs(t_event)):
+        time_scale = math.sqrt(self.params.M / self.params.kappa)  # s: 1/omega0, the slip's natural time
+        if t_event - t_segment_start > 1e-13 * max(time_scale, abs(t_event)):
             self._chain = 0
             return
         self._chain += 1

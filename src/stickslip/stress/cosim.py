@@ -19,11 +19,14 @@ compared value by value. (libcosim's observer records an input as the value
 the instance stepped with, before the transfer: a stuck block's ``v`` is
 recorded before a new ``v_drive`` reaches it.)
 
-libcosim runs its FMU calls in worker threads, and a failure there can take
-the whole process down (see :func:`run_in_child`); tests therefore run libcosim
-in a child process: ``python -m stickslip.stress.cosim`` reads a list of
-systems as JSON on stdin, runs them one after the other in the same process,
-and prints the results as JSON.
+libcosim runs its FMU calls in worker threads and catches their errors only
+during steps: an FMU that fails during initialization (for this FMU: an
+invalid parameter) makes libcosim call std::terminate. Tests therefore run
+libcosim in a child process (:func:`run_in_child`): ``python -m
+stickslip.stress.cosim`` reads a list of systems as JSON on stdin, runs them
+one after the other in the same process, and prints the results as JSON.
+A failed step is an error in the result (libcosim's message carries the FMU's
+log message), and the process goes on with the next system.
 """
 
 import gc
@@ -109,9 +112,9 @@ def run_libcosim(system):
     except RuntimeError as exc:
         result["ok"], result["error"] = False, str(exc)
     finally:
-        # destroy the execution now rather than at interpreter shutdown: libcosim frees every instance,
-        # also one that returned fmi2Fatal (which PythonFMU has released already), and at shutdown that
-        # crashes the process every time; here it crashes only sometimes (tests/test_importers.py)
+        # destroy the execution now rather than at interpreter shutdown: libcosim terminates and frees every
+        # instance, also one that returned fmi2Fatal, so that the next system starts from a clean engine (the
+        # FMU balances PythonFMU's release of a failed slave, which makes that free safe)
         del manipulator, observer, execution
         slaves.clear()
         gc.collect()

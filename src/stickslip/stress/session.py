@@ -6,9 +6,11 @@ log text and status code, FMU states, and timing per ``doStep``. A
 :class:`FmuSession` extracts the FMU once and makes :class:`Instance` objects.
 
 PythonFMU reports every Python exception as ``fmi2Fatal`` and releases the
-slave itself; freeing such an instance again corrupts memory, so an instance
-that returned ``fmi2Fatal`` is never terminated or freed. Instances log through
-the process-wide logger of :mod:`stickslip.fmi_host`.
+slave itself. This FMU balances that release so that an importer may still
+free the instance, but other builds and other PythonFMU FMUs do not, and FMI
+allows no call after ``fmi2Fatal``: an instance that returned ``fmi2Fatal`` is
+never terminated or freed here (its slave stays allocated until the process
+ends). Instances log through the process-wide logger of :mod:`stickslip.fmi_host`.
 """
 
 import shutil
@@ -35,7 +37,7 @@ COLUMNS = REAL_OUTPUTS + INPUTS + INTEGER_OUTPUTS
 STATUS_NAMES = ("ok", "warning", "discard", "error", "fatal", "pending")
 
 class FmuCallError(FMUError):
-    """An FMI call failed: ``function``, ``status`` (3 error, 4 fatal) and the FMU's log ``messages``."""
+    """An FMI call failed: ``function``, ``status`` (2 discard, 3 error, 4 fatal) and the FMU's log ``messages``."""
 
     def __init__(self, function, status, messages):
         self.function = function
@@ -181,7 +183,7 @@ class Instance:
     # ---- end ----------------------------------------------------------------
 
     def free(self):
-        """Terminate and free, unless the FMU returned fmi2Fatal (PythonFMU has then released it)."""
+        """Terminate and free, unless the FMU returned fmi2Fatal (see the module text)."""
         if self.freed:
             return
         self.freed = True
