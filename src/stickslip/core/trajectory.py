@@ -117,12 +117,14 @@ class Trajectory:
         for t in times:
             segment = self._segment
             if self.t <= t < segment.t1:  # inside the current segment: no event to process, just evaluate
-                self.t = t
-                self._x, self._v = segment.state(t)
+                x, v = segment.state(t)
             else:
                 self.advance_to(t)
-            xs.append(self._x)
-            vs.append(self._v)
+                x, v = self._x, self._v
+            xs.append(x)
+            vs.append(v)
+        if xs:
+            self.t, self._x, self._v = times[-1], xs[-1], vs[-1]
         if not (all(map(math.isfinite, xs)) and all(map(math.isfinite, vs))):
             bad = next(i for i, (x, v) in enumerate(zip(xs, vs)) if not (math.isfinite(x) and math.isfinite(v)))
             raise SolverError(f"the state overflowed at t = {times[bad]!r} s (x = {xs[bad]!r}, v = {vs[bad]!r})")
