@@ -293,14 +293,16 @@ def test_replayed_steps_give_exactly_the_integrated_numbers(p, vd, integrated_fr
     assert len(work) < integrated_fraction * replayed.n_steps, (len(work), replayed.n_steps)
 
 
-def test_a_stick_ends_in_the_same_state_whenever_it_starts():
-    """The end of a stuck phase does not carry the rounding of its absolute start time."""
+def test_a_stick_before_a_numeric_slip_ends_in_the_same_state_whenever_it_starts():
+    """Before a numeric slip the end of a stuck phase does not carry the rounding of its absolute start time;
+    before a closed-form slip it is the motion at the rounded end time (no drift over many cycles)."""
     from stickslip.core.segments import StuckSegment
 
     starts, x0, vd, duration = (0.0, 12.345, 1e6 + 0.1), -0.3, 0.1, 13.0
-    ends = {StuckSegment(t0, duration, True, x0, vd, 0.0).end_state() for t0 in starts}
-    assert len(ends) == 1
-    assert len({x0 + vd * ((t0 + duration) - t0) for t0 in starts}) > 1  # what the absolute times would give
+    assert len({StuckSegment(t0, duration, True, x0, vd, 0.0, True).end_state() for t0 in starts}) == 1
+    consistent = [StuckSegment(t0, duration, True, x0, vd, 0.0, False) for t0 in starts]
+    assert len({s.end_state() for s in consistent}) > 1  # the motion at each rounded end time
+    assert all(s.end_state()[0] == x0 + vd * (s.t1 - s.t0) for s in consistent)
 
 
 def test_sample_is_advance_to_at_each_time_and_records_the_events():

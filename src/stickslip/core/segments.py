@@ -18,17 +18,23 @@ from .model import STUCK
 class StuckSegment:
     """Stuck for ``duration`` s: ``x = x0 + v_drive (t - t0)``, ``v = v_drive``, ``t_stick = t_stick0 + t - t0``.
 
-    The end state is computed from ``duration``, not from ``t1 - t0``, so a stick
-    ends in the same state whenever it starts (no rounding from the absolute time).
+    The end time ``t1 = t0 + duration`` is rounded. With ``replayable_end`` the end
+    state is ``x0 + v_drive duration``: the same whenever the stick starts, so the
+    numeric slip that follows starts from bit-identical states cycle after cycle and
+    its steps can be replayed (numeric steps round time the same way, by up to
+    ``ulp(t)`` each). Otherwise the end state is the motion at the rounded ``t1``,
+    consistent with the event time: a closed-form slip, whose only error is
+    rounding, then does not drift over many cycles.
     """
 
     KIND = "stuck"
-    __slots__ = ("t0", "duration", "t1", "ends_in_event", "x0", "v_drive", "t_stick0")
+    __slots__ = ("t0", "duration", "t1", "ends_in_event", "x0", "v_drive", "t_stick0", "replayable_end")
     mode = STUCK
 
-    def __init__(self, t0, duration, ends_in_event, x0, v_drive, t_stick0):
+    def __init__(self, t0, duration, ends_in_event, x0, v_drive, t_stick0, replayable_end):
         self.t0, self.duration, self.t1, self.ends_in_event = t0, duration, t0 + duration, ends_in_event
         self.x0, self.v_drive, self.t_stick0 = x0, v_drive, t_stick0
+        self.replayable_end = replayable_end
 
     def state(self, t):
         if t == self.t1:
@@ -36,13 +42,15 @@ class StuckSegment:
         return self.x0 + self.v_drive * (t - self.t0), self.v_drive
 
     def t_stick(self, t):
-        return self.t_stick0 + (self.duration if t == self.t1 else t - self.t0)
+        return self.t_stick0 + (t - self.t0)
 
     def end_state(self):
-        return self.x0 + self.v_drive * self.duration, self.v_drive
+        elapsed = self.duration if self.replayable_end else self.t1 - self.t0
+        return self.x0 + self.v_drive * elapsed, self.v_drive
 
     def to_list(self):
-        return [self.KIND, self.t0, self.duration, self.ends_in_event, self.x0, self.v_drive, self.t_stick0]
+        return [self.KIND, self.t0, self.duration, self.ends_in_event, self.x0, self.v_drive, self.t_stick0,
+                self.replayable_end]
 
 
 class HarmonicSegment:

@@ -253,9 +253,10 @@ class Trajectory:
             aging = not p.static.is_constant()
             horizon = _STUCK_HORIZON_PERIODS * math.sqrt(p.M / p.kappa) if aging else math.inf
             delay = breakaway_delay(x0, self.v_drive, self.F_ext, t_stick, p, horizon)
+            replayable = p.kinetic.affine() is None  # the slip after it is numeric (see StuckSegment)
             if delay is not None:
-                return StuckSegment(t0, delay, True, x0, self.v_drive, t_stick)
-            return StuckSegment(t0, horizon, False, x0, self.v_drive, t_stick)
+                return StuckSegment(t0, delay, True, x0, self.v_drive, t_stick, replayable)
+            return StuckSegment(t0, horizon, False, x0, self.v_drive, t_stick, replayable)
         if v0 == self.v_drive and not slip_departs(mode, x0, self.v_drive, self.F_ext, p):
             return StepSegment.instant(t0, mode, x0, v0)  # v_rel cannot leave 0 this way: decide again now
         if p.kinetic.affine() is not None:
