@@ -63,13 +63,12 @@ def check_scales(x, v, v_drive, F_ext, p, state_names=("x", "v")):
     """Raise ParameterError if values that are each in range combine into forces or rates that overflow.
 
     Every force scale of the problem must be at most :data:`MAX_FORCE_SCALE`:
-    ``|F_ext|``, the laws' force parameters, ``F_S(0)``, ``kappa |x|`` and
-    ``sqrt(kappa M) |v|`` for both velocities (the spring force built over
-    ``1/omega0`` at that speed); and ``kappa / M`` must lie in
+    those of the inputs (:func:`check_input_scales`), the laws' force parameters,
+    ``F_S(0)``, ``kappa |x|`` and ``sqrt(kappa M) |v|`` (the spring force built
+    over ``1/omega0`` at that speed); and ``kappa / M`` must lie in
     :data:`OMEGA_SQUARED_RANGE`. The message names the variables involved
     (the state by ``state_names``: ``("x_start", "v_start")`` at the start).
     """
-    x_name, v_name = state_names
     low, high = OMEGA_SQUARED_RANGE
     omega_squared = p.kappa / p.M
     if not low <= omega_squared <= high:
@@ -77,25 +76,37 @@ def check_scales(x, v, v_drive, F_ext, p, state_names=("x", "v")):
             f"kappa / M = {omega_squared!r} 1/s^2 (kappa = {p.kappa!r} N/m, M = {p.M!r} kg) is out of range: "
             f"allowed is [{low:g}, {high:g}] 1/s^2; rescale the units of time or mass"
         )
-    impedance = math.sqrt(p.kappa) * math.sqrt(p.M)  # N s/m; the product kappa M itself may overflow
-    scales = [("|F_ext|", f"F_ext = {F_ext!r} N", abs(F_ext))]
+    check_input_scales(v_drive, F_ext, p)
     for prefix, law in (("kinetic", p.kinetic), ("static", p.static)):
-        scales += [(f"{prefix}.{name}", f"{prefix}.{name} = {value!r} N", value)
-                   for name, value in law.parameters().items() if law.PARAMETERS[name][2] == "N"]
-    scales += [
-        ("F_S(0)", f"static law {p.static!r}", p.static.force(0.0)),
-        (f"kappa * |{x_name}|", f"kappa = {p.kappa!r} N/m, {x_name} = {x!r} m", p.kappa * abs(x)),
-        (f"sqrt(kappa M) * |{v_name}|", f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, {v_name} = {v!r} m/s",
-         impedance * abs(v)),
-        ("sqrt(kappa M) * |v_drive|", f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, v_drive = {v_drive!r} m/s",
-         impedance * abs(v_drive)),
-    ]
-    for what, values, force in scales:
-        if not force <= MAX_FORCE_SCALE:
-            raise ParameterError(
-                f"the force scale {what} = {force!r} N ({values}) is out of range: allowed is at most "
-                f"{MAX_FORCE_SCALE:g} N; rescale the units of force or length"
-            )
+        for name, value in law.parameters().items():
+            if law.PARAMETERS[name][2] == "N":
+                _check_force_scale(f"{prefix}.{name}", value, lambda: f"{prefix}.{name} = {value!r} N")
+    _check_force_scale("F_S(0)", p.static.force(0.0), lambda: f"static law {p.static!r}")
+    x_name, v_name = state_names
+    _check_force_scale(f"kappa * |{x_name}|", p.kappa * abs(x), lambda: f"kappa = {p.kappa!r} N/m, {x_name} = {x!r} m")
+    _check_force_scale(f"sqrt(kappa M) * |{v_name}|", _impedance(p) * abs(v),
+                       lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, {v_name} = {v!r} m/s")
+
+
+def check_input_scales(v_drive, F_ext, p):
+    """Raise ParameterError if ``|F_ext|`` or ``sqrt(kappa M) |v_drive|`` exceeds :data:`MAX_FORCE_SCALE`."""
+    _check_force_scale("|F_ext|", abs(F_ext), lambda: f"F_ext = {F_ext!r} N")
+    _check_force_scale("sqrt(kappa M) * |v_drive|", _impedance(p) * abs(v_drive),
+                       lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, v_drive = {v_drive!r} m/s")
+
+
+def _impedance(p):
+    """``sqrt(kappa M)`` (N s/m), computed so that the product ``kappa M`` cannot overflow."""
+    return math.sqrt(p.kappa) * math.sqrt(p.M)
+
+
+def _check_force_scale(what, force, values):
+    """Raise ParameterError naming ``what`` and the variables ``values()`` unless ``force <= MAX_FORCE_SCALE``."""
+    if not force <= MAX_FORCE_SCALE:
+        raise ParameterError(
+            f"the force scale {what} = {force!r} N ({values()}) is out of range: allowed is at most "
+            f"{MAX_FORCE_SCALE:g} N; rescale the units of force or length"
+        )
 
 
 def holding_force(x, F_ext, p):

@@ -24,6 +24,7 @@ from .errors import SolverError
 from .model import (
     STUCK,
     breakaway_direction,
+    check_input_scales,
     check_inputs,
     check_scales,
     check_state,
@@ -83,7 +84,7 @@ class Trajectory:
         if v_drive == self.v_drive and F_ext == self.F_ext:
             return
         check_inputs(v_drive, F_ext)
-        check_scales(self._x, self._v, v_drive, F_ext, self.params)
+        check_input_scales(v_drive, F_ext, self.params)
         segment = self._segment
         t_stick = segment.t_stick(self.t)
         old_mode = segment.mode
