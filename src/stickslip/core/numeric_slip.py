@@ -51,8 +51,8 @@ class SlipStepper:
         return [self.h, self.stiff, self.votes, self.n_steps, self.n_rejected]
 
     @classmethod
-    def from_snapshot(cls, rtol, values, memo_size=MEMO_SIZE):
-        return cls(rtol, *values, memo_size=memo_size)
+    def from_snapshot(cls, rtol, values):
+        return cls(rtol, *values)
 
     def restart(self):
         """A new slip phase begins (after an event or an input change): forget the step size."""
