@@ -1,13 +1,15 @@
 """Build the SpringBlockFriction FMU (FMI 2.0 co-simulation) with PythonFMU.
 
 The runtime ``stickslip/core`` is bundled into the FMU's resources as the
-package ``sbf_runtime_<tag>`` and the slave as the module
-``springblockfriction_<tag>``, where ``<tag>`` is 10 hex digits of a sha256
-over the runtime, the slave and this builder. A host that imported its own
-``stickslip``, or another build of this FMU, therefore never hands the FMU a
+package ``sbf_runtime_<tag>``, the variable table the slaves share
+(``fmu_src/block_interface.py``) as the module ``sbf_interface_<tag>`` and the
+slave as the module ``springblockfriction_<tag>``, where ``<tag>`` is 10 hex
+digits of a sha256 over the runtime, the slave, the shared table and the
+builders. A host that imported its own ``stickslip``, or another build of this
+FMU (or the FMI 3 one, whose tag differs), therefore never hands the FMU a
 different copy of the runtime. PythonFMU's model description is then completed:
 units, declared types, bounds, InitialUnknowns, a default experiment and the
-FMU-state capabilities.
+FMU-state capabilities. :mod:`stickslip.fmu3_build` builds the FMI 3 FMU beside it.
 """
 
 import hashlib
@@ -25,6 +27,7 @@ from .fmi_host import preserved_sys_path
 REPO = Path(__file__).resolve().parents[2]
 RUNTIME = Path(__file__).resolve().parent / "core"
 SLAVE = REPO / "fmu_src" / "SpringBlockFriction.py"
+INTERFACE = REPO / "fmu_src" / "block_interface.py"
 MODEL_NAME = "SpringBlockFriction"
 DEFAULT_EXPERIMENT = {"startTime": "0.0", "stopTime": "100.0", "tolerance": "1e-10"}
 
@@ -45,24 +48,46 @@ class BuildError(RuntimeError):
     """The FMU cannot be built from the current sources."""
 
 
-def _sources():
-    return sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts) + [SLAVE, Path(__file__).resolve()]
-
-
-def source_tag():
-    """10 hex digits identifying the runtime, slave and builder sources."""
+def source_tag(slave=SLAVE, builders=()):
+    """10 hex digits identifying the runtime, the slave, the shared table and the builder sources."""
+    sources = sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts)
     digest = hashlib.sha256()
-    for path in _sources():
+    for path in [*sources, slave, INTERFACE, Path(__file__).resolve(), *builders]:
         digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
     return digest.hexdigest()[:10]
 
 
-def built_tag(fmu_path):
+def built_tag(fmu_path, prefix="springblockfriction_"):
     """The source tag an existing FMU was built from (None if it has none)."""
     with zipfile.ZipFile(fmu_path) as fmu:
         module = fmu.read("resources/slavemodule.txt").decode().strip()
-    prefix = "springblockfriction_"
     return module[len(prefix):] if module.startswith(prefix) else None
+
+
+def _rewrite_once(path, pattern, replacement, what):
+    code, count = re.subn(pattern, replacement, path.read_text())
+    if count != 1:
+        raise BuildError(f"{path} must import {what} exactly once")
+    return code
+
+
+def bundle_sources(folder, slave, module, tag):
+    """Write the runtime, the shared variable table and the slave (as ``module``) under tagged names into
+    ``folder``; return ``(slave file, [runtime package, table module])``."""
+    package, interface = f"sbf_runtime_{tag}", f"sbf_interface_{tag}"
+    shutil.copytree(RUNTIME, folder / package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    (folder / f"{interface}.py").write_text(
+        _rewrite_once(INTERFACE, r"\bstickslip\.core\b", package, "the runtime as 'from stickslip.core import ...'"))
+    slave_code = _rewrite_once(slave, r"\bfrom block_interface import\b", f"from {interface} import",
+                               "the shared table as 'from block_interface import ...'")
+    (folder / f"{module}.py").write_text(re.sub(r"\bstickslip\.core\b", package, slave_code))
+    return folder / f"{module}.py", [folder / package, folder / f"{interface}.py"]
+
+
+def forget_modules(tag, module):
+    """Drop the bundled modules that building imported into this process."""
+    for name in [m for m in sys.modules if m == module or m.split(".")[0].endswith(f"_{tag}")]:
+        del sys.modules[name]
 
 
 def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu"):
@@ -72,31 +97,25 @@ def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu"):
     dest = Path(dest).resolve()
     dest.parent.mkdir(parents=True, exist_ok=True)
     tag = source_tag()
-    package, module = f"sbf_runtime_{tag}", f"springblockfriction_{tag}"
-    slave_code, count = re.subn(r"\bstickslip\.core\b", package, SLAVE.read_text())
-    if count != 1:
-        raise BuildError(f"{SLAVE} must import the runtime once as 'from stickslip.core import ...'")
-
+    module = f"springblockfriction_{tag}"
     with tempfile.TemporaryDirectory(prefix="sbf_build_") as tmp:
         tmp = Path(tmp)
-        shutil.copytree(RUNTIME, tmp / package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
-        (tmp / f"{module}.py").write_text(slave_code)
+        script, project_files = bundle_sources(tmp, SLAVE, module, tag)
         try:
             with preserved_sys_path():  # PythonFMU leaves the temporary folder on sys.path
                 built = FmuBuilder.build_FMU(
-                    tmp / f"{module}.py", dest=tmp / "out", project_files=[tmp / package],
+                    script, dest=tmp / "out", project_files=project_files,
                     canGetAndSetFMUstate=True, canSerializeFMUstate=True,
                 )
             slave = getattr(sys.modules[module], MODEL_NAME)(instance_name="build")
         finally:  # ... and the modules imported
-            for name in [m for m in sys.modules if m == module or m.split(".")[0] == package]:
-                del sys.modules[name]
+            forget_modules(tag, module)
         partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
         with zipfile.ZipFile(built) as source, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as target:
             for item in source.infolist():
                 data = source.read(item)
                 if item.filename == "modelDescription.xml":
-                    data = complete_model_description(data, slave.units, slave.bounds)
+                    data = complete_model_description(data, slave.variable_units, slave.variable_bounds)
                 target.writestr(item.filename, data)
         os.replace(partial, dest)
     return dest

@@ -1,0 +1,171 @@
+"""SpringBlockFriction: FMI 3.0 slave (co-simulation and model exchange) of the spring-block dry-friction model.
+
+A thin adapter between pythonfmu3 and the runtime, with the variables of the FMI 2 FMU (shared table,
+``block_interface``) and, for model exchange, the derivatives ``der(x)``, ``der(v)`` and three event
+indicators. Co-simulation steps the runtime's :class:`Trajectory`, as the FMI 2 FMU does (the same
+results). Model exchange hands the states ``x``, ``v`` and the indicators ``indicator.stick``,
+``indicator.breakaway`` and ``indicator.graze`` to the host's solver and applies the transitions in
+``update_discrete_states``; all of it is the runtime's :class:`ExchangeBlock`. Which interface the host
+uses shows in its calls: the outputs follow the trajectory until the first model-exchange call.
+``build_fmu.py`` bundles the runtime and the shared table under names only this FMU uses.
+
+pythonfmu3 0.3.4 passes no start time to the slave: a co-simulation starts at the first ``do_step``'s
+time, model exchange at t = 0 unless the host calls ``fmi3SetTime`` before the first event update. Its
+``Fmi3UpdateDiscreteStatesResult`` misspells two fields that its C++ wrapper reads
+(``discreteStatesNeedUpdate``, ``nominalContinuousStatesChanged``), so the update returns its own.
+"""
+
+from collections import namedtuple
+
+from pythonfmu3 import CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Variability, Float64, Int32, ModelExchange
+
+from block_interface import VARIABLES, BlockInterface, balance_release
+from stickslip.core.exchange import INDICATORS, ExchangeBlock
+
+_CAUSALITY = {"parameter": Fmi3Causality.parameter, "input": Fmi3Causality.input, "output": Fmi3Causality.output}
+_VARIABILITY = {name: getattr(Fmi3Variability, name) for name in ("fixed", "continuous", "discrete")}
+_TYPE = {"real": Float64, "integer": Int32}
+
+# model exchange only: name, unit, description
+DERIVATIVES = (("der(x)", "m/s", "dx/dt"), ("der(v)", "m/s2", "dv/dt"))
+INDICATOR_VARIABLES = {
+    "stick": ("m/s", "event indicator: mode * v_rel while slipping (zero: v_rel reaches 0), 1 while stuck"),
+    "breakaway": ("N", "event indicator: F_S(t_stick) - |kappa x - F_ext| while stuck, 1 while slipping"),
+    "graze": ("m/s2", "event indicator: mode * dv_rel/dt while slipping (zero at an extremum of v_rel), 1 while stuck"),
+}
+
+DiscreteUpdate = namedtuple(
+    "DiscreteUpdate", "discreteStatesNeedUpdate terminateSimulation nominalContinuousStatesChanged "
+                      "valuesOfContinuousStatesChanged nextEventTimeDefined nextEventTime")
+
+
+class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInterface):
+    """Block of mass M on a moving surface, tied to a wall by a spring; dry friction with stick, slip and aging."""
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.author = "stickslip"
+        self.description = "Spring-block dry friction (Elmer 1997) with exact stick-slip events"
+        self.time = 0.0
+        self.block = None  # the ExchangeBlock, built when initialization ends
+        self.exchange = False  # True once the host made a model-exchange call
+        self._stepped = False  # a co-simulation step was taken
+        self.init_block()
+        for variable in VARIABLES:
+            self._register(variable)
+        state_refs = {v.name: v.value_reference for v in self.vars.values()}
+        for index, (name, unit, text) in enumerate(DERIVATIVES):
+            self._local(name, unit, text, lambda i=index: self.block.derivatives()[i],
+                        derivative=state_refs[name[4:-1]])
+        for index, name in enumerate(INDICATORS):
+            unit, text = INDICATOR_VARIABLES[name]
+            self._local(f"indicator.{name}", unit, text, lambda i=index: self.block.indicators()[i])
+            self.register_event_indicator(len(self.vars) - 1)
+        self.variable_units["time"], self.variable_bounds["time"] = "s", (None, None)
+        self.register_variable(Float64("time", causality=Fmi3Causality.independent,
+                                       variability=Fmi3Variability.continuous, description="simulation time",
+                                       getter=lambda: self.time), nested=False)
+
+    def _register(self, variable):
+        name, attribute = variable.name, variable.attribute
+        if variable.causality == "output":
+            accessors = {"getter": lambda: self.read_output(name, attribute)}
+        else:
+            accessors = {"getter": lambda: self.values[name], "setter": lambda value: self._set(name, value)}
+        self.register_variable(
+            _TYPE[variable.kind](
+                name, causality=_CAUSALITY[variable.causality], variability=_VARIABILITY[variable.variability],
+                description=variable.description, **accessors,
+            ),
+            nested=False,
+        )
+
+    def _local(self, name, unit, description, getter, derivative=None):
+        self.variable_units[name] = unit
+        self.variable_bounds[name] = (None, None)
+        self.register_variable(
+            Float64(name, causality=Fmi3Causality.local, variability=Fmi3Variability.continuous,
+                    description=description, getter=getter, derivative=derivative),
+            nested=False,
+        )
+
+    def _set(self, name, value):
+        self.set_variable(name, value)
+        if self.block is not None and name in ("v_drive", "F_ext"):
+            setattr(self.block, name, float(value))
+
+    def current_state(self):
+        return self.block if self.exchange else self.current_trajectory()
+
+    # ---- FMI: both interfaces ------------------------------------------------------
+
+    def exit_initialization_mode(self):
+        self.trajectory = self.new_trajectory()  # raises ParameterError for a bad parameter
+        v = self.values
+        self.block = ExchangeBlock(self.parameters(), v["x_start"], v["v_start"], v["v_drive"], v["F_ext"], self.time)
+        self.outputs_changed()
+
+    def _get_fmu_state(self):
+        block = None if self.block is None else self.block.snapshot()
+        return {"block": self.block_state(), "exchange": block, "time": self.time, "interface": self.exchange,
+                "stepped": self._stepped}
+
+    def _set_fmu_state(self, state):
+        self.restore_block_state(state["block"])
+        self.time, self.exchange, self._stepped = state["time"], state["interface"], state["stepped"]
+        saved = state["exchange"]
+        self.block = None if saved is None else ExchangeBlock.from_snapshot(self.parameters(), saved)
+
+    # ---- FMI: co-simulation ----------------------------------------------------------
+
+    def do_step(self, current_time, step_size):
+        """Hold the inputs and advance to ``current_time + step_size`` s (raises on failure, never discards)."""
+        if not self._stepped and current_time != self.trajectory.t:
+            self.trajectory = self.new_trajectory(t0=current_time)
+        self._stepped = True
+        self.current_trajectory().advance_to(current_time + step_size)
+        self.outputs_changed()
+        return True
+
+    # ---- FMI: model exchange ---------------------------------------------------------
+
+    def _exchange_call(self):
+        self.exchange = True
+        self.outputs_changed()
+        return self.block
+
+    def set_time(self, time):
+        self.time = float(time)
+        if self.block is not None:  # before initialization ends: the start time
+            self._exchange_call().t = self.time
+
+    def get_continuous_states(self):
+        return self._exchange_call().states()
+
+    def set_continuous_states(self, values):
+        self._exchange_call().set_states(values[0], values[1])
+
+    def get_continuous_state_derivatives(self):
+        return self._exchange_call().derivatives()
+
+    def get_nominals_of_continuous_states(self, size):
+        return self._exchange_call().nominals()
+
+    def get_event_indicators(self):
+        return self._exchange_call().indicators()
+
+    def update_discrete_states(self):
+        changed = self._exchange_call().update()
+        return DiscreteUpdate(False, False, False, changed, False, 0.0)
+
+
+# The methods pythonfmu3's C++ wrapper calls on the slave (PyObject_CallMethod(pInstance_, ...) in PySlaveInstance.cpp)
+ENTRY_POINTS = (
+    "setup_experiment", "enter_initialization_mode", "exit_initialization_mode", "do_step", "terminate",
+    "get_float64", "get_int32", "get_int64", "get_uint64", "get_boolean", "get_string",
+    "set_float64", "set_int32", "set_int64", "set_uint64", "set_boolean", "set_string",
+    "get_continuous_states", "get_continuous_state_derivatives", "get_nominals_of_continuous_states",
+    "set_continuous_states", "get_number_of_continuous_states", "get_number_of_event_indicators",
+    "get_event_indicators", "set_time", "update_discrete_states", "_get_fmu_state", "_set_fmu_state",
+)
+balance_release(SpringBlockFriction, ENTRY_POINTS)

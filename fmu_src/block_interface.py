@@ -1,0 +1,217 @@
+"""What every SpringBlockFriction slave shares, whatever FMI library wraps it: the variable table and the
+bookkeeping between FMI variables and the runtime.
+
+:data:`VARIABLES` lists the FMU's variables (SPEC section 4) with their causality, type, variability,
+start value, unit, description and inclusive bounds, in the order the FMUs declare them; each slave
+registers them with its own library's classes. :class:`BlockInterface` keeps the parameter and input
+values by FMU name, builds the runtime's parameters and :class:`Trajectory` from them, and saves and
+restores them. No physics here: it is all in the runtime, which the builders bundle under a name only
+their FMU uses (they rewrite the import below).
+"""
+
+import copy
+import ctypes
+import functools
+from collections import namedtuple
+
+from stickslip.core import (
+    KINETIC_LAWS, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, Trajectory, kinetic_law, static_law,
+)
+
+#: causality "parameter" (fixed), "input" or "output"; kind "real" or "integer"; variability "fixed",
+#: "continuous" or "discrete"; start None for outputs; unit "" or "1" when dimensionless; bounds inclusive
+#: (min, max), None where unbounded; attribute: the Trajectory attribute an output reads (None otherwise).
+Variable = namedtuple("Variable", "name causality kind variability start unit description bounds attribute")
+
+_UNBOUNDED = (None, None)
+
+# FMU name, Trajectory attribute, kind, variability, unit, description
+_OUTPUTS = (
+    ("x", "x", "real", "continuous", "m", "block position from the spring's relaxed length"),
+    ("v", "v", "real", "continuous", "m/s", "block velocity"),
+    ("v_rel", "v_rel", "real", "continuous", "m/s", "sliding velocity v_drive - v"),
+    ("F_friction", "friction_force", "real", "continuous", "N", "friction force of the surface on the block"),
+    ("F_spring", "spring_force", "real", "continuous", "N", "spring force on the block, -kappa x"),
+    ("mode", "mode", "integer", "discrete", "", "+1 slipping with v < v_drive, 0 stuck, -1 slipping with v > v_drive"),
+    ("t_stick", "t_stick", "real", "continuous", "s", "time since the current stick began (0 while slipping)"),
+    ("z_slip", "z_slip", "real", "continuous", "N", "stick-to-slip indicator F_S(t_stick) - |kappa x - F_ext|"),
+    ("z_stick", "z_stick", "real", "continuous", "m/s", "slip-to-stick indicator v_rel (0 while stuck)"),
+    ("n_events", "n_events", "integer", "discrete", "", "mode changes since the start"),
+    ("n_stick_events", "n_stick_events", "integer", "discrete", "", "slip-to-stick events since the start"),
+    ("n_slip_events", "n_slip_events", "integer", "discrete", "", "stick-to-slip events since the start"),
+    ("n_overshoots", "n_overshoots", "integer", "discrete", "", "slips that passed through v_rel = 0 without sticking"),
+    ("t_last_event", "t_last_event", "real", "discrete", "s", "time of the latest mode change"),
+    ("n_steps", "n_steps", "integer", "discrete", "", "internal solver steps since the start"),
+)
+
+
+def _law_parameters(kind, laws):
+    """``{FMU name: (default, Range, unit, description)}`` of every parameter of the coded laws.
+
+    A name shared by several laws takes the default of the lowest law code.
+    """
+    merged = {}
+    for code in sorted(laws):
+        for name, (default, allowed, unit) in laws[code].PARAMETERS.items():
+            merged.setdefault(f"{kind}.{name}", (default, allowed, unit, []))[3].append(laws[code].NAME)
+    return {name: (d, a, u, f"{kind} law parameter ({', '.join(users)})") for name, (d, a, u, users) in merged.items()}
+
+
+def _inclusive_bounds(allowed):
+    """``(min, max)`` of a Range that the model description can state (open bounds are left out)."""
+    low = None if allowed.low is None or allowed.low_open else allowed.low
+    high = None if allowed.high is None or allowed.high_open else allowed.high
+    return low, high
+
+
+def _variables():
+    def parameter(name, kind, default, unit, description, bounds=_UNBOUNDED):
+        return Variable(name, "parameter", kind, "fixed", default, unit, description, bounds, None)
+
+    table = [
+        parameter("M", "real", 1.0, "kg", "block mass"),
+        parameter("kappa", "real", 1.0, "N/m", "spring stiffness"),
+        parameter("x_start", "real", 0.0, "m", "initial position"),
+        parameter("v_start", "real", 0.0, "m/s", "initial velocity (stuck if v_start = v_drive and the contact holds)"),
+    ]
+    for kind, laws in (("kinetic", KINETIC_LAWS), ("static", STATIC_LAWS)):
+        codes = ", ".join(f"{code} {laws[code].NAME}" for code in sorted(laws))
+        table.append(parameter(f"{kind}.law", "integer", 1, "", f"{kind} friction law: {codes}", (min(laws), max(laws))))
+        for name, (default, allowed, unit, text) in _law_parameters(kind, laws).items():
+            table.append(parameter(name, "real", default, unit, text, _inclusive_bounds(allowed)))
+    table.append(parameter("solver.rtol", "real", 1e-10, "1", "relative tolerance of the internal solver",
+                           _inclusive_bounds(RTOL_RANGE)))
+    table.append(Variable("v_drive", "input", "real", "continuous", 0.1, "m/s", "surface (drive) velocity", _UNBOUNDED, None))
+    table.append(Variable("F_ext", "input", "real", "continuous", 0.0, "N", "external force on the block", _UNBOUNDED, None))
+    for name, attribute, kind, variability, unit, text in _OUTPUTS:
+        table.append(Variable(name, "output", kind, variability, None, unit, text, _UNBOUNDED, attribute))
+    return tuple(table)
+
+
+#: Every variable of the FMU, in declaration order.
+VARIABLES = _variables()
+
+
+class BlockInterface:
+    """Parameter and input values by FMU name, and the runtime objects built from them.
+
+    A slave class derives from its FMI library's base class and from this one, calls
+    :meth:`init_block` in its constructor, and registers :data:`VARIABLES` with getters and setters
+    that call :meth:`read_output` and :meth:`set_variable`. ``variable_units`` and ``variable_bounds`` (by FMU name) are
+    read by the builders to complete the model description.
+    """
+
+    def init_block(self):
+        self.values = {v.name: v.start for v in VARIABLES if v.causality != "output"}
+        self.variable_units = {v.name: v.unit for v in VARIABLES}
+        self.variable_bounds = {v.name: v.bounds for v in VARIABLES}
+        self.start_time = 0.0
+        self.trajectory = None  # built when initialization ends
+        self._output_cache = {}  # {output name: value} at the current state, filled as outputs are read
+
+    def set_variable(self, name, value):
+        """Set a parameter (only before initialization ends) or an input."""
+        if self.trajectory is not None and name in self.values and name not in ("v_drive", "F_ext"):
+            raise ParameterError(f"{name} is a fixed parameter: it cannot change after initialization")
+        self.values[name] = value
+        self._output_cache.clear()
+
+    def read_output(self, name, attribute):
+        """An output at the current state, computed on its first read after a change (none is ever None)."""
+        value = self._output_cache.get(name)
+        if value is None:
+            value = self._output_cache[name] = getattr(self.current_state(), attribute)
+        return value
+
+    def outputs_changed(self):
+        """Forget the cached outputs (the state moved)."""
+        self._output_cache.clear()
+
+    def current_state(self):
+        """The object the outputs are read from (by their Trajectory attribute names)."""
+        return self.current_trajectory()
+
+    # ---- runtime objects -----------------------------------------------------------
+
+    def _law(self, kind, build):
+        code = self.values[f"{kind}.law"]
+        names = build(code).PARAMETERS  # raises ParameterError for an unknown code
+        return build(code, **{name: self.values[f"{kind}.{name}"] for name in names})
+
+    def parameters(self):
+        """The runtime's Parameters from the current values (laws checked by the runtime when used)."""
+        v = self.values
+        return Parameters(v["M"], v["kappa"], self._law("kinetic", kinetic_law), self._law("static", static_law))
+
+    def new_trajectory(self, t0=None):
+        """A Trajectory from the parameters, start state and inputs, starting at ``t0`` (default start_time)."""
+        v = self.values
+        return Trajectory(
+            self.parameters(), v["x_start"], v["v_start"], v_drive=v["v_drive"], F_ext=v["F_ext"],
+            t0=self.start_time if t0 is None else t0, rtol=v["solver.rtol"],
+        )
+
+    def current_trajectory(self):
+        """The trajectory with the latest inputs applied (a fresh one during initialization)."""
+        if self.trajectory is None:
+            return self.new_trajectory()
+        self.trajectory.set_inputs(self.values["v_drive"], self.values["F_ext"])
+        return self.trajectory
+
+    # ---- FMU state ---------------------------------------------------------------
+
+    def block_state(self):
+        """Values, start time and trajectory snapshot as JSON-serializable values."""
+        snapshot = None if self.trajectory is None else self.trajectory.snapshot()
+        return {"values": dict(self.values), "start_time": self.start_time, "trajectory": snapshot}
+
+    def restore_block_state(self, state):
+        """Undo to a state from :meth:`block_state` (which stays usable for another restore)."""
+        state = copy.deepcopy(state)
+        self.values.update(state["values"])
+        self.start_time = state["start_time"]
+        snapshot = state["trajectory"]
+        self.trajectory = None if snapshot is None else Trajectory.from_snapshot(self.parameters(), snapshot)
+        self._output_cache.clear()
+
+
+# ---- PythonFMU's release of the slave on an exception -----------------------------
+
+
+def balance_release(cls, entry_points):
+    """Wrap the methods ``entry_points`` of ``cls`` with :func:`_survives_release`.
+
+    ``entry_points``: the methods the library's C++ wrapper calls on the slave
+    (``PyObject_CallMethod(pInstance_, ...)`` in its PySlaveInstance.cpp). Not covered: the static
+    ``_fmu_state_to_bytes``/``_fmu_state_from_bytes``, called on the class; an exception there (a corrupt
+    serialized state) still releases the slave unbalanced.
+    """
+    for name in entry_points:
+        setattr(cls, name, _survives_release(getattr(cls, name)))
+
+
+def _survives_release(method):
+    """``method``, which on an exception first takes the references that the wrapper will drop once too often.
+
+    PythonFMU 0.7.0 and pythonfmu3 0.3.4 (PySlaveInstance.cpp) turn an exception into a fatal status in
+    ``handle_py_exception``, which calls ``cleanPyObject``: that releases the wrapper's references to the
+    slave (``pInstance_``), its class (``pClass_``, ``type(slave)``) and its log queue (``pMessages_``) but
+    keeps the pointers, and freeing the instance (the destructor) releases them a second time. Each failed
+    instance that is then freed takes one reference too many from the slave and from the class, and the
+    process crashes once the garbage collector frees them while they are in use (libcosim, which terminates
+    and frees every instance, died with SIGSEGV after a few failed runs). One extra reference to each, taken
+    here before the exception leaves the slave, balances the release: the slave stays usable until it is
+    freed and is freed exactly then. An importer that never frees an instance after a fatal status
+    (stickslip's FMPy hosts) leaves that slave allocated until the process ends.
+    """
+
+    @functools.wraps(method)
+    def entry_point(self, *args, **kwargs):
+        try:
+            return method(self, *args, **kwargs)
+        except BaseException:
+            for reference in (self, type(self), self.log_queue):
+                ctypes.pythonapi.Py_IncRef(ctypes.py_object(reference))
+            raise
+
+    return entry_point

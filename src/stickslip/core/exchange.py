@@ -1,0 +1,217 @@
+"""The hybrid model in model-exchange form: states, derivatives, event indicators, discrete update.
+
+For a host that integrates the block with its own ODE solver and locates the
+events with its own sign-based root finder (FMI 3 model exchange). Every law,
+force and transition comes from :mod:`.model`; this module only holds the
+discrete state between the host's calls.
+
+- Continuous states ``x`` (m) and ``v`` (m/s). Stuck: ``x' = v_drive``,
+  ``v' = 0`` (the block moves with the surface: ``v`` reads ``v_drive``);
+  slipping in mode ``m``: ``x' = v``, ``v' = a`` (:func:`.model.slip_acceleration`).
+  The stick time is no state: ``t_stick = t - t_stuck``, exact for any solver.
+- Event indicators, each positive while the current mode lasts (``INACTIVE``
+  in the modes where it does not apply), zero at the event:
+
+  ``stick`` (m/s)      slipping: ``m v_rel``, zero when the slip reaches ``v_rel = 0``;
+  ``breakaway`` (N)    stuck: ``z_slip = F_S(t_stick) - |kappa x - F_ext|``;
+  ``graze`` (m/s^2)    slipping: ``m dv_rel/dt = -m a``, zero at each extremum
+                       of ``v_rel``: a sign-based locator sees a dip of
+                       ``m v_rel`` to or below zero that starts and ends inside
+                       one solver step (it changes no sign at the step's ends)
+                       because the extremum between them changes this sign.
+
+- :meth:`ExchangeBlock.update` is the event update: a stuck block breaks away
+  when ``z_slip < 0``, or when ``z_slip = 0`` exactly and falling (the
+  runtime's breakaway delay is 0: a host's locator that stopped on the zero
+  would see no sign change after it); a slip that reached ``v_rel = 0`` sticks or overshoots
+  (:func:`.model.mode_at_zero_v_rel`, with ``v`` set to ``v_drive``, the
+  event's point); an input jump acts as in :meth:`.trajectory.Trajectory.set_inputs`
+  (:func:`.model.mode_after_input_change`). Inputs are expected to change
+  at events (piecewise constant, as FMPy applies a table with steps); any input
+  change since the last update counts as a jump at it.
+"""
+
+import math
+
+from .model import (
+    STUCK,
+    breakaway_direction,
+    check_input_scales,
+    check_inputs,
+    check_scales,
+    check_state,
+    friction_force,
+    initial_mode,
+    mode_after_input_change,
+    mode_at_zero_v_rel,
+    slip_acceleration,
+    stuck_or_breakaway,
+    z_slip,
+)
+from .stuck import breakaway_delay
+
+INACTIVE = 1.0  # value of an event indicator in the modes where it does not apply (never crosses zero)
+INDICATORS = ("stick", "breakaway", "graze")
+
+
+class ExchangeBlock:
+    """The block's discrete state between a host's solver calls, and what the host reads from it.
+
+    The host sets ``t`` (s), the inputs ``v_drive`` (m/s) and ``F_ext`` (N), and the continuous states
+    with :meth:`set_states`; it reads :meth:`states`, :meth:`derivatives`, :meth:`indicators` and the
+    outputs under the names :class:`~.trajectory.Trajectory` uses.
+    """
+
+    def __init__(self, params, x0, v0, v_drive=0.0, F_ext=0.0, t0=0.0):
+        params.check()
+        check_state(x0, v0)
+        check_inputs(v_drive, F_ext)
+        check_scales(x0, v0, v_drive, F_ext, params, ("x_start", "v_start"))
+        self.params = params
+        self.t = float(t0)
+        self.v_drive, self.F_ext = float(v_drive), float(F_ext)
+        self.mode = initial_mode(x0, v0, self.v_drive, self.F_ext, params)
+        self._x, self._v = float(x0), float(v0)
+        self.t_stuck = self.t if self.mode == STUCK else None  # when the current stick began
+        self.n_stick_events = self.n_slip_events = self.n_overshoots = 0
+        self.t_last_event = self.t
+        self._inputs = (self.v_drive, self.F_ext)  # at the last update: a change since is an input jump
+
+    # ---- continuous part -------------------------------------------------------
+
+    def states(self):
+        """``[x, v]`` (m, m/s)."""
+        return [self._x, self.v]
+
+    def set_states(self, x, v):
+        """The host's states; while stuck ``v`` is the surface's, whatever the host holds."""
+        self._x, self._v = float(x), float(v)
+
+    def nominals(self):
+        """Scales of ``x`` and ``v`` (m, m/s): ``F_S(0)/kappa`` and ``F_S(0)/sqrt(kappa M)``, the stick-slip
+        amplitude and the slip's speed scale, so a host's absolute tolerance is relative to them."""
+        p = self.params
+        force = p.static.force(0.0)
+        return [force / p.kappa, force / (math.sqrt(p.kappa) * math.sqrt(p.M))]
+
+    def derivatives(self):
+        """``[x', v']`` (m/s, m/s^2) in the current mode."""
+        if self.mode == STUCK:
+            return [self.v_drive, 0.0]
+        return [self._v, slip_acceleration(self.mode, self._x, self._v, self.v_drive, self.F_ext, self.params)]
+
+    def indicators(self):
+        """``[stick, breakaway, graze]`` (m/s, N, m/s^2), see the module docstring."""
+        if self.mode == STUCK:
+            return [INACTIVE, self.z_slip, INACTIVE]
+        m = self.mode
+        accel = slip_acceleration(m, self._x, self._v, self.v_drive, self.F_ext, self.params)
+        return [m * (self.v_drive - self._v), INACTIVE, -m * accel]
+
+    # ---- event update ------------------------------------------------------------
+
+    def update(self):
+        """Apply the transition due at ``t`` with the current inputs; True if the host's ``v`` changed."""
+        p = self.params
+        x, v_drive, F_ext = self._x, self.v_drive, self.F_ext
+        old = self.mode
+        jumped = (v_drive, F_ext) != self._inputs
+        if jumped:
+            check_inputs(v_drive, F_ext)
+            check_input_scales(v_drive, F_ext, p)
+        if old == STUCK:
+            new = stuck_or_breakaway(x, F_ext, self.t_stick, p)  # = mode_after_input_change for a stuck block
+            if new == STUCK and breakaway_delay(x, v_drive, F_ext, self.t_stick, p, self._time_scale()) == 0.0:
+                new = breakaway_direction(x, F_ext, p)  # z_slip = 0 and falling: the contact fails now
+            v = v_drive
+        elif jumped and old * (self._inputs[0] - self._v) > 0.0:  # the jump, not the motion, moved v_rel
+            new = mode_after_input_change(old, x, self._v, 0.0, v_drive, F_ext, p)
+            v = v_drive if new == STUCK else self._v
+        elif old * (v_drive - self._v) <= 0.0:  # the slip reached v_rel = 0: this is the event's point
+            new = mode_at_zero_v_rel(x, F_ext, p)
+            v = v_drive
+        else:
+            new, v = old, self._v
+        self._inputs = (v_drive, F_ext)
+        changed = v != self._v
+        self._v = v
+        if new != old:
+            self._log_event(old, new)
+            self.mode = new
+            self.t_stuck = self.t if new == STUCK else None
+        return changed
+
+    def _time_scale(self):
+        """``sqrt(M / kappa)`` (s)."""
+        return math.sqrt(self.params.M / self.params.kappa)
+
+    def _log_event(self, old, new):
+        self.t_last_event = self.t
+        if new == STUCK:
+            self.n_stick_events += 1
+        elif old == STUCK:
+            self.n_slip_events += 1
+        else:
+            self.n_overshoots += 1
+
+    # ---- outputs (the names of Trajectory's) -------------------------------------
+
+    @property
+    def x(self):
+        return self._x
+
+    @property
+    def v(self):
+        return self.v_drive if self.mode == STUCK else self._v
+
+    @property
+    def v_rel(self):
+        return 0.0 if self.mode == STUCK else self.v_drive - self._v
+
+    @property
+    def t_stick(self):
+        return 0.0 if self.t_stuck is None else self.t - self.t_stuck
+
+    @property
+    def friction_force(self):
+        return friction_force(self.mode, self._x, self.v, self.v_drive, self.F_ext, self.params)
+
+    @property
+    def spring_force(self):
+        return -self.params.kappa * self._x
+
+    @property
+    def z_slip(self):
+        return z_slip(self._x, self.F_ext, self.t_stick, self.params)
+
+    @property
+    def z_stick(self):
+        return self.v_rel
+
+    @property
+    def n_events(self):
+        return self.n_stick_events + self.n_slip_events + self.n_overshoots
+
+    @property
+    def n_steps(self):
+        """The host's solver takes the steps: 0."""
+        return 0
+
+    # ---- save and restore --------------------------------------------------------
+
+    _SAVED = ("t", "v_drive", "F_ext", "mode", "_x", "_v", "t_stuck", "n_stick_events", "n_slip_events",
+              "n_overshoots", "t_last_event", "_inputs")
+
+    def snapshot(self):
+        """The discrete and continuous state as JSON-serializable values."""
+        return {name: getattr(self, name) for name in self._SAVED}
+
+    @classmethod
+    def from_snapshot(cls, params, snap):
+        """Rebuild a block saved by :meth:`snapshot` (with the same parameters)."""
+        block = cls.__new__(cls)
+        block.params = params
+        for name in cls._SAVED:
+            setattr(block, name, snap[name])
+        block._inputs = tuple(block._inputs)
+        return block

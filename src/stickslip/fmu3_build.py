@@ -1,0 +1,107 @@
+"""Build the SpringBlockFriction FMU for FMI 3.0 (co-simulation and model exchange) with pythonfmu3.
+
+The same runtime, variable table and tagging as the FMI 2 FMU (:mod:`stickslip.fmu_build`); the slave is
+``fmu_src/SpringBlockFriction_fmi3.py``, bundled as the module ``springblockfriction3_<tag>``. pythonfmu3's
+model description is completed with units, declared types, bounds and a default experiment, and states
+the capabilities: FMU state get/set/serialize, variable communication step, no completed-step calls.
+"""
+
+import importlib
+import os
+import sys
+import tempfile
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+from .fmi_host import preserved_sys_path
+from .fmu_build import (
+    DEFAULT_EXPERIMENT, DIMENSIONLESS, MODEL_NAME, REPO, UNITS, BuildError, built_tag, bundle_sources, forget_modules,
+    source_tag,
+)
+
+SLAVE3 = REPO / "fmu_src" / "SpringBlockFriction_fmi3.py"
+MODULE_PREFIX = "springblockfriction3_"
+UNITS3 = {**UNITS, "m/s2": ("m/s2", "Acceleration", {"m": 1, "s": -2})}
+CAPABILITIES = {"canGetAndSetFMUState": True, "canSerializeFMUState": True,
+                "canHandleVariableCommunicationStepSize": True, "needsCompletedIntegratorStep": False}
+
+
+def default_fmu3_path():
+    """``<repo>/dist/SpringBlockFriction-fmi3.fmu``."""
+    return REPO / "dist" / f"{MODEL_NAME}-fmi3.fmu"
+
+
+def source_tag3():
+    """10 hex digits identifying the sources of the FMI 3 FMU."""
+    return source_tag(SLAVE3, builders=[Path(__file__).resolve()])
+
+
+def is_current(fmu_path):
+    """True if the FMI 3 FMU at ``fmu_path`` exists and was built from the current sources."""
+    fmu_path = Path(fmu_path)
+    return fmu_path.is_file() and built_tag(fmu_path, MODULE_PREFIX) == source_tag3()
+
+
+def build3(dest=None):
+    """Build the FMI 3 FMU at ``dest`` (default :func:`default_fmu3_path`, replaced atomically); return its path."""
+    from pythonfmu3 import FmuBuilder
+
+    dest = Path(dest or default_fmu3_path()).resolve()
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    tag = source_tag3()
+    module = f"{MODULE_PREFIX}{tag}"
+    with tempfile.TemporaryDirectory(prefix="sbf3_build_") as tmp:
+        tmp = Path(tmp)
+        (tmp / "src").mkdir()
+        script, project_files = bundle_sources(tmp / "src", SLAVE3, module, tag)
+        try:
+            with preserved_sys_path():  # the builder and our import put the source folder on sys.path
+                built = FmuBuilder.build_FMU(script, dest=tmp / "out", project_files=project_files, **CAPABILITIES)
+                sys.path.insert(0, str(tmp / "src"))
+                slave = getattr(importlib.import_module(module), MODEL_NAME)(instance_name="build")
+        finally:
+            forget_modules(tag, module)
+        partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
+        with zipfile.ZipFile(built) as source, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as target:
+            for item in source.infolist():
+                data = source.read(item)
+                if item.filename == "modelDescription.xml":
+                    data = complete_model_description3(data, slave.variable_units, slave.variable_bounds)
+                target.writestr(item.filename, data)
+        os.replace(partial, dest)
+    return dest
+
+
+def complete_model_description3(xml, units, bounds):
+    """Add units, declared types, bounds and a DefaultExperiment to pythonfmu3's XML."""
+    root = ET.fromstring(xml)
+    variables = root.find("ModelVariables")
+    used = {}
+    for variable in variables:
+        name = variable.get("name")
+        unit = units[name]
+        if unit not in DIMENSIONLESS:
+            if unit not in UNITS3:
+                raise BuildError(f"variable {name} has the unit {unit!r}, which the builder does not know")
+            fmi_unit, declared, _ = used[unit] = UNITS3[unit]
+            variable.set("declaredType", declared)
+            variable.set("unit", fmi_unit)
+        for key, bound in zip(("min", "max"), bounds[name]):
+            if bound is not None:
+                variable.set(key, repr(float(bound)) if variable.tag == "Float64" else str(int(bound)))
+
+    unit_definitions = ET.Element("UnitDefinitions")
+    type_definitions = ET.Element("TypeDefinitions")
+    for fmi_unit, declared, exponents in sorted(used.values(), key=lambda entry: entry[1]):
+        unit = ET.SubElement(unit_definitions, "Unit", name=fmi_unit)
+        ET.SubElement(unit, "BaseUnit", {k: str(e) for k, e in exponents.items()})
+        ET.SubElement(type_definitions, "Float64Type", name=declared, quantity=declared, unit=fmi_unit)
+    for old in root.findall("UnitDefinitions") + root.findall("TypeDefinitions") + root.findall("DefaultExperiment"):
+        root.remove(old)
+    position = max(list(root).index(root.find(kind)) for kind in ("ModelExchange", "CoSimulation")) + 1
+    root.insert(position, unit_definitions)
+    root.insert(position + 1, type_definitions)
+    root.insert(list(root).index(variables), ET.Element("DefaultExperiment", DEFAULT_EXPERIMENT))
+    ET.indent(root)
+    return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
