@@ -19,13 +19,16 @@ def add_run(subparsers):
     p.add_argument("--out", default="results", help="output directory (default: results)")
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default: 2)")
     p.add_argument("--fmu", help="FMU to test (default: dist/SpringBlockFriction.fmu, built if missing or stale)")
+    p.add_argument("--interface", choices=("cs", "me"),
+                   help="test the FMI 3 FMU (--fmu, default dist/SpringBlockFriction-fmi3.fmu) through co-simulation "
+                        "or model exchange (FMPy's CVode, tolerances from each scenario's [model_exchange])")
     p.set_defaults(handler=_run)
 
 
 def _run(args):
     from .runner import run_suite
 
-    return 0 if run_suite(args.paths, args.out, jobs=args.jobs, fmu_path=args.fmu).ok else 1
+    return 0 if run_suite(args.paths, args.out, jobs=args.jobs, fmu_path=args.fmu, interface=args.interface).ok else 1
 
 
 def add_build_fmu(subparsers):

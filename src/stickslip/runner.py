@@ -1,6 +1,7 @@
 """The main job: run every scenario through the FMU and the reference, compare, and report.
 
-For each scenario: the FMU under FMPy (:func:`~stickslip.fmu_driver.run_fmu`),
+For each scenario: the FMU under FMPy (:func:`~stickslip.fmu_driver.run_fmu`; the FMI 3
+FMU's co-simulation or model exchange with :func:`~stickslip.fmu3_driver.run_fmu3`),
 the reference on the FMU's output grid with the inputs the FMU actually saw,
 :func:`~stickslip.compare.compare`, then ``OUT/<name>.csv`` (FMU result),
 ``OUT/<name>.png`` and finally ``OUT/report.md``.
@@ -8,19 +9,21 @@ the reference on the FMU's output grid with the inputs the FMU actually saw,
 
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from multiprocessing import get_context
 from pathlib import Path
 
+import fmpy
 from tqdm import tqdm
 
 from .compare import compare
 from .core.errors import StickSlipError
+from .fmu3_driver import ensure_fmu3, held_input_table, run_fmu3
 from .fmu_driver import ensure_fmu, run_fmu
 from .plots import plot_scenario
 from .reference import simulate_reference
 from .report import Outcome, failure_lines, summary_table, write_report, write_result_csv
-from .scenario import load_scenarios
+from .scenario import ScenarioError, load_scenarios
 
 #: FMU variables recorded for every scenario (SPEC section 4, the extra counters, and the inputs).
 OUTPUTS = ("x", "v", "v_rel", "F_friction", "F_spring", "mode", "t_stick", "z_slip", "z_stick", "n_events",
@@ -39,33 +42,59 @@ class SuiteResult:
         return all(o.passed for o in self.outcomes)
 
 
-def simulate(scenario, fmu_path):
-    """Run the FMU and the reference for ``scenario``: ``(fmu_result, ref_result, fmu_s, ref_s)``."""
+def simulate(scenario, fmu_path, interface=None):
+    """Run the FMU and the reference for ``scenario``: ``(fmu_result, ref_result, fmu_s, ref_s)``.
+
+    ``interface``: None for the FMI 2 FMU; "cs" or "me" for the FMI 3 FMU's co-simulation (driven as the
+    FMI 2 one) or model exchange (FMPy's CVode at the scenario's ``model_exchange.rtol``, the inputs held
+    between the breakpoints the co-simulation sees, so the reference is the same).
+    """
     start = time.perf_counter()
-    fmu = run_fmu(fmu_path, scenario.start_values(), scenario.stop_time, scenario.output_interval,
-                  input_signal=scenario.input_table(), outputs=list(OUTPUTS))
+    args = (scenario.start_values(), scenario.stop_time, scenario.output_interval)
+    if interface is None:
+        fmu = run_fmu(fmu_path, *args, input_signal=scenario.input_table(), outputs=list(OUTPUTS))
+    elif interface == "cs":
+        fmu = run_fmu3(fmu_path, *args, "cs", input_signal=scenario.input_table(), outputs=list(OUTPUTS))
+    else:
+        inputs = held_input_table(scenario.breakpoints(), scenario.stop_time)
+        fmu = run_fmu3(fmu_path, *args, "me", input_signal=inputs, outputs=list(OUTPUTS),
+                       rtol=model_exchange(scenario).rtol)
     middle = time.perf_counter()
     ref = simulate_reference(scenario.params, scenario.x0, scenario.v0, scenario.breakpoints(), fmu["time"])
     return fmu, ref, middle - start, time.perf_counter() - middle
 
 
-def run_scenario(scenario, fmu_path, out_dir=None):
-    """Simulate and compare one scenario; write its CSV and PNG into ``out_dir`` if given."""
+def model_exchange(scenario):
+    """The scenario's ``[model_exchange]`` settings (a ScenarioError if the file has none)."""
+    if scenario.model_exchange is None:
+        raise ScenarioError(f"{scenario.path}: no [model_exchange] section (CVode rtol and tolerances)")
+    return scenario.model_exchange
+
+
+def run_scenario(scenario, fmu_path, out_dir=None, interface=None):
+    """Simulate and compare one scenario; write its CSV and PNG into ``out_dir`` if given.
+
+    ``interface``: as :func:`simulate`; "me" is checked against the ``[model_exchange]`` tolerances.
+    """
     try:
-        fmu, ref, fmu_s, ref_s = simulate(scenario, fmu_path)
+        fmu, ref, fmu_s, ref_s = simulate(scenario, fmu_path, interface)
     except StickSlipError as exc:
         return Outcome(scenario.name, scenario.expected_attractor, error=f"{type(exc).__name__}: {exc}")
+    if interface == "me":
+        scenario = replace(scenario, tolerance=scenario.model_exchange.tolerance)
     if out_dir is not None:
         write_result_csv(Path(out_dir) / f"{scenario.name}.csv", fmu, OUTPUTS)
         plot_scenario(Path(out_dir) / f"{scenario.name}.png", scenario.name, fmu, ref)
     return Outcome(scenario.name, scenario.expected_attractor, compare(fmu, ref, scenario), fmu_s, ref_s)
 
 
-def run_suite(paths, out_dir, jobs=2, fmu_path=None):
+def run_suite(paths, out_dir, jobs=2, fmu_path=None, interface=None):
     """Run the scenarios in ``paths`` (files or directories) with ``jobs`` worker processes.
 
     ``fmu_path``: the FMU to test; by default ``dist/SpringBlockFriction.fmu``, built
-    if missing or stale (an explicit path is used as it is).
+    if missing or stale (an explicit path is used as it is). ``interface`` "cs" or "me" tests the
+    FMI 3 FMU (default ``dist/SpringBlockFriction-fmi3.fmu``, built if missing or stale) through that
+    interface; None (default) the FMU at ``fmu_path`` through the interface it has (FMI 2: co-simulation).
 
     Writes the per-scenario files and ``report.md`` into ``out_dir``, prints the
     summary table, and returns a :class:`SuiteResult` (``.ok`` is False if any
@@ -74,18 +103,24 @@ def run_suite(paths, out_dir, jobs=2, fmu_path=None):
     """
     start = time.perf_counter()
     scenarios = load_scenarios(paths)
-    fmu_path = ensure_fmu() if fmu_path is None else Path(fmu_path)
+    interface = interface_of(fmu_path, interface)
+    if interface == "me":
+        for scenario in scenarios:
+            model_exchange(scenario)
+    if fmu_path is None:
+        fmu_path = ensure_fmu() if interface is None else ensure_fmu3()
+    fmu_path = Path(fmu_path)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     progress = tqdm(total=len(scenarios), desc="scenarios", unit="scenario")
     if jobs <= 1:
         outcomes = []
         for s in scenarios:
-            outcomes.append(run_scenario(s, fmu_path, out_dir))
+            outcomes.append(run_scenario(s, fmu_path, out_dir, interface))
             progress.update()
     else:
         with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
-            futures = {pool.submit(run_scenario, s, fmu_path, out_dir): i for i, s in enumerate(scenarios)}
+            futures = {pool.submit(run_scenario, s, fmu_path, out_dir, interface): i for i, s in enumerate(scenarios)}
             outcomes = [None] * len(scenarios)
             for future in as_completed(futures):
                 outcomes[futures[future]] = future.result()
@@ -99,3 +134,17 @@ def run_suite(paths, out_dir, jobs=2, fmu_path=None):
     print(f"{sum(o.passed for o in result.outcomes)}/{len(result.outcomes)} passed in {result.seconds:.1f} s;"
           f" report: {out_dir / 'report.md'}")
     return result
+
+
+def interface_of(fmu_path, interface):
+    """The interface to drive: None for an FMI 2 FMU, "cs" or "me" for an FMI 3 one (its default: "cs").
+
+    Without ``fmu_path``, ``interface`` None means the default FMI 2 FMU and "cs"/"me" the default FMI 3 one.
+    """
+    if fmu_path is None:
+        return interface
+    if fmpy.read_model_description(str(fmu_path)).fmiVersion.startswith("3"):
+        return interface or "cs"
+    if interface == "me":
+        raise StickSlipError(f"{fmu_path} is an FMI 2 co-simulation FMU: it has no model exchange")
+    return None

@@ -29,7 +29,7 @@ START_TIME = 0.0
 DEFAULT_RTOL = 1e-10
 
 _TOP_KEYS = {"name", "description", "expected_attractor", "preset", "model", "initial", "kinetic",
-             "static", "inputs", "simulation", "tolerance"}
+             "static", "inputs", "simulation", "tolerance", "model_exchange"}
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 
 
@@ -44,6 +44,18 @@ class Tolerance:
     max_abs_dx: float
     max_abs_dv: float
     event_time: float
+
+
+@dataclass(frozen=True)
+class ModelExchange:
+    """How the FMI 3 model-exchange run is checked: the host's CVode relative tolerance and the
+    tolerances FMU vs reference it must meet (its errors are the host solver's, not the FMU's)."""
+
+    rtol: float
+    tolerance: Tolerance
+
+
+DEFAULT_ME_RTOL = 1e-8
 
 
 @dataclass(frozen=True)
@@ -63,6 +75,7 @@ class Scenario:
     rtol: float
     tail: float
     tolerance: Tolerance
+    model_exchange: ModelExchange = None  # None if the file has no [model_exchange] section
 
     def start_values(self):
         """FMU start values: parameters, initial state, law codes and law parameters, ``solver.rtol``."""
@@ -158,6 +171,7 @@ def load_scenario(path):
                       default=DEFAULT_RTOL),
         tail=f.number(simulation, "simulation.tail", up_to_stop, default=stop_time / 3.0),
         tolerance=_tolerance(f, data),
+        model_exchange=_model_exchange(f, data),
     )
 
 
@@ -243,7 +257,15 @@ def _points(f, points, key):
     return result
 
 
-def _tolerance(f, data):
-    section = f.table(data, "tolerance", {"max_abs_dx", "max_abs_dv", "event_time"})
-    return Tolerance(*(f.number(section, f"tolerance.{k}", POSITIVE)
+def _tolerance(f, data, key="tolerance", extra=()):
+    section = f.table(data, key, {"max_abs_dx", "max_abs_dv", "event_time", *extra})
+    return Tolerance(*(f.number(section, f"{key}.{k}", POSITIVE)
                        for k in ("max_abs_dx", "max_abs_dv", "event_time")))
+
+
+def _model_exchange(f, data):
+    if "model_exchange" not in data:
+        return None
+    tolerance = _tolerance(f, data, "model_exchange", extra=("rtol",))
+    rtol = f.number(data["model_exchange"], "model_exchange.rtol", Range(1e-14, 1e-2), default=DEFAULT_ME_RTOL)
+    return ModelExchange(rtol, tolerance)
