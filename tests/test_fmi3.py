@@ -1,0 +1,260 @@
+"""The FMI 3 FMU: the FMI 2 FMU's variables, co-simulation identical to it, model exchange against the reference."""
+
+import shutil
+from ctypes import c_double
+from dataclasses import replace
+from pathlib import Path
+
+import fmpy
+import numpy as np
+import pytest
+from fmpy.fmi3 import FMU3Model, FMU3Slave
+from fmpy.validation import validate_fmu
+
+from stickslip.cli import main
+from stickslip.compare import compare, fmu_events, reference_events
+from stickslip.core import Constant, Coulomb, Parameters
+from stickslip.fmu3_build import build3
+from stickslip.fmu3_driver import held_input_table, run_fmu3
+from stickslip.fmu_driver import FMUError, run_fmu
+from stickslip.reference import simulate_reference
+from stickslip.runner import OUTPUTS, simulate
+from stickslip.scenario import load_scenario
+
+SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
+SCENARIOS = sorted(SCENARIO_DIR.glob("*.toml"))
+ELMER = {"M": 40.0, "kappa": 1.0, "kinetic.law": 4, "kinetic.gamma1": 3.0, "kinetic.gamma2": 0.1,
+         "kinetic.v_tilde": 0.2, "kinetic.dv": 0.05, "static.law": 1, "static.F0": 1.0}
+ME_ONLY = {"der(x)", "der(v)", "indicator.stick", "indicator.breakaway", "indicator.graze", "time"}
+
+
+@pytest.fixture(scope="session")
+def fmu3_path(tmp_path_factory):
+    """Path of a SpringBlockFriction-fmi3.fmu freshly built from the working tree."""
+    return build3(tmp_path_factory.mktemp("fmu3") / "SpringBlockFriction-fmi3.fmu")
+
+
+@pytest.fixture(scope="session")
+def unzipped3(fmu3_path):
+    folder = fmpy.extract(str(fmu3_path))
+    description = fmpy.read_model_description(str(fmu3_path))
+    yield folder, description, {v.name: v for v in description.modelVariables}
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def instance(unzipped3, cls, start, name):
+    """An instance of the FMI 3 FMU (``FMU3Slave`` or ``FMU3Model``) with ``start`` set, out of initialization."""
+    folder, description, variables = unzipped3
+    fmu = cls(guid=description.guid, unzipDirectory=folder, instanceName=name,
+              modelIdentifier=description.coSimulation.modelIdentifier)
+    fmu.instantiate(loggingOn=True)
+    fmu.enterInitializationMode(startTime=0.0)
+    for key, value in start.items():
+        variable = variables[key]
+        setter = fmu.setInt32 if variable.type == "Int32" else fmu.setFloat64
+        setter([variable.valueReference], [value])
+    fmu.exitInitializationMode()
+    return fmu
+
+
+def reals(fmu, unzipped3, names):
+    return fmu.getFloat64([unzipped3[2][name].valueReference for name in names])
+
+
+# ---------------------------------------------------------------------------
+# the artifact
+# ---------------------------------------------------------------------------
+
+
+def test_fmpy_validate_reports_no_problems(fmu3_path):
+    assert validate_fmu(str(fmu3_path)) == []
+
+
+def test_same_variables_units_ranges_and_defaults_as_the_fmi2_fmu(fmu_path, fmu3_path):
+    fmi2 = {v.name: v for v in fmpy.read_model_description(str(fmu_path)).modelVariables}
+    fmi3 = {v.name: v for v in fmpy.read_model_description(str(fmu3_path)).modelVariables}
+    assert set(fmi3) - set(fmi2) == ME_ONLY
+    for name, v2 in fmi2.items():
+        v3 = fmi3[name]
+        assert {"Real": "Float64", "Integer": "Int32"}[v2.type] == v3.type, name
+        for attribute in ("causality", "variability", "start", "unit", "declaredType", "min", "max", "description"):
+            expected = getattr(v2, attribute)
+            if attribute == "declaredType":
+                expected = None if expected is None else expected.name
+                actual = None if v3.declaredType is None else v3.declaredType.name
+            else:
+                actual = getattr(v3, attribute)
+            assert str(actual) == str(expected), (name, attribute)
+
+
+def test_both_interfaces_states_indicators_and_state_capabilities(unzipped3):
+    description = unzipped3[1]
+    for interface in (description.modelExchange, description.coSimulation):
+        assert interface.canGetAndSetFMUstate and interface.canSerializeFMUstate
+    assert description.coSimulation.canHandleVariableCommunicationStepSize
+    assert [d.variable.name for d in description.derivatives] == ["der(x)", "der(v)"]
+    assert [d.variable.derivative.name for d in description.derivatives] == ["x", "v"]
+    assert [e.variable.name for e in description.eventIndicators] == [
+        "indicator.stick", "indicator.breakaway", "indicator.graze"]
+
+
+# ---------------------------------------------------------------------------
+# co-simulation: identical to the FMI 2 FMU
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
+def test_co_simulation_equals_the_fmi2_fmu_bit_for_bit(path, fmu_path, fmu3_path):
+    scenario = load_scenario(path)
+    args = (scenario.start_values(), scenario.stop_time, scenario.output_interval)
+    fmi2 = run_fmu(fmu_path, *args, input_signal=scenario.input_table(), outputs=list(OUTPUTS))
+    fmi3 = run_fmu3(fmu3_path, *args, "cs", input_signal=scenario.input_table(), outputs=list(OUTPUTS))
+    assert np.array_equal(fmi2["time"], fmi3["time"])
+    for name in OUTPUTS:
+        assert np.array_equal(fmi2[name], fmi3[name]), name
+
+
+def test_co_simulation_state_restore_and_serialization_continue_bit_for_bit(unzipped3):
+    fmu = instance(unzipped3, FMU3Slave, {**ELMER, "v_start": 0.1}, "cs-state")
+    try:
+        fmu.doStep(0.0, 15.0)
+        state = fmu.getFMUState()
+        serialized = fmu.serializeFMUState(state)
+        runs = []
+        for restore in (None, lambda: fmu.setFMUState(state), lambda: fmu.setFMUState(fmu.deserializeFMUState(serialized))):
+            if restore:
+                restore()
+            rows = []
+            for k in range(30):
+                fmu.doStep(15.0 + k, 1.0)
+                rows.append(reals(fmu, unzipped3, ("x", "v", "t_last_event")))
+            runs.append(rows)
+        assert runs[0] == runs[1] == runs[2]
+        fmu.freeFMUState(state)
+    finally:
+        fmu.terminate()
+        fmu.freeInstance()
+
+
+# ---------------------------------------------------------------------------
+# model exchange
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name, rtol, bound", [
+    ("elmer-fig3-v0.1", 1e-9, 1e-5), ("elmer-fig3-v0.3", 1e-9, 1e-5),
+    ("elmer-fig3-v0.1", 1e-8, 1e-4), ("elmer-fig3-v0.3", 1e-8, 1e-4),
+])
+def test_model_exchange_finds_the_reference_events_over_2000_s(name, rtol, bound, fmu3_path):
+    """CVode at ``rtol``: every event of the reference in order, and max |dx| <= ``bound`` times the amplitude
+    (measured at 1e-9: 2.4e-6 and 2.5e-6; at 1e-8: 3.5e-5 and 3.2e-5, the host's BDF error, linear in T)."""
+    scenario = load_scenario(SCENARIO_DIR / f"{name}.toml")
+    scenario = replace(scenario, stop_time=2000.0, output_interval=0.5, tail=600.0,
+                       model_exchange=replace(scenario.model_exchange, rtol=rtol))
+    fmu, ref, _, _ = simulate(scenario, fmu3_path, "me")
+    events_fmu, events_ref = fmu_events(fmu), reference_events(ref)
+    assert len(events_ref) > 80
+    assert [e.kind for e in events_fmu] == [e.kind for e in events_ref]
+    amplitude = 0.5 * np.ptp(ref.x)
+    assert np.abs(fmu["x"] - ref.x).max() <= bound * amplitude
+    comparison = compare(fmu, ref, replace(scenario, tolerance=scenario.model_exchange.tolerance))
+    assert comparison.events.n_unmatched == 0
+    assert comparison.attractor_fmu == comparison.attractor_ref == "stick-slip"
+
+
+def test_model_exchange_stuck_block_follows_an_input_jump(fmu3_path):
+    inputs = held_input_table([(0.0, 0.1, 0.0), (4.0, 0.3, 0.0)], 6.0)
+    start = {**ELMER, "v_start": 0.1}
+    result = run_fmu3(fmu3_path, start, 6.0, 0.5, "me", input_signal=inputs, outputs=["x", "v", "mode", "n_events"])
+    t = result["time"]
+    expected = np.where(t <= 4.0, 0.1 * t, 0.4 + 0.3 * (t - 4.0))
+    # 1e-8, not 0: FMPy's root function sets the input's left limit (0.1) again at t = 4 after the event,
+    # and CVode's first derivative after its restart there sees it
+    assert np.allclose(result["x"], expected, rtol=0.0, atol=1e-7)
+    assert np.all(result["mode"] == 0) and np.all(result["n_events"] == 0)
+    assert np.all(result["v"][t > 4.0] == 0.3)
+
+
+def test_model_exchange_slipping_block_keeps_its_velocity_through_an_input_jump(fmu3_path):
+    """A jump of v_drive across v reverses the slip direction without a stick (SPEC: the mode follows v_rel)."""
+    start = {"M": 1.0, "kappa": 1.0, "kinetic.F0": 0.5, "static.F0": 1.0, "x_start": 0.0, "v_start": 0.0}
+    inputs = held_input_table([(0.0, 1.0, 0.0), (0.1, -1.0, 0.0)], 0.2)
+    outputs = ["x", "v", "mode", "n_events", "n_overshoots", "n_stick_events"]
+    result = run_fmu3(fmu3_path, start, 0.2, 0.05, "me", input_signal=inputs, outputs=outputs, rtol=1e-10)
+    ref = simulate_reference(Parameters(1.0, 1.0, Coulomb(F0=0.5), Constant(F0=1.0)), 0.0, 0.0,
+                             [(0.0, 1.0, 0.0), (0.1, -1.0, 0.0)], result["time"])
+    assert np.all(result["mode"][result["time"] > 0.1] == -1)
+    assert result["n_overshoots"][-1] == 1 and result["n_stick_events"][-1] == 0
+    assert [e.kind for e in reference_events(ref)] == ["overshoot"]
+    assert np.abs(result["x"] - ref.x).max() < 1e-9 and np.abs(result["v"] - ref.v).max() < 1e-8
+
+
+@pytest.mark.parametrize("interface", ["cs", "me"])
+def test_bad_parameter_is_named(interface, fmu3_path):
+    with pytest.raises(FMUError, match=r"M = -1\.0 kg is out of range"):
+        run_fmu3(fmu3_path, {"M": -1.0}, 1.0, 0.5, interface)
+    assert np.isfinite(run_fmu3(fmu3_path, {}, 1.0, 0.5, interface)["x"]).all()  # the process goes on
+
+
+def test_model_exchange_nan_input_names_the_input(fmu3_path):
+    inputs = held_input_table([(0.0, 0.1, 0.0), (0.5, float("nan"), 0.0)], 1.0)
+    with pytest.raises(FMUError, match=r"v_drive = nan m/s is out of range"):
+        run_fmu3(fmu3_path, {}, 1.0, 0.25, "me", input_signal=inputs)
+
+
+def test_model_exchange_state_restore_and_serialization(unzipped3):
+    fmu = instance(unzipped3, FMU3Model, {**ELMER, "v_start": 0.1}, "me-state")
+    try:
+        fmu.updateDiscreteStates()
+        fmu.enterContinuousTimeMode()
+        states, derivatives = (c_double * 2)(), (c_double * 2)()
+        fmu.setTime(12.0)
+        fmu.setContinuousStates((c_double * 2)(1.2, 0.1), 2)
+        fmu.enterEventMode()
+        fmu.updateDiscreteStates()  # z_slip < 0: breaks away
+        fmu.enterContinuousTimeMode()
+        state = fmu.getFMUState()
+        serialized = fmu.serializeFMUState(state)
+
+        def snapshot():
+            fmu.getContinuousStates(states, 2)
+            fmu.getContinuousStateDerivatives(derivatives, 2)
+            return list(states), list(derivatives), fmu.getInt32([unzipped3[2]["mode"].valueReference])
+
+        before = snapshot()
+        assert before[2] == [1]
+        fmu.setTime(30.0)
+        fmu.setContinuousStates((c_double * 2)(0.3, 0.1), 2)
+        fmu.enterEventMode()
+        fmu.updateDiscreteStates()  # v = v_drive: sticks
+        assert snapshot()[2] == [0]
+        fmu.setFMUState(state)
+        assert snapshot() == before
+        fmu.setFMUState(fmu.deserializeFMUState(serialized))
+        assert snapshot() == before
+        fmu.freeFMUState(state)
+    finally:
+        fmu.terminate()
+        fmu.freeInstance()
+
+
+# ---------------------------------------------------------------------------
+# the command line
+# ---------------------------------------------------------------------------
+
+
+def test_cli_runs_the_fmi3_fmu_through_both_interfaces(tmp_path, fmu_path, fmu3_path):
+    scenario = str(SCENARIO_DIR / "coulomb-stick-slip.toml")
+    for interface in ("cs", "me"):
+        out = tmp_path / interface
+        assert main(["run", scenario, "--out", str(out), "--jobs", "1", "--fmu", str(fmu3_path),
+                     "--interface", interface]) == 0
+        assert "| coulomb-stick-slip " in (out / "report.md").read_text()
+    assert main(["run", scenario, "--out", str(tmp_path / "x"), "--fmu", str(fmu_path), "--interface", "me"]) == 1
+
+
+def test_model_exchange_needs_the_scenarios_model_exchange_section(tmp_path, fmu3_path):
+    text = (SCENARIO_DIR / "coulomb-stick-slip.toml").read_text()
+    bare = tmp_path / "bare.toml"
+    bare.write_text(text[:text.index("[model_exchange]")])
+    assert main(["run", str(bare), "--out", str(tmp_path / "out"), "--fmu", str(fmu3_path), "--interface", "me"]) == 1
