@@ -1,10 +1,11 @@
-"""Shared fixtures: the FMU built once per test session from the current sources."""
+"""Shared fixtures: the FMUs (FMI 2 and FMI 3) built once per test session from the current sources."""
 
 import shutil
 
 import fmpy
 import pytest
 
+from stickslip.fmu3_build import build3
 from stickslip.fmu_build import build
 
 
@@ -12,6 +13,12 @@ from stickslip.fmu_build import build
 def fmu_path(tmp_path_factory):
     """Path of a SpringBlockFriction.fmu freshly built from the working tree (dist/ is left alone)."""
     return build(tmp_path_factory.mktemp("fmu") / "SpringBlockFriction.fmu")
+
+
+@pytest.fixture(scope="session")
+def fmu3_path(tmp_path_factory):
+    """Path of a SpringBlockFriction-fmi3.fmu freshly built from the working tree."""
+    return build3(tmp_path_factory.mktemp("fmu3") / "SpringBlockFriction-fmi3.fmu")
 
 
 @pytest.fixture(scope="session")

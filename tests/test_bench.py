@@ -52,19 +52,23 @@ def test_regularized_error_grows_with_v_eps(coulomb):
     assert all(a < b for a, b in zip(errors, errors[1:])), errors
 
 
-def test_quick_bench_writes_json_markdown_and_plots(tmp_path, fmu_path, monkeypatch):
+def test_quick_bench_writes_json_markdown_and_plots(tmp_path, fmu_path, fmu3_path, monkeypatch):
     monkeypatch.setattr(fmus, "BUILD_DIR", tmp_path / "build")
     parser = argparse.ArgumentParser()
     add_bench_parser(parser.add_subparsers())
     out = tmp_path / "out"
-    args = parser.parse_args(["bench", "--quick", "--out", str(out), "--scenes", "coulomb", "--fmu", str(fmu_path)])
+    args = parser.parse_args(["bench", "--quick", "--out", str(out), "--scenes", "coulomb", "--fmu", str(fmu_path),
+                              "--fmu3", str(fmu3_path)])
     assert args.handler(args) == 0
 
     records = json.loads((out / "bench.json").read_text())["scenes"]["coulomb"]["records"]
     assert {r["family"] for r in records} == {"fmu", "stepper", "stepper-integrating", "solve_ivp", "regularized",
-                                              "floor"}
+                                              "floor", "fmi3-me"}
     assert all(r["error"] is None and len(r["times_s"]) >= 1 for r in records)
     exact = [r for r in records if r["family"] in ("fmu", "stepper", "stepper-integrating")]
     assert max(r["rel_dx"] for r in exact) < 1e-12  # Coulomb slips are closed forms in the stepper
     assert "## Matched accuracy" in (out / "bench.md").read_text()
+    assert "## FMI 3 model exchange (FMPy CVode) beside our co-simulation" in (out / "bench.md").read_text()
+    me = next(r for r in records if r["family"] == "fmi3-me")
+    assert me["events_unmatched"] == 0 and me["rel_dx"] < 1e-3  # CVode at rtol 1e-6 over 20 s
     assert (out / "coulomb.png").stat().st_size > 0

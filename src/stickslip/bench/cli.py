@@ -10,6 +10,8 @@ def add_bench_parser(subparsers):
     p.add_argument("--out", default="bench-results", help="output directory (default: bench-results)")
     p.add_argument("--scenes", nargs="+", metavar="NAME", help="scenes to run (default: all; see benchmarks/README.md)")
     p.add_argument("--fmu", help="FMU to measure (default: dist/SpringBlockFriction.fmu, built if missing or stale)")
+    p.add_argument("--fmu3", help="FMI 3 FMU whose model exchange is measured (default: "
+                                  "dist/SpringBlockFriction-fmi3.fmu, built if missing or stale)")
     p.set_defaults(handler=run_bench)
 
 
@@ -24,6 +26,7 @@ def run_bench(args):
     import numpy
     import scipy
 
+    from ..fmu3_driver import ensure_fmu3
     from ..fmu_driver import ensure_fmu
     from .fmus import ExtractedFMU, ensure_floor_fmu
     from .harness import run_scenes
@@ -45,8 +48,9 @@ def run_bench(args):
         "quick": args.quick,
     }
     fmu_path = Path(args.fmu) if args.fmu else ensure_fmu()
-    with ExtractedFMU(fmu_path) as fmu, ExtractedFMU(ensure_floor_fmu()) as floor:
-        records = run_scenes(scenes, fmu, floor)
+    fmu3_path = Path(args.fmu3) if args.fmu3 else ensure_fmu3()
+    with ExtractedFMU(fmu_path) as fmu, ExtractedFMU(ensure_floor_fmu()) as floor, ExtractedFMU(fmu3_path) as fmu3:
+        records = run_scenes(scenes, fmu, floor, fmu3)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "bench.json", meta, scenes, records)

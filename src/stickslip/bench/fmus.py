@@ -26,12 +26,13 @@ class ExtractedFMU:
         self.model_description = fmpy.read_model_description(str(fmu_path))
         self.folder = fmpy.extract(str(fmu_path))
 
-    def simulate(self, start_values, stop_time, output_interval, outputs):
-        """FMPy's result array from t = 0 to ``stop_time`` s with communication step ``output_interval`` s."""
+    def simulate(self, start_values, stop_time, output_interval, outputs, **options):
+        """FMPy's result array from t = 0 to ``stop_time`` s with communication step (model exchange: output
+        interval) ``output_interval`` s; ``options``: more arguments of ``fmpy.simulate_fmu``."""
         with preserved_sys_path():  # PythonFMU puts the FMU's resources on sys.path
             return fmpy.simulate_fmu(
                 self.folder, model_description=self.model_description, start_time=0.0, stop_time=stop_time,
-                output_interval=output_interval, start_values=start_values, output=list(outputs),
+                output_interval=output_interval, start_values=start_values, output=list(outputs), **options,
             )
 
     def __enter__(self):

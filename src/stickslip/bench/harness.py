@@ -55,8 +55,9 @@ def _from_columns(result):
     return Run(result["time"], result["x"], result["v"], fmu_events(result))
 
 
-def configs(scene, fmu, floor):
-    """Every configuration of ``scene``'s sweep; ``fmu`` and ``floor`` are :class:`~.fmus.ExtractedFMU`."""
+def configs(scene, fmu, floor, fmu3=None):
+    """Every configuration of ``scene``'s sweep; ``fmu``, ``floor`` and (if given) the FMI 3 FMU ``fmu3``,
+    run through model exchange, are :class:`~.fmus.ExtractedFMU`."""
     s, T = scene.sweep, scene.stop_time
     p, (v_drive, F_ext), x0, v0, grid = scene.params, scene.inputs, scene.scenario.x0, scene.scenario.v0, scene.grid()
     out = []
@@ -65,6 +66,12 @@ def configs(scene, fmu, floor):
     for rtol, h in sorted(fmu_points, key=lambda c: (-c[0], c[1])):
         out.append(Config("fmu", f"FMU rtol={rtol:.0e} h={h:g}", {"rtol": rtol, "comm_step": h},
                           lambda rtol=rtol, h=h: fmu.simulate(scene.start_values(rtol), T, h, FMU_OUTPUTS),
+                          _from_columns))
+    for rtol in s.me_rtols if fmu3 is not None else ():
+        out.append(Config("fmi3-me", f"FMI 3 ME, CVode rtol={rtol:.0e}", {"rtol": rtol},
+                          lambda rtol=rtol: fmu3.simulate(scene.start_values(s.comm_rtol), T, scene.grid_step,
+                                                          FMU_OUTPUTS, fmi_type="ModelExchange",
+                                                          relative_tolerance=rtol, record_events=False),
                           _from_columns))
     for rtol in s.stepper_rtols:
         out.append(Config("stepper", f"stepper rtol={rtol:.0e}", {"rtol": rtol},
@@ -156,9 +163,9 @@ def measure(config, scene):
     return record
 
 
-def run_scenes(scenes, fmu, floor):
+def run_scenes(scenes, fmu, floor, fmu3=None):
     """``{scene name: [record, ...]}`` for every configuration, with a tqdm progress bar."""
-    plan = [(scene, config) for scene in scenes for config in configs(scene, fmu, floor)]
+    plan = [(scene, config) for scene in scenes for config in configs(scene, fmu, floor, fmu3)]
     records = {scene.name: [] for scene in scenes}
     with tqdm(plan, unit="config", dynamic_ncols=True) as bar:
         for scene, config in bar:

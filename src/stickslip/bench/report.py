@@ -13,6 +13,7 @@ STYLE = {  # family -> (color, legend)
     "stepper-integrating": ("tab:brown", "our stepper, every step integrated (no replay)"),
     "solve_ivp": ("tab:blue", "solve_ivp hybrid with events"),
     "regularized": ("tab:green", "regularized friction, solve_ivp"),
+    "fmi3-me": ("tab:purple", "FMI 3 model exchange, FMPy CVode"),
 }
 MARKERS = {"RK45": "o", "DOP853": "s", "LSODA": "^", "Radau": "D"}
 
@@ -117,6 +118,7 @@ def markdown(meta, scenes, records):
                              _fmt(r.get("event_time_error")), f"{r['final_abs_dx']:.2g}"])
     out += _table(["scene", "h (s)", "steps", "FMU", "trivial FMU", "max\\|dx\\| (m)", "event-time error (s)",
                    "final \\|dx\\| (m)"], rows)
+    out += model_exchange_section(scenes, records)
     out += ["", "## Best accuracy of each family", ""]
     rows = []
     for s in scenes:
@@ -132,6 +134,24 @@ def markdown(meta, scenes, records):
         out += ["", "## Failed configurations", ""]
         out += [f"- {name}: {r['label']}: {r['error'].splitlines()[-1]}" for name, r in failed]
     return "\n".join(out) + "\n"
+
+
+def model_exchange_section(scenes, records):
+    """Markdown lines: the FMI 3 model exchange's error and time over CVode's tolerance, and the ratio to
+    our co-simulation at the grid's step at matched accuracy."""
+    out = ["", "## FMI 3 model exchange (FMPy CVode) beside our co-simulation", ""]
+    rows = [[s.name, f"{r['settings']['rtol']:.0e}", f"{r['rel_dx']:.2g}", _fmt(r.get("event_time_error")),
+             str(r.get("events_unmatched")), _ms(r)]
+            for s in scenes for r in records[s.name] if r["family"] == "fmi3-me" and ok(r)]
+    out += _table(["scene", "CVode rtol", "max\\|dx\\|/A", "event-time error (s)", "unmatched events", "time"], rows)
+    rows = []
+    for s in scenes:
+        for thr in THRESHOLDS:
+            me, cs = (fastest(records[s.name], f, thr, s) for f in ("fmi3-me", "fmu"))
+            rows.append([s.name, f"{thr:g}", _cell(me), _cell(cs), _ratio(me, cs)])
+    out += ["", "At matched accuracy (fastest configuration reaching it):", ""]
+    out += _table(["scene", "max\\|dx\\|/A ≤", "model exchange", "co-simulation (FMU)", "ME / CS"], rows)
+    return out
 
 
 def _fmt(value):

@@ -27,6 +27,7 @@ class Sweep:
     comm_rtol: float = 1e-10  # FMU tolerance of the communication steps finer than the grid's
     max_comm_steps: int = 100_000  # communication steps above this many per run are skipped
     stepper_rtols: tuple = (1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13)
+    me_rtols: tuple = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11)  # FMI 3 model exchange: CVode's rtol
     ivp: dict = field(default_factory=lambda: {
         "RK45": (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12),
         "DOP853": (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12),
@@ -41,12 +42,14 @@ class Sweep:
 
 LONG_SWEEP = Sweep(
     fmu_rtols=(1e-8, 1e-10, 1e-12), comm_steps=(1.0, 10.0), stepper_rtols=(1e-8, 1e-10, 1e-12, 1e-13),
+    me_rtols=(1e-6, 1e-8, 1e-10),
     ivp={"DOP853": (1e-8, 1e-10, 1e-12), "LSODA": (1e-8, 1e-10, 1e-12)},
     v_eps=(1e-3, 1e-4), regularized={"LSODA": (1e-8,)}, time_limit=10.0,
 )
 
 QUICK_SWEEP = Sweep(
     fmu_rtols=(1e-6, 1e-10), comm_steps=(0.1, 1.0), stepper_rtols=(1e-6, 1e-10), ivp={"DOP853": (1e-6, 1e-10)},
+    me_rtols=(1e-6,),
     v_eps=(1e-2, 1e-4), regularized={"LSODA": (1e-8,)}, repeats=1,
 )
 
