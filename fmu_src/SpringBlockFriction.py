@@ -19,11 +19,10 @@ instance after the error, as libcosim does, does not crash.
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
-from block_interface import VARIABLES, BlockInterface, balance_release
+from block_interface import BlockInterface, balance_release
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input, "output": Fmi2Causality.output}
 _VARIABILITY = {name: getattr(Fmi2Variability, name) for name in ("fixed", "continuous", "discrete")}
-_TYPE = {"real": Real, "integer": Integer}
 
 
 class SpringBlockFriction(Fmi2Slave, BlockInterface):
@@ -35,22 +34,7 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.init_block()
-        for variable in VARIABLES:
-            self._register(variable)
-
-    def _register(self, variable):
-        name, attribute = variable.name, variable.attribute
-        if variable.causality == "output":
-            accessors = {"getter": lambda: self.read_output(name, attribute)}
-        else:
-            accessors = {"getter": lambda: self.values[name], "setter": lambda value: self.set_variable(name, value)}
-        self.register_variable(
-            _TYPE[variable.kind](
-                name, causality=_CAUSALITY[variable.causality], variability=_VARIABILITY[variable.variability],
-                description=variable.description, **accessors,
-            ),
-            nested=False,
-        )
+        self.register_variables({"real": Real, "integer": Integer}, _CAUSALITY, _VARIABILITY)
 
     # ---- FMI ---------------------------------------------------------------------
 

@@ -19,12 +19,11 @@ from collections import namedtuple
 
 from pythonfmu3 import CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Variability, Float64, Int32, ModelExchange
 
-from block_interface import VARIABLES, BlockInterface, balance_release
+from block_interface import BlockInterface, balance_release
 from stickslip.core.exchange import INDICATORS, ExchangeBlock
 
 _CAUSALITY = {"parameter": Fmi3Causality.parameter, "input": Fmi3Causality.input, "output": Fmi3Causality.output}
 _VARIABILITY = {name: getattr(Fmi3Variability, name) for name in ("fixed", "continuous", "discrete")}
-_TYPE = {"real": Float64, "integer": Int32}
 
 # model exchange only: name, unit, description
 DERIVATIVES = (("der(x)", "m/s", "dx/dt"), ("der(v)", "m/s2", "dv/dt"))
@@ -51,8 +50,7 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         self.exchange = False  # True once the host made a model-exchange call
         self._stepped = False  # a co-simulation step was taken
         self.init_block()
-        for variable in VARIABLES:
-            self._register(variable)
+        self.register_variables({"real": Float64, "integer": Int32}, _CAUSALITY, _VARIABILITY)
         state_refs = {v.name: v.value_reference for v in self.vars.values()}
         for index, (name, unit, text) in enumerate(DERIVATIVES):
             self._local(name, unit, text, lambda i=index: self.block.derivatives()[i],
@@ -66,20 +64,6 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
                                        variability=Fmi3Variability.continuous, description="simulation time",
                                        getter=lambda: self.time), nested=False)
 
-    def _register(self, variable):
-        name, attribute = variable.name, variable.attribute
-        if variable.causality == "output":
-            accessors = {"getter": lambda: self.read_output(name, attribute)}
-        else:
-            accessors = {"getter": lambda: self.values[name], "setter": lambda value: self._set(name, value)}
-        self.register_variable(
-            _TYPE[variable.kind](
-                name, causality=_CAUSALITY[variable.causality], variability=_VARIABILITY[variable.variability],
-                description=variable.description, **accessors,
-            ),
-            nested=False,
-        )
-
     def _local(self, name, unit, description, getter, derivative=None):
         self.variable_units[name] = unit
         self.variable_bounds[name] = (None, None)
@@ -89,8 +73,8 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
             nested=False,
         )
 
-    def _set(self, name, value):
-        self.set_variable(name, value)
+    def set_variable(self, name, value):
+        super().set_variable(name, value)
         if self.block is not None and name in ("v_drive", "F_ext"):
             setattr(self.block, name, float(value))
 

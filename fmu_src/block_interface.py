@@ -109,6 +109,24 @@ class BlockInterface:
         self.trajectory = None  # built when initialization ends
         self._output_cache = {}  # {output name: value} at the current state, filled as outputs are read
 
+    def register_variables(self, classes, causalities, variabilities):
+        """Register :data:`VARIABLES` with the FMI library: ``classes`` maps a kind ("real", "integer") to the
+        library's variable class, ``causalities`` and ``variabilities`` our names to its enumerations."""
+        for variable in VARIABLES:
+            name, attribute = variable.name, variable.attribute
+            if variable.causality == "output":
+                accessors = {"getter": functools.partial(self.read_output, name, attribute)}
+            else:
+                accessors = {"getter": functools.partial(self.values.get, name),
+                             "setter": functools.partial(self.set_variable, name)}
+            self.register_variable(
+                classes[variable.kind](
+                    name, causality=causalities[variable.causality], variability=variabilities[variable.variability],
+                    description=variable.description, **accessors,
+                ),
+                nested=False,
+            )
+
     def set_variable(self, name, value):
         """Set a parameter (only before initialization ends) or an input."""
         if self.trajectory is not None and name in self.values and name not in ("v_drive", "F_ext"):

@@ -7,22 +7,19 @@ the capabilities: FMU state get/set/serialize, variable communication step, no c
 """
 
 import importlib
-import os
 import sys
 import tempfile
-import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from .fmi_host import preserved_sys_path
 from .fmu_build import (
-    DEFAULT_EXPERIMENT, DIMENSIONLESS, MODEL_NAME, REPO, UNITS, BuildError, built_tag, bundle_sources, forget_modules,
-    source_tag,
+    MODEL_NAME, REPO, annotate_variables, built_tag, bundle_sources, forget_modules, insert_definitions, source_tag,
+    write_completed,
 )
 
 SLAVE3 = REPO / "fmu_src" / "SpringBlockFriction_fmi3.py"
 MODULE_PREFIX = "springblockfriction3_"
-UNITS3 = {**UNITS, "m/s2": ("m/s2", "Acceleration", {"m": 1, "s": -2})}
 CAPABILITIES = {"canGetAndSetFMUState": True, "canSerializeFMUState": True,
                 "canHandleVariableCommunicationStepSize": True, "needsCompletedIntegratorStep": False}
 
@@ -62,46 +59,21 @@ def build3(dest=None):
                 slave = getattr(importlib.import_module(module), MODEL_NAME)(instance_name="build")
         finally:
             forget_modules(tag, module)
-        partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
-        with zipfile.ZipFile(built) as source, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as target:
-            for item in source.infolist():
-                data = source.read(item)
-                if item.filename == "modelDescription.xml":
-                    data = complete_model_description3(data, slave.variable_units, slave.variable_bounds)
-                target.writestr(item.filename, data)
-        os.replace(partial, dest)
+        write_completed(built, dest, lambda xml: complete_model_description3(
+            xml, slave.variable_units, slave.variable_bounds))
     return dest
 
 
 def complete_model_description3(xml, units, bounds):
     """Add units, declared types, bounds and a DefaultExperiment to pythonfmu3's XML."""
     root = ET.fromstring(xml)
-    variables = root.find("ModelVariables")
-    used = {}
-    for variable in variables:
-        name = variable.get("name")
-        unit = units[name]
-        if unit not in DIMENSIONLESS:
-            if unit not in UNITS3:
-                raise BuildError(f"variable {name} has the unit {unit!r}, which the builder does not know")
-            fmi_unit, declared, _ = used[unit] = UNITS3[unit]
-            variable.set("declaredType", declared)
-            variable.set("unit", fmi_unit)
-        for key, bound in zip(("min", "max"), bounds[name]):
-            if bound is not None:
-                variable.set(key, repr(float(bound)) if variable.tag == "Float64" else str(int(bound)))
-
-    unit_definitions = ET.Element("UnitDefinitions")
-    type_definitions = ET.Element("TypeDefinitions")
-    for fmi_unit, declared, exponents in sorted(used.values(), key=lambda entry: entry[1]):
-        unit = ET.SubElement(unit_definitions, "Unit", name=fmi_unit)
-        ET.SubElement(unit, "BaseUnit", {k: str(e) for k, e in exponents.items()})
-        ET.SubElement(type_definitions, "Float64Type", name=declared, quantity=declared, unit=fmi_unit)
-    for old in root.findall("UnitDefinitions") + root.findall("TypeDefinitions") + root.findall("DefaultExperiment"):
+    used = annotate_variables(root.find("ModelVariables"), units, bounds, lambda variable: variable)
+    for old in root.findall("UnitDefinitions") + root.findall("TypeDefinitions"):
         root.remove(old)
-    position = max(list(root).index(root.find(kind)) for kind in ("ModelExchange", "CoSimulation")) + 1
-    root.insert(position, unit_definitions)
-    root.insert(position + 1, type_definitions)
-    root.insert(list(root).index(variables), ET.Element("DefaultExperiment", DEFAULT_EXPERIMENT))
+    insert_definitions(root, used, _add_float64_type, root.find("CoSimulation"))
     ET.indent(root)
     return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+
+
+def _add_float64_type(type_definitions, declared, fmi_unit):
+    ET.SubElement(type_definitions, "Float64Type", name=declared, quantity=declared, unit=fmi_unit)

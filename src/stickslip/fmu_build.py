@@ -40,6 +40,7 @@ UNITS = {
     "N": ("N", "Force", {"kg": 1, "m": 1, "s": -2}),
     "N/m": ("N/m", "TranslationalSpringConstant", {"kg": 1, "s": -2}),
     "N s/m": ("N.s/m", "TranslationalDampingConstant", {"kg": 1, "s": -1}),
+    "m/s2": ("m/s2", "Acceleration", {"m": 1, "s": -2}),
 }
 DIMENSIONLESS = ("", "1")
 
@@ -110,50 +111,69 @@ def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu"):
             slave = getattr(sys.modules[module], MODEL_NAME)(instance_name="build")
         finally:  # ... and the modules imported
             forget_modules(tag, module)
-        partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
-        with zipfile.ZipFile(built) as source, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as target:
-            for item in source.infolist():
-                data = source.read(item)
-                if item.filename == "modelDescription.xml":
-                    data = complete_model_description(data, slave.variable_units, slave.variable_bounds)
-                target.writestr(item.filename, data)
-        os.replace(partial, dest)
+        write_completed(built, dest, lambda xml: complete_model_description(
+            xml, slave.variable_units, slave.variable_bounds))
     return dest
+
+
+def write_completed(built, dest, complete):
+    """Copy the FMU ``built`` to ``dest`` (replaced atomically), its model description passed through ``complete``."""
+    partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
+    with zipfile.ZipFile(built) as source, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as target:
+        for item in source.infolist():
+            data = source.read(item)
+            target.writestr(item.filename, complete(data) if item.filename == "modelDescription.xml" else data)
+    os.replace(partial, dest)
+
+
+def annotate_variables(variables, units, bounds, element_of):
+    """Set declaredType, unit, min and max on ``element_of(variable)`` for each model variable; return the units
+    used, ``{unit: (FMI unit name, declared type, exponents)}``."""
+    used = {}
+    for variable in variables:
+        name = variable.get("name")
+        element = element_of(variable)
+        unit = units[name]
+        if unit not in DIMENSIONLESS:
+            if unit not in UNITS:
+                raise BuildError(f"variable {name} has the unit {unit!r}, which the builder does not know")
+            fmi_unit, declared, _ = used[unit] = UNITS[unit]
+            element.set("declaredType", declared)
+            element.set("unit", fmi_unit)
+        for key, bound in zip(("min", "max"), bounds[name]):
+            if bound is not None:
+                element.set(key, repr(bound) if element.tag in ("Real", "Float64") else str(int(bound)))
+    return used
+
+
+def insert_definitions(root, used, add_type, after):
+    """Insert UnitDefinitions and TypeDefinitions of the ``used`` units after the element ``after`` of ``root``,
+    each type added by ``add_type(type_definitions, declared type, FMI unit)``; and the DefaultExperiment."""
+    unit_definitions = ET.Element("UnitDefinitions")
+    type_definitions = ET.Element("TypeDefinitions")
+    for fmi_unit, declared, exponents in sorted(used.values(), key=lambda entry: entry[1]):
+        unit = ET.SubElement(unit_definitions, "Unit", name=fmi_unit)
+        ET.SubElement(unit, "BaseUnit", {k: str(e) for k, e in exponents.items()})
+        add_type(type_definitions, declared, fmi_unit)
+    position = list(root).index(after) + 1
+    root.insert(position, unit_definitions)
+    root.insert(position + 1, type_definitions)
+    for old in root.findall("DefaultExperiment"):
+        root.remove(old)
+    root.insert(list(root).index(root.find("ModelVariables")), ET.Element("DefaultExperiment", DEFAULT_EXPERIMENT))
+
+
+def _add_simple_type(type_definitions, declared, fmi_unit):
+    simple = ET.SubElement(type_definitions, "SimpleType", name=declared)
+    ET.SubElement(simple, "Real", quantity=declared, unit=fmi_unit)
 
 
 def complete_model_description(xml, units, bounds):
     """Add units, declared types, bounds, InitialUnknowns and a DefaultExperiment to PythonFMU's XML."""
     root = ET.fromstring(xml)
     variables = root.find("ModelVariables")
-    used = {}
-    for variable in variables:
-        name = variable.get("name")
-        value = variable[0]
-        unit = units[name]
-        if unit not in DIMENSIONLESS:
-            if unit not in UNITS:
-                raise BuildError(f"variable {name} has the unit {unit!r}, which the builder does not know")
-            fmi_unit, declared, _ = used[unit] = UNITS[unit]
-            value.set("declaredType", declared)
-            value.set("unit", fmi_unit)
-        for key, bound in zip(("min", "max"), bounds[name]):
-            if bound is not None:
-                value.set(key, repr(bound) if value.tag == "Real" else str(int(bound)))
-
-    unit_definitions = ET.Element("UnitDefinitions")
-    type_definitions = ET.Element("TypeDefinitions")
-    for fmi_unit, declared, exponents in sorted(used.values(), key=lambda entry: entry[1]):
-        unit = ET.SubElement(unit_definitions, "Unit", name=fmi_unit)
-        ET.SubElement(unit, "BaseUnit", {k: str(e) for k, e in exponents.items()})
-        simple = ET.SubElement(type_definitions, "SimpleType", name=declared)
-        ET.SubElement(simple, "Real", quantity=declared, unit=fmi_unit)
-    position = list(root).index(root.find("CoSimulation")) + 1
-    root.insert(position, unit_definitions)
-    root.insert(position + 1, type_definitions)
-
-    for old in root.findall("DefaultExperiment"):
-        root.remove(old)
-    root.insert(list(root).index(variables), ET.Element("DefaultExperiment", DEFAULT_EXPERIMENT))
+    used = annotate_variables(variables, units, bounds, lambda variable: variable[0])
+    insert_definitions(root, used, _add_simple_type, root.find("CoSimulation"))
 
     structure = root.find("ModelStructure")
     structure.clear()
