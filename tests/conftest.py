@@ -21,10 +21,21 @@ def fmu3_path(tmp_path_factory):
     return build3(tmp_path_factory.mktemp("fmu3") / "SpringBlockFriction-fmi3.fmu")
 
 
+def _extracted(path):
+    """(extracted folder, model description, {name: variable}) of the FMU at ``path``; removes the folder after."""
+    folder = fmpy.extract(str(path))
+    description = fmpy.read_model_description(str(path))
+    yield folder, description, {v.name: v for v in description.modelVariables}
+    shutil.rmtree(folder, ignore_errors=True)
+
+
 @pytest.fixture(scope="session")
 def unzipped(fmu_path):
     """(extracted folder, model description, {name: variable}) of the session's FMU."""
-    folder = fmpy.extract(str(fmu_path))
-    description = fmpy.read_model_description(str(fmu_path))
-    yield folder, description, {v.name: v for v in description.modelVariables}
-    shutil.rmtree(folder, ignore_errors=True)
+    yield from _extracted(fmu_path)
+
+
+@pytest.fixture(scope="session")
+def unzipped3(fmu3_path):
+    """The same for the session's FMI 3 FMU."""
+    yield from _extracted(fmu3_path)

@@ -1,6 +1,7 @@
 """The FMI 3 FMU: the FMI 2 FMU's variables, co-simulation identical to it, model exchange against the reference."""
 
 import shutil
+import zipfile
 from ctypes import c_double
 from dataclasses import replace
 from pathlib import Path
@@ -14,7 +15,9 @@ from fmpy.validation import validate_fmu
 from stickslip.cli import main
 from stickslip.compare import compare, fmu_events, reference_events
 from stickslip.core import Constant, Coulomb, Parameters
-from stickslip.fmu3_driver import held_input_table, run_fmu3
+from stickslip.fmu3_build import is_current, source_tag3
+from stickslip.fmu3_driver import ensure_fmu3, held_input_table, run_fmu3
+from stickslip.fmu_build import built_tag
 from stickslip.fmu_driver import FMUError, run_fmu
 from stickslip.inputs import Signal
 from stickslip.reference import simulate_reference
@@ -26,14 +29,6 @@ SCENARIOS = sorted(SCENARIO_DIR.glob("*.toml"))
 ELMER = {"M": 40.0, "kappa": 1.0, "kinetic.law": 4, "kinetic.gamma1": 3.0, "kinetic.gamma2": 0.1,
          "kinetic.v_tilde": 0.2, "kinetic.dv": 0.05, "static.law": 1, "static.F0": 1.0}
 ME_ONLY = {"der(x)", "der(v)", "indicator.stick", "indicator.breakaway", "indicator.graze", "time"}
-
-
-@pytest.fixture(scope="session")
-def unzipped3(fmu3_path):
-    folder = fmpy.extract(str(fmu3_path))
-    description = fmpy.read_model_description(str(fmu3_path))
-    yield folder, description, {v.name: v for v in description.modelVariables}
-    shutil.rmtree(folder, ignore_errors=True)
 
 
 def instance(unzipped3, cls, start, name):
@@ -79,6 +74,21 @@ def test_same_variables_units_ranges_and_defaults_as_the_fmi2_fmu(fmu_path, fmu3
             else:
                 actual = getattr(v3, attribute)
             assert str(actual) == str(expected), (name, attribute)
+
+
+def test_ensure_fmu3_builds_only_when_the_sources_changed(tmp_path, fmu3_path):
+    target = tmp_path / "SpringBlockFriction-fmi3.fmu"
+    shutil.copy(fmu3_path, target)
+    assert is_current(target) and built_tag(target, "springblockfriction3_") == source_tag3()
+    before = target.stat().st_mtime_ns
+    assert ensure_fmu3(target) == target and target.stat().st_mtime_ns == before
+    with zipfile.ZipFile(fmu3_path) as source, zipfile.ZipFile(target, "w") as stale:
+        for item in source.infolist():
+            data = source.read(item)
+            stale.writestr(item, b"springblockfriction3_0000000000" if item.filename.endswith("slavemodule.txt") else data)
+    assert not is_current(target)
+    ensure_fmu3(target)
+    assert is_current(target)
 
 
 def test_both_interfaces_states_indicators_and_state_capabilities(unzipped3):

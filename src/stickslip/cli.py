@@ -32,14 +32,17 @@ def _run(args):
 
 
 def add_build_fmu(subparsers):
-    p = subparsers.add_parser("build-fmu", help="build dist/SpringBlockFriction.fmu if missing or stale")
+    p = subparsers.add_parser("build-fmu", help="build dist/SpringBlockFriction.fmu and dist/SpringBlockFriction-fmi3.fmu "
+                                                "if missing or stale")
     p.set_defaults(handler=_build_fmu)
 
 
 def _build_fmu(args):
+    from .fmu3_driver import ensure_fmu3
     from .fmu_driver import ensure_fmu
 
     print(ensure_fmu())
+    print(ensure_fmu3())
     return 0
 
 
