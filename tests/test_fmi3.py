@@ -14,7 +14,7 @@ from fmpy.validation import validate_fmu
 
 from stickslip.cli import main
 from stickslip.compare import compare, fmu_events, reference_events
-from stickslip.core import Constant, Coulomb, Parameters
+from stickslip.core import Constant, Coulomb, Lubricated, Parameters, Trajectory
 from stickslip.fmu3_build import is_current, source_tag3
 from stickslip.fmu3_driver import ensure_fmu3, held_input_table, run_fmu3
 from stickslip.fmu_build import built_tag
@@ -116,6 +116,23 @@ def test_co_simulation_equals_the_fmi2_fmu_bit_for_bit(path, fmu_path, fmu3_path
     assert np.array_equal(fmi2["time"], fmi3["time"])
     for name in OUTPUTS:
         assert np.array_equal(fmi2[name], fmi3[name]), name
+
+
+def test_co_simulation_starts_at_the_first_steps_time(unzipped3):
+    """pythonfmu3 passes no start time: the trajectory starts where the first fmi3DoStep does."""
+    fmu = instance(unzipped3, FMU3Slave, {**ELMER, "v_start": 0.1}, "cs-start")
+    try:
+        rows = []
+        for k in range(40):
+            fmu.doStep(5.0 + k, 1.0)
+            rows.append(reals(fmu, unzipped3, ("x", "v", "t_last_event")))
+    finally:
+        fmu.terminate()
+        fmu.freeInstance()
+    traj = Trajectory(Parameters(40.0, 1.0, Lubricated(), Constant(F0=1.0)), 0.0, 0.1, 0.1, 0.0, t0=5.0, rtol=1e-10)
+    x, v = traj.sample([6.0 + k for k in range(40)])
+    assert [row[:2] for row in rows] == [list(pair) for pair in zip(x, v)]
+    assert rows[-1][2] == traj.t_last_event > 15.0  # the breakaway 10 s after the start
 
 
 def test_co_simulation_state_restore_and_serialization_continue_bit_for_bit(unzipped3):
