@@ -12,6 +12,8 @@ from scenario_texts import VALID
 SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 
 
+ME_SECTION = "[model_exchange]\nmax_abs_dx = 1e-5\nmax_abs_dv = 1e-5\nevent_time = 1e-4\n"
+
 # (test id, text to replace in VALID, replacement, key the message must name)
 MALFORMED = [
     ("not-toml", "[model]", "[model", None),
@@ -53,6 +55,12 @@ MALFORMED = [
     ("tail-beyond-stop", "output_interval = 0.1", "output_interval = 0.1\ntail = 11.0", "'simulation.tail'"),
     ("tolerance-missing", "[tolerance]\nmax_abs_dx = 1e-9\nmax_abs_dv = 1e-9\nevent_time = 1e-9", "", "'tolerance'"),
     ("tolerance-negative", "event_time = 1e-9", "event_time = -1e-9", "'tolerance.event_time'"),
+    ("model-exchange-unknown-key", "event_time = 1e-9", "event_time = 1e-9\n" + ME_SECTION + 'solver = "cvode"',
+     "'model_exchange.solver'"),
+    ("model-exchange-rtol-too-large", "event_time = 1e-9", "event_time = 1e-9\n" + ME_SECTION + "rtol = 0.1",
+     "'model_exchange.rtol'"),
+    ("model-exchange-tolerance-missing", "event_time = 1e-9",
+     "event_time = 1e-9\n" + ME_SECTION.replace("max_abs_dv = 1e-5\n", ""), "'model_exchange.max_abs_dv'"),
 ]
 
 
@@ -107,3 +115,10 @@ def test_preset_fills_model_and_laws_and_a_file_section_replaces_the_preset_one(
 @pytest.mark.parametrize("path", sorted(SCENARIO_DIR.glob("*.toml")), ids=lambda p: p.stem)
 def test_shipped_scenario_loads_and_is_named_after_its_file(path):
     assert load_scenario(path).name == path.stem
+
+
+def test_model_exchange_section_is_optional_and_its_rtol_has_a_default(tmp_path):
+    assert load_scenario(write(tmp_path, VALID)).model_exchange is None
+    scenario = load_scenario(write(tmp_path, VALID + ME_SECTION))
+    assert scenario.model_exchange.rtol == 1e-8
+    assert (scenario.model_exchange.tolerance.max_abs_dx, scenario.model_exchange.tolerance.event_time) == (1e-5, 1e-4)
