@@ -19,6 +19,9 @@ discrete state between the host's calls.
                        ``m v_rel`` to or below zero that starts and ends inside
                        one solver step (it changes no sign at the step's ends)
                        because the extremum between them changes this sign.
+                       Stuck phases have none: with constant inputs ``z_slip``
+                       can dip below zero and back only where ``F_S`` is convex
+                       (the sigmoid law's start), see README.
 
 - :meth:`ExchangeBlock.update` is the event update: a stuck block breaks away
   when ``z_slip < 0``, or when ``z_slip = 0`` exactly and falling (the
