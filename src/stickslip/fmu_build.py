@@ -7,7 +7,9 @@ over the runtime, the slave and this builder. A host that imported its own
 ``stickslip``, or another build of this FMU, therefore never hands the FMU a
 different copy of the runtime. PythonFMU's model description is then completed:
 units, declared types, bounds, InitialUnknowns, a default experiment and the
-FMU-state capabilities.
+FMU-state capabilities. Its linux64 binary becomes the loader of
+:mod:`stickslip.fmu_loader`, so that the FMU also runs in hosts that are not
+Python processes.
 """
 
 import hashlib
@@ -20,6 +22,7 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
+from . import fmu_loader
 from .fmi_host import preserved_sys_path
 
 REPO = Path(__file__).resolve().parents[2]
@@ -46,7 +49,8 @@ class BuildError(RuntimeError):
 
 
 def _sources():
-    return sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts) + [SLAVE, Path(__file__).resolve()]
+    runtime = sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts)
+    return runtime + [SLAVE, Path(__file__).resolve(), *fmu_loader.SOURCES]
 
 
 def source_tag():
@@ -98,6 +102,7 @@ def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu"):
                 if item.filename == "modelDescription.xml":
                     data = complete_model_description(data, slave.units, slave.bounds)
                 target.writestr(item.filename, data)
+        fmu_loader.install(partial, MODEL_NAME)
         os.replace(partial, dest)
     return dest
 
