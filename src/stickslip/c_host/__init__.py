@@ -65,15 +65,17 @@ class HostRun:
 
 
 def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x", env=None, timeout=600):
-    """Run ``host`` in ``mode`` on the FMU extracted to ``fmu_folder``; start values by variable name.
+    """Run ``host`` in ``mode`` on the FMU extracted to ``fmu_folder``.
 
+    ``start_values``: {name: value} or (name, value) pairs, set in this order (mode "bad" leaves the last
+    one out of its second instance).
     The child gets only ``PATH`` from this process's environment, plus ``env``.
     """
     folder = Path(fmu_folder).resolve()
     description = fmpy.read_model_description(str(folder))
     variables = {v.name: v for v in description.modelVariables}
     settings = [f"{'i' if variables[name].type == 'Integer' else 'r'}{variables[name].valueReference}={value!r}"
-                for name, value in dict(start_values).items()]
+                for name, value in (start_values.items() if hasattr(start_values, "items") else start_values)]
     binary = folder / "binaries" / "linux64" / f"{description.coSimulation.modelIdentifier}.so"
     command = [str(host), str(binary), (folder / "resources").as_uri(), description.guid, mode, repr(stop_time),
                repr(step), str(variables[output].valueReference), *settings]

@@ -67,7 +67,7 @@ def install(fmu_path, model_identifier):
         loader = Path(tmp) / binary.rsplit("/", 1)[1]
         why_not = compile_loader(loader, inner_name)
         if why_not is not None:
-            print(f"note: {fmu_path.name} keeps PythonFMU's linux64 binary, which loads only inside a Python "
+            print(f"note: the {model_identifier} FMU keeps PythonFMU's linux64 binary, which loads only inside a Python "
                   f"process: {why_not}", file=sys.stderr)
             return False
         rewritten = Path(tmp) / "fmu.zip"
