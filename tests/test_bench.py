@@ -62,9 +62,11 @@ def test_quick_bench_writes_json_markdown_and_plots(tmp_path, fmu_path, monkeypa
 
     records = json.loads((out / "bench.json").read_text())["scenes"]["coulomb"]["records"]
     assert {r["family"] for r in records} == {"fmu", "stepper", "stepper-integrating", "solve_ivp", "regularized",
-                                              "floor"}
+                                              "floor", "c-host", "c-host-floor"}
     assert all(r["error"] is None and len(r["times_s"]) >= 1 for r in records)
+    assert all(r["cpu_s"] > 0 for r in records if r["family"].startswith("c-host"))
     exact = [r for r in records if r["family"] in ("fmu", "stepper", "stepper-integrating")]
     assert max(r["rel_dx"] for r in exact) < 1e-12  # Coulomb slips are closed forms in the stepper
-    assert "## Matched accuracy" in (out / "bench.md").read_text()
+    report = (out / "bench.md").read_text()
+    assert "## Matched accuracy" in report and "C host: FMU CPU µs/step" in report
     assert (out / "coulomb.png").stat().st_size > 0

@@ -25,6 +25,7 @@ def run_bench(args):
     import scipy
 
     from ..fmu_driver import ensure_fmu
+    from .c_host import ensure_host
     from .fmus import ExtractedFMU, ensure_floor_fmu
     from .harness import run_scenes
     from .report import markdown, plot, write_json
@@ -46,7 +47,7 @@ def run_bench(args):
     }
     fmu_path = Path(args.fmu) if args.fmu else ensure_fmu()
     with ExtractedFMU(fmu_path) as fmu, ExtractedFMU(ensure_floor_fmu()) as floor:
-        records = run_scenes(scenes, fmu, floor)
+        records = run_scenes(scenes, fmu, floor, ensure_host())
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "bench.json", meta, scenes, records)
