@@ -79,11 +79,20 @@ def test_elmer_fig3_in_the_c_host_is_bit_identical_to_fmpy(host, folder, fmpy_x)
 def test_bad_parameter_with_logging_off_names_it_and_the_host_goes_on(host, folder, fmpy_x):
     settings = [*START.items(), ("M", -1.0)]  # the second instance gets all but the last
     run = completed(run_host(host, folder, "bad", SHORT, SCENE.output_interval, settings))
-    assert int(run.value("status")[1]) >= 3  # fmi2Error or fmi2Fatal, at fmi2ExitInitializationMode
-    errors = [text for status, instance, text in run.logs if instance == "bad" and status >= 3]
+    assert int(run.value("status")[1]) == 3  # fmi2Error, at fmi2ExitInitializationMode
+    errors = [text for status, instance, text in run.logs if instance == "bad" and status == 3]
     assert any(BAD_MASS in text for text in errors), run.logs
     # the bad instance was freed; a new one (valid M) runs normally in the same process
     assert [log for log in run.logs if log[1] != "bad"] == []
+    assert run.series("x") == fmpy_x(SHORT)
+
+
+def test_after_a_bad_parameter_fmi2Reset_makes_the_instance_usable_again(host, folder, fmpy_x):
+    settings = [*START.items(), ("M", -1.0)]  # after the reset: all but the last
+    run = completed(run_host(host, folder, "reset", SHORT, SCENE.output_interval, settings))
+    statuses = [line[1:] for line in run.lines if line[0] == "status"]
+    assert statuses == [["exit", "3"], ["reset", "0"]]
+    assert [status for status, _, _ in run.logs] == [3]
     assert run.series("x") == fmpy_x(SHORT)
 
 
@@ -161,8 +170,8 @@ def test_fmpy_default_settings_show_the_message_naming_the_parameter(fmu_path):
             "    print('raised', exc)\n")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
-    assert BAD_MASS in result.stdout and "[FATAL]" in result.stdout
-    assert "raised fmi2ExitInitializationMode failed" in result.stdout
+    assert "[ERROR] " in result.stdout and BAD_MASS in result.stdout
+    assert "raised fmi2ExitInitializationMode failed with status 3 (error)" in result.stdout
 
 
 def test_without_a_c_compiler_the_build_keeps_pythonfmus_binary_and_says_so(tmp_path, monkeypatch, capsys):

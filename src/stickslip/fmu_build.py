@@ -102,7 +102,7 @@ def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu"):
                 if item.filename == "modelDescription.xml":
                     data = complete_model_description(data, slave.units, slave.bounds)
                 target.writestr(item.filename, data)
-        fmu_loader.install(partial, MODEL_NAME)
+        fmu_loader.install(partial, MODEL_NAME, slave_survives_release=True)
         os.replace(partial, dest)
     return dest
 

@@ -10,6 +10,8 @@
  * bad    one instance with all settings, the last one invalid, logging off: prints
  *        "status exit CODE" of fmi2ExitInitializationMode, frees it, then runs a new
  *        instance without the last setting and prints its "x" lines
+ * reset  like bad, but instead of a new instance it calls fmi2Reset ("status reset
+ *        CODE") and runs the same instance again without the last setting
  * two    two instances stepped alternately on this thread: "a"/"b" lines like "x"
  * threads  two instances, each run on its own thread at the same time: "a"/"b" lines
  * state  runs to STOP/2, saves the state (fmi2GetFMUstate and serialized bytes), runs on
@@ -50,6 +52,7 @@ static struct {
     Status (*enter)(Component);
     Status (*exit_init)(Component);
     Status (*terminate)(Component);
+    Status (*reset)(Component);
     Status (*do_step)(Component, double, double, int);
     Status (*get_real)(Component, const VR *, size_t, double *);
     Status (*set_real)(Component, const VR *, size_t, const double *);
@@ -171,14 +174,19 @@ static void finish(Component c)
     fmi.free_instance(c);
 }
 
-static void run_one(const char *name, const char *tag)
+static void run_initialized(Component c, const char *tag)
 {
-    Component c = instantiate(name);
-    check("fmi2ExitInitializationMode", initialize(c, n_settings));
     double t = 0.0;
     say("%s %.17g %.17g\n", tag, t, read_output(c));
     run_to(c, &t, 0, stop_time, tag, NULL);
     finish(c);
+}
+
+static void run_one(const char *name, const char *tag)
+{
+    Component c = instantiate(name);
+    check("fmi2ExitInitializationMode", initialize(c, n_settings));
+    run_initialized(c, tag);
 }
 
 static void *thread_main(void *tag)
@@ -248,6 +256,15 @@ static void mode_bad(void)
     run_one("good", "x");
 }
 
+static void mode_reset(void)
+{
+    Component c = instantiate("bad");
+    say("status exit %d\n", initialize(c, n_settings));
+    say("status reset %d\n", fmi.reset(c));
+    check("fmi2ExitInitializationMode", initialize(c, n_settings - 1));
+    run_initialized(c, "x");
+}
+
 static void mode_cycles(void)
 {
     const char *count = getenv("HOST_CYCLES");
@@ -284,7 +301,7 @@ int main(int argc, char **argv)
         return 1;
     }
     const char *names[] = {"fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
-                           "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2DoStep", "fmi2GetReal", "fmi2SetReal",
+                           "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2Reset", "fmi2DoStep", "fmi2GetReal", "fmi2SetReal",
                            "fmi2SetInteger", "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate",
                            "fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate"};
     void **slots = (void **)&fmi;
@@ -303,6 +320,7 @@ int main(int argc, char **argv)
     n_settings = argc - 8;
     if (!strcmp(mode, "run")) run_one("run", "x");
     else if (!strcmp(mode, "bad")) mode_bad();
+    else if (!strcmp(mode, "reset")) mode_reset();
     else if (!strcmp(mode, "two")) mode_two();
     else if (!strcmp(mode, "threads")) mode_threads();
     else if (!strcmp(mode, "state")) mode_state();

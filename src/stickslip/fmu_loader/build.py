@@ -37,7 +37,7 @@ def _c_string(text):
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def compile_loader(dest, inner_name):
+def compile_loader(dest, inner_name, slave_survives_release):
     """Compile the loader to ``dest``, forwarding to ``inner_name`` beside it; None on success, else why not."""
     compiler = os.environ.get("CC") or "cc"
     if shutil.which(compiler) is None:
@@ -47,15 +47,19 @@ def compile_loader(dest, inner_name):
         compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o", str(dest), str(SOURCE),
         f"-DSBF_INNER_LIBRARY={_c_string(inner_name)}", f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
         f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}", "-ldl", "-lpthread",
-    ]
+    ] + (["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else [])
     result = subprocess.run(command, capture_output=True, text=True)
     if result.returncode != 0:
         return f"{compiler} failed: {result.stderr.strip()[-2000:]}"
     return None
 
 
-def install(fmu_path, model_identifier):
+def install(fmu_path, model_identifier, slave_survives_release=False):
     """Replace the linux64 binary of the FMU at ``fmu_path`` (rewritten in place) by the loader.
+
+    ``slave_survives_release``: the slave's methods balance PythonFMU's release of the slave on an exception
+    (as ``fmu_src/SpringBlockFriction.py`` does); the loader then reports their failures as fmi2Error, which
+    lets the host reset or free the instance, instead of PythonFMU's fmi2Fatal.
 
     Returns True if the loader was installed; False (after a notice on stderr) if the FMU keeps
     PythonFMU's binary because no C compiler works.
@@ -65,7 +69,7 @@ def install(fmu_path, model_identifier):
     inner_name = f"{model_identifier}_pythonfmu.so"
     with tempfile.TemporaryDirectory(prefix="sbf_loader_") as tmp:
         loader = Path(tmp) / binary.rsplit("/", 1)[1]
-        why_not = compile_loader(loader, inner_name)
+        why_not = compile_loader(loader, inner_name, slave_survives_release)
         if why_not is not None:
             print(f"note: the {model_identifier} FMU keeps PythonFMU's linux64 binary, which loads only inside a Python "
                   f"process: {why_not}", file=sys.stderr)

@@ -65,48 +65,52 @@ typedef struct {
 
 #define EXPORT __attribute__((visibility("default")))
 
-/* ---- the functions forwarded unchanged: X(name, parameters after the component, arguments) ---- */
-#define FORWARDED(X)                                                                                              \
-    X(fmi2SetupExperiment, (fmi2Component c, fmi2Boolean a, fmi2Real b, fmi2Real d, fmi2Boolean e, fmi2Real f),  \
-      (a, b, d, e, f))                                                                                            \
-    X(fmi2EnterInitializationMode, (fmi2Component c), ())                                                        \
-    X(fmi2ExitInitializationMode, (fmi2Component c), ())                                                         \
-    X(fmi2Terminate, (fmi2Component c), ())                                                                      \
-    X(fmi2Reset, (fmi2Component c), ())                                                                          \
-    X(fmi2GetReal, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Real *x), (v, n, x))             \
-    X(fmi2GetInteger, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Integer *x), (v, n, x))       \
-    X(fmi2GetBoolean, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Boolean *x), (v, n, x))       \
-    X(fmi2GetString, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2String *x), (v, n, x))         \
-    X(fmi2SetReal, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Real *x), (v, n, x))       \
-    X(fmi2SetInteger, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *x), (v, n, x)) \
-    X(fmi2SetBoolean, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Boolean *x), (v, n, x)) \
-    X(fmi2SetString, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2String *x), (v, n, x))   \
-    X(fmi2GetFMUstate, (fmi2Component c, fmi2FMUstate *s), (s))                                                  \
-    X(fmi2SetFMUstate, (fmi2Component c, fmi2FMUstate s), (s))                                                   \
-    X(fmi2FreeFMUstate, (fmi2Component c, fmi2FMUstate *s), (s))                                                 \
-    X(fmi2SerializedFMUstateSize, (fmi2Component c, fmi2FMUstate s, size_t *n), (s, n))                          \
-    X(fmi2SerializeFMUstate, (fmi2Component c, fmi2FMUstate s, fmi2Byte *b, size_t n), (s, b, n))                \
-    X(fmi2DeSerializeFMUstate, (fmi2Component c, const fmi2Byte *b, size_t n, fmi2FMUstate *s), (b, n, s))       \
-    X(fmi2GetDirectionalDerivative,                                                                               \
-      (fmi2Component c, const fmi2ValueReference *u, size_t nu, const fmi2ValueReference *k, size_t nk,          \
-       const fmi2Real *dk, fmi2Real *du),                                                                         \
-      (u, nu, k, nk, dk, du))                                                                                     \
-    X(fmi2SetRealInputDerivatives,                                                                                \
-      (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *o, const fmi2Real *x),         \
-      (v, n, o, x))                                                                                               \
-    X(fmi2GetRealOutputDerivatives,                                                                               \
-      (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *o, fmi2Real *x), (v, n, o, x)) \
-    X(fmi2DoStep, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean k), (t, h, k))                          \
-    X(fmi2CancelStep, (fmi2Component c), ())                                                                     \
-    X(fmi2GetStatus, (fmi2Component c, const fmi2StatusKind k, fmi2Status *x), (k, x))                          \
-    X(fmi2GetRealStatus, (fmi2Component c, const fmi2StatusKind k, fmi2Real *x), (k, x))                        \
-    X(fmi2GetIntegerStatus, (fmi2Component c, const fmi2StatusKind k, fmi2Integer *x), (k, x))                  \
-    X(fmi2GetBooleanStatus, (fmi2Component c, const fmi2StatusKind k, fmi2Boolean *x), (k, x))                  \
-    X(fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind k, fmi2String *x), (k, x))
+/* ---- the functions forwarded: X(name, failure, parameters, arguments after the component) ----
+ * failure RECOVERABLE: PythonFMU reports an exception of the slave method it calls as fmi2Fatal; with
+ * SBF_SLAVE_SURVIVES_RELEASE (a slave whose methods balance PythonFMU's release of it on an exception, as
+ * SpringBlockFriction's do) the instance stays valid for fmi2Reset, fmi2SetFMUstate and fmi2FreeInstance,
+ * which is what fmi2Error means, so fmi2Fatal is returned and logged as fmi2Error. KEPT: the status as is. */
+#define FORWARDED(X)                                                                                               \
+    X(fmi2SetupExperiment, RECOVERABLE, (fmi2Component c, fmi2Boolean a, fmi2Real b, fmi2Real d, fmi2Boolean e, fmi2Real f), \
+      (a, b, d, e, f))                                                                                             \
+    X(fmi2EnterInitializationMode, RECOVERABLE, (fmi2Component c), ())                                             \
+    X(fmi2ExitInitializationMode, RECOVERABLE, (fmi2Component c), ())                                              \
+    X(fmi2Terminate, RECOVERABLE, (fmi2Component c), ())                                                           \
+    X(fmi2Reset, KEPT, (fmi2Component c), ())                                                                      \
+    X(fmi2GetReal, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Real *x), (v, n, x))  \
+    X(fmi2GetInteger, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Integer *x), (v, n, x)) \
+    X(fmi2GetBoolean, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Boolean *x), (v, n, x)) \
+    X(fmi2GetString, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2String *x), (v, n, x)) \
+    X(fmi2SetReal, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Real *x), (v, n, x)) \
+    X(fmi2SetInteger, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *x), (v, n, x)) \
+    X(fmi2SetBoolean, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Boolean *x), (v, n, x)) \
+    X(fmi2SetString, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2String *x), (v, n, x)) \
+    X(fmi2GetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate *s), (s))                                       \
+    X(fmi2SetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate s), (s))                                        \
+    X(fmi2FreeFMUstate, KEPT, (fmi2Component c, fmi2FMUstate *s), (s))                                             \
+    X(fmi2SerializedFMUstateSize, KEPT, (fmi2Component c, fmi2FMUstate s, size_t *n), (s, n))                      \
+    X(fmi2SerializeFMUstate, KEPT, (fmi2Component c, fmi2FMUstate s, fmi2Byte *b, size_t n), (s, b, n))            \
+    X(fmi2DeSerializeFMUstate, KEPT, (fmi2Component c, const fmi2Byte *b, size_t n, fmi2FMUstate *s), (b, n, s))   \
+    X(fmi2GetDirectionalDerivative, KEPT,                                                                          \
+      (fmi2Component c, const fmi2ValueReference *u, size_t nu, const fmi2ValueReference *k, size_t nk,            \
+       const fmi2Real *dk, fmi2Real *du),                                                                          \
+      (u, nu, k, nk, dk, du))                                                                                      \
+    X(fmi2SetRealInputDerivatives, KEPT,                                                                           \
+      (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *o, const fmi2Real *x),           \
+      (v, n, o, x))                                                                                                \
+    X(fmi2GetRealOutputDerivatives, KEPT,                                                                          \
+      (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *o, fmi2Real *x), (v, n, o, x))   \
+    X(fmi2DoStep, RECOVERABLE, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean k), (t, h, k))                \
+    X(fmi2CancelStep, KEPT, (fmi2Component c), ())                                                                 \
+    X(fmi2GetStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Status *x), (k, x))                       \
+    X(fmi2GetRealStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Real *x), (k, x))                     \
+    X(fmi2GetIntegerStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Integer *x), (k, x))               \
+    X(fmi2GetBooleanStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Boolean *x), (k, x))               \
+    X(fmi2GetStringStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2String *x), (k, x))
 
 /* PythonFMU's entry points */
 static struct {
-#define POINTER(name, params, args) fmi2Status(*name) params;
+#define POINTER(name, failure, params, args) fmi2Status(*name) params;
     FORWARDED(POINTER)
 #undef POINTER
     fmi2Component (*fmi2Instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
@@ -140,6 +144,7 @@ typedef struct {
     fmi2Boolean host_logging;
     size_t n_categories;
     char **categories;  /* none: every category */
+    int fatal_is_error; /* during a RECOVERABLE call: PythonFMU's fmi2Fatal is reported as fmi2Error */
 } Instance;
 
 static pthread_mutex_t start_lock = PTHREAD_MUTEX_INITIALIZER;
@@ -173,6 +178,7 @@ static void relay_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Status 
 {
     const Instance *inst = env;
     (void)name;
+    if (inst->fatal_is_error && status == fmi2Fatal) status = fmi2Error;
     if (inst->host.logger && wanted(inst, status, category))
         inst->host.logger(inst->host.componentEnvironment, inst->name, status, category, "%s",
                           message ? message : "");
@@ -323,8 +329,8 @@ static void load_inner(void)
         fail("cannot load PythonFMU's binary %s: %s", path, dlerror());
         return;
     }
-#define LOAD(name, params, args) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
-    if (!(1 FORWARDED(LOAD) LOAD(fmi2Instantiate, , ) LOAD(fmi2FreeInstance, , ) LOAD(fmi2SetDebugLogging, , )))
+#define LOAD(name, failure, params, args) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
+    if (!(1 FORWARDED(LOAD) LOAD(fmi2Instantiate, , , ) LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , )))
         fail("%s lacks an FMI 2 function: %s", path, dlerror());
 #undef LOAD
 }
@@ -418,12 +424,22 @@ EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, si
     return fmi2OK;
 }
 
-#define FORWARD(name, params, args)                                    \
-    EXPORT fmi2Status name params                                      \
-    {                                                                  \
-        if (!c) return fmi2Error;                                      \
-        keep_thread_state();                                           \
-        return inner.name(((Instance *)c)->inner FORWARD_ARGS args);   \
+#ifdef SBF_SLAVE_SURVIVES_RELEASE
+#define RECOVERABLE 1
+#else
+#define RECOVERABLE 0
+#endif
+#define KEPT 0
+#define FORWARD(name, failure, params, args)                                 \
+    EXPORT fmi2Status name params                                            \
+    {                                                                        \
+        Instance *inst = c;                                                  \
+        if (!inst) return fmi2Error;                                         \
+        keep_thread_state();                                                 \
+        inst->fatal_is_error = failure;                                      \
+        fmi2Status status = inner.name(inst->inner FORWARD_ARGS args);       \
+        inst->fatal_is_error = 0;                                            \
+        return failure && status == fmi2Fatal ? fmi2Error : status;          \
     }
 #define FORWARD_ARGS(...) __VA_OPT__(, ) __VA_ARGS__
 FORWARDED(FORWARD)
