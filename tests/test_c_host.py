@@ -9,6 +9,7 @@ CPython versions through ``SBF_LIBPYTHON``, and the build without a C compiler.
 """
 
 import glob
+import math
 import subprocess
 import sys
 import zipfile
@@ -23,11 +24,13 @@ from stickslip.fmu_build import REPO, build
 from stickslip.fmu_driver import run_fmu
 from stickslip.fmu_loader import LIBPYTHON_VARIABLE
 from stickslip.scenario import load_scenario
+from stickslip.stress.session import FmuCallError, FmuSession, fmi2Error
 
 SCENE = load_scenario(REPO / "scenarios" / "elmer-fig3-v0.1.toml")
 START = SCENE.start_values()
 SHORT = 20.0  # s: stop time of the runs that check behaviour rather than the whole scene
 BAD_MASS = "M = -1.0 kg is out of range: allowed is a finite value in (0, inf)"
+PYTHONFMU_BINARY = Path(pythonfmu.__file__).parent / "resources" / "binaries" / "linux64" / "libpythonfmu-export.so"
 
 
 @pytest.fixture(scope="module")
@@ -63,8 +66,7 @@ def completed(run):
 
 
 def test_the_linux_binary_is_the_loader_with_pythonfmus_binary_beside_it(fmu_path):
-    pythonfmu_binary = (Path(pythonfmu.__file__).parent / "resources" / "binaries" / "linux64"
-                        / "libpythonfmu-export.so").read_bytes()
+    pythonfmu_binary = PYTHONFMU_BINARY.read_bytes()
     with zipfile.ZipFile(fmu_path) as fmu:
         assert fmu.read("binaries/linux64/SpringBlockFriction_pythonfmu.so") == pythonfmu_binary
         assert fmu.read("binaries/linux64/SpringBlockFriction.so") != pythonfmu_binary
@@ -161,6 +163,33 @@ def test_other_cpythons_through_the_override(host, folder, fmpy_x, libpython):
         np.testing.assert_allclose(x, expected_x, rtol=0, atol=1e-12)
 
 
+@pytest.mark.parametrize("name, value, expected", [
+    ("M", -1.0, BAD_MASS),
+    ("F_ext", 1e200, "|F_ext| = 1e+200 N (F_ext = 1e+200 N) is out of range: allowed is at most 1e+150 N"),
+    ("F_ext", math.nan, "F_ext = nan N is out of range: allowed is a finite value in (-inf, inf)"),
+], ids=["bad-parameter", "overflowing-input", "nan-input"])
+def test_with_logging_off_fmpy_gets_the_error_and_its_message(fmu_path, name, value, expected):
+    """FMPy's FMU2Slave with loggingOn = false: a bad parameter (at fmi2ExitInitializationMode) or input (at
+    fmi2DoStep) is fmi2Error, and the logger received the message naming the variable and its range."""
+    stick_slip = {"kinetic.F0": 0.5, "static.F0": 1.0, "v_start": 0.1}
+    parameter = {name: value} if name == "M" else {}
+    with FmuSession(fmu_path) as session:
+        inst = None
+        try:
+            inst = session.instantiate(session.start_values({**stick_slip, **parameter}), logging_on=False)
+            inst.do_step(0.5)
+            inst.set_value(name, value)
+            inst.do_step(0.5)
+        except FmuCallError as exc:
+            error = exc
+        finally:
+            if inst is not None:
+                inst.free()  # terminated and freed after fmi2Error
+        assert error.status == fmi2Error
+        assert error.function == ("fmi2ExitInitializationMode" if name == "M" else "fmi2DoStep")
+        assert any(expected in message for message in error.messages), error.messages
+
+
 def test_fmpy_default_settings_show_the_message_naming_the_parameter(fmu_path):
     """``fmpy.simulate_fmu`` with no logger and logging off prints the FMU's error before raising."""
     code = ("import fmpy, sys\n"
@@ -178,8 +207,7 @@ def test_without_a_c_compiler_the_build_keeps_pythonfmus_binary_and_says_so(tmp_
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
     fmu = build(tmp_path / "SpringBlockFriction.fmu")
     assert "keeps PythonFMU's linux64 binary" in capsys.readouterr().err
-    pythonfmu_binary = (Path(pythonfmu.__file__).parent / "resources" / "binaries" / "linux64"
-                        / "libpythonfmu-export.so").read_bytes()
+    pythonfmu_binary = PYTHONFMU_BINARY.read_bytes()
     with zipfile.ZipFile(fmu) as archive:
         assert archive.read("binaries/linux64/SpringBlockFriction.so") == pythonfmu_binary
         assert "binaries/linux64/SpringBlockFriction_pythonfmu.so" not in archive.namelist()
