@@ -7,11 +7,12 @@
  *      the shared library named by $SBF_LIBPYTHON, else the one the FMU was built
  *      with (SBF_BUILD_LIBPYTHON), else its soname (SBF_LIBPYTHON_SONAME); it is
  *      loaded with RTLD_GLOBAL so that Python's extension modules find its symbols;
- *   2. starts that Python if nobody has, through PyConfig, so that a broken
- *      installation (a wrong PYTHONHOME) is an error status and a logged message,
- *      not an exit of the host; the host's handlers of SIGINT, SIGPIPE and SIGXFSZ
- *      are kept;
- *   3. loads PythonFMU's binary and forwards every FMI call to it.
+ *   2. starts that Python if nobody has, with the standard library of the library's
+ *      own installation, through PyConfig, so that a broken installation (a wrong
+ *      PYTHONHOME) is an error status and a logged message, not an exit of the host;
+ *      the host's handlers of SIGINT, SIGPIPE and SIGXFSZ are kept;
+ *   3. loads PythonFMU's binary and forwards every FMI call to it (failures of the
+ *      model's calls as fmi2Error where the slave allows it: see FORWARDED).
  * Each host thread gets one Python thread state, kept for the thread's life:
  * PythonFMU's PyGILState_Ensure/Release around every call then only take and
  * give back the GIL instead of creating and destroying a thread state.
