@@ -180,7 +180,7 @@ def test_nan_input_during_the_run_names_the_input(fmu_path):
 
 def test_fixed_parameter_cannot_change_after_initialization(unzipped):
     fmu = instantiate(unzipped, "fixed", STICK_SLIP)
-    with pytest.raises(fmpy.fmi1.FMICallException):  # fatal: the instance is gone, so it is not freed
+    with pytest.raises(fmpy.fmi1.FMICallException):  # an error: the instance is not used again
         fmu.setReal([unzipped[2]["M"].valueReference], [2.0])
 
 

@@ -9,7 +9,9 @@ builders. A host that imported its own ``stickslip``, or another build of this
 FMU (or the FMI 3 one, whose tag differs), therefore never hands the FMU a
 different copy of the runtime. PythonFMU's model description is then completed:
 units, declared types, bounds, InitialUnknowns, a default experiment and the
-FMU-state capabilities. :mod:`stickslip.fmu3_build` builds the FMI 3 FMU beside it.
+FMU-state capabilities. Its linux64 binary becomes the loader of
+:mod:`stickslip.fmu_loader`, so that the FMU also runs in hosts that are not
+Python processes. :mod:`stickslip.fmu3_build` builds the FMI 3 FMU beside it.
 """
 
 import hashlib
@@ -22,6 +24,7 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
+from . import fmu_loader
 from .fmi_host import preserved_sys_path
 
 REPO = Path(__file__).resolve().parents[2]
@@ -49,8 +52,9 @@ class BuildError(RuntimeError):
     """The FMU cannot be built from the current sources."""
 
 
-def source_tag(slave=SLAVE, builders=()):
-    """10 hex digits identifying the runtime, the slave, the shared table and the builder sources."""
+def source_tag(slave=SLAVE, builders=tuple(fmu_loader.SOURCES)):
+    """10 hex digits identifying the runtime, the slave, the shared table and the builder sources
+    (``builders``: more than this module; by default the FMI 2 FMU's loader)."""
     sources = sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts)
     digest = hashlib.sha256()
     for path in [*sources, slave, INTERFACE, Path(__file__).resolve(), *builders]:
@@ -111,18 +115,23 @@ def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu"):
             slave = getattr(sys.modules[module], MODEL_NAME)(instance_name="build")
         finally:  # ... and the modules imported
             forget_modules(tag, module)
-        write_completed(built, dest, lambda xml: complete_model_description(
-            xml, slave.variable_units, slave.variable_bounds))
+        write_completed(
+            built, dest, lambda xml: complete_model_description(xml, slave.variable_units, slave.variable_bounds),
+            finish=lambda partial: fmu_loader.install(partial, MODEL_NAME, slave_survives_release=True),
+        )
     return dest
 
 
-def write_completed(built, dest, complete):
-    """Copy the FMU ``built`` to ``dest`` (replaced atomically), its model description passed through ``complete``."""
+def write_completed(built, dest, complete, finish=None):
+    """Copy the FMU ``built`` to ``dest`` (replaced atomically), its model description passed through ``complete``
+    and the copy then through ``finish(path)`` if given."""
     partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
     with zipfile.ZipFile(built) as source, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as target:
         for item in source.infolist():
             data = source.read(item)
             target.writestr(item.filename, complete(data) if item.filename == "modelDescription.xml" else data)
+    if finish is not None:
+        finish(partial)
     os.replace(partial, dest)
 
 

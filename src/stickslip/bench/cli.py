@@ -28,6 +28,7 @@ def run_bench(args):
 
     from ..fmu3_driver import ensure_fmu3
     from ..fmu_driver import ensure_fmu
+    from .c_host import ensure_host
     from .fmus import ExtractedFMU, ensure_floor_fmu
     from .harness import run_scenes
     from .report import markdown, plot, write_json
@@ -50,7 +51,7 @@ def run_bench(args):
     fmu_path = Path(args.fmu) if args.fmu else ensure_fmu()
     fmu3_path = Path(args.fmu3) if args.fmu3 else ensure_fmu3()
     with ExtractedFMU(fmu_path) as fmu, ExtractedFMU(ensure_floor_fmu()) as floor, ExtractedFMU(fmu3_path) as fmu3:
-        records = run_scenes(scenes, fmu, floor, fmu3)
+        records = run_scenes(scenes, fmu, floor, ensure_host(), fmu3)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "bench.json", meta, scenes, records)

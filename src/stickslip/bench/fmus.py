@@ -12,6 +12,7 @@ from pathlib import Path
 
 import fmpy
 
+from .. import fmu_loader
 from ..fmi_host import preserved_sys_path
 from ..fmu_build import REPO
 
@@ -43,12 +44,13 @@ class ExtractedFMU:
 
 
 def ensure_floor_fmu(build_dir=None):
-    """Build ``TrivialFloor.fmu`` from :data:`FLOOR_SOURCE` into ``build_dir`` (default :data:`BUILD_DIR`)
-    unless it is newer than the source; return its path."""
+    """Build ``TrivialFloor.fmu`` from :data:`FLOOR_SOURCE` into ``build_dir`` (default :data:`BUILD_DIR`),
+    with the same linux64 loader as our FMU, unless it is newer than its sources; return its path."""
     from pythonfmu import FmuBuilder
 
     dest = Path(build_dir or BUILD_DIR) / "TrivialFloor.fmu"
-    if dest.is_file() and dest.stat().st_mtime >= FLOOR_SOURCE.stat().st_mtime:
+    newest_source = max(path.stat().st_mtime for path in (FLOOR_SOURCE, *fmu_loader.SOURCES))
+    if dest.is_file() and dest.stat().st_mtime >= newest_source:
         return dest
     dest.parent.mkdir(parents=True, exist_ok=True)
     partial = dest.with_name(f".{dest.name}.{os.getpid()}.part.fmu")
@@ -57,5 +59,6 @@ def ensure_floor_fmu(build_dir=None):
             FmuBuilder.build_FMU(FLOOR_SOURCE, dest=partial)
     finally:  # ... and the module imported
         sys.modules.pop(FLOOR_SOURCE.stem, None)
+    fmu_loader.install(partial, "TrivialFloor")
     os.replace(partial, dest)
     return dest

@@ -21,6 +21,7 @@ from tqdm import tqdm
 
 from ..compare import Event, fmu_events, match_events, reference_events, transition_kind
 from ..core import Trajectory
+from . import c_host
 from .peers import Run, hybrid_solve_ivp, regularized_solve_ivp
 
 FMU_OUTPUTS = ("x", "v", "n_stick_events", "n_slip_events", "n_overshoots", "t_last_event")  # the floor has them too
@@ -29,13 +30,14 @@ FMU_OUTPUTS = ("x", "v", "n_stick_events", "n_slip_events", "n_overshoots", "t_l
 @dataclass
 class Config:
     """One configuration: ``simulate()`` is the timed call, ``to_run`` turns its result into a :class:`Run`
-    (None for the floor, which has nothing to compare)."""
+    (None for the floor, which has nothing to compare); ``extra`` turns it into more fields of the record."""
 
     family: str
     label: str
     settings: dict
     simulate: Callable
     to_run: Callable | None
+    extra: Callable | None = None
 
 
 def stepper_run(scene, rtol, reuse_steps=True):
@@ -55,9 +57,10 @@ def _from_columns(result):
     return Run(result["time"], result["x"], result["v"], fmu_events(result))
 
 
-def configs(scene, fmu, floor, fmu3=None):
-    """Every configuration of ``scene``'s sweep; ``fmu``, ``floor`` and (if given) the FMI 3 FMU ``fmu3``,
-    run through model exchange, are :class:`~.fmus.ExtractedFMU`."""
+def configs(scene, fmu, floor, host=None, fmu3=None):
+    """Every configuration of ``scene``'s sweep; ``fmu``, ``floor`` and (if given) the FMI 3 FMU ``fmu3``, run
+    through model exchange, are :class:`~.fmus.ExtractedFMU`, ``host`` the compiled C host (None: no C host
+    family)."""
     s, T = scene.sweep, scene.stop_time
     p, (v_drive, F_ext), x0, v0, grid = scene.params, scene.inputs, scene.scenario.x0, scene.scenario.v0, scene.grid()
     out = []
@@ -95,7 +98,7 @@ def configs(scene, fmu, floor, fmu3=None):
     for h in sorted(set(scene.comm_steps()) | {scene.grid_step}):
         out.append(Config("floor", f"floor h={h:g}", {"comm_step": h},
                           lambda h=h: floor.simulate({}, T, h, FMU_OUTPUTS), None))
-    return out
+    return out + c_host.configs(scene, fmu, floor, host, Config)
 
 
 def timed(call, repeats, limit):
@@ -157,15 +160,17 @@ def measure(config, scene):
         record["error"] = "".join(traceback.format_exception_only(exc)).strip()
         return record
     record.update(times_s=seconds, median_s=statistics.median(seconds), min_s=min(seconds), error=None)
+    if config.extra is not None:
+        record.update(config.extra(result))
     if config.to_run is not None:
         window = max(config.settings.get("comm_step", 0.0), scene.grid_step)
         record.update(accuracy(config.to_run(result), scene, window))
     return record
 
 
-def run_scenes(scenes, fmu, floor, fmu3=None):
+def run_scenes(scenes, fmu, floor, host=None, fmu3=None):
     """``{scene name: [record, ...]}`` for every configuration, with a tqdm progress bar."""
-    plan = [(scene, config) for scene in scenes for config in configs(scene, fmu, floor, fmu3)]
+    plan = [(scene, config) for scene in scenes for config in configs(scene, fmu, floor, host, fmu3)]
     records = {scene.name: [] for scene in scenes}
     with tqdm(plan, unit="config", dynamic_ncols=True) as bar:
         for scene, config in bar:

@@ -36,11 +36,12 @@ def fastest(records, family, threshold, scene, any_grid=False):
     return min(hits, key=lambda r: r["median_s"], default=None)
 
 
-def per_step_cost(records, family, scene):
-    """Seconds per communication step of ``family`` ("fmu" or "floor"): slope of the median time over the
-    number of steps in the communication-step sweep (events and start-up go to the intercept)."""
+def per_step_cost(records, family, scene, time="median_s"):
+    """Seconds per communication step of ``family`` ("fmu", "floor", "c-host", "c-host-floor"): slope of the
+    record's ``time`` (median wall time; "cpu_s" for the C host) over the number of steps in the
+    communication-step sweep (events and start-up go to the intercept)."""
     steps = set(scene.comm_steps())
-    points = [(r["n_comm_steps"], r["median_s"]) for r in records
+    points = [(r["n_comm_steps"], r[time]) for r in records
               if r["family"] == family and r.get("error") is None and r["settings"]["comm_step"] in steps
               and r["settings"].get("rtol", scene.sweep.comm_rtol) == scene.sweep.comm_rtol]
     if len(points) < 2:
@@ -100,12 +101,18 @@ def markdown(meta, scenes, records):
                    "FMU / solve_ivp", "FMU any h / solve_ivp", "stepper / solve_ivp",
                    "stepper no replay / solve_ivp", "FMU / regularized", "stepper / regularized"], rows)
     out += ["", "## Cost per communication step (slope over the communication-step sweep)", ""]
+    out += ["FMPy: wall time of fmpy.simulate_fmu recording six outputs. C host: CPU time of fmi2DoStep + "
+            "fmi2GetReal(x) in a plain C importer (stickslip.c_host), Python start-up excluded.", ""]
     rows = []
     for s in scenes:
         fmu, floor = (per_step_cost(records[s.name], f, s) for f in ("fmu", "floor"))
+        c_fmu, c_floor = (per_step_cost(records[s.name], f, s, "cpu_s") for f in ("c-host", "c-host-floor"))
         if fmu is not None and floor is not None:
-            rows.append([s.name, f"{1e6 * fmu:.3g}", f"{1e6 * floor:.3g}", f"{fmu / floor:.2g}"])
-    out += _table(["scene", "FMU µs/step", "trivial FMU µs/step", "ratio"], rows)
+            c_host = ["–"] * 3 if c_fmu is None or c_floor is None else [
+                f"{1e6 * c_fmu:.3g}", f"{1e6 * c_floor:.3g}", f"{c_fmu / c_floor:.2g}"]
+            rows.append([s.name, f"{1e6 * fmu:.3g}", f"{1e6 * floor:.3g}", f"{fmu / floor:.2g}", *c_host])
+    out += _table(["scene", "FMPy: FMU µs/step", "FMPy: trivial FMU µs/step", "ratio",
+                   "C host: FMU CPU µs/step", "C host: trivial FMU CPU µs/step", "ratio"], rows)
     out += ["", "## FMU across communication steps (at the sweep's comm_rtol, default 1e-10)", ""]
     rows = []
     for s in scenes:

@@ -5,7 +5,8 @@ the exact communication points, inputs that change at any step, the FMU's own
 log text and status code, FMU states, and timing per ``doStep``. A
 :class:`FmuSession` extracts the FMU once and makes :class:`Instance` objects.
 
-PythonFMU reports every Python exception as ``fmi2Fatal`` and releases the
+PythonFMU reports every Python exception as ``fmi2Fatal`` (this FMU's Linux
+loader, :mod:`stickslip.fmu_loader`, reports it as ``fmi2Error``) and releases the
 slave itself. This FMU balances that release so that an importer may still
 free the instance, but other builds and other PythonFMU FMUs do not, and FMI
 allows no call after ``fmi2Fatal``: an instance that returned ``fmi2Fatal`` is

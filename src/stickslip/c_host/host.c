@@ -1,0 +1,335 @@
+/* A plain C FMI 2.0 co-simulation importer, as system simulators are: it opens an
+ * FMU's binary with dlopen(RTLD_NOW | RTLD_LOCAL), nothing preloaded, no Python of
+ * its own, and drives it the way FMPy's simulate_fmu does (same communication
+ * points, so results compare bit for bit).
+ *
+ *   host BINARY RESOURCE_URI GUID MODE STOP STEP OUTPUT_VR [rVR=VALUE | iVR=VALUE ...]
+ *
+ * MODE   what it does (every logged message is printed as "log STATUS TEXT")
+ * run    one instance, logging off; prints "x T X" at every communication point
+ * bad    one instance with all settings, the last one invalid, logging off: prints
+ *        "status exit CODE" of fmi2ExitInitializationMode, frees it, then runs a new
+ *        instance without the last setting and prints its "x" lines
+ * reset  like bad, but instead of a new instance it calls fmi2Reset ("status reset
+ *        CODE") and runs the same instance again without the last setting
+ * two    two instances stepped alternately on this thread: "a"/"b" lines like "x"
+ * threads  two instances, each run on its own thread at the same time: "a"/"b" lines
+ * state  runs to STOP/2, saves the state (fmi2GetFMUstate and serialized bytes), runs on
+ *        to STOP ("x" lines), restores the state and runs on again ("r" lines), then
+ *        restores the deserialized state and runs on again ("d" lines)
+ * cycles N instantiate / run / terminate / free N times (N = $HOST_CYCLES): "c I T X"
+ *        at the end of each cycle
+ * bench  one run; prints "cpu_us_per_step U": process CPU time of fmi2DoStep + one
+ *        fmi2GetReal per step, averaged over the steps
+ * Every line is flushed. The exit code is 0 when the mode ran to its end (a
+ * failing FMI call ends the program with "failed FUNCTION STATUS" and code 1). */
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+typedef void *Component;
+typedef unsigned int VR;
+typedef int Status; /* 0 ok, 1 warning, 2 discard, 3 error, 4 fatal */
+typedef void (*Logger)(void *, const char *, Status, const char *, const char *, ...);
+typedef struct {
+    Logger logger;
+    void *(*allocateMemory)(size_t, size_t);
+    void (*freeMemory)(void *);
+    void (*stepFinished)(void *, Status);
+    void *componentEnvironment;
+} Callbacks;
+
+static struct {
+    Component (*instantiate)(const char *, int, const char *, const char *, const Callbacks *, int, int);
+    void (*free_instance)(Component);
+    Status (*setup)(Component, int, double, double, int, double);
+    Status (*enter)(Component);
+    Status (*exit_init)(Component);
+    Status (*terminate)(Component);
+    Status (*reset)(Component);
+    Status (*do_step)(Component, double, double, int);
+    Status (*get_real)(Component, const VR *, size_t, double *);
+    Status (*set_real)(Component, const VR *, size_t, const double *);
+    Status (*set_integer)(Component, const VR *, size_t, const int *);
+    Status (*get_state)(Component, void **);
+    Status (*set_state)(Component, void *);
+    Status (*free_state)(Component, void **);
+    Status (*state_size)(Component, void *, size_t *);
+    Status (*serialize)(Component, void *, char *, size_t);
+    Status (*deserialize)(Component, const char *, size_t, void **);
+} fmi;
+
+static const char *resources, *guid;
+static double stop_time, step;
+static VR output;
+static int n_settings;
+static char **settings;
+static pthread_mutex_t print_lock = PTHREAD_MUTEX_INITIALIZER;
+
+static void say(const char *format, ...)
+{
+    va_list args;
+    va_start(args, format);
+    pthread_mutex_lock(&print_lock);
+    vprintf(format, args);
+    fflush(stdout);
+    pthread_mutex_unlock(&print_lock);
+    va_end(args);
+}
+
+static void logger(void *env, const char *name, Status status, const char *category, const char *message, ...)
+{
+    char text[4096];
+    va_list args;
+    (void)env, (void)category;
+    va_start(args, message);
+    vsnprintf(text, sizeof text, message, args);
+    va_end(args);
+    for (char *c = text; *c; ++c)
+        if (*c == '\n') *c = ' ';
+    say("log %d %s %s\n", status, name, text);
+}
+
+static const Callbacks callbacks = {logger, calloc, free, NULL, NULL};
+
+static void check(const char *function, Status status)
+{
+    if (status > 1) {
+        say("failed %s %d\n", function, status);
+        exit(1);
+    }
+}
+
+static Component instantiate(const char *name)
+{
+    Component c = fmi.instantiate(name, 1, guid, resources, &callbacks, 0, 0);
+    if (!c) {
+        say("failed fmi2Instantiate NULL\n");
+        exit(1);
+    }
+    return c;
+}
+
+static Status initialize(Component c, int n)
+{
+    check("fmi2SetupExperiment", fmi.setup(c, 0, 0.0, 0.0, 1, stop_time));
+    for (int i = 0; i < n; ++i) {
+        VR vr = (VR)strtoul(settings[i] + 1, NULL, 10);
+        const char *value = strchr(settings[i], '=') + 1;
+        if (settings[i][0] == 'i') {
+            int v = atoi(value);
+            check("fmi2SetInteger", fmi.set_integer(c, &vr, 1, &v));
+        } else {
+            double v = strtod(value, NULL);
+            check("fmi2SetReal", fmi.set_real(c, &vr, 1, &v));
+        }
+    }
+    check("fmi2EnterInitializationMode", fmi.enter(c));
+    return fmi.exit_init(c);
+}
+
+static double read_output(Component c)
+{
+    double x;
+    check("fmi2GetReal", fmi.get_real(c, &output, 1, &x));
+    return x;
+}
+
+/* FMPy's communication points: start + (n+1) h, the last one clipped to the stop time */
+static int close_to(double a, double b) { return fabs(a - b) <= 1e-9 * fmax(fabs(a), fabs(b)); }
+static int done(double t, double stop) { return t > stop || close_to(t, stop); }
+static double next_point(long n, double stop)
+{
+    double next = (n + 1) * step;
+    return next > stop && !close_to(next, stop) ? stop : next;
+}
+
+/* step from (t, n) to stop, printing "<tag> t x" at each point; returns the new n */
+static long run_to(Component c, double *t, long n, double stop, const char *tag, double *cpu_seconds)
+{
+    struct timespec a, b;
+    while (!done(*t, stop)) {
+        double next = next_point(n, stop);
+        clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &a);
+        check("fmi2DoStep", fmi.do_step(c, *t, next - *t, 1));
+        double x = read_output(c);
+        clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &b);
+        if (cpu_seconds) *cpu_seconds += (b.tv_sec - a.tv_sec) + 1e-9 * (b.tv_nsec - a.tv_nsec);
+        *t = next;
+        ++n;
+        if (tag) say("%s %.17g %.17g\n", tag, *t, x);
+    }
+    return n;
+}
+
+static void finish(Component c)
+{
+    check("fmi2Terminate", fmi.terminate(c));
+    fmi.free_instance(c);
+}
+
+static void run_initialized(Component c, const char *tag)
+{
+    double t = 0.0;
+    say("%s %.17g %.17g\n", tag, t, read_output(c));
+    run_to(c, &t, 0, stop_time, tag, NULL);
+    finish(c);
+}
+
+static void run_one(const char *name, const char *tag)
+{
+    Component c = instantiate(name);
+    check("fmi2ExitInitializationMode", initialize(c, n_settings));
+    run_initialized(c, tag);
+}
+
+static void *thread_main(void *tag)
+{
+    run_one(tag, tag);
+    return NULL;
+}
+
+static void mode_two(void)
+{
+    Component a = instantiate("a"), b = instantiate("b");
+    check("fmi2ExitInitializationMode", initialize(a, n_settings));
+    check("fmi2ExitInitializationMode", initialize(b, n_settings));
+    double ta = 0.0, tb = 0.0;
+    say("a 0 %.17g\nb 0 %.17g\n", read_output(a), read_output(b));
+    for (long n = 0; !done(ta, stop_time); ++n) {
+        double stop = next_point(n, stop_time);
+        run_to(a, &ta, n, stop, "a", NULL);
+        run_to(b, &tb, n, stop, "b", NULL);
+    }
+    finish(a);
+    finish(b);
+}
+
+static void mode_threads(void)
+{
+    pthread_t threads[2];
+    static char *tags[] = {"a", "b"};
+    for (int i = 0; i < 2; ++i)
+        if (pthread_create(&threads[i], NULL, thread_main, tags[i])) exit(2);
+    for (int i = 0; i < 2; ++i) pthread_join(threads[i], NULL);
+}
+
+static void mode_state(void)
+{
+    Component c = instantiate("state");
+    check("fmi2ExitInitializationMode", initialize(c, n_settings));
+    double t = 0.0, half = stop_time / 2;
+    long n = run_to(c, &t, 0, half, NULL, NULL);
+    void *state = NULL, *restored = NULL;
+    size_t size;
+    check("fmi2GetFMUstate", fmi.get_state(c, &state));
+    check("fmi2SerializedFMUstateSize", fmi.state_size(c, state, &size));
+    char *bytes = malloc(size);
+    check("fmi2SerializeFMUstate", fmi.serialize(c, state, bytes, size));
+    double t_saved = t;
+    run_to(c, &t, n, stop_time, "x", NULL);
+    check("fmi2SetFMUstate", fmi.set_state(c, state));
+    t = t_saved;
+    run_to(c, &t, n, stop_time, "r", NULL);
+    check("fmi2DeSerializeFMUstate", fmi.deserialize(c, bytes, size, &restored));
+    check("fmi2SetFMUstate", fmi.set_state(c, restored));
+    t = t_saved;
+    run_to(c, &t, n, stop_time, "d", NULL);
+    check("fmi2FreeFMUstate", fmi.free_state(c, &state));
+    check("fmi2FreeFMUstate", fmi.free_state(c, &restored));
+    free(bytes);
+    finish(c);
+}
+
+static void mode_bad(void)
+{
+    Component c = instantiate("bad");
+    say("status exit %d\n", initialize(c, n_settings));
+    fmi.free_instance(c);
+    --n_settings;
+    run_one("good", "x");
+}
+
+static void mode_reset(void)
+{
+    Component c = instantiate("bad");
+    say("status exit %d\n", initialize(c, n_settings));
+    say("status reset %d\n", fmi.reset(c));
+    check("fmi2ExitInitializationMode", initialize(c, n_settings - 1));
+    run_initialized(c, "x");
+}
+
+static void mode_cycles(void)
+{
+    const char *count = getenv("HOST_CYCLES");
+    int cycles = count ? atoi(count) : 50;
+    for (int i = 0; i < cycles; ++i) {
+        Component c = instantiate("cycle");
+        check("fmi2ExitInitializationMode", initialize(c, n_settings));
+        double t = 0.0;
+        run_to(c, &t, 0, stop_time, NULL, NULL);
+        say("c %d %.17g %.17g\n", i, t, read_output(c));
+        finish(c);
+    }
+}
+
+static void mode_bench(void)
+{
+    Component c = instantiate("bench");
+    check("fmi2ExitInitializationMode", initialize(c, n_settings));
+    double t = 0.0, cpu = 0.0;
+    long n = run_to(c, &t, 0, stop_time, NULL, &cpu);
+    say("cpu_us_per_step %.6g\nsteps %ld\n", 1e6 * cpu / (double)n, n);
+    finish(c);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 8) {
+        fprintf(stderr, "usage: host BINARY RESOURCE_URI GUID MODE STOP STEP OUTPUT_VR [rVR=VALUE|iVR=VALUE ...]\n");
+        return 2;
+    }
+    void *lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+        say("failed dlopen %s\n", dlerror());
+        return 1;
+    }
+    const char *names[] = {"fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
+                           "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2Reset", "fmi2DoStep", "fmi2GetReal", "fmi2SetReal",
+                           "fmi2SetInteger", "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate",
+                           "fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate"};
+    void **slots = (void **)&fmi;
+    for (size_t i = 0; i < sizeof names / sizeof *names; ++i)
+        if (!(slots[i] = dlsym(lib, names[i]))) {
+            say("failed dlsym %s\n", names[i]);
+            return 1;
+        }
+    resources = argv[2];
+    guid = argv[3];
+    const char *mode = argv[4];
+    stop_time = strtod(argv[5], NULL);
+    step = strtod(argv[6], NULL);
+    output = (VR)strtoul(argv[7], NULL, 10);
+    settings = argv + 8;
+    n_settings = argc - 8;
+    if (!strcmp(mode, "run")) run_one("run", "x");
+    else if (!strcmp(mode, "bad")) mode_bad();
+    else if (!strcmp(mode, "reset")) mode_reset();
+    else if (!strcmp(mode, "two")) mode_two();
+    else if (!strcmp(mode, "threads")) mode_threads();
+    else if (!strcmp(mode, "state")) mode_state();
+    else if (!strcmp(mode, "cycles")) mode_cycles();
+    else if (!strcmp(mode, "bench")) mode_bench();
+    else {
+        fprintf(stderr, "unknown mode %s\n", mode);
+        return 2;
+    }
+    say("done\n");
+    return 0;
+}

@@ -1,0 +1,86 @@
+"""Compile ``loader.c`` and put it into a PythonFMU FMU as its linux64 binary.
+
+The loader becomes ``binaries/linux64/<model identifier>.so``; PythonFMU's own
+binary stays beside it as ``<model identifier>_pythonfmu.so``. The loader
+records the CPython shared library of the Python that builds the FMU (path and
+soname) as the ones to try after ``$SBF_LIBPYTHON``. The compiler is ``$CC``
+(default ``cc``); without a working one the FMU keeps PythonFMU's binary, which
+loads only inside a Python process, and the build says so on stderr.
+"""
+
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import zipfile
+from pathlib import Path
+
+SOURCE = Path(__file__).resolve().with_name("loader.c")
+SOURCES = (SOURCE, Path(__file__).resolve())  # what the built binary depends on
+LIBPYTHON_VARIABLE = "SBF_LIBPYTHON"  # the loader's override: path or name of a CPython shared library
+
+
+def build_libpython():
+    """``(path, soname)`` of this Python's shared library; the path is "" if Python is not built shared."""
+    version = sysconfig.get_config_var("LDVERSION") or f"{sys.version_info[0]}.{sys.version_info[1]}"
+    soname = f"libpython{version}.so.1.0"
+    path = ""
+    if sysconfig.get_config_var("Py_ENABLE_SHARED"):
+        candidate = Path(sysconfig.get_config_var("LIBDIR") or "") / (sysconfig.get_config_var("INSTSONAME") or soname)
+        path = str(candidate) if candidate.is_file() else ""
+    return path, soname
+
+
+def _c_string(text):
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def compile_loader(dest, inner_name, slave_survives_release):
+    """Compile the loader to ``dest``, forwarding to ``inner_name`` beside it; None on success, else why not."""
+    compiler = os.environ.get("CC") or "cc"
+    if shutil.which(compiler) is None:
+        return f"no C compiler ({compiler!r} not found; set CC)"
+    path, soname = build_libpython()
+    command = [
+        compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o", str(dest), str(SOURCE),
+        f"-DSBF_INNER_LIBRARY={_c_string(inner_name)}", f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
+        f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}", "-ldl", "-lpthread",
+    ] + (["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else [])
+    result = subprocess.run(command, capture_output=True, text=True)
+    if result.returncode != 0:
+        return f"{compiler} failed: {result.stderr.strip()[-2000:]}"
+    return None
+
+
+def install(fmu_path, model_identifier, slave_survives_release=False):
+    """Replace the linux64 binary of the FMU at ``fmu_path`` (rewritten in place) by the loader.
+
+    ``slave_survives_release``: the slave's methods balance PythonFMU's release of the slave on an exception
+    (as ``fmu_src/SpringBlockFriction.py`` does); the loader then reports their failures as fmi2Error, which
+    lets the host reset or free the instance, instead of PythonFMU's fmi2Fatal.
+
+    Returns True if the loader was installed; False (after a notice on stderr) if the FMU keeps
+    PythonFMU's binary because no C compiler works.
+    """
+    fmu_path = Path(fmu_path)
+    binary = f"binaries/linux64/{model_identifier}.so"
+    inner_name = f"{model_identifier}_pythonfmu.so"
+    with tempfile.TemporaryDirectory(prefix="sbf_loader_") as tmp:
+        loader = Path(tmp) / binary.rsplit("/", 1)[1]
+        why_not = compile_loader(loader, inner_name, slave_survives_release)
+        if why_not is not None:
+            print(f"note: the {model_identifier} FMU keeps PythonFMU's linux64 binary, which loads only inside a Python "
+                  f"process: {why_not}", file=sys.stderr)
+            return False
+        rewritten = Path(tmp) / "fmu.zip"
+        with zipfile.ZipFile(fmu_path) as source, zipfile.ZipFile(rewritten, "w", zipfile.ZIP_DEFLATED) as target:
+            for item in source.infolist():
+                data = source.read(item)
+                if item.filename == binary:
+                    target.writestr(f"binaries/linux64/{inner_name}", data)
+                    data = loader.read_bytes()
+                target.writestr(item, data)
+        shutil.copyfile(rewritten, fmu_path)
+    return True

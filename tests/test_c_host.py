@@ -1,0 +1,213 @@
+"""The FMU outside Python: a plain C importer (``stickslip.c_host``) opens its linux64 binary with
+``dlopen(RTLD_NOW | RTLD_LOCAL)``, nothing preloaded, and drives it as FMPy does.
+
+Every run is a child process (a crash shows as a return code, not a dead pytest),
+started with only ``PATH`` from this environment. Its results are compared with
+FMPy driving the same FMU here (bit for bit). Also: what a user of
+``fmpy.simulate_fmu`` with default settings sees for a bad parameter, other
+CPython versions through ``SBF_LIBPYTHON``, and the build without a C compiler.
+"""
+
+import glob
+import math
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pythonfmu
+from stickslip.c_host import HostBuildError, compile_host, run_host
+from stickslip.fmu_build import REPO, build
+from stickslip.fmu_driver import run_fmu
+from stickslip.fmu_loader import LIBPYTHON_VARIABLE
+from stickslip.scenario import load_scenario
+from stickslip.stress.session import FmuCallError, FmuSession, fmi2Error
+
+SCENE = load_scenario(REPO / "scenarios" / "elmer-fig3-v0.1.toml")
+START = SCENE.start_values()
+SHORT = 20.0  # s: stop time of the runs that check behaviour rather than the whole scene
+BAD_MASS = "M = -1.0 kg is out of range: allowed is a finite value in (0, inf)"
+PYTHONFMU_BINARY = Path(pythonfmu.__file__).parent / "resources" / "binaries" / "linux64" / "libpythonfmu-export.so"
+
+
+@pytest.fixture(scope="module")
+def host(tmp_path_factory):
+    try:
+        return compile_host(tmp_path_factory.mktemp("c_host"))
+    except HostBuildError as exc:
+        pytest.fail(f"the C host must build on CI machines: {exc}")
+
+
+@pytest.fixture(scope="module")
+def folder(unzipped):
+    return unzipped[0]
+
+
+@pytest.fixture(scope="module")
+def fmpy_x(fmu_path):
+    """FMPy's (times, x) of the scene up to ``stop`` s, memoized."""
+    runs = {}
+
+    def x(stop):
+        if stop not in runs:
+            result = run_fmu(fmu_path, START, stop, SCENE.output_interval, outputs=["x"])
+            runs[stop] = (list(result["time"]), list(result["x"]))
+        return runs[stop]
+
+    return x
+
+
+def completed(run):
+    assert run.completed, f"host exit {run.returncode}: {run.lines[-3:]} {run.logs} {run.stderr[-2000:]}"
+    return run
+
+
+def test_the_linux_binary_is_the_loader_with_pythonfmus_binary_beside_it(fmu_path):
+    pythonfmu_binary = PYTHONFMU_BINARY.read_bytes()
+    with zipfile.ZipFile(fmu_path) as fmu:
+        assert fmu.read("binaries/linux64/SpringBlockFriction_pythonfmu.so") == pythonfmu_binary
+        assert fmu.read("binaries/linux64/SpringBlockFriction.so") != pythonfmu_binary
+
+
+def test_elmer_fig3_in_the_c_host_is_bit_identical_to_fmpy(host, folder, fmpy_x):
+    run = completed(run_host(host, folder, "run", SCENE.stop_time, SCENE.output_interval, START))
+    assert run.series("x") == fmpy_x(SCENE.stop_time)
+    assert run.logs == []  # logging off and nothing wrong: the host's logger hears nothing
+
+
+def test_bad_parameter_with_logging_off_names_it_and_the_host_goes_on(host, folder, fmpy_x):
+    settings = [*START.items(), ("M", -1.0)]  # the second instance gets all but the last
+    run = completed(run_host(host, folder, "bad", SHORT, SCENE.output_interval, settings))
+    assert int(run.value("status")[1]) == 3  # fmi2Error, at fmi2ExitInitializationMode
+    errors = [text for status, instance, text in run.logs if instance == "bad" and status == 3]
+    assert any(BAD_MASS in text for text in errors), run.logs
+    # the bad instance was freed; a new one (valid M) runs normally in the same process
+    assert [log for log in run.logs if log[1] != "bad"] == []
+    assert run.series("x") == fmpy_x(SHORT)
+
+
+def test_after_a_bad_parameter_fmi2Reset_makes_the_instance_usable_again(host, folder, fmpy_x):
+    settings = [*START.items(), ("M", -1.0)]  # after the reset: all but the last
+    run = completed(run_host(host, folder, "reset", SHORT, SCENE.output_interval, settings))
+    statuses = [line[1:] for line in run.lines if line[0] == "status"]
+    assert statuses == [["exit", "3"], ["reset", "0"]]
+    assert [status for status, _, _ in run.logs] == [3]
+    assert run.series("x") == fmpy_x(SHORT)
+
+
+@pytest.mark.parametrize("mode", ["two", "threads"])
+def test_two_instances_on_one_thread_and_on_two_threads(host, folder, fmpy_x, mode):
+    """"two": stepped alternately on one thread; "threads": each on its own thread at the same time."""
+    run = completed(run_host(host, folder, mode, SHORT, SCENE.output_interval, START))
+    assert run.series("a") == fmpy_x(SHORT)
+    assert run.series("b") == fmpy_x(SHORT)
+
+
+def test_get_set_and_serialized_state_replay_exactly(host, folder, fmpy_x):
+    run = completed(run_host(host, folder, "state", SHORT, SCENE.output_interval, START))
+    times, x = fmpy_x(SHORT)
+    second_half = (times[len(times) // 2 + 1:], x[len(x) // 2 + 1:])
+    assert run.series("x") == second_half
+    assert run.series("r") == second_half  # after fmi2SetFMUstate
+    assert run.series("d") == second_half  # after fmi2SerializeFMUstate / fmi2DeSerializeFMUstate
+
+
+def test_fifty_instantiate_free_cycles_in_one_process(host, folder, fmpy_x):
+    stop = 2.0
+    run = completed(run_host(host, folder, "cycles", stop, SCENE.output_interval, START, env={"HOST_CYCLES": "50"}))
+    ends = [(float(t), float(x)) for _, _, t, x in (line for line in run.lines if line[0] == "c")]
+    times, x = fmpy_x(stop)
+    assert ends == [(times[-1], x[-1])] * 50
+
+
+def test_a_libpython_that_cannot_be_found_is_a_logged_error_not_a_crash(host, folder):
+    missing = "/nonexistent/libpython3.11.so.1.0"
+    run = run_host(host, folder, "run", SHORT, SCENE.output_interval, START, env={LIBPYTHON_VARIABLE: missing})
+    assert run.lines == [["failed", "fmi2Instantiate", "NULL"]]  # the host got NULL and ended on its own
+    assert run.returncode == 1
+    [(status, _, text)] = run.logs
+    assert status == 4 and f"{LIBPYTHON_VARIABLE}={missing}" in text and "cannot open shared object" in text
+
+
+def test_a_broken_pythonhome_is_a_logged_error_not_an_exit_of_the_host(host, folder):
+    run = run_host(host, folder, "run", SHORT, SCENE.output_interval, START, env={"PYTHONHOME": "/nonexistent"})
+    assert run.lines == [["failed", "fmi2Instantiate", "NULL"]]
+    [(status, _, text)] = run.logs
+    assert status == 4 and "failed to start" in text and "PYTHONHOME (/nonexistent)" in text
+
+
+OTHER_PYTHONS = sorted(glob.glob("/root/.pyenv/versions/3.*/lib/libpython3.*.so.1.0")
+                       + glob.glob("/usr/lib/x86_64-linux-gnu/libpython3.*.so.1.0"))
+
+
+@pytest.mark.skipif(not OTHER_PYTHONS, reason="no other CPython shared library on this machine")
+@pytest.mark.parametrize("libpython", OTHER_PYTHONS, ids=lambda path: path.split("/")[-1] + path.split("/")[1])
+def test_other_cpythons_through_the_override(host, folder, fmpy_x, libpython):
+    """CPython 3.8 and newer run the scene; 3.10 to 3.13 bit for bit like FMPy (3.11), 3.8 and 3.9 within
+    rounding (their float arithmetic in the runtime differs in the last bits); older ones are refused."""
+    run = run_host(host, folder, "run", SHORT, SCENE.output_interval, START, env={LIBPYTHON_VARIABLE: libpython})
+    version = tuple(int(p) for p in Path(libpython).name[len("libpython"):].split(".so")[0].rstrip("m").split("."))
+    if version < (3, 8):
+        assert run.lines == [["failed", "fmi2Instantiate", "NULL"]]
+        assert "CPython 3.8 or newer is needed" in run.logs[0][2]
+        return
+    times, x = completed(run).series("x")
+    expected_times, expected_x = fmpy_x(SHORT)
+    assert times == expected_times
+    if version >= (3, 10):
+        assert x == expected_x
+    else:
+        np.testing.assert_allclose(x, expected_x, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("name, value, expected", [
+    ("M", -1.0, BAD_MASS),
+    ("F_ext", 1e200, "|F_ext| = 1e+200 N (F_ext = 1e+200 N) is out of range: allowed is at most 1e+150 N"),
+    ("F_ext", math.nan, "F_ext = nan N is out of range: allowed is a finite value in (-inf, inf)"),
+], ids=["bad-parameter", "overflowing-input", "nan-input"])
+def test_with_logging_off_fmpy_gets_the_error_and_its_message(fmu_path, name, value, expected):
+    """FMPy's FMU2Slave with loggingOn = false: a bad parameter (at fmi2ExitInitializationMode) or input (at
+    fmi2DoStep) is fmi2Error, and the logger received the message naming the variable and its range."""
+    stick_slip = {"kinetic.F0": 0.5, "static.F0": 1.0, "v_start": 0.1}
+    parameter = {name: value} if name == "M" else {}
+    with FmuSession(fmu_path) as session:
+        inst = None
+        try:
+            inst = session.instantiate(session.start_values({**stick_slip, **parameter}), logging_on=False)
+            inst.do_step(0.5)
+            inst.set_value(name, value)
+            inst.do_step(0.5)
+        except FmuCallError as exc:
+            error = exc
+        finally:
+            if inst is not None:
+                inst.free()  # terminated and freed after fmi2Error
+        assert error.status == fmi2Error
+        assert error.function == ("fmi2ExitInitializationMode" if name == "M" else "fmi2DoStep")
+        assert any(expected in message for message in error.messages), error.messages
+
+
+def test_fmpy_default_settings_show_the_message_naming_the_parameter(fmu_path):
+    """``fmpy.simulate_fmu`` with no logger and logging off prints the FMU's error before raising."""
+    code = ("import fmpy, sys\n"
+            "try:\n"
+            f"    fmpy.simulate_fmu({str(fmu_path)!r}, stop_time=1.0, start_values={{'M': -1.0}})\n"
+            "except Exception as exc:\n"
+            "    print('raised', exc)\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert "[ERROR] " in result.stdout and BAD_MASS in result.stdout
+    assert "raised fmi2ExitInitializationMode failed with status 3 (error)" in result.stdout
+
+
+def test_without_a_c_compiler_the_build_keeps_pythonfmus_binary_and_says_so(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    fmu = build(tmp_path / "SpringBlockFriction.fmu")
+    assert "keeps PythonFMU's linux64 binary" in capsys.readouterr().err
+    pythonfmu_binary = PYTHONFMU_BINARY.read_bytes()
+    with zipfile.ZipFile(fmu) as archive:
+        assert archive.read("binaries/linux64/SpringBlockFriction.so") == pythonfmu_binary
+        assert "binaries/linux64/SpringBlockFriction_pythonfmu.so" not in archive.namelist()
