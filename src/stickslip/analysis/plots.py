@@ -144,21 +144,38 @@ def _arc_key(branch, c):
 
 
 def plot_margin(png_path, params, result, F_ext=0.0):
-    """The stick-slip existence margin over the scanned drive velocities, with the critical velocities."""
-    from .stickslip_cycle import grazing_margin
+    """The stick-slip existence margin over the scanned drive velocities, with the critical velocities.
 
-    fig = _figure((9, 4.5))
+    The margin is continuous where stick-slip appears or disappears; it jumps where the slip's number of
+    overshoots changes (the return that decides whether the slip sticks is then another one), which is
+    drawn as a break with a dotted line.
+    """
+    from .stickslip_cycle import stick_slip_cycles
+
+    fig = _figure((9, 5))
     ax = fig.subplots()
-    grid = np.linspace(result.v_min, result.v_max, 200)
-    ax.plot(grid, grazing_margin(params, grid, F_ext), "-", color="C3", label="existence margin E")
+    grid = np.linspace(result.v_min, result.v_max, 400)
+    cycles = stick_slip_cycles(params, grid, F_ext)
+    margin = np.array([c.margin if math.isfinite(c.margin) else math.copysign(1e3, c.margin) for c in cycles])
+    shots = np.array([c.overshoots if c.exists else -1 for c in cycles])
+    jumps = [k for k in range(1, grid.size) if shots[k] != shots[k - 1] and min(shots[k], shots[k - 1]) >= 0]
+    for part, (lo, hi) in enumerate(zip([0, *jumps], [*jumps, grid.size])):
+        ax.plot(grid[lo:hi], margin[lo:hi], "-", color="C3", label="existence margin E" if part == 0 else None)
+    for n, k in enumerate(jumps):
+        ax.axvline(0.5 * (grid[k - 1] + grid[k]), color="0.4", ls=":", lw=1.0,
+                   label=None if n else "the slip's overshoot count changes: another return decides, E jumps "
+                                         "(stick-slip exists on both sides)")
+        ax.annotate(f"{shots[k - 1]}\u2192{shots[k]} overshoots", (grid[k], 1.0), xycoords=("data", "axes fraction"),
+                    textcoords="offset points", xytext=(3, -12), fontsize=7, color="0.3")
     ax.axhline(0.0, color="0.5", lw=0.8)
     for v in result.critical:
         ax.axvline(v, color="C0", ls="--", lw=0.9)
-        ax.annotate(f"v_c = {v:.6f}", (v, 0.0), textcoords="offset points", xytext=(3, 8), fontsize=8)
-    for a, b in result.windows:
-        ax.axvspan(a, b, color="C3", alpha=0.08)
-    ax.set(xlabel="v_drive (m/s)", ylabel="margin (m/s)", title="stick-slip exists where the margin is > 0")
-    ax.legend(loc="best", fontsize=8)
+        ax.annotate(f"v_c = {v:.6f}", (v, 0.0), textcoords="offset points", xytext=(3, -14), fontsize=8, color="C0")
+    for n, (a, b) in enumerate(result.windows):
+        ax.axvspan(a, b, color="C3", alpha=0.08, label=None if n else "stick-slip exists")
+    ax.plot([], [], "--", color="C0", lw=0.9, label="critical velocity v_c (stick-slip disappears above)")
+    ax.set(xlabel="v_drive (m/s)", ylabel="margin (m/s)", title="stick-slip exists where the margin E is > 0")
+    fig.legend(loc="outside lower center", ncols=2, fontsize=8)
     fig.savefig(png_path, dpi=110)
 
 
