@@ -159,12 +159,8 @@ def test_kinetic_above_static_friction_is_an_error_for_every_law_pair(session, f
     assert _runs_normally(session)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "PythonFMU 0.7.0 gives a Python slave no way to return fmi2Error: PySlaveInstance::handle_py_exception turns "
-    "every exception into pythonfmu::fatal_error, which fmi2ExitInitializationMode (fmi2.cpp) returns as "
-    "fmi2Fatal; its fmi2Error branch catches only other C++ exceptions, and the value exit_initialization_mode "
-    "returns is ignored. FMI 2.0 expects fmi2Error for a bad parameter (fmi2Fatal says ALL instances are "
-    "corrupted)"))
+@pytest.mark.xfail(strict=True,
+                   reason="PythonFMU 0.7.0 reports every slave error as fmi2Fatal (docs/known-limits.md)")
 def test_bad_parameter_status_is_fmi2Error_not_fmi2Fatal(session):
     with pytest.raises(FmuCallError) as direct:
         session.instantiate(session.start_values({"M": -1.0}))
