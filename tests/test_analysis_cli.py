@@ -141,3 +141,14 @@ def test_bifurcation_with_aging_reports_the_map_saddle_nodes(tmp_path):
     with open(out / "branches.csv") as f:
         rows = [r for r in csv.DictReader(f) if r["branch"] == "stick-slip"]
     assert {r["stable"] for r in rows} == {"True", "False"}
+
+
+def test_vc_with_aging_reports_from_the_stick_slip_map(tmp_path, capsys):
+    """Aging static friction: the map decides; the logarithmic law keeps stick-slip over the whole scan."""
+    assert main(["vc", "--scenario", str(SCENARIOS / "aging-logarithmic.toml"), "-n", "6", "--jobs", "1",
+                 "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "default from the law" in out and "neither appears nor disappears" in out
+    data = json.loads((tmp_path / "vc.json").read_text())
+    assert data["windows"] == [[data["v_min"], data["v_max"]]] and data["critical"] == []
+    assert not (tmp_path / "margin.png").exists()

@@ -60,8 +60,8 @@ def plot_scenario(png_path, title, fmu, ref, max_abs_dx=None):
     ax_phase.plot(ref.x, ref.v, "--", lw=0.8, color="C1")
     for n, level in enumerate(held_levels(fmu["v_drive"])):
         ax_phase.axhline(level, ls=":", lw=0.9, color="grey", label=None if n else "v_drive (its held values)")
-    ax_phase.plot(fmu["x"][stuck], fmu["v"][stuck], ".", ms=3, color="C3")
     ax_phase.plot(fmu["x"][start], fmu["v"][start], ".", ms=3, color="0.6")
+    ax_phase.plot(fmu["x"][stuck], fmu["v"][stuck], ".", ms=3, color="C3")  # later sticks on top
     ax_phase.set(xlabel="x (m)", ylabel="v (m/s)", title="phase portrait")
 
     fig.legend(loc="outside lower center", ncols=4, fontsize="small")
