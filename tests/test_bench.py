@@ -147,3 +147,14 @@ def test_report_stamps_quick_runs_names_failures_and_compares_coarse_like_with_l
     assert cells[10] == "1.6"  # 3.12 ms / 2 ms, both on the 10 s grid (not 3.12 / 20 = 0.16)
     assert "| coulomb | 12 | 9 | 1.3 | fit over 5 communication steps |" in text
     assert "smoke run" not in markdown(dict(META, quick=False), [scene], {scene.name: records}).splitlines()[0]
+
+
+def test_solve_ivp_peer_on_a_coarse_grid_is_the_fine_run_thinned(coulomb):
+    """Phases with no output time in them (the whole stick-slip cycle between two 10 s points) are fine."""
+    fine = np.linspace(0.0, 100.0, 2001)
+    coarse = fine[::200]
+    a = hybrid_solve_ivp(coulomb, 0.0, V_DRIVE, V_DRIVE, 0.0, fine, "DOP853", 1e-12, 1e-12)
+    b = hybrid_solve_ivp(coulomb, 0.0, V_DRIVE, V_DRIVE, 0.0, coarse, "DOP853", 1e-12, 1e-12)
+    assert b.x.shape == coarse.shape
+    assert np.abs(b.x - a.x[::200]).max() < 1e-9
+    assert [e.kind for e in b.events] == [e.kind for e in a.events]

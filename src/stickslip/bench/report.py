@@ -86,10 +86,20 @@ def _ms(record):
 
 def _cell(record, failed=()):
     """The fastest record reaching an accuracy (or "not reached"), and the failed configurations with reasons."""
-    named = "; ".join(f"{r['label']} ({_reason(r)})" for r in failed)
+    named = _failed_text(failed)
     if record is not None:
         return f"{_ms(record)} ({record['label']})" + (f"; failed: {named}" if failed else "")
     return f"not reached; failed: {named}" if failed else "not reached"
+
+
+def _failed_text(failed, shown=2):
+    """Failed configurations grouped by exception: ``"RK45 rtol=1e-04, RK45 rtol=1e-05 +3 more (OverflowError:
+    math range error)"``; the report's last section lists every one."""
+    by_reason = {}
+    for r in failed:
+        by_reason.setdefault(_reason(r), []).append(r["label"])
+    return "; ".join(", ".join(labels[:shown]) + (f" +{len(labels) - shown} more" if len(labels) > shown else "")
+                     + f" ({reason})" for reason, labels in by_reason.items())
 
 
 def _reason(record):
