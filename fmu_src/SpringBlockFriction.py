@@ -23,7 +23,8 @@ import functools
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
 from stickslip.core import (
-    KINETIC_LAWS, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, Trajectory, kinetic_law, static_law,
+    ANY_FINITE, KINETIC_LAWS, POSITIVE, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, Trajectory,
+    kinetic_law, static_law,
 )
 
 CONTINUOUS, DISCRETE = Fmi2Variability.continuous, Fmi2Variability.discrete
@@ -48,6 +49,25 @@ OUTPUTS = (
 )
 
 
+# what each law parameter does (the formulas are in SPEC section 2)
+LAW_PARAMETER_MEANINGS = {
+    "kinetic.F0": "constant part of F_K",
+    "kinetic.gamma": "viscous slope of F_K",
+    "kinetic.F_stribeck": "height of the Stribeck peak: F_K(0+) - F0",
+    "kinetic.v_stribeck": "sliding speed over which the Stribeck peak decays",
+    "kinetic.delta": "Stribeck exponent",
+    "kinetic.gamma1": "slope of F_K well below v_tilde, boundary lubrication",
+    "kinetic.gamma2": "slope of F_K well above v_tilde, hydrodynamic lubrication",
+    "kinetic.v_tilde": "sliding speed of the transition from gamma1 to gamma2",
+    "kinetic.dv": "width of that transition",
+    "static.F0": "static friction F_S at the start of a stick",
+    "static.A": "aging amplitude: F_S grows by A per e-fold of 1 + t/tau",
+    "static.tau": "aging time scale",
+    "static.F_inf": "static friction after a long stick",
+    "static.n": "sigmoid exponent",
+}
+
+
 def _law_parameters(kind, laws):
     """``{FMU name: (default, Range, unit, description)}`` of every parameter of the coded laws.
 
@@ -57,7 +77,13 @@ def _law_parameters(kind, laws):
     for code in sorted(laws):
         for name, (default, allowed, unit) in laws[code].PARAMETERS.items():
             merged.setdefault(f"{kind}.{name}", (default, allowed, unit, []))[3].append(laws[code].NAME)
-    return {name: (d, a, u, f"{kind} law parameter ({', '.join(users)})") for name, (d, a, u, users) in merged.items()}
+    return {name: (d, a, u, f"{LAW_PARAMETER_MEANINGS[name]} ({kind} law {', '.join(users)})")
+            for name, (d, a, u, users) in merged.items()}
+
+
+def _with_range(description, allowed):
+    """The description with the allowed range appended, as every error message states it."""
+    return f"{description}; allowed: a finite value in {allowed}"
 
 
 def _inclusive_bounds(allowed):
@@ -82,20 +108,20 @@ class SpringBlockFriction(Fmi2Slave):
         self.trajectory = None  # built when initialization ends
         self._output_cache = {}  # {output name: value} at the current state, filled as outputs are read
 
-        self._parameter("M", Real, 1.0, "kg", "block mass")
-        self._parameter("kappa", Real, 1.0, "N/m", "spring stiffness")
-        self._parameter("x_start", Real, 0.0, "m", "initial position")
-        self._parameter("v_start", Real, 0.0, "m/s", "initial velocity (stuck if v_start = v_drive and the contact holds)")
+        self._parameter("M", Real, 1.0, "kg", "block mass", POSITIVE)
+        self._parameter("kappa", Real, 1.0, "N/m", "spring stiffness", POSITIVE)
+        self._parameter("x_start", Real, 0.0, "m", "initial position", ANY_FINITE)
+        self._parameter("v_start", Real, 0.0, "m/s", "initial velocity (stuck if v_start = v_drive and the contact holds)",
+                        ANY_FINITE)
         for kind, laws in (("kinetic", KINETIC_LAWS), ("static", STATIC_LAWS)):
             codes = ", ".join(f"{code} {laws[code].NAME}" for code in sorted(laws))
-            self._parameter(f"{kind}.law", Integer, 1, "", f"{kind} friction law: {codes}", (min(laws), max(laws)))
+            self._parameter(f"{kind}.law", Integer, 1, "", f"{kind} friction law: {codes}",
+                            bounds=(min(laws), max(laws)))
             for name, (default, allowed, unit, text) in _law_parameters(kind, laws).items():
-                self._parameter(name, Real, default, unit, text, _inclusive_bounds(allowed))
-        self._parameter(
-            "solver.rtol", Real, 1e-10, "1", "relative tolerance of the internal solver", _inclusive_bounds(RTOL_RANGE)
-        )
-        self._input("v_drive", 0.1, "m/s", "surface (drive) velocity")
-        self._input("F_ext", 0.0, "N", "external force on the block")
+                self._parameter(name, Real, default, unit, text, allowed)
+        self._parameter("solver.rtol", Real, 1e-10, "1", "relative tolerance of the internal solver", RTOL_RANGE)
+        self._input("v_drive", 0.1, "m/s", "surface (drive) velocity", ANY_FINITE)
+        self._input("F_ext", 0.0, "N", "external force on the block", ANY_FINITE)
         for name, attribute, kind, variability, unit, text in OUTPUTS:
             self._output(name, attribute, kind, variability, unit, text)
 
@@ -106,21 +132,26 @@ class SpringBlockFriction(Fmi2Slave):
         self.units[variable.name] = unit
         self.bounds[variable.name] = bounds
 
-    def _parameter(self, name, kind, default, unit, description, bounds=(None, None)):
+    def _parameter(self, name, kind, default, unit, description, allowed=None, bounds=None):
+        """A parameter; ``allowed`` (a Range) goes into the description and its closed ends into min/max,
+        ``bounds`` gives min/max of an Integer directly."""
         self.values[name] = default
+        if allowed is not None:
+            description, bounds = _with_range(description, allowed), _inclusive_bounds(allowed)
         self._declare(
             kind(
                 name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed, description=description,
                 getter=lambda: self.values[name], setter=lambda value: self._set_parameter(name, value),
             ),
-            unit, bounds,
+            unit, bounds or (None, None),
         )
 
-    def _input(self, name, start, unit, description):
+    def _input(self, name, start, unit, description, allowed):
         self.values[name] = start
         self._declare(
             Real(
-                name, causality=Fmi2Causality.input, variability=CONTINUOUS, description=description,
+                name, causality=Fmi2Causality.input, variability=CONTINUOUS,
+                description=_with_range(description, allowed),
                 getter=lambda: self.values[name], setter=lambda value: self._set_value(name, value),
             ),
             unit,

@@ -55,8 +55,42 @@ def test_vc_command_for_a_viscous_law(tmp_path, capsys):
 
 def test_vc_command_with_a_scenario_file(tmp_path, capsys):
     assert main(["vc", "--scenario", str(SCENARIOS / "elmer-fig3-v0.07.toml"), "--v-min", "0.03",
-                 "--v-max", "0.12", "-n", "10", "--jobs", "1"]) == 0
-    assert "0.0585126" in capsys.readouterr().out
+                 "--v-max", "0.12", "-n", "10", "--jobs", "1", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "0.0585126" in out and "(given)" in out and "defaults used" not in out
+    assert "disappears at 0.0585126 m/s" in out and "appears    at 0.0821024 m/s" in out
+    assert f"written to {tmp_path / 'vc.json'} and {tmp_path / 'margin.png'}" in out
+
+
+def test_vc_default_range_from_the_law_finds_every_elmer_window(tmp_path, capsys):
+    """The default scan reaches the window 0.6288..0.9600 m/s that 3 natural velocities (0.47 m/s) missed."""
+    assert main(["vc", "--preset", "elmer-fig3", "-n", "80", "--jobs", "1", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "default from the law" in out
+    data = json.loads((tmp_path / "vc.json").read_text())
+    assert data["v_max"] > 0.9600452
+    assert data["critical"] == pytest.approx([0.0585126, 0.3346823, 0.9600452], abs=1e-6)
+    assert [c["change"] for c in data["changes"]] == ["disappears", "appears", "disappears", "appears", "disappears"]
+    assert data["windows"][-1] == pytest.approx([0.6288116, 0.9600452], abs=1e-6)
+
+
+def test_vc_prints_the_default_law_parameters_it_used(tmp_path, capsys):
+    assert main(["vc", "--kinetic", "3", "--static", "constant", "--set", "kinetic.F0=0.4", "--v-min", "0.05",
+                 "--v-max", "0.2", "-n", "5", "--jobs", "1", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "defaults used (stribeck kinetic, constant static law): M = 1 kg, kappa = 1 N/m, " \
+           "kinetic.F_stribeck = 0.3 N, kinetic.v_stribeck = 0.1 m/s, kinetic.delta = 1, " \
+           "kinetic.gamma = 0.1 N s/m, static.F0 = 1 N" in out
+    assert "kinetic.F0" not in out.split("defaults used")[1].splitlines()[0]
+
+
+def test_unknown_law_is_named_with_the_known_ones(capsys):
+    assert main(["vc", "--kinetic", "stribek"]) == 1
+    err = capsys.readouterr().err
+    assert "--kinetic 'stribek': unknown law" in err
+    assert "coulomb 1, viscous 2, stribeck 3, lubricated 4" in err
+    assert main(["vc", "--kinetic", "coulomb", "--static", "9"]) == 1
+    assert "constant 1, logarithmic 2, saturating 3, sigmoid 4" in capsys.readouterr().err
 
 
 def test_map_command(tmp_path, capsys):
@@ -107,3 +141,14 @@ def test_bifurcation_with_aging_reports_the_map_saddle_nodes(tmp_path):
     with open(out / "branches.csv") as f:
         rows = [r for r in csv.DictReader(f) if r["branch"] == "stick-slip"]
     assert {r["stable"] for r in rows} == {"True", "False"}
+
+
+def test_vc_with_aging_reports_from_the_stick_slip_map(tmp_path, capsys):
+    """Aging static friction: the map decides; the logarithmic law keeps stick-slip over the whole scan."""
+    assert main(["vc", "--scenario", str(SCENARIOS / "aging-logarithmic.toml"), "-n", "6", "--jobs", "1",
+                 "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "default from the law" in out and "neither appears nor disappears" in out
+    data = json.loads((tmp_path / "vc.json").read_text())
+    assert data["windows"] == [[data["v_min"], data["v_max"]]] and data["critical"] == []
+    assert not (tmp_path / "margin.png").exists()

@@ -125,15 +125,8 @@ def test_libcosim_process_survives_repeated_bad_inputs(fmu_path):
 
 
 @needs_libcosim
-@pytest.mark.xfail(strict=True, reason=(
-    "libcosim (libcosimpy 0.0.6) cannot survive an FMU that fails during initialization: "
-    "fixed_step_algorithm::impl::initialize() hands setup/do_iteration/start_simulation to utility::thread_pool, "
-    "whose worker_thread() calls the task without try/catch, and slave_instance::get_real_variables() and "
-    "start_simulation() throw cosim::error for any status but fmi2OK/fmi2Warning; our FMU fails in fmi2GetReal "
-    "in initialization mode and in fmi2ExitInitializationMode (fmi2Error), so std::terminate aborts the host (SIGABRT). Only returning fmi2OK for invalid parameters until the "
-    "first fmi2DoStep avoids it (measured: then libcosim reports 'M = -1.0 kg is out of range' and goes on), "
-    "which breaks the FMI contract every other importer relies on (the error at fmi2ExitInitializationMode, "
-    "tests/test_bad_input.py) and gives made-up initial outputs"))
+@pytest.mark.xfail(strict=True,
+                   reason="libcosim aborts the host when an FMU fails during initialization (docs/known-limits.md)")
 def test_libcosim_bad_parameter_is_an_error_not_a_crash(fmu_path):
     bad = system(fmu_path, {"a": dict(STICK_SLIP, M=-1.0)}, steps=4)
     good = system(fmu_path, {"a": STICK_SLIP}, steps=4)

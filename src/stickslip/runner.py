@@ -57,7 +57,8 @@ def run_scenario(scenario, fmu_path, out_dir=None):
         return Outcome(scenario.name, scenario.expected_attractor, error=f"{type(exc).__name__}: {exc}")
     if out_dir is not None:
         write_result_csv(Path(out_dir) / f"{scenario.name}.csv", fmu, OUTPUTS)
-        plot_scenario(Path(out_dir) / f"{scenario.name}.png", scenario.name, fmu, ref)
+        plot_scenario(Path(out_dir) / f"{scenario.name}.png", scenario.name, fmu, ref,
+                      scenario.tolerance.max_abs_dx)
     return Outcome(scenario.name, scenario.expected_attractor, compare(fmu, ref, scenario), fmu_s, ref_s)
 
 

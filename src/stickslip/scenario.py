@@ -202,7 +202,7 @@ def _law(f, section, kind, laws):
         choices = ", ".join(f"{law.NAME!r} ({law.CODE})" for law in laws.values())
         raise f.error(f"{kind}.law", f"one of {choices}", law_id)
     f.table({kind: section}, kind, {"law"} | set(cls.PARAMETERS))
-    return cls(**{p: f.number(section, f"{kind}.{p}") for p in cls.PARAMETERS})
+    return cls(**{p: f.number(section, f"{kind}.{p}", allowed) for p, (_, allowed, _) in cls.PARAMETERS.items()})
 
 
 def _signals(f, data):
