@@ -18,7 +18,23 @@ SCENARIOS = sorted(SCENARIO_DIR.glob("*.toml"))
 def test_the_suite_has_the_required_scenarios():
     names = {p.stem for p in SCENARIOS}
     assert {f"elmer-fig3-v{v}" for v in ("0.03", "0.07", "0.1", "0.3", "1.0")} <= names
-    assert len(SCENARIOS) >= 12
+    assert len(SCENARIOS) >= 16
+
+
+def test_the_suite_exercises_F_ext_the_stick_test_and_a_numeric_graze():
+    """Scenarios at the weak spots of issue 12: a constant and a stepped F_ext on non-affine laws, the
+    stick test at |kappa x - F_ext| == F_S(0), and a graze inside a numeric (non-affine) slip."""
+    constant = load_scenario(SCENARIO_DIR / "stribeck-fext-constant.toml")
+    step = load_scenario(SCENARIO_DIR / "elmer-fig3-fext-step.toml")
+    for s in (constant, step):
+        assert s.params.kinetic.affine() is None
+    assert {b[2] for b in constant.breakpoints()} == {-0.4}
+    assert min(b[0] for b in step.breakpoints() if b[2] == 0.4) == 130.0
+    assert {b[2] for b in step.breakpoints()} == {0.0, 0.4}
+    edge = load_scenario(SCENARIO_DIR / "coulomb-FK-equals-FS.toml").law_values
+    assert edge["kinetic.F0"] == edge["static.F0"]
+    graze = load_scenario(SCENARIO_DIR / "grazing-stribeck-below.toml")
+    assert graze.params.kinetic.affine() is None
 
 
 @pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
