@@ -6,6 +6,7 @@ import math
 from pathlib import Path
 
 import pytest
+from scipy.optimize import brentq
 
 from stickslip.cli import main
 
@@ -30,8 +31,6 @@ ELMER_POINTS = [
 def test_elmer_hopf_points_are_the_extrema_of_the_spec_law():
     """Continuous sliding changes stability where F_K'(v) = 0 (SPEC section 3): the extrema of the boundary-
     lubrication law, located here by brentq on the derivative of SPEC's formula, written by hand."""
-    from scipy.optimize import brentq
-
     g1, g2, vt, dv = 3.0, 0.1, 0.2, 0.05
 
     def slope(u):  # d/du of u (g1 + g2 + (g2 - g1) w / r) / 2, w = u - vt, r = sqrt(dv^2 + w^2)
@@ -90,7 +89,12 @@ def test_map_command(tmp_path, capsys):
     data = json.loads((out / "map.json").read_text())
     assert data["v_drive"] == 0.05
     (fp,) = data["fixed_points"]
-    assert fp["stable"] and fp["period"] == pytest.approx(28.339, abs=1e-3)
+    # closed form (M = kappa = 1, F_K = 0.5, F_S = 0.8 + 0.1 ln(1 + t), v = 0.05): the stick lasts the t with
+    # F_S(t) - F_K = kappa v t / 2 (brentq); the Coulomb slip from x* = F_S(t)/kappa with v = v_drive about
+    # F_K/kappa lasts 2 pi - 2 atan2(x* - F_K/kappa, v) (omega = 1)
+    t = brentq(lambda t: 0.8 + 0.1 * math.log1p(t) - 0.5 - 0.5 * 0.05 * t, 1e-12, 1e6, xtol=1e-15)
+    slip = 2 * math.pi - 2 * math.atan2(0.8 + 0.1 * math.log1p(t) - 0.5, 0.05)
+    assert fp["stable"] and fp["period"] == pytest.approx(t + slip, rel=1e-9)
     assert all(e["exponent"] < 0.0 for e in data["lyapunov"])
     for name in ("map.png", "fixed_points.png", "orbit_diagram.png"):
         assert (out / name).exists()
