@@ -124,10 +124,11 @@ def test_law_values_are_the_files_numbers_and_build_the_reference(tmp_path):
 
 def test_grazing_scenario_drive_is_a_relative_1e_7_below_the_critical_velocity():
     """Recompute v_c (scipy DOP853 at rtol 1e-13 and brentq, independent of FMU and reference)."""
+    from stickslip.reference import parameters_from_values
     from stickslip.stress.cases import graze_velocity_numeric
 
     s = load_scenario(SCENARIO_DIR / "grazing-stribeck-below.toml")
-    v_c = graze_velocity_numeric(s.params, 0.05, 1.0)
+    v_c = graze_velocity_numeric(parameters_from_values(s.law_values), 0.05, 1.0)
     v_drive = float(s.signals["v_drive"].value[0])
     assert v_drive == pytest.approx(v_c * (1 - 1e-7), rel=1e-13)
     assert s.v0 == v_drive
