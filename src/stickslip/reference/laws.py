@@ -18,13 +18,13 @@ from .errors import ReferenceParameterError
 INF = math.inf
 
 # allowed ranges (low, high, low_open) by parameter name; the same name has the same range in every law
-_FORCE = (0.0, INF, False)  # N, >= 0
+_NON_NEGATIVE = (0.0, INF, False)
 _POSITIVE = (0.0, INF, True)
 _RANGES = {
-    "kinetic": {"F0": _FORCE, "gamma": _FORCE, "F_stribeck": _FORCE, "v_stribeck": _POSITIVE,
-                "delta": (1.0, 10.0, False), "gamma1": _FORCE, "gamma2": _FORCE, "v_tilde": _FORCE,
-                "dv": _POSITIVE},
-    "static": {"F0": _POSITIVE, "A": _FORCE, "tau": _POSITIVE, "F_inf": _POSITIVE, "n": (0.5, 20.0, False)},
+    "kinetic": {"F0": _NON_NEGATIVE, "gamma": _NON_NEGATIVE, "F_stribeck": _NON_NEGATIVE,
+                "v_stribeck": _POSITIVE, "delta": (1.0, 10.0, False), "gamma1": _NON_NEGATIVE,
+                "gamma2": _NON_NEGATIVE, "v_tilde": _NON_NEGATIVE, "dv": _POSITIVE},
+    "static": {"F0": _POSITIVE, "A": _NON_NEGATIVE, "tau": _POSITIVE, "F_inf": _POSITIVE, "n": (0.5, 20.0, False)},
 }
 
 
