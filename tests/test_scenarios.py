@@ -65,3 +65,21 @@ def test_a_scenario_that_misses_its_attractor_fails_the_suite(tmp_path, fmu_path
     assert not result.ok
     assert "FMU attractor continuous-sliding" in result.outcomes[0].problems
     assert main(["run", str(wrong), "--out", str(tmp_path / "out"), "--jobs", "1", "--fmu", str(fmu_path)]) == 1
+
+
+def test_the_comparison_never_calls_the_runtime_laws(monkeypatch, fmu_path):
+    """With every law method of ``stickslip.core`` broken after loading, a scenario still runs and passes:
+    the reference uses its own laws, and the FMU its own bundled copy of the runtime."""
+    from stickslip.core import laws
+
+    scenario = load_scenario(SCENARIO_DIR / "elmer-fig3-fext-step.toml")
+
+    def broken(*args):
+        raise AssertionError("the runtime's friction law was called")
+
+    for cls in (*laws.KINETIC_LAWS.values(), *laws.STATIC_LAWS.values()):
+        for name in ("force", "slope", "rate", "curvature", "affine", "is_constant", "convexity_breaks"):
+            if name in vars(cls):
+                monkeypatch.setattr(cls, name, broken)
+    outcome = run_scenario(scenario, fmu_path)
+    assert outcome.passed, outcome.problems
