@@ -338,3 +338,23 @@ def test_sample_is_advance_to_at_each_time_and_records_the_events():
     assert sampled.events[-1][0] == sampled.t_last_event
     with pytest.raises(SolverError, match="back"):
         sampled.sample([100.0])
+
+
+@pytest.mark.parametrize("x, F_ext", [(1.0, 0.0), (-1.0, 0.0), (1.7, 0.7), (-0.25, 0.75)])
+def test_the_stick_test_holds_at_the_limit(x, F_ext):
+    """SPEC: v_rel reaching 0 sticks where |kappa x - F_ext| <= F_S(0), the limit included (here exactly
+    F_S(0) = 1 N in binary: kappa = 1 and x - F_ext = -+1), and overshoots a hair beyond it, away from F_ext."""
+    from stickslip.core.model import mode_at_zero_v_rel
+    from stickslip.reference import parameters_from_values
+    from stickslip.reference.rules import hold_or_break
+
+    p = Parameters(1.0, 1.0, Coulomb(F0=0.5), Constant(F0=1.0))
+    ref = parameters_from_values({"M": 1.0, "kappa": 1.0, "kinetic.law": 1, "kinetic.F0": 0.5, "static.law": 1,
+                                  "static.F0": 1.0})
+    assert abs(x - F_ext) == 1.0
+    assert mode_at_zero_v_rel(x, F_ext, p) == STUCK
+    assert hold_or_break(ref, x, F_ext, 0.0) == STUCK
+    beyond = x + math.copysign(1e-12, x - F_ext)
+    direction = FORWARD if F_ext - beyond < 0 else BACKWARD
+    assert mode_at_zero_v_rel(beyond, F_ext, p) == direction
+    assert hold_or_break(ref, beyond, F_ext, 0.0) == direction
