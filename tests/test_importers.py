@@ -19,7 +19,7 @@ import pytest
 from stickslip.core import Parameters, Trajectory, kinetic_law, static_law
 from stickslip.fmu_driver import run_fmu
 from stickslip.inputs import zoh_breakpoints
-from stickslip.reference import simulate_reference
+from stickslip.reference import parameters_from_values, simulate_reference
 from stickslip.stress import cosim
 
 from fmu_instances import instantiate
@@ -201,8 +201,8 @@ def test_fmpy_simulate_fmu_with_an_input_table_matches_the_reference(fmu_path):
     result = fmpy.simulate_fmu(str(fmu_path), start_values=start, stop_time=50.0, output_interval=0.5,
                                input=signal, output=["x", "v", "mode", "n_events", "v_drive", "F_ext"])
     breakpoints = zoh_breakpoints(signal, 0.0, 50.0, 0.5)
-    p = Parameters(1.0, 1.0, kinetic_law(1, F0=0.5), static_law(1, F0=1.0))
-    ref = simulate_reference(p, 0.0, 0.4, breakpoints, result["time"])
+    ref = simulate_reference(parameters_from_values({**start, "kinetic.law": 1, "static.law": 1}), 0.0, 0.4,
+                             breakpoints, result["time"])
     assert np.abs(result["x"] - ref.x).max() <= 1e-9
     assert result["n_events"][-1] == sum(1 for e in ref.events if e.mode_before != e.mode_after) >= 4
     assert result["v_drive"].min() < 0 < result["v_drive"].max()

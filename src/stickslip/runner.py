@@ -18,7 +18,7 @@ from .compare import compare
 from .core.errors import StickSlipError
 from .fmu_driver import ensure_fmu, run_fmu
 from .plots import plot_scenario
-from .reference import simulate_reference
+from .reference import ReferenceFailure, parameters_from_values, simulate_reference
 from .report import Outcome, failure_lines, summary_table, write_report, write_result_csv
 from .scenario import load_scenarios
 
@@ -40,12 +40,15 @@ class SuiteResult:
 
 
 def simulate(scenario, fmu_path):
-    """Run the FMU and the reference for ``scenario``: ``(fmu_result, ref_result, fmu_s, ref_s)``."""
+    """Run the FMU and the reference for ``scenario``: ``(fmu_result, ref_result, fmu_s, ref_s)``.
+
+    The reference's laws are its own, built from the scenario file's numbers (``scenario.law_values``).
+    """
     start = time.perf_counter()
     fmu = run_fmu(fmu_path, scenario.start_values(), scenario.stop_time, scenario.output_interval,
                   input_signal=scenario.input_table(), outputs=list(OUTPUTS))
     middle = time.perf_counter()
-    ref = simulate_reference(scenario.params, scenario.x0, scenario.v0, scenario.breakpoints(), fmu["time"])
+    ref = simulate_reference(parameters_from_values(scenario.law_values), scenario.x0, scenario.v0, scenario.breakpoints(), fmu["time"])
     return fmu, ref, middle - start, time.perf_counter() - middle
 
 
@@ -53,7 +56,7 @@ def run_scenario(scenario, fmu_path, out_dir=None):
     """Simulate and compare one scenario; write its CSV and PNG into ``out_dir`` if given."""
     try:
         fmu, ref, fmu_s, ref_s = simulate(scenario, fmu_path)
-    except StickSlipError as exc:
+    except (StickSlipError, ReferenceFailure) as exc:
         return Outcome(scenario.name, scenario.expected_attractor, error=f"{type(exc).__name__}: {exc}")
     if out_dir is not None:
         write_result_csv(Path(out_dir) / f"{scenario.name}.csv", fmu, OUTPUTS)
