@@ -15,7 +15,8 @@ import functools
 from collections import namedtuple
 
 from stickslip.core import (
-    KINETIC_LAWS, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, Trajectory, kinetic_law, static_law,
+    ANY_FINITE, KINETIC_LAWS, POSITIVE, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, Trajectory,
+    kinetic_law, static_law,
 )
 
 #: causality "parameter" (fixed), "input" or "output"; kind "real" or "integer"; variability "fixed",
@@ -45,6 +46,25 @@ _OUTPUTS = (
 )
 
 
+# what each law parameter does (the formulas are in SPEC section 2)
+LAW_PARAMETER_MEANINGS = {
+    "kinetic.F0": "constant part of F_K",
+    "kinetic.gamma": "viscous slope of F_K",
+    "kinetic.F_stribeck": "height of the Stribeck peak: F_K(0+) - F0",
+    "kinetic.v_stribeck": "sliding speed over which the Stribeck peak decays",
+    "kinetic.delta": "Stribeck exponent",
+    "kinetic.gamma1": "slope of F_K well below v_tilde, boundary lubrication",
+    "kinetic.gamma2": "slope of F_K well above v_tilde, hydrodynamic lubrication",
+    "kinetic.v_tilde": "sliding speed of the transition from gamma1 to gamma2",
+    "kinetic.dv": "width of that transition",
+    "static.F0": "static friction F_S at the start of a stick",
+    "static.A": "aging amplitude: F_S grows by A per e-fold of 1 + t/tau",
+    "static.tau": "aging time scale",
+    "static.F_inf": "static friction after a long stick",
+    "static.n": "sigmoid exponent",
+}
+
+
 def _law_parameters(kind, laws):
     """``{FMU name: (default, Range, unit, description)}`` of every parameter of the coded laws.
 
@@ -54,7 +74,13 @@ def _law_parameters(kind, laws):
     for code in sorted(laws):
         for name, (default, allowed, unit) in laws[code].PARAMETERS.items():
             merged.setdefault(f"{kind}.{name}", (default, allowed, unit, []))[3].append(laws[code].NAME)
-    return {name: (d, a, u, f"{kind} law parameter ({', '.join(users)})") for name, (d, a, u, users) in merged.items()}
+    return {name: (d, a, u, f"{LAW_PARAMETER_MEANINGS[name]} ({kind} law {', '.join(users)})")
+            for name, (d, a, u, users) in merged.items()}
+
+
+def _with_range(description, allowed):
+    """The description with the allowed range appended, as every error message states it."""
+    return f"{description}; allowed: a finite value in {allowed}"
 
 
 def _inclusive_bounds(allowed):
@@ -65,24 +91,33 @@ def _inclusive_bounds(allowed):
 
 
 def _variables():
-    def parameter(name, kind, default, unit, description, bounds=_UNBOUNDED):
-        return Variable(name, "parameter", kind, "fixed", default, unit, description, bounds, None)
+    def parameter(name, kind, default, unit, description, allowed):
+        return Variable(name, "parameter", kind, "fixed", default, unit, _with_range(description, allowed),
+                        _inclusive_bounds(allowed), None)
+
+    def law_code(kind, laws):
+        codes = ", ".join(f"{code} {laws[code].NAME}" for code in sorted(laws))
+        return Variable(f"{kind}.law", "parameter", "integer", "fixed", 1, "", f"{kind} friction law: {codes}",
+                        (min(laws), max(laws)), None)
+
+    def input_(name, start, unit, description):
+        return Variable(name, "input", "real", "continuous", start, unit, _with_range(description, ANY_FINITE),
+                        _UNBOUNDED, None)
 
     table = [
-        parameter("M", "real", 1.0, "kg", "block mass"),
-        parameter("kappa", "real", 1.0, "N/m", "spring stiffness"),
-        parameter("x_start", "real", 0.0, "m", "initial position"),
-        parameter("v_start", "real", 0.0, "m/s", "initial velocity (stuck if v_start = v_drive and the contact holds)"),
+        parameter("M", "real", 1.0, "kg", "block mass", POSITIVE),
+        parameter("kappa", "real", 1.0, "N/m", "spring stiffness", POSITIVE),
+        parameter("x_start", "real", 0.0, "m", "initial position", ANY_FINITE),
+        parameter("v_start", "real", 0.0, "m/s", "initial velocity (stuck if v_start = v_drive and the contact holds)",
+                  ANY_FINITE),
     ]
     for kind, laws in (("kinetic", KINETIC_LAWS), ("static", STATIC_LAWS)):
-        codes = ", ".join(f"{code} {laws[code].NAME}" for code in sorted(laws))
-        table.append(parameter(f"{kind}.law", "integer", 1, "", f"{kind} friction law: {codes}", (min(laws), max(laws))))
+        table.append(law_code(kind, laws))
         for name, (default, allowed, unit, text) in _law_parameters(kind, laws).items():
-            table.append(parameter(name, "real", default, unit, text, _inclusive_bounds(allowed)))
-    table.append(parameter("solver.rtol", "real", 1e-10, "1", "relative tolerance of the internal solver",
-                           _inclusive_bounds(RTOL_RANGE)))
-    table.append(Variable("v_drive", "input", "real", "continuous", 0.1, "m/s", "surface (drive) velocity", _UNBOUNDED, None))
-    table.append(Variable("F_ext", "input", "real", "continuous", 0.0, "N", "external force on the block", _UNBOUNDED, None))
+            table.append(parameter(name, "real", default, unit, text, allowed))
+    table.append(parameter("solver.rtol", "real", 1e-10, "1", "relative tolerance of the internal solver", RTOL_RANGE))
+    table.append(input_("v_drive", 0.1, "m/s", "surface (drive) velocity"))
+    table.append(input_("F_ext", 0.0, "N", "external force on the block"))
     for name, attribute, kind, variability, unit, text in _OUTPUTS:
         table.append(Variable(name, "output", kind, variability, None, unit, text, _UNBOUNDED, attribute))
     return tuple(table)

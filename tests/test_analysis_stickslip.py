@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 from scipy.optimize import brentq
 
@@ -97,10 +98,21 @@ def test_elmer_stick_slip_windows_agree_with_the_exact_stepper():
 
 
 def test_overshooting_stick_slip_cycle():
+    """Stick position and period against the independent reference integrator (its own laws, DOP853),
+    run from a stuck start onto the cycle (the block breaks away at x = F_S/kappa, on the cycle at once)."""
+    from stickslip.reference import parameters_from_values, simulate_reference
+
     p = elmer()
     (c,) = stickslip_cycle.stick_slip_cycles(p, [0.3])
     assert c.exists and c.overshoots == 1
-    assert c.x_stick == pytest.approx(0.969, abs=1e-3)
+    values = {"M": 40.0, "kappa": 1.0, "kinetic.law": "lubricated", "kinetic.gamma1": 3.0, "kinetic.gamma2": 0.1,
+              "kinetic.v_tilde": 0.2, "kinetic.dv": 0.05, "static.law": "constant", "static.F0": 1.0}
+    ref_p = parameters_from_values(values)
+    run = simulate_reference(ref_p, 0.0, 0.3, [(0.0, 0.3, 0.0)], np.linspace(0.0, 200.0, 201))
+    sticks = [e.t for e in run.events if e.kind == "stick"]
+    at = simulate_reference(ref_p, 0.0, 0.3, [(0.0, 0.3, 0.0)], np.array([0.0, sticks[-1]]))
+    assert c.x_stick == pytest.approx(at.x[-1], abs=1e-8)  # measured 1e-10
+    assert c.period == pytest.approx(sticks[-1] - sticks[-2], rel=1e-8)
     a = classify.classify_run(p, 0.3, t_end=500.0, tail=200.0)
     assert a.kind == "stick-slip" and a.overshoots
     assert a.period == pytest.approx(c.period, rel=1e-7)

@@ -359,7 +359,7 @@ MALFORMED = [
     ("kinetic-parameter-infinite", "F0 = 0.5", "F0 = inf", "'kinetic.F0'", "a finite number"),
     ("kinetic-parameter-out-of-range", 'law = "coulomb"\nF0 = 0.5',
      'law = "stribeck"\nF0 = 0.5\nF_stribeck = 0.1\nv_stribeck = 0.1\ndelta = 0.5\ngamma = 0.0',
-     "kinetic.delta", "allowed is a finite value in [1, 10]"),
+     "'kinetic.delta'", "a finite number in [1, 10]"),
     ("static-law-unknown", 'law = "constant"', 'law = "aging"', "'static.law'", "'constant' (1)"),
     ("static-parameter-of-another-law", 'law = "constant"\nF0 = 1.0', 'law = "constant"\nF0 = 1.0\ntau = 2.0',
      "'static.tau'", "one of the keys"),
@@ -436,3 +436,34 @@ def test_scenario_rtol_outside_the_solver_range(tmp_path, rtol):
     path = _write(tmp_path, VALID.replace("output_interval = 0.1", f"output_interval = 0.1\nrtol = {rtol}"))
     with pytest.raises(ScenarioError, match="'simulation.rtol'"):
         load_scenario(path)
+
+
+def _law_section(law, parameters):
+    return f'law = "{law.NAME}"\n' + "".join(f"{k} = {v!r}\n" for k, v in parameters.items())
+
+
+def _scenario_law_cases():
+    """(id, kind, law, parameter, out-of-range value, its Range) for every parameter of every law."""
+    cases = []
+    for kind, laws in (("kinetic", KINETIC_LAWS), ("static", STATIC_LAWS)):
+        for law in laws.values():
+            for parameter, (_, allowed, _) in law.PARAMETERS.items():
+                bad = [v for v in _bad_values(allowed) if math.isfinite(v)][0]
+                cases.append((f"{kind}.{law.NAME}.{parameter}", kind, law, parameter, bad, allowed))
+    return cases
+
+
+@pytest.mark.parametrize("kind, law, parameter, bad, allowed", [c[1:] for c in _scenario_law_cases()],
+                         ids=[c[0] for c in _scenario_law_cases()])
+def test_scenario_law_parameter_message_states_its_true_range(tmp_path, kind, law, parameter, bad, allowed):
+    """A law parameter outside its range names the key and the law's range (not "(-inf, inf)")."""
+    values = {name: default for name, (default, _, _) in law.PARAMETERS.items()}
+    values[parameter] = bad
+    old = 'law = "coulomb"\nF0 = 0.5\n' if kind == "kinetic" else 'law = "constant"\nF0 = 1.0\n'
+    text = VALID.replace(old, _law_section(law, values), 1)
+    if kind == "kinetic":  # keep F_K(0+) <= F_S(0) out of the way
+        text = text.replace('law = "constant"\nF0 = 1.0', 'law = "constant"\nF0 = 1e6', 1)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(_write(tmp_path, text))
+    message = str(info.value)
+    assert f"'{kind}.{parameter}'" in message and f"a finite number in {allowed}" in message, message

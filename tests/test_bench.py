@@ -74,3 +74,93 @@ def test_quick_bench_writes_json_markdown_and_plots(tmp_path, fmu_path, fmu3_pat
     me = next(r for r in records if r["family"] == "fmi3-me")
     assert me["events_unmatched"] == 0 and me["rel_dx"] < 1e-3  # CVode at rtol 1e-6 over 20 s
     assert (out / "coulomb.png").stat().st_size > 0
+
+
+# ---------------------------------------------------------------------------
+# the report's estimates and columns, on made-up records (no timing)
+# ---------------------------------------------------------------------------
+
+META = {"date": "today", "machine": "m", "python": "3", "versions": "v", "repeats": [1], "load": [0.0]}
+
+
+def _record(family, label, seconds, rel_dx=1e-9, error=None, **settings):
+    record = {"family": family, "label": label, "settings": settings, "error": error}
+    if "comm_step" in settings:
+        record["n_comm_steps"] = round(100.0 / settings["comm_step"])
+    if error is None:
+        record.update(median_s=seconds, rel_dx=rel_dx, max_abs_dx=rel_dx, final_abs_dx=0.0)
+    return record
+
+
+@pytest.fixture
+def scene():
+    from stickslip.bench.scenes import select_scenes
+
+    return select_scenes(["coulomb"])[0]  # 100 s, grid 0.05 s, communication steps 1e-3 .. 10 s
+
+
+def _sweep(family, scene, cost, start, wobble=()):
+    """Records of the communication-step sweep: ``start + cost * steps`` s, plus a wobble per point."""
+    hs = scene.comm_steps()
+    wobble = list(wobble) + [0.0] * len(hs)
+    return [_record(family, f"{family} h={h:g}", start + cost * round(100.0 / h) + w, comm_step=h, rtol=1e-10)
+            for h, w in zip(hs, wobble)]
+
+
+def test_per_step_cost_recovers_a_linear_cost(scene):
+    from stickslip.bench.report import per_step_cost
+
+    cost, note = per_step_cost(_sweep("fmu", scene, 12e-6, 3e-3), "fmu", scene)
+    assert cost == pytest.approx(12e-6, rel=1e-9) and "5 communication steps" in note
+
+
+def test_per_step_cost_is_never_negative(scene):
+    """Times that fall as the step count grows (noise on a quick run) give 0, never a negative cost."""
+    from stickslip.bench.report import per_step_cost
+
+    records = _sweep("fmu", scene, 0.0, 5e-3, wobble=[-2e-3, -1e-3, 0.0, 1e-3, 2e-3])  # fewest steps slowest
+    cost, _ = per_step_cost(records, "fmu", scene)
+    assert cost == 0.0
+    assert np.polyfit([100000, 10000, 1000, 100, 10], [3e-3, 4e-3, 5e-3, 6e-3, 7e-3], 1)[0] < 0  # what lstsq gave
+
+
+def test_per_step_cost_from_two_points_is_not_estimated(scene):
+    from stickslip.bench.report import per_step_cost
+
+    cost, note = per_step_cost(_sweep("fmu", scene, 12e-6, 3e-3)[:2], "fmu", scene)
+    assert cost is None and "cannot be estimated from 2 communication steps" in note
+
+
+def test_report_stamps_quick_runs_names_failures_and_compares_coarse_like_with_like(scene):
+    from stickslip.bench.report import markdown
+
+    records = [
+        *_sweep("fmu", scene, 12e-6, 3e-3), *_sweep("floor", scene, 9e-6, 2e-3),
+        _record("fmu", "FMU rtol=1e-10 h=0.05", 0.030, comm_step=0.05, rtol=1e-10),
+        _record("solve_ivp", "DOP853 rtol=1e-10", 0.020, method="DOP853", rtol=1e-10),
+        _record("solve_ivp", "DOP853 rtol=1e-06", None, error="Traceback\nOverflowError: math range error",
+                method="DOP853", rtol=1e-6),
+        _record("solve_ivp", "DOP853 rtol=1e-10 on the 10 s grid", 0.002, method="DOP853", rtol=1e-10, out_step=10.0),
+    ]
+    text = markdown(dict(META, quick=True), [scene], {scene.name: records})
+    assert "smoke run, not a measurement" in text.splitlines()[0]
+    row = next(line for line in text.splitlines() if line.startswith("| coulomb | 1e-08 |"))
+    cells = [c.strip() for c in row.strip("|").split(" | ")]
+    assert cells[4] == "20 ms (DOP853 rtol=1e-10); failed: DOP853 rtol=1e-06 (OverflowError: math range error)"
+    assert cells[6] == "10"  # the coarse step H
+    assert cells[7].startswith("3.") and "h=10" in cells[7]  # FMU at 10 s steps: 3 ms + 10 x 12 µs
+    assert cells[8] == "2 ms (DOP853 rtol=1e-10 on the 10 s grid)"
+    assert cells[10] == "1.6"  # 3.12 ms / 2 ms, both on the 10 s grid (not 3.12 / 20 = 0.16)
+    assert "| coulomb | 12 | 9 | 1.3 | – | – | – | fit over 5 communication steps |" in text
+    assert "smoke run" not in markdown(dict(META, quick=False), [scene], {scene.name: records}).splitlines()[0]
+
+
+def test_solve_ivp_peer_on_a_coarse_grid_is_the_fine_run_thinned(coulomb):
+    """Phases with no output time in them (the whole stick-slip cycle between two 10 s points) are fine."""
+    fine = np.linspace(0.0, 100.0, 2001)
+    coarse = fine[::200]
+    a = hybrid_solve_ivp(coulomb, 0.0, V_DRIVE, V_DRIVE, 0.0, fine, "DOP853", 1e-12, 1e-12)
+    b = hybrid_solve_ivp(coulomb, 0.0, V_DRIVE, V_DRIVE, 0.0, coarse, "DOP853", 1e-12, 1e-12)
+    assert b.x.shape == coarse.shape
+    assert np.abs(b.x - a.x[::200]).max() < 1e-9
+    assert [e.kind for e in b.events] == [e.kind for e in a.events]

@@ -19,7 +19,7 @@ import pytest
 from stickslip.core import Parameters, Trajectory, kinetic_law, static_law
 from stickslip.fmu_driver import run_fmu
 from stickslip.inputs import zoh_breakpoints
-from stickslip.reference import simulate_reference
+from stickslip.reference import parameters_from_values, simulate_reference
 from stickslip.stress import cosim
 
 from fmu_instances import instantiate
@@ -125,15 +125,8 @@ def test_libcosim_process_survives_repeated_bad_inputs(fmu_path):
 
 
 @needs_libcosim
-@pytest.mark.xfail(strict=True, reason=(
-    "libcosim (libcosimpy 0.0.6) cannot survive an FMU that fails during initialization: "
-    "fixed_step_algorithm::impl::initialize() hands setup/do_iteration/start_simulation to utility::thread_pool, "
-    "whose worker_thread() calls the task without try/catch, and slave_instance::get_real_variables() and "
-    "start_simulation() throw cosim::error for any status but fmi2OK/fmi2Warning; our FMU fails in fmi2GetReal "
-    "in initialization mode and in fmi2ExitInitializationMode (fmi2Error), so std::terminate aborts the host (SIGABRT). Only returning fmi2OK for invalid parameters until the "
-    "first fmi2DoStep avoids it (measured: then libcosim reports 'M = -1.0 kg is out of range' and goes on), "
-    "which breaks the FMI contract every other importer relies on (the error at fmi2ExitInitializationMode, "
-    "tests/test_bad_input.py) and gives made-up initial outputs"))
+@pytest.mark.xfail(strict=True,
+                   reason="libcosim aborts the host when an FMU fails during initialization (docs/known-limits.md)")
 def test_libcosim_bad_parameter_is_an_error_not_a_crash(fmu_path):
     bad = system(fmu_path, {"a": dict(STICK_SLIP, M=-1.0)}, steps=4)
     good = system(fmu_path, {"a": STICK_SLIP}, steps=4)
@@ -208,8 +201,8 @@ def test_fmpy_simulate_fmu_with_an_input_table_matches_the_reference(fmu_path):
     result = fmpy.simulate_fmu(str(fmu_path), start_values=start, stop_time=50.0, output_interval=0.5,
                                input=signal, output=["x", "v", "mode", "n_events", "v_drive", "F_ext"])
     breakpoints = zoh_breakpoints(signal, 0.0, 50.0, 0.5)
-    p = Parameters(1.0, 1.0, kinetic_law(1, F0=0.5), static_law(1, F0=1.0))
-    ref = simulate_reference(p, 0.0, 0.4, breakpoints, result["time"])
+    ref = simulate_reference(parameters_from_values({**start, "kinetic.law": 1, "static.law": 1}), 0.0, 0.4,
+                             breakpoints, result["time"])
     assert np.abs(result["x"] - ref.x).max() <= 1e-9
     assert result["n_events"][-1] == sum(1 for e in ref.events if e.mode_before != e.mode_after) >= 4
     assert result["v_drive"].min() < 0 < result["v_drive"].max()

@@ -1,8 +1,9 @@
 """The independent reference integrator against closed forms written here, not taken from the package.
 
 Every law appears twice where it matters: as the coded affine law (closed-form
-path of the reference) and as a ``CallableKinetic`` with the same force, which
-the reference must integrate numerically (solve_ivp path).
+path of the reference) and as a ``CustomKinetic`` with the same force, which
+the reference must integrate numerically (solve_ivp path). The reference's laws
+are its own (``stickslip.reference.laws``), never the runtime's.
 """
 
 import math
@@ -12,15 +13,14 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from stickslip.core.errors import SolverError
-from stickslip.core.laws import CallableKinetic, CallableStatic, Constant, Coulomb, Sigmoid, Stribeck, Viscous
-from stickslip.core.model import Parameters
-from stickslip.reference import ReferenceEvent, ReferenceResult, simulate_reference
+from stickslip.reference import (CustomKinetic, CustomStatic, ReferenceEvent, ReferenceParameterError,
+                                 ReferenceResult, ReferenceSolverError, simulate_reference)
+from stickslip.reference.laws import Constant, Coulomb, ReferenceParameters as Parameters, Sigmoid, Stribeck, Viscous
 
 
 def coulomb(F0, numeric):
     """``F_K = F0``: the coded law (closed form) or the same force as a callable (numeric path)."""
-    return CallableKinetic(lambda u: F0, lambda u: 0.0) if numeric else Coulomb(F0=F0)
+    return CustomKinetic(lambda u: F0, lambda u: 0.0) if numeric else Coulomb(F0=F0)
 
 
 PATHS = pytest.mark.parametrize("numeric", [False, True], ids=["closed-form", "numeric"])
@@ -262,11 +262,74 @@ def test_stribeck_slip_matches_independent_radau():
 
 def test_event_chain_raises_solver_error():
     """F_K(0+) = F_S(0) with a weakening contact and a resting surface: stick and slip forever at t = 0."""
-    weakening = CallableStatic(
-        force=lambda t: 1.0 - 0.1 * t / (1.0 + t),
-        rate=lambda t: -0.1 / (1.0 + t) ** 2,
-        curvature=lambda t: 0.2 / (1.0 + t) ** 3,
-    )
+    weakening = CustomStatic(force=lambda t: 1.0 - 0.1 * t / (1.0 + t), rate=lambda t: -0.1 / (1.0 + t) ** 2)
     p = Parameters(1.0, 1.0, Coulomb(F0=1.0), weakening)
-    with pytest.raises(SolverError, match="t = 0.0 s"):
+    with pytest.raises(ReferenceSolverError, match="t = 0.0 s"):
         simulate_reference(p, 1.0, 0.0, [(0.0, 0.0, 0.0)], np.linspace(0.0, 1.0, 3))
+
+
+# ---------------------------------------------------------------- independence from the runtime
+
+
+def test_reference_imports_nothing_from_the_runtime():
+    """No module of ``stickslip.reference`` imports ``stickslip.core`` (or anything but itself from the package),
+    and no object in their namespaces comes from it: the comparison with the FMU shares no law or rule."""
+    import ast
+    import importlib
+    import pathlib
+
+    import stickslip.reference
+
+    folder = pathlib.Path(stickslip.reference.__file__).parent
+    modules = sorted(folder.glob("*.py"))
+    assert len(modules) >= 8
+    for path in modules:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                target = "." * node.level + (node.module or "")
+                assert node.level <= 1 and "core" not in target, f"{path.name} imports {target}"
+                assert node.level == 1 or not target.startswith("stickslip"), f"{path.name} imports {target}"
+            elif isinstance(node, ast.Import):
+                assert not any(a.name.startswith("stickslip") for a in node.names), f"{path.name} imports stickslip"
+        module = importlib.import_module(f"stickslip.reference.{path.stem}" if path.stem != "__init__"
+                                         else "stickslip.reference")
+        for name, value in vars(module).items():
+            origin = getattr(value, "__module__", None) or getattr(value, "__name__", "")
+            assert not str(origin).startswith("stickslip.core"), f"{path.name}: {name} comes from {origin}"
+
+
+def test_reference_refuses_the_runtime_parameters():
+    """Passing ``core.Parameters`` would share the runtime's laws: it is an error naming the builder."""
+    from stickslip.core import Parameters as CoreParameters, kinetic_law, static_law
+
+    p = CoreParameters(1.0, 1.0, kinetic_law(1, F0=0.5), static_law(1, F0=1.0))
+    with pytest.raises(ReferenceParameterError, match="parameters_from_values"):
+        simulate_reference(p, 0.0, 0.1, [(0.0, 0.1, 0.0)], np.linspace(0.0, 1.0, 3))
+
+
+@pytest.mark.parametrize("values, name", [
+    ({"M": -1.0}, "M = -1.0"),
+    ({"kappa": 0.0}, "kappa = 0.0"),
+    ({"kinetic.F0": -0.1}, "kinetic.F0"),
+    ({"kinetic.F0": 1.5}, "F_K\\(0\\+\\) = 1.5 N exceeds F_S\\(0\\)"),
+    ({"static.F0": math.nan}, "static.F0 = nan"),
+    ({"kinetic.law": 7}, "kinetic.law = 7"),
+    ({"kinetic.law": "stribeck", "kinetic.F_stribeck": 0.1, "kinetic.v_stribeck": 0.0, "kinetic.gamma": 0.0,
+      "kinetic.delta": 1.0}, "kinetic.v_stribeck = 0.0"),
+    ({"static.law": "sigmoid", "static.F_inf": 2.0, "static.tau": 1.0, "static.n": 0.1}, "static.n = 0.1"),
+])
+def test_reference_checks_its_own_parameters(values, name):
+    from stickslip.reference import parameters_from_values
+
+    base = {"M": 1.0, "kappa": 1.0, "kinetic.law": "coulomb", "kinetic.F0": 0.5, "static.law": 1, "static.F0": 1.0}
+    with pytest.raises(ReferenceParameterError, match=name):
+        simulate_reference(parameters_from_values({**base, **values}), 0.0, 0.1, [(0.0, 0.1, 0.0)],
+                           np.linspace(0.0, 1.0, 3))
+
+
+def test_reference_laws_require_every_parameter():
+    from stickslip.reference import parameters_from_values
+
+    with pytest.raises(ReferenceParameterError, match=r"missing \['gamma'\]"):
+        parameters_from_values({"M": 1.0, "kappa": 1.0, "kinetic.law": 2, "kinetic.F0": 0.5, "static.law": 1,
+                                "static.F0": 1.0})

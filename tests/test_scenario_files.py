@@ -122,3 +122,28 @@ def test_model_exchange_section_is_optional_and_its_rtol_has_a_default(tmp_path)
     scenario = load_scenario(write(tmp_path, VALID + ME_SECTION))
     assert scenario.model_exchange.rtol == 1e-8
     assert (scenario.model_exchange.tolerance.max_abs_dx, scenario.model_exchange.tolerance.event_time) == (1e-5, 1e-4)
+
+
+def test_law_values_are_the_files_numbers_and_build_the_reference(tmp_path):
+    """The reference's laws come from the file's numbers (``law_values``), not from the runtime's objects."""
+    from stickslip.reference import parameters_from_values
+    from stickslip.reference.laws import Stribeck
+
+    s = load_scenario(SCENARIO_DIR / "stribeck-fext-constant.toml")
+    assert s.law_values == {"M": 1.0, "kappa": 1.0, "kinetic.law": "stribeck", "kinetic.F0": 0.4,
+                            "kinetic.F_stribeck": 0.3, "kinetic.v_stribeck": 0.1, "kinetic.delta": 2.0,
+                            "kinetic.gamma": 0.05, "static.law": "constant", "static.F0": 1.0}
+    assert isinstance(parameters_from_values(s.law_values).kinetic, Stribeck)
+    assert s.start_values()["kinetic.law"] == 3 and s.start_values()["kinetic.gamma"] == 0.05
+
+
+def test_grazing_scenario_drive_is_a_relative_1e_7_below_the_critical_velocity():
+    """Recompute v_c (scipy DOP853 at rtol 1e-13 and brentq, independent of FMU and reference)."""
+    from stickslip.reference import parameters_from_values
+    from stickslip.stress.cases import graze_velocity_numeric
+
+    s = load_scenario(SCENARIO_DIR / "grazing-stribeck-below.toml")
+    v_c = graze_velocity_numeric(parameters_from_values(s.law_values), 0.05, 1.0)
+    v_drive = float(s.signals["v_drive"].value[0])
+    assert v_drive == pytest.approx(v_c * (1 - 1e-7), rel=1e-13)
+    assert s.v0 == v_drive

@@ -21,7 +21,7 @@ from .core.errors import StickSlipError
 from .fmu3_driver import ensure_fmu3, held_input_table, run_fmu3
 from .fmu_driver import ensure_fmu, run_fmu
 from .plots import plot_scenario
-from .reference import simulate_reference
+from .reference import ReferenceFailure, parameters_from_values, simulate_reference
 from .report import Outcome, failure_lines, summary_table, write_report, write_result_csv
 from .scenario import ScenarioError, load_scenarios
 
@@ -48,6 +48,8 @@ def simulate(scenario, fmu_path, interface=None):
     ``interface``: None for the FMI 2 FMU; "cs" or "me" for the FMI 3 FMU's co-simulation (driven as the
     FMI 2 one) or model exchange (FMPy's CVode at the scenario's ``model_exchange.rtol``, the inputs held
     between the breakpoints the co-simulation sees, so the reference is the same).
+
+    The reference's laws are its own, built from the scenario file's numbers (``scenario.law_values``).
     """
     start = time.perf_counter()
     args = (scenario.start_values(), scenario.stop_time, scenario.output_interval)
@@ -60,7 +62,7 @@ def simulate(scenario, fmu_path, interface=None):
         fmu = run_fmu3(fmu_path, *args, "me", input_signal=inputs, outputs=list(OUTPUTS),
                        rtol=model_exchange(scenario).rtol)
     middle = time.perf_counter()
-    ref = simulate_reference(scenario.params, scenario.x0, scenario.v0, scenario.breakpoints(), fmu["time"])
+    ref = simulate_reference(parameters_from_values(scenario.law_values), scenario.x0, scenario.v0, scenario.breakpoints(), fmu["time"])
     return fmu, ref, middle - start, time.perf_counter() - middle
 
 
@@ -78,13 +80,14 @@ def run_scenario(scenario, fmu_path, out_dir=None, interface=None):
     """
     try:
         fmu, ref, fmu_s, ref_s = simulate(scenario, fmu_path, interface)
-    except StickSlipError as exc:
+    except (StickSlipError, ReferenceFailure) as exc:
         return Outcome(scenario.name, scenario.expected_attractor, error=f"{type(exc).__name__}: {exc}")
     if interface == "me":
         scenario = replace(scenario, tolerance=scenario.model_exchange.tolerance)
     if out_dir is not None:
         write_result_csv(Path(out_dir) / f"{scenario.name}.csv", fmu, OUTPUTS)
-        plot_scenario(Path(out_dir) / f"{scenario.name}.png", scenario.name, fmu, ref)
+        plot_scenario(Path(out_dir) / f"{scenario.name}.png", scenario.name, fmu, ref,
+                      scenario.tolerance.max_abs_dx)
     return Outcome(scenario.name, scenario.expected_attractor, compare(fmu, ref, scenario), fmu_s, ref_s)
 
 

@@ -60,13 +60,19 @@ DEFAULT_ME_RTOL = 1e-8
 
 @dataclass(frozen=True)
 class Scenario:
-    """One validated scenario. Times in s; ``tail`` is the window at the end that is classified."""
+    """One validated scenario. Times in s; ``tail`` is the window at the end that is classified.
+
+    ``params`` are the FMU runtime's objects (used for the Python API and checks); ``law_values``
+    are the file's own numbers by FMU name (``M``, ``kappa``, ``kinetic.law`` as SPEC name,
+    ``kinetic.<p>``, ...), from which the FMU start values and the reference's laws are built.
+    """
 
     path: Path
     name: str
     description: str
     expected_attractor: str
     params: Parameters
+    law_values: dict
     x0: float
     v0: float
     signals: dict
@@ -79,12 +85,8 @@ class Scenario:
 
     def start_values(self):
         """FMU start values: parameters, initial state, law codes and law parameters, ``solver.rtol``."""
-        values = {"M": self.params.M, "kappa": self.params.kappa, "x_start": self.x0, "v_start": self.v0,
-                  "solver.rtol": self.rtol}
-        for law in (self.params.kinetic, self.params.static):
-            values[f"{law.PREFIX}.law"] = law.CODE
-            values.update({f"{law.PREFIX}.{k}": v for k, v in law.parameters().items()})
-        return values
+        codes = {"kinetic.law": self.params.kinetic.CODE, "static.law": self.params.static.CODE}
+        return {**self.law_values, **codes, "x_start": self.x0, "v_start": self.v0, "solver.rtol": self.rtol}
 
     def input_table(self):
         """FMPy input table of ``v_drive`` and ``F_ext`` over the run."""
@@ -156,12 +158,14 @@ def load_scenario(path):
     stop_time = f.number(simulation, "simulation.stop_time", POSITIVE)
     up_to_stop = Range(0.0, stop_time, low_open=True)
     initial = f.table(data, "initial", {"x", "v"})
+    params, law_values = _parameters(f, data, preset)
     return Scenario(
         path=Path(path),
         name=name,
         description=f.string(data, "description", default=""),
         expected_attractor=f.string(data, "expected_attractor", choices=ATTRACTORS),
-        params=_parameters(f, data, preset),
+        params=params,
+        law_values=law_values,
         x0=f.number(initial, "initial.x"),
         v0=f.number(initial, "initial.v"),
         signals=_signals(f, data),
@@ -193,21 +197,27 @@ def load_scenarios(paths):
 
 
 def _parameters(f, data, preset):
-    """Parameters from [model], [kinetic], [static]; a preset fills what the file does not give."""
+    """``(Parameters, law_values)`` from [model], [kinetic], [static]; a preset fills what the file does not give.
+
+    ``law_values`` holds the file's numbers by FMU name, the laws by SPEC name.
+    """
     model = {**preset.get("model", {}), **f.table(data, "model", {"M", "kappa"}, required=not preset)}
-    kinetic = _law(f, data.get("kinetic", preset.get("kinetic")), "kinetic", KINETIC_LAWS)
-    static = _law(f, data.get("static", preset.get("static")), "static", STATIC_LAWS)
-    params = Parameters(f.number(model, "model.M", POSITIVE), f.number(model, "model.kappa", POSITIVE),
-                        kinetic, static)
+    values = {"M": f.number(model, "model.M", POSITIVE), "kappa": f.number(model, "model.kappa", POSITIVE)}
+    laws = []
+    for kind, table in (("kinetic", KINETIC_LAWS), ("static", STATIC_LAWS)):
+        law, numbers = _law(f, data.get(kind, preset.get(kind)), kind, table)
+        laws.append(law)
+        values.update({f"{kind}.law": law.NAME, **{f"{kind}.{k}": v for k, v in numbers.items()}})
+    params = Parameters(values["M"], values["kappa"], *laws)
     try:
         params.check()
     except ParameterError as exc:
         raise ScenarioError(f"{f.path}: {exc}") from exc
-    return params
+    return params, values
 
 
 def _law(f, section, kind, laws):
-    """A law from its table: ``law`` (name or code) and every parameter of that law."""
+    """``(law, {parameter: value})`` from its table: ``law`` (name or code) and every parameter of that law."""
     section = f.table({kind: section}, kind, {"law"} | {p for law in laws.values() for p in law.PARAMETERS})
     law_id = section.get("law")
     cls = next((law for law in laws.values() if law_id in (law.NAME, law.CODE) and not isinstance(law_id, bool)),
@@ -216,7 +226,8 @@ def _law(f, section, kind, laws):
         choices = ", ".join(f"{law.NAME!r} ({law.CODE})" for law in laws.values())
         raise f.error(f"{kind}.law", f"one of {choices}", law_id)
     f.table({kind: section}, kind, {"law"} | set(cls.PARAMETERS))
-    return cls(**{p: f.number(section, f"{kind}.{p}") for p in cls.PARAMETERS})
+    numbers = {p: f.number(section, f"{kind}.{p}", allowed) for p, (_, allowed, _) in cls.PARAMETERS.items()}
+    return cls(**numbers), numbers
 
 
 def _signals(f, data):

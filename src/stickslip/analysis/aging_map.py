@@ -328,7 +328,7 @@ def _track(params, x0, vs, F_ext, rtol, iterations=30):
     return ok
 
 
-def _has_cycle(fps):
+def has_cycle(fps):
     """Stick-slip persists: some fixed point does not repel monotonically (``T' < 1``)."""
     return any(p.slope < 1.0 for p in fps)
 
@@ -360,7 +360,7 @@ def existence_changes(params, grid, fps, F_ext=0.0, tol=1e-7, n_x=120, rtol=1e-1
     if saddles is None:
         saddles = saddle_nodes(params, grid[0], grid[-1], F_ext=F_ext, tol=0.1 * tol, n_x=n_x, rtol=rtol,
                                grid=grid, fps=fps)
-    labels = [_has_cycle(f) for f in fps]
+    labels = [has_cycle(f) for f in fps]
     out = []
     for k in range(len(grid) - 1):
         if labels[k] == labels[k + 1]:

@@ -15,9 +15,9 @@ from pathlib import Path
 
 from ..core import Parameters
 from ..core.errors import ParameterError, StickSlipError
-from ..core.laws import kinetic_law, static_law
+from ..core.laws import KINETIC_LAWS, STATIC_LAWS
 
-_DEFAULT_MODEL = {"M": 1.0, "kappa": 1.0}
+_DEFAULT_MODEL = {"M": (1.0, "kg"), "kappa": (1.0, "N/m")}  # name -> (default, unit)
 
 
 class AnalysisError(StickSlipError, ValueError):
@@ -29,23 +29,45 @@ class AnalysisError(StickSlipError, ValueError):
 # ----------------------------------------------------------------------
 
 
+def _law_list(laws):
+    """``"coulomb 1, viscous 2, ..."``: the law names with their FMU codes."""
+    return ", ".join(f"{laws[code].NAME} {code}" for code in sorted(laws))
+
+
 def add_model_arguments(p):
     g = p.add_argument_group("model (a preset or scenario file, then single overrides)")
     g.add_argument("--preset", help="named parameter set (stickslip.scenario.PRESETS), e.g. elmer-fig3")
     g.add_argument("--scenario", metavar="FILE", help="TOML file with [model], [kinetic], [static] "
                    "(or a preset) and optionally a constant [inputs.F_ext]")
-    g.add_argument("--kinetic", metavar="LAW", help="kinetic law name or code (coulomb, viscous, stribeck, lubricated)")
-    g.add_argument("--static", metavar="LAW",
-                   help="static law name or code (constant, logarithmic, saturating, sigmoid)")
+    g.add_argument("--kinetic", metavar="LAW", help=f"kinetic law name or code ({_law_list(KINETIC_LAWS)})")
+    g.add_argument("--static", metavar="LAW", help=f"static law name or code ({_law_list(STATIC_LAWS)})")
     g.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="override M, kappa, F_ext, kinetic.<param> or static.<param> (repeatable)")
+                   help="override M, kappa, F_ext, kinetic.<param> or static.<param> (repeatable); "
+                        "parameters not given take the law's defaults, which are printed")
 
 
-def model_from_args(args):
-    """``(Parameters, F_ext)`` from the parsed model arguments."""
+def _law_class(option, laws, value):
+    """The law class named by ``value`` (name or code, also as a digit string), or AnalysisError listing them."""
+    code = int(value) if isinstance(value, str) and value.isdigit() else value
+    for law in laws.values():
+        if code in (law.CODE, law.NAME) and not isinstance(code, bool):
+            return law
+    raise AnalysisError(f"{option} {value!r}: unknown law; the known laws are {_law_list(laws)}")
+
+
+def _value_text(name, value, unit):
+    return f"{name} = {value:g}" + ("" if unit in ("", "1") else f" {unit}")
+
+
+def model_from_args(args, report=print):
+    """``(Parameters, F_ext)`` from the parsed model arguments.
+
+    Values nobody gave (``M``, ``kappa`` and law parameters left to their defaults)
+    are passed to ``report`` as one line, so a run says which numbers it used.
+    """
     from ..scenario import PRESETS
 
-    model, kin, sta, F_ext = dict(_DEFAULT_MODEL), {}, {}, 0.0
+    model, kin, sta, F_ext = {}, {}, {}, 0.0
     if args.preset:
         if args.preset not in PRESETS:
             raise AnalysisError(f"--preset {args.preset!r}: expected one of {sorted(PRESETS)}")
@@ -96,22 +118,24 @@ def model_from_args(args):
             sta[name[7:]] = number
         else:
             raise AnalysisError(f"--set {item!r}: NAME must be M, kappa, F_ext, kinetic.<param> or static.<param>")
-    if "law" not in kin or "law" not in sta:
-        raise AnalysisError("no friction laws: give --preset, --scenario or --kinetic and --static")
+    kinetic_cls = _law_class("--kinetic", KINETIC_LAWS, kin.pop("law")) if "law" in kin else None
+    static_cls = _law_class("--static", STATIC_LAWS, sta.pop("law")) if "law" in sta else None
+    if kinetic_cls is None or static_cls is None:
+        raise AnalysisError("no friction laws: give --preset, --scenario, or --kinetic LAW and --static LAW "
+                            f"(kinetic: {_law_list(KINETIC_LAWS)}; static: {_law_list(STATIC_LAWS)})")
+    defaults = [_value_text(name, value, unit) for name, (value, unit) in _DEFAULT_MODEL.items() if name not in model]
+    for prefix, cls, given in (("kinetic", kinetic_cls, kin), ("static", static_cls, sta)):
+        defaults += [_value_text(f"{prefix}.{name}", value, unit) for name, (value, _, unit)
+                     in cls.PARAMETERS.items() if name not in given]
+    model = {name: model.get(name, value) for name, (value, _) in _DEFAULT_MODEL.items()}
     try:
-        k = kinetic_law(_code(kin.pop("law")), **kin)
-        s = static_law(_code(sta.pop("law")), **sta)
-        params = Parameters(model["M"], model["kappa"], k, s)
+        params = Parameters(model["M"], model["kappa"], kinetic_cls(**kin), static_cls(**sta))
         params.check()
     except ParameterError as exc:
         raise AnalysisError(str(exc)) from exc
+    if defaults:
+        report(f"defaults used ({kinetic_cls.NAME} kinetic, {static_cls.NAME} static law): " + ", ".join(defaults))
     return params, F_ext
-
-
-def _code(law):
-    if isinstance(law, str) and law.isdigit():
-        return int(law)
-    return law
 
 
 def add_scan_arguments(p, v_min=0.01, v_max=1.2, n=400):
@@ -156,43 +180,62 @@ def write_json(path, obj):
 
 
 def add_vc(subparsers):
-    p = subparsers.add_parser("vc", help="critical drive velocities above which stick-slip disappears")
+    p = subparsers.add_parser("vc", help="drive velocities where stick-slip appears and disappears")
     add_model_arguments(p)
     add_scan_arguments(p, v_min=None, v_max=None, n=200)
-    p.add_argument("--out", help="directory for vc.json and margin.png (optional)")
+    p.add_argument("--out", default="vc", help="directory for vc.json and margin.png (default: vc)")
     p.set_defaults(handler=_vc)
 
 
 def _vc(args):
-    from .critical import critical_velocities
+    import numpy as np
+
+    from .critical import critical_velocities, default_scan_range, from_changes
 
     params, F_ext = model_from_args(args)
+    default = default_scan_range(params, F_ext)
+    v_min = default.v_min if args.v_min is None else args.v_min
+    v_max = default.v_max if args.v_max is None else args.v_max
+    if not 0.0 < v_min < v_max:
+        raise AnalysisError("need 0 < --v-min < --v-max")
+    chosen = "given" if args.v_max is not None and args.v_min is not None else f"default from the law: {default.reason}"
+    print(f"scanning v_drive in [{v_min:.6g}, {v_max:.6g}] m/s on {args.points} points ({chosen})")
     if params.static.is_constant():
         with _executor(args) as ex:
-            result = critical_velocities(params, args.v_min, args.v_max, args.points, F_ext, tol=args.tol,
+            result = critical_velocities(params, v_min, v_max, args.points, F_ext, tol=args.tol,
                                          scan=lambda p, grid: ex.margins(p, grid, F_ext))
-        print(f"stick-slip windows in [{result.v_min:g}, {result.v_max:g}] m/s:")
-        for a, b in result.windows:
-            print(f"  {a:.7f} .. {b:.7f}")
-        print("critical drive velocities (stick-slip disappears above): "
-              + (", ".join(f"{v:.7f}" for v in result.critical) or "none in range"))
-        if args.out:
-            out = _out_dir(args)
-            write_json(out / "vc.json", {"windows": result.windows, "critical": result.critical,
-                                         "changes": [{"v_drive": v, "change": w, "kind": k}
-                                                     for v, w, k in result.changes]})
-            from .plots import plot_margin
+    else:  # aging: stick-slip is a fixed point of the stick-slip map
+        from . import aging_map as am
 
-            plot_margin(out / "margin.png", params, result, F_ext)
-        return 0
-    from .aging_map import critical_velocity
+        grid = np.linspace(v_min, v_max, args.points)
+        fps = am.fixed_points_scan(params, grid, F_ext)
+        result = from_changes(v_min, v_max, am.has_cycle(fps[0]),
+                              am.existence_changes(params, grid, fps, F_ext, args.tol))
+    print("stick-slip windows (m/s):" + ("" if result.windows else " none in range"))
+    for lo, hi in result.windows:
+        print(f"  {lo:.7f} .. {hi:.7f}")
+    print("as v_drive grows, stick-slip" + ("" if result.changes else " neither appears nor disappears in range"))
+    for v, change, kind in result.changes:
+        print(f"  {change:10s} at {v:.7f} m/s ({_CHANGE_KINDS.get(kind, kind)})")
+    print("critical drive velocities (stick-slip disappears above): "
+          + (", ".join(f"{v:.7f}" for v in result.critical) or "none in range"))
+    out = _out_dir(args)
+    write_json(out / "vc.json", {"v_min": v_min, "v_max": v_max, "range": chosen, "windows": result.windows,
+                                 "critical": result.critical,
+                                 "changes": [{"v_drive": v, "change": w, "kind": k} for v, w, k in result.changes]})
+    written = [out / "vc.json"]
+    if params.static.is_constant():
+        from .plots import plot_margin
 
-    vc = critical_velocity(params, args.v_min, args.v_max, args.points, F_ext, tol=args.tol)
-    print("critical drive velocities of the stick-slip map (stick-slip disappears above): "
-          + (", ".join(f"{v:.7f}" for v in vc) or "none in range"))
-    if args.out:
-        write_json(_out_dir(args) / "vc.json", {"critical": list(vc)})
+        plot_margin(out / "margin.png", params, result, F_ext)
+        written.append(out / "margin.png")
+    print("written to " + " and ".join(map(str, written)))
     return 0
+
+
+#: how a stick-slip birth or death happens (the vanishing term of the existence margin)
+_CHANGE_KINDS = {"graze": "the slip grazes v = v_drive", "zero-stick": "the stick shrinks to nothing",
+                 "saddle-node": "saddle-node of the stick-slip map", "domain": "the cycle's slip stops sticking"}
 
 
 # ----------------------------------------------------------------------

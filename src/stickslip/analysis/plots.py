@@ -100,32 +100,73 @@ def plot_bifurcation(png_path, d):
     line = np.array([o.fate == "stick-line" for o in d.boundary])
     for vs, ys, st in _segments(bv, bx, line):
         ax.plot(vs, ys, "-.", color="C2", lw=1.2 if st else 0.8, alpha=1.0 if st else 0.5)
-    ax.plot([], [], "-.", color="C2", label="special stick-slip boundary (faint: spirals)")
+    ax.plot([], [], "-.", color="C2", lw=1.2, label="special stick-slip boundary: the slip that grazes v_drive,\n"
+            "backward to the stick line (stick-slip exists iff the onset lies beyond it)")
+    ax.plot([], [], "-.", color="C2", lw=0.8, alpha=0.5, label="the same orbit where, backward, it spirals into "
+            "sliding\ninstead of reaching the stick line (it bounds nothing there)")
     ax.plot([], [], "k-", label="stable")
     ax.plot([], [], "k:", label="unstable")
     counters = {}
     table = []
+    labelled = []  # (v_drive, x, name, color) of the drawn points
     for pt in d.points:
         marker, col, prefix = _POINT_STYLE[pt["kind"]]
         counters[prefix] = counters.get(prefix, 0) + 1
         name = f"{prefix}{counters[prefix]}"
-        y = pt.get("x_max", math.nan)
-        if not math.isfinite(y):
-            continue
-        ax.plot(pt["v_drive"], y, marker, color=col, ms=7, mfc="white", mew=1.6, zorder=5)
-        ax.annotate(name, (pt["v_drive"], y), textcoords="offset points", xytext=(4, 6), fontsize=8, color=col)
         extra = pt.get("criticality") or pt.get("mechanism") or ""
         table.append(f"{name:4s}{pt['v_drive']:.7f}  {pt['kind']}" + (f"\n{'':15s}({extra})" if extra else ""))
+        y = pt.get("x_max", math.nan)
+        if math.isfinite(y):
+            ax.plot(pt["v_drive"], y, marker, color=col, ms=7, mfc="white", mew=1.6, zorder=5)
+            labelled.append((pt["v_drive"], y, name, col))
+    ax.set_xlim(grid[0], grid[-1])
+    ax.autoscale_view()
+    for v, y, names, col, offset in _label_groups(ax, labelled):
+        ax.annotate(names, (v, y), textcoords="offset points", xytext=offset, fontsize=8, color=col)
     for kind, (marker, col, prefix) in _POINT_STYLE.items():
         ax.plot([], [], marker, color=col, mfc="white", mew=1.6, ls="none", label=f"{prefix}: {kind}")
     ax.set(xlabel="drive velocity v_drive (m/s)", ylabel="amplitude: largest x (m)",
            title=f"Bifurcation diagram: M = {p.M:g} kg, kappa = {p.kappa:g} N/m, {p.kinetic!r}, {p.static!r}")
     ax.title.set_fontsize(9)
-    ax.set_xlim(grid[0], grid[-1])
-    ax.legend(loc="upper left", fontsize=7.5, ncols=2)
+    fig.legend(loc="outside lower center", fontsize=7.5, ncols=4)
     side.text(0.0, 1.0, "bifurcation points\n\n" + "\n".join(table), transform=side.transAxes, ha="left",
               va="top", fontsize=7.5, family="monospace")
     fig.savefig(png_path, dpi=120)
+
+
+def _label_groups(ax, points, same=4.0, clear=14.0):
+    """Labels ``(v, y, text, color, offset)`` for the points ``(v, y, name, color)``.
+
+    Points within ``same`` pixels (coincident bifurcation points, e.g. a grazing and a boundary switch)
+    share one label ``"G1, B1"``. Each label takes the first of the offsets right-above, right-below,
+    left-above, left-below, further above, further below whose text centre lies ``clear`` points from
+    every marker and every label placed before, so none is drawn on another.
+    """
+    to_pixels = ax.transData.transform
+    groups = []
+    for v, y, name, col in points:
+        here = to_pixels((v, y))
+        for group in groups:
+            if math.dist(here, group["at"]) < same:
+                group["names"].append(name)
+                break
+        else:
+            groups.append({"at": here, "v": v, "y": y, "names": [name], "color": col})
+    scale = ax.figure.dpi / 72.0  # points to pixels
+    markers = [g["at"] for g in groups]
+    placed, out = [], []
+    for g in groups:
+        text = ", ".join(g["names"])
+        width = 4.8 * len(text)  # points, at fontsize 8
+        offsets = [(5, 6), (5, -14), (-width - 5, 6), (-width - 5, -14), (5, 18), (5, -26)]
+        for dx, dy in offsets:
+            centre = (g["at"][0] + scale * (dx + width / 2), g["at"][1] + scale * (dy + 3))
+            others = [m for m in markers if m is not g["at"]] + placed
+            if all(math.dist(centre, m) >= clear * scale for m in others):
+                break
+        placed.append(centre)
+        out.append((g["v"], g["y"], text, g["color"] if len(g["names"]) == 1 else "k", (dx, dy)))
+    return out
 
 
 def _arc_key(branch, c):
@@ -144,21 +185,38 @@ def _arc_key(branch, c):
 
 
 def plot_margin(png_path, params, result, F_ext=0.0):
-    """The stick-slip existence margin over the scanned drive velocities, with the critical velocities."""
-    from .stickslip_cycle import grazing_margin
+    """The stick-slip existence margin over the scanned drive velocities, with the critical velocities.
 
-    fig = _figure((9, 4.5))
+    The margin is continuous where stick-slip appears or disappears; it jumps where the slip's number of
+    overshoots changes (the return that decides whether the slip sticks is then another one), which is
+    drawn as a break with a dotted line.
+    """
+    from .stickslip_cycle import stick_slip_cycles
+
+    fig = _figure((9, 5))
     ax = fig.subplots()
-    grid = np.linspace(result.v_min, result.v_max, 200)
-    ax.plot(grid, grazing_margin(params, grid, F_ext), "-", color="C3", label="existence margin E")
+    grid = np.linspace(result.v_min, result.v_max, 400)
+    cycles = stick_slip_cycles(params, grid, F_ext)
+    margin = np.array([c.margin if math.isfinite(c.margin) else math.copysign(1e3, c.margin) for c in cycles])
+    shots = np.array([c.overshoots if c.exists else -1 for c in cycles])
+    jumps = [k for k in range(1, grid.size) if shots[k] != shots[k - 1] and min(shots[k], shots[k - 1]) >= 0]
+    for part, (lo, hi) in enumerate(zip([0, *jumps], [*jumps, grid.size])):
+        ax.plot(grid[lo:hi], margin[lo:hi], "-", color="C3", label="existence margin E" if part == 0 else None)
+    for n, k in enumerate(jumps):
+        ax.axvline(0.5 * (grid[k - 1] + grid[k]), color="0.4", ls=":", lw=1.0,
+                   label=None if n else "the slip's overshoot count changes: another return decides, E jumps "
+                                         "(stick-slip exists on both sides)")
+        ax.annotate(f"{shots[k - 1]}\u2192{shots[k]} overshoots", (grid[k], 1.0), xycoords=("data", "axes fraction"),
+                    textcoords="offset points", xytext=(3, -12), fontsize=7, color="0.3")
     ax.axhline(0.0, color="0.5", lw=0.8)
     for v in result.critical:
         ax.axvline(v, color="C0", ls="--", lw=0.9)
-        ax.annotate(f"v_c = {v:.6f}", (v, 0.0), textcoords="offset points", xytext=(3, 8), fontsize=8)
-    for a, b in result.windows:
-        ax.axvspan(a, b, color="C3", alpha=0.08)
-    ax.set(xlabel="v_drive (m/s)", ylabel="margin (m/s)", title="stick-slip exists where the margin is > 0")
-    ax.legend(loc="best", fontsize=8)
+        ax.annotate(f"v_c = {v:.6f}", (v, 0.0), textcoords="offset points", xytext=(3, -14), fontsize=8, color="C0")
+    for n, (a, b) in enumerate(result.windows):
+        ax.axvspan(a, b, color="C3", alpha=0.08, label=None if n else "stick-slip exists")
+    ax.plot([], [], "--", color="C0", lw=0.9, label="critical velocity v_c (stick-slip disappears above)")
+    ax.set(xlabel="v_drive (m/s)", ylabel="margin (m/s)", title="stick-slip exists where the margin E is > 0")
+    fig.legend(loc="outside lower center", ncols=2, fontsize=8)
     fig.savefig(png_path, dpi=110)
 
 
@@ -166,7 +224,7 @@ def plot_chart(png_path, chart):
     """A 2-D stability chart: continuous-sliding stability and stick-slip existence."""
     from matplotlib.colors import ListedColormap
 
-    from .scan import CHART_LABELS
+    from .scan import CHART_LABELS, parameter_unit
 
     fig = _figure((9, 5.5))
     ax = fig.subplots()
@@ -175,8 +233,10 @@ def plot_chart(png_path, chart):
     ax.pcolormesh(v, y, chart.code, cmap=cmap, vmin=-0.5, vmax=3.5, shading="nearest")
     for code, label in CHART_LABELS.items():
         ax.plot([], [], "s", color=cmap(code), ms=10, label=label)
-    ax.set(xlabel="v_drive (m/s)", ylabel=chart.name, title=f"stability chart: v_drive x {chart.name}")
-    ax.legend(loc="upper right", fontsize=8)
+    unit = parameter_unit(chart.name)
+    ax.set(xlabel="v_drive (m/s)", ylabel=chart.name + (f" ({unit})" if unit else " (dimensionless)"),
+           title=f"stability chart: v_drive x {chart.name}")
+    fig.legend(loc="outside right upper", fontsize=8)
     fig.savefig(png_path, dpi=110)
 
 
@@ -205,7 +265,7 @@ def plot_slow_manifold(png_path, params, manifold, run=None, F_ext=0.0, v_drive=
            title="strongly overdamped limit: slow manifold and relaxation oscillations"
            + (f" (v_drive = {v_drive:g} m/s)" if v_drive is not None else ""))
     ax.set_xlim(min(-0.05 * u[-1], float(np.min(run[2])) if run is not None else 0.0), u[-1])
-    ax.legend(loc="best", fontsize=8)
+    fig.legend(loc="outside lower center", ncols=2, fontsize=8)
     fig.savefig(png_path, dpi=110)
 
 
@@ -219,9 +279,9 @@ def plot_map(png_path, smap, xs, ts, fps):
         ax.plot(f.x, f.x, "o", color="C3", mfc="C3" if f.stable else "white", ms=7)
     ax.plot([], [], "o", color="C3", label="stable fixed point (stick-slip cycle)")
     ax.plot([], [], "o", color="C3", mfc="white", label="unstable fixed point")
-    ax.set(xlabel="x_n: position before slip n (m)", ylabel="x_{n+1} (m)",
+    ax.set(xlabel="$x_n$: position before slip $n$ (m)", ylabel="$x_{n+1} = T(x_n)$ (m)",
            title=f"stick-slip map at v_drive = {smap.v_drive:g} m/s")
-    ax.legend(loc="best", fontsize=8)
+    fig.legend(loc="outside lower center", ncols=2, fontsize=8)
     fig.savefig(png_path, dpi=110)
 
 
@@ -242,7 +302,7 @@ def plot_fixed_points(png_path, v_grid, fps, saddles, critical):
     for v in critical:
         ax.axvline(v, color="C3", ls="--", lw=0.9)
     ax.set(xlabel="v_drive (m/s)", ylabel="fixed point x* (m)", title="stick-slip cycles of the aging map")
-    ax.legend(loc="best", fontsize=8)
+    fig.legend(loc="outside lower center", ncols=2, fontsize=8)
     fig.savefig(png_path, dpi=110)
 
 
@@ -252,10 +312,10 @@ def plot_orbit_diagram(png_path, v_grid, iterates, exponents):
     ax, ax2 = fig.subplots(2, 1, sharex=True, height_ratios=(2, 1))
     for v, its in zip(v_grid, iterates):
         ax.plot(np.full(its.size, v), its, ".", color="k", ms=1.5, alpha=0.7)
-    ax.set(ylabel="x_n (m)", title="orbit diagram of the stick-slip map")
+    ax.set(ylabel="$x_n$ (m)", title="orbit diagram of the stick-slip map")
     ax2.plot(v_grid, exponents, "-", color="C0", lw=1)
     ax2.axhline(0.0, color="0.5", lw=0.8)
     ax2.fill_between(v_grid, 0, np.where(exponents > 0, exponents, 0), color="C3", alpha=0.3, label="chaos")
-    ax2.set(xlabel="v_drive (m/s)", ylabel="Lyapunov exponent")
-    ax2.legend(loc="best", fontsize=8)
+    ax2.set(xlabel="v_drive (m/s)", ylabel="Lyapunov exponent\n(per map iteration)")
+    fig.legend(loc="outside lower center", ncols=2, fontsize=8)
     fig.savefig(png_path, dpi=110)

@@ -16,6 +16,7 @@ with Python-callable laws needs Dask, whose cloudpickle carries closures).
 
 import math
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import as_completed as futures_completed
 from dataclasses import dataclass
 from multiprocessing import get_context
 
@@ -65,7 +66,12 @@ class Executor:
     def map(self, fn, items, desc="scan"):
         """``[fn(*item) for item in items]``, in order, computed on the chosen back end."""
         items = list(items)
-        bar = tqdm(total=len(items), desc=desc, unit="chunk", disable=not self.progress, leave=False)
+        parallel = self.scheduler is None and self.jobs > 1 and len(items) > 1
+        if parallel and self._pool is None:  # start the workers before the clock: start-up is not chunk time
+            self._pool = ProcessPoolExecutor(max_workers=self.jobs, mp_context=get_context("spawn"))
+            list(self._pool.map(_ready, range(self.jobs)))
+        # smoothing=0: the estimate uses the average rate since the start, not the latest (uneven) chunks
+        bar = tqdm(total=len(items), desc=desc, unit="chunk", disable=not self.progress, leave=False, smoothing=0)
         try:
             if self.scheduler is not None:
                 from distributed import as_completed
@@ -75,20 +81,16 @@ class Executor:
                 for _ in as_completed(futures):
                     bar.update()
                 return client.gather(futures)
-            if self.jobs == 1 or len(items) == 1:
+            if not parallel:
                 out = []
                 for item in items:
                     out.append(fn(*item))
                     bar.update()
                 return out
-            if self._pool is None:
-                self._pool = ProcessPoolExecutor(max_workers=self.jobs, mp_context=get_context("spawn"))
             futures = [self._pool.submit(fn, *item) for item in items]
-            out = []
-            for f in futures:
-                out.append(f.result())
+            for _ in futures_completed(futures):  # count chunks as they finish, in any order
                 bar.update()
-            return out
+            return [f.result() for f in futures]
         finally:
             bar.close()
 
@@ -110,6 +112,11 @@ class Executor:
     def cycles(self, params, grid, F_ext=0.0):
         """:class:`~.stickslip_cycle.StickSlipCycle` at every drive velocity of ``grid``."""
         return self.map_grid(_cycle_chunk, params, grid, F_ext, desc="stick-slip cycles")
+
+
+def _ready(_):
+    """A no-op run in each new worker so that it has started (and imported this module) before a scan."""
+    return True
 
 
 def _margin_chunk(params, chunk, F_ext):
@@ -163,6 +170,18 @@ def with_value(params, name, value):
     out = Parameters(M, kappa, kinetic, static)
     out.check()
     return out
+
+
+def parameter_unit(name):
+    """The unit of ``M``, ``kappa``, ``kinetic.<p>`` or ``static.<p>`` (``""`` if dimensionless)."""
+    from ..core import KINETIC_LAWS, STATIC_LAWS
+
+    units = {"M": "kg", "kappa": "N/m"}
+    for kind, laws in (("kinetic", KINETIC_LAWS), ("static", STATIC_LAWS)):
+        for law in laws.values():
+            units.update({f"{kind}.{p}": unit for p, (_, _, unit) in law.PARAMETERS.items()})
+    unit = units.get(name, "")
+    return "" if unit == "1" else unit
 
 
 def _chart_chunk(params, chunk, F_ext, name):

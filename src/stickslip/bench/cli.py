@@ -57,6 +57,6 @@ def run_bench(args):
     write_json(out / "bench.json", meta, scenes, records)
     (out / "bench.md").write_text(markdown(meta, scenes, records))
     for scene in scenes:
-        plot(out / f"{scene.name}.png", scene, records[scene.name])
+        plot(out / f"{scene.name}.png", scene, records[scene.name], quick=args.quick)
     print(f"wrote {out / 'bench.json'}, {out / 'bench.md'} and {len(scenes)} plots")
     return 0

@@ -23,6 +23,7 @@ from ..compare import Event, fmu_events, match_events, reference_events, transit
 from ..core import Trajectory
 from . import c_host
 from .peers import Run, hybrid_solve_ivp, regularized_solve_ivp
+from .report import coarse_step
 
 FMU_OUTPUTS = ("x", "v", "n_stick_events", "n_slip_events", "n_overshoots", "t_last_event")  # the floor has them too
 
@@ -86,6 +87,16 @@ def configs(scene, fmu, floor, host=None, fmu3=None):
             out.append(Config("solve_ivp", f"{method} rtol={rtol:.0e}", {"method": method, "rtol": rtol, "atol": rtol},
                               lambda m=method, r=rtol: hybrid_solve_ivp(p, x0, v0, v_drive, F_ext, grid, m, r, r),
                               lambda run: run))
+    h_c = coarse_step(scene)
+    if h_c is not None:  # like with like for the FMU at h = h_c: solve_ivp asked for the same output times only
+        every = round(h_c / scene.grid_step)
+        for method, rtols in s.ivp.items():
+            for rtol in rtols:
+                out.append(Config(
+                    "solve_ivp", f"{method} rtol={rtol:.0e} on the {h_c:g} s grid",
+                    {"method": method, "rtol": rtol, "atol": rtol, "out_step": h_c},
+                    lambda m=method, r=rtol: hybrid_solve_ivp(p, x0, v0, v_drive, F_ext, grid[::every], m, r, r),
+                    lambda run: run))
     for method, rtols in s.regularized.items():
         for v_eps in s.v_eps:
             for rtol in rtols:

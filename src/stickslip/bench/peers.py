@@ -51,12 +51,13 @@ def hybrid_solve_ivp(p, x0, v0, v_drive, F_ext, t_eval, method, rtol, atol):
         after = t_eval[(t_eval > t) & (t_eval <= t_end)]
         if mode == 0:
             sol = _stuck_phase(p, t, x, v_drive, F_ext, t_end, after, method, rtol, atol)
-            xs.append(sol.y[0])
-            vs.append(np.full(sol.t.size, v_drive))
+            xs.append(_outputs(sol, 1)[0])
+            vs.append(np.full(len(sol.t), v_drive))
         else:
             sol = _slip_phase(p, mode, t, x, v, v_drive, F_ext, t_end, after, method, rtol, atol)
-            xs.append(sol.y[0])
-            vs.append(sol.y[1])
+            x_out, v_out = _outputs(sol, 2)
+            xs.append(x_out)
+            vs.append(v_out)
         if sol.status != 1:  # reached t_end
             break
         t, x, v = float(sol.t_events[0][0]), float(sol.y_events[0][0][0]), v_drive
@@ -67,6 +68,11 @@ def hybrid_solve_ivp(p, x0, v0, v_drive, F_ext, t_eval, method, rtol, atol):
             raise RuntimeError(f"solve_ivp peer: event chain at t = {t} s")
         mode = new_mode
     return Run(np.asarray(t_eval, float), np.concatenate(xs), np.concatenate(vs), events)
+
+
+def _outputs(sol, n):
+    """``sol.y`` as ``n`` rows, also for a phase with no output time in it (solve_ivp then gives lists ``[]``)."""
+    return sol.y if len(sol.t) else np.empty((n, 0))
 
 
 def _stuck_phase(p, t0, x0, v_drive, F_ext, t_end, t_eval, method, rtol, atol):

@@ -23,31 +23,61 @@ def ok(record):
     return record.get("error") is None and math.isfinite(record.get("rel_dx", math.nan))
 
 
+def output_step(record, scene):
+    """The step (s) of the grid a record returned: the FMU's communication step, a coarse peer's ``out_step``,
+    else the scene's grid step."""
+    settings = record["settings"]
+    return settings.get("comm_step", settings.get("out_step", scene.grid_step))
+
+
 def comparable(record, scene):
-    """Configurations with outputs on the whole common grid: every peer, and the FMU at ``h = grid_step``."""
-    return ok(record) and (record["family"] != "fmu" or record["settings"]["comm_step"] == scene.grid_step)
+    """Configurations with outputs on the whole common grid (the FMU at ``h = grid_step``, the peers on it)."""
+    return ok(record) and output_step(record, scene) == scene.grid_step
 
 
-def fastest(records, family, threshold, scene, any_grid=False):
-    """The fastest comparable record of ``family`` with ``rel_dx <= threshold`` (None: not reached);
-    ``any_grid`` also admits the FMU at communication steps coarser than the grid (compared on its own points)."""
-    hits = [r for r in records if r["family"] == family and (ok(r) if any_grid else comparable(r, scene))
+def fastest(records, family, threshold, scene, step=None):
+    """The fastest record of ``family`` with ``rel_dx <= threshold`` on the grid of ``step`` s (default: the
+    scene's common grid; a coarser one is compared on its own points). None: not reached."""
+    step = scene.grid_step if step is None else step
+    hits = [r for r in records if r["family"] == family and ok(r) and output_step(r, scene) == step
             and r["rel_dx"] <= threshold]
     return min(hits, key=lambda r: r["median_s"], default=None)
 
 
+def failures(records, family, scene, step=None):
+    """Records of ``family`` on the grid of ``step`` s (default: the common grid) that raised."""
+    step = scene.grid_step if step is None else step
+    return [r for r in records if r["family"] == family and r.get("error") and output_step(r, scene) == step]
+
+
+MIN_COST_POINTS = 3  # a straight line through two points cannot show whether the time is linear in the steps
+
+
 def per_step_cost(records, family, scene, time="median_s"):
-    """Seconds per communication step of ``family`` ("fmu", "floor", "c-host", "c-host-floor"): slope of the
-    record's ``time`` (median wall time; "cpu_s" for the C host) over the number of steps in the
-    communication-step sweep (events and start-up go to the intercept)."""
+    """``(seconds per communication step, note)`` of ``family`` ("fmu", "floor", "c-host", "c-host-floor") over
+    the communication-step sweep: the slope of the record's ``time`` (median wall time; "cpu_s" for the C host)
+    against the number of steps, fitted with a non-negative slope and
+    intercept (events and start-up go to the intercept). The cost is None, with the note saying why, from
+    fewer than :data:`MIN_COST_POINTS` sweep points."""
+    from scipy.optimize import nnls
+
     steps = set(scene.comm_steps())
     points = [(r["n_comm_steps"], r[time]) for r in records
               if r["family"] == family and r.get("error") is None and r["settings"]["comm_step"] in steps
               and r["settings"].get("rtol", scene.sweep.comm_rtol) == scene.sweep.comm_rtol]
-    if len(points) < 2:
-        return None
-    n, t = np.array(points).T
-    return float(np.polyfit(n, t, 1)[0])
+    if len(points) < MIN_COST_POINTS:
+        return None, f"cannot be estimated from {len(points)} communication steps (needs {MIN_COST_POINTS})"
+    n, t = np.array(points, float).T
+    scale = n.max()  # fit in units of the largest step count: both columns of order 1
+    (slope, _), _ = nnls(np.column_stack([n / scale, np.ones_like(n)]), t)
+    return slope / scale, f"fit over {len(points)} communication steps"
+
+
+def _cost_columns(cost, floor):
+    """Table cells ``(ours µs, floor µs, ratio)`` of two per-step costs (s); "–" where one is unknown."""
+    if cost is None or floor is None:
+        return ["–"] * 3
+    return [f"{1e6 * cost:.3g}", f"{1e6 * floor:.3g}", f"{cost / floor:.2g}" if floor > 0 else "–"]
 
 
 def write_json(path, meta, scenes, records):
@@ -63,8 +93,34 @@ def _ms(record):
     return f"{1e3 * record['median_s']:.3g} ms"
 
 
-def _cell(record):
-    return "not reached" if record is None else f"{_ms(record)} ({record['label']})"
+def _cell(record, failed=()):
+    """The fastest record reaching an accuracy (or "not reached"), and the failed configurations with reasons."""
+    named = _failed_text(failed)
+    if record is not None:
+        return f"{_ms(record)} ({record['label']})" + (f"; failed: {named}" if failed else "")
+    return f"not reached; failed: {named}" if failed else "not reached"
+
+
+def _failed_text(failed, shown=2):
+    """Failed configurations grouped by exception: ``"RK45 rtol=1e-04, RK45 rtol=1e-05 +3 more (OverflowError:
+    math range error)"``; the report's last section lists every one."""
+    by_reason = {}
+    for r in failed:
+        by_reason.setdefault(_reason(r), []).append(r["label"])
+    return "; ".join(", ".join(labels[:shown]) + (f" +{len(labels) - shown} more" if len(labels) > shown else "")
+                     + f" ({reason})" for reason, labels in by_reason.items())
+
+
+def _reason(record):
+    """The last line of a failed record's exception, e.g. ``OverflowError: math range error``."""
+    return record["error"].splitlines()[-1].replace("|", "\\|")
+
+
+def coarse_step(scene):
+    """The communication step (s) of the like-with-like column: the sweep's coarsest one above the grid's
+    step, where the FMU and solve_ivp both return only that grid's points (None: the sweep has none)."""
+    coarser = [h for h in scene.comm_steps() if h > scene.grid_step]
+    return max(coarser, default=None)
 
 
 def _ratio(ours, peer):
@@ -76,43 +132,59 @@ def _table(header, rows):
     return lines + ["| " + " | ".join(map(str, row)) + " |" for row in rows]
 
 
+SMOKE_NOTE = ("**Smoke run (`stickslip bench --quick`)**: 20 s scenes, a few configurations, one timed run each. "
+              "It shows that the benchmark runs; its numbers are not measurements.")
+
+
 def markdown(meta, scenes, records):
     """The Markdown report: matched-accuracy ratios, per-step costs, communication steps, best accuracies."""
-    out = ["# Work-precision benchmark", "",
-           f"{meta['date']}, {meta['machine']}, Python {meta['python']}, {meta['versions']}; "
-           f"median of {meta['repeats']} runs after a warm-up; load average at start {meta['load']}.", "",
-           "Error: max |dx| on the scene's common grid over the amplitude A (half the reference's range of x). "
-           "Times: one whole simulation call. Ratios are ours / peer (< 1: ours is faster), each side at its "
-           "fastest configuration reaching the accuracy. The FMU column counts the grid's communication step "
-           "only; \"FMU, any h\" also admits coarser communication steps, whose error is measured on their own "
-           "points of the grid (the peers always return the whole grid).", "",
-           "## Matched accuracy", ""]
+    out = ["# Work-precision benchmark" + (" (smoke run, not a measurement)" if meta.get("quick") else ""), ""]
+    if meta.get("quick"):
+        out += [SMOKE_NOTE, ""]
+    out += [f"{meta['date']}, {meta['machine']}, Python {meta['python']}, {meta['versions']}; "
+            f"median of {meta['repeats']} runs after a warm-up; load average at start {meta['load']}.", "",
+            "Error: max |dx| on the scene's common grid over the amplitude A (half the reference's range of x). "
+            "Times: one whole simulation call. Ratios are ours / peer (< 1: ours is faster), each side at its "
+            "fastest configuration reaching the accuracy. The FMU, stepper, solve_ivp and regularized columns "
+            "return the whole common grid (the FMU at the grid's communication step). The coarse columns compare "
+            "like with like on the sweep's coarsest communication step H (e.g. 10 s): the FMU at h = H and "
+            "solve_ivp asked for the same H-spaced output times, both measured on those points of the grid. "
+            "A cell also names the configurations of its family that failed, with the exception.", "",
+            "## Matched accuracy", ""]
     rows = []
     for s in scenes:
+        h_c = coarse_step(s)
         for thr in THRESHOLDS:
             best = {f: fastest(records[s.name], f, thr, s) for f in ("fmu", "stepper", *PEERS)}
-            coarse = fastest(records[s.name], "fmu", thr, s, any_grid=True)
+            failed = {f: failures(records[s.name], f, s) for f in best}
+            coarse_fmu = fastest(records[s.name], "fmu", thr, s, h_c) if h_c else None
+            coarse_ivp = fastest(records[s.name], "solve_ivp", thr, s, h_c) if h_c else None
             integrating = fastest(records[s.name], "stepper-integrating", thr, s)
-            rows.append([s.name, f"{thr:g}", *(_cell(best[f]) for f in best), _cell(coarse),
-                         _ratio(best["fmu"], best["solve_ivp"]), _ratio(coarse, best["solve_ivp"]),
+            rows.append([s.name, f"{thr:g}", *(_cell(best[f], failed[f]) for f in best),
+                         "–" if h_c is None else f"{h_c:g}", _cell(coarse_fmu),
+                         _cell(coarse_ivp, failures(records[s.name], "solve_ivp", s, h_c) if h_c else ()),
+                         _ratio(best["fmu"], best["solve_ivp"]), _ratio(coarse_fmu, coarse_ivp),
                          _ratio(best["stepper"], best["solve_ivp"]), _ratio(integrating, best["solve_ivp"]),
                          _ratio(best["fmu"], best["regularized"]), _ratio(best["stepper"], best["regularized"])])
-    out += _table(["scene", "max\\|dx\\|/A ≤", "FMU", "stepper", "solve_ivp", "regularized", "FMU, any h",
-                   "FMU / solve_ivp", "FMU any h / solve_ivp", "stepper / solve_ivp",
-                   "stepper no replay / solve_ivp", "FMU / regularized", "stepper / regularized"], rows)
+    out += _table(["scene", "max\\|dx\\|/A ≤", "FMU", "stepper", "solve_ivp", "regularized", "coarse H (s)",
+                   "FMU at h = H", "solve_ivp on the H grid", "FMU / solve_ivp", "FMU / solve_ivp, both on the H grid",
+                   "stepper / solve_ivp", "stepper no replay / solve_ivp", "FMU / regularized",
+                   "stepper / regularized"], rows)
     out += ["", "## Cost per communication step (slope over the communication-step sweep)", ""]
     out += ["FMPy: wall time of fmpy.simulate_fmu recording six outputs. C host: CPU time of fmi2DoStep + "
-            "fmi2GetReal(x) in a plain C importer (stickslip.c_host), Python start-up excluded.", ""]
+            "fmi2GetReal(x) in a plain C importer (stickslip.c_host), Python start-up excluded. Each cost is a "
+            "least-squares line with a non-negative slope and intercept over the communication-step sweep (at the "
+            "sweep's comm_rtol); a slope the data cannot resolve comes out 0.", ""]
     rows = []
     for s in scenes:
-        fmu, floor = (per_step_cost(records[s.name], f, s) for f in ("fmu", "floor"))
-        c_fmu, c_floor = (per_step_cost(records[s.name], f, s, "cpu_s") for f in ("c-host", "c-host-floor"))
-        if fmu is not None and floor is not None:
-            c_host = ["–"] * 3 if c_fmu is None or c_floor is None else [
-                f"{1e6 * c_fmu:.3g}", f"{1e6 * c_floor:.3g}", f"{c_fmu / c_floor:.2g}"]
-            rows.append([s.name, f"{1e6 * fmu:.3g}", f"{1e6 * floor:.3g}", f"{fmu / floor:.2g}", *c_host])
+        fmu, floor, c_fmu, c_floor = (
+            per_step_cost(records[s.name], family, s, time)[0]
+            for family, time in (("fmu", "median_s"), ("floor", "median_s"),
+                                 ("c-host", "cpu_s"), ("c-host-floor", "cpu_s")))
+        note = per_step_cost(records[s.name], "fmu", s)[1]
+        rows.append([s.name, *_cost_columns(fmu, floor), *_cost_columns(c_fmu, c_floor), note])
     out += _table(["scene", "FMPy: FMU µs/step", "FMPy: trivial FMU µs/step", "ratio",
-                   "C host: FMU CPU µs/step", "C host: trivial FMU CPU µs/step", "ratio"], rows)
+                   "C host: FMU CPU µs/step", "C host: trivial FMU CPU µs/step", "ratio", "estimate"], rows)
     out += ["", "## FMU across communication steps (at the sweep's comm_rtol, default 1e-10)", ""]
     rows = []
     for s in scenes:
@@ -130,7 +202,8 @@ def markdown(meta, scenes, records):
     rows = []
     for s in scenes:
         for family in STYLE:
-            done = [r for r in records[s.name] if r["family"] == family and ok(r)]
+            done = [r for r in records[s.name] if r["family"] == family and ok(r)
+                    and (family == "fmu" or comparable(r, s))]  # the FMU at every h: same error on fewer points
             if done:
                 best = min(done, key=lambda r: r["rel_dx"])
                 rows.append([s.name, family, f"{best['rel_dx']:.2g}", _cell(best), _fmt(best.get("event_time_error")),
@@ -139,7 +212,7 @@ def markdown(meta, scenes, records):
     failed = [(s.name, r) for s in scenes for r in records[s.name] if r.get("error")]
     if failed:
         out += ["", "## Failed configurations", ""]
-        out += [f"- {name}: {r['label']}: {r['error'].splitlines()[-1]}" for name, r in failed]
+        out += [f"- {name}: {r['label']}: {_reason(r)}" for name, r in failed]
     return "\n".join(out) + "\n"
 
 
@@ -165,18 +238,19 @@ def _fmt(value):
     return "–" if value is None else f"{value:.2g}"
 
 
-def plot(path, scene, records):
-    """Log-log work-precision plot: relative max |dx| over median time, Pareto front per family."""
+def plot(path, scene, records, quick=False):
+    """Log-log work-precision plot: relative max |dx| over median time, Pareto front per family
+    (legend below the axes; ``quick`` stamps it as a smoke run)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(8, 6))
+    fig, ax = plt.subplots(figsize=(8, 7), layout="constrained")
     for family, (color, legend) in STYLE.items():
         done = sorted((r for r in records if r["family"] == family and ok(r)), key=lambda r: r["median_s"])
         for r in done:
-            marker = MARKERS.get(r["settings"].get("method"), "x" if not comparable(r, scene) else "o")
+            marker = MARKERS.get(r["settings"].get("method"), "o") if comparable(r, scene) else "x"
             ax.loglog(r["median_s"], max(r["rel_dx"], 1e-17), marker, color=color, alpha=0.6, ms=5)
         front, best = [], math.inf
         for r in done:
@@ -191,12 +265,12 @@ def plot(path, scene, records):
         ax.axvline(floor[0]["median_s"], color="gray", ls="--", label="trivial FMU, same steps")
     for thr in THRESHOLDS:
         ax.axhline(thr, color="lightgray", lw=0.8, zorder=0)
+    smoke = "SMOKE RUN (--quick), not a measurement: " if quick else ""
     ax.set(xlabel="median time of one simulation call (s)", ylabel="max |dx| / amplitude",
-           title=f"{scene.name}: {scene.stop_time:g} s, grid {scene.grid_step:g} s\n"
-                 "markers: o RK45/stepper/FMU, s DOP853, ^ LSODA, D Radau, x FMU at other communication steps")
+           title=f"{smoke}{scene.name}: {scene.stop_time:g} s, grid {scene.grid_step:g} s\n"
+                 "markers: o RK45/stepper/FMU, s DOP853, ^ LSODA, D Radau, x on a coarser output grid")
     ax.title.set_fontsize(9)
-    ax.legend(fontsize=8)
+    fig.legend(loc="outside lower center", ncols=2, fontsize=8)
     ax.grid(True, which="major", alpha=0.3)
-    fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -12,7 +12,7 @@ from functools import cached_property
 import numpy as np
 
 from ..fmu_build import REPO
-from ..reference import simulate_reference
+from ..reference import parameters_from_values, simulate_reference
 from ..scenario import load_scenario
 
 REFERENCE_RTOL = 1e-13  # the reference integrator's tightest useful tolerance
@@ -99,7 +99,7 @@ class Scene:
     def reference(self):
         """The reference on the grid (closed forms for affine laws, else DOP853 at REFERENCE_RTOL)."""
         v_drive, F_ext = self.inputs
-        return simulate_reference(self.params, self.scenario.x0, self.scenario.v0, [(0.0, v_drive, F_ext)],
+        return simulate_reference(parameters_from_values(self.scenario.law_values), self.scenario.x0, self.scenario.v0, [(0.0, v_drive, F_ext)],
                                   self.grid(), rtol=REFERENCE_RTOL)
 
     @property

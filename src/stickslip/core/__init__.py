@@ -23,10 +23,11 @@ from .laws import (
     static_law,
 )
 from .model import BACKWARD, FORWARD, STUCK, Parameters
+from .ranges import ANY_FINITE, POSITIVE
 from .trajectory import RTOL_RANGE, Trajectory
 
 __all__ = [
-    "BACKWARD", "FORWARD", "STUCK", "KINETIC_LAWS", "STATIC_LAWS",
+    "ANY_FINITE", "BACKWARD", "FORWARD", "POSITIVE", "STUCK", "KINETIC_LAWS", "STATIC_LAWS",
     "CallableKinetic", "CallableStatic", "Constant", "Coulomb", "Logarithmic", "Lubricated",
     "Parameters", "ParameterError", "RTOL_RANGE", "Saturating", "Sigmoid", "SolverError", "StickSlipError",
     "Stribeck", "Trajectory", "Viscous", "kinetic_law", "static_law",

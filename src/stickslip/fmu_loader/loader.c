@@ -173,16 +173,34 @@ static int wanted(const Instance *inst, fmi2Status status, fmi2String category)
     return 0;
 }
 
+/* PythonFMU's text of a slave exception, "Fatal py exception encountered: [call] PyObject_CallMethod\n<exception>",
+ * as "[call] <exception>" in out (the exception is no fatal error once reported as fmi2Error); other text as is */
+static const char *exception_text(const char *message, char *out, size_t size)
+{
+    static const char prefix[] = "Fatal py exception encountered: ";
+    if (strncmp(message, prefix, sizeof prefix - 1) != 0) return message;
+    const char *call = message + sizeof prefix - 1;
+    const char *call_end = strstr(call, "] ");
+    const char *exception = strchr(call, '\n');
+    if (!call_end || !exception || call_end > exception) return call;
+    snprintf(out, size, "%.*s %s", (int)(call_end + 1 - call), call, exception + 1);
+    return out;
+}
+
 /* PythonFMU's logger: its message is plain text (it passes no format arguments) */
 static void relay_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
                       fmi2String message, ...)
 {
     const Instance *inst = env;
+    char tidy[4096];
     (void)name;
-    if (inst->fatal_is_error && status == fmi2Fatal) status = fmi2Error;
+    if (!message) message = "";
+    if (inst->fatal_is_error && status == fmi2Fatal) {
+        status = fmi2Error;
+        message = exception_text(message, tidy, sizeof tidy);
+    }
     if (inst->host.logger && wanted(inst, status, category))
-        inst->host.logger(inst->host.componentEnvironment, inst->name, status, category, "%s",
-                          message ? message : "");
+        inst->host.logger(inst->host.componentEnvironment, inst->name, status, category, "%s", message);
 }
 
 static void set_host_logging(Instance *inst, fmi2Boolean on, size_t n, const fmi2String *categories)

@@ -4,7 +4,8 @@ import math
 
 import numpy as np
 
-from ..core.errors import ParameterError, SolverError
+from .errors import ReferenceParameterError, ReferenceSolverError
+from .laws import ReferenceParameters
 from .closed_form import run_affine
 from .numeric import run_numeric
 from .result import ReferenceEvent, ReferenceResult
@@ -19,8 +20,12 @@ def simulate_reference(params, x0, v0, inputs, t_eval, rtol=1e-12):
 
     ``inputs`` are breakpoints ``(t_k, v_drive_k, F_ext_k)`` (s, m/s, N), sorted,
     the first at ``t_eval[0]``, each held until the next (zero-order hold).
-    Returns a :class:`ReferenceResult` on ``t_eval``.
+    ``params`` is a :class:`~.laws.ReferenceParameters` (the reference's own laws,
+    e.g. from :func:`~.laws.parameters_from_values`). Returns a :class:`ReferenceResult` on ``t_eval``.
     """
+    if not isinstance(params, ReferenceParameters):
+        raise ReferenceParameterError(
+            f"params must be the reference's own ReferenceParameters (see parameters_from_values), got {params!r}")
     params.check()
     t_eval = np.asarray(t_eval, float)
     breakpoints = _check(x0, v0, inputs, t_eval)
@@ -103,7 +108,7 @@ class _Run:
         self._count = self._count + 1 if s.t == self._instant else 1
         self._instant = s.t
         if self._count > MAX_EVENTS_PER_INSTANT:
-            raise SolverError(
+            raise ReferenceSolverError(
                 f"event chain at t = {s.t!r} s: more than {MAX_EVENTS_PER_INSTANT} mode changes at the same "
                 f"instant (last: {kind} {self.events[-1].mode_before} -> {mode} at x = {s.x!r} m)"
             )
@@ -129,17 +134,17 @@ class _Run:
 def _check(x0, v0, inputs, t_eval):
     """Validate the arguments; return the breakpoints that change the inputs, as float triples."""
     if t_eval.ndim != 1 or t_eval.size == 0 or not np.all(np.isfinite(t_eval)) or np.any(np.diff(t_eval) <= 0.0):
-        raise ParameterError("t_eval must be a non-empty 1-D array of finite, strictly increasing times (s)")
+        raise ReferenceParameterError("t_eval must be a non-empty 1-D array of finite, strictly increasing times (s)")
     for name, value in (("x0", x0), ("v0", v0)):
         if not math.isfinite(value):
-            raise ParameterError(f"{name} = {value!r} must be finite")
+            raise ReferenceParameterError(f"{name} = {value!r} must be finite")
     breakpoints = [tuple(float(c) for c in row) for row in inputs]
     if not breakpoints or breakpoints[0][0] != t_eval[0]:
-        raise ParameterError(f"inputs must start with a breakpoint at t_eval[0] = {t_eval[0]!r} s")
+        raise ReferenceParameterError(f"inputs must start with a breakpoint at t_eval[0] = {t_eval[0]!r} s")
     for t_k, vd, F in breakpoints:
         if not (math.isfinite(t_k) and math.isfinite(vd) and math.isfinite(F)):
-            raise ParameterError(f"input breakpoint ({t_k!r}, {vd!r}, {F!r}) must be finite")
+            raise ReferenceParameterError(f"input breakpoint ({t_k!r}, {vd!r}, {F!r}) must be finite")
     if any(b[0] < a[0] for a, b in zip(breakpoints, breakpoints[1:])):
-        raise ParameterError("input breakpoints must be sorted by time")
+        raise ReferenceParameterError("input breakpoints must be sorted by time")
     # a breakpoint that repeats the held values is no jump: drop it, so results do not depend on the master's grid
     return breakpoints[:1] + [b for a, b in zip(breakpoints, breakpoints[1:]) if b[1:] != a[1:]]

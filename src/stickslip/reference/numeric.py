@@ -3,7 +3,7 @@
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..core.errors import SolverError
+from .errors import ReferenceSolverError
 from .rules import acceleration, departure, period
 from .scan import first_zero
 
@@ -66,7 +66,7 @@ def run_numeric(p, mode, t0, x0, v0, v_drive, F_ext, t_max, rtol):
         dense_output=True, events=v_rel_event, max_step=period(p) / STEPS_PER_PERIOD,
     )
     if sol.status < 0:
-        raise SolverError(f"reference slip solver failed after t = {sol.t[-1]!r} s (started at {t0!r} s): {sol.message}")
+        raise ReferenceSolverError(f"reference slip solver failed after t = {sol.t[-1]!r} s (started at {t0!r} s): {sol.message}")
     phase = NumericSlip(mode, t0, x0, v0, sol.sol)
     t_hit = _scan(p, phase, sol.t, v_drive, F_ext, rising)
     if t_hit is None and sol.t_events[0].size:

@@ -2,7 +2,7 @@
 
 ``x`` (m) from the spring's relaxed length, ``v`` (m/s), ``v_rel = v_drive - v``;
 forces (N) positive along +x. Modes: +1 slipping with ``v < v_drive``, 0 stuck,
--1 slipping with ``v > v_drive``. ``p`` is a ``core.model.Parameters``.
+-1 slipping with ``v > v_drive``. ``p`` is a :class:`~.laws.ReferenceParameters`.
 """
 
 import math

@@ -51,7 +51,7 @@ import math
 import numpy as np
 
 from ..core import Parameters, kinetic_law, static_law
-from ..reference import simulate_reference
+from ..reference import parameters_from_values, simulate_reference
 
 EPS = 2.220446049250313e-16
 ROUND = 16.0 * EPS  # relative rounding allowance of the invariants
@@ -194,9 +194,13 @@ def check_invariants(samples, p, t0=0.0, violations=None):
 # ---------------------------------------------------------------------------
 
 
-def reference_for(p, x0, v0, breakpoints, times, rtol=1e-12):
-    """The independent reference on the sample ``times`` with the inputs the FMU saw."""
-    return simulate_reference(p, x0, v0, breakpoints, np.asarray(times, float), rtol=rtol)
+def reference_for(values, x0, v0, breakpoints, times, rtol=1e-12):
+    """The independent reference on the sample ``times`` with the inputs the FMU saw.
+
+    Its laws are the reference's own, built from the FMU start ``values`` (not from core objects).
+    """
+    return simulate_reference(parameters_from_values(values), x0, v0, breakpoints, np.asarray(times, float),
+                              rtol=rtol)
 
 
 def mode_changes(ref):

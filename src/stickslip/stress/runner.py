@@ -30,7 +30,6 @@ import numpy as np
 from tqdm import tqdm
 
 from ..core.errors import StickSlipError
-from ..reference import simulate_reference
 from . import checks
 from .cases import stress_cases
 from .session import FmuCallError, FmuSession, as_columns
@@ -161,7 +160,7 @@ def run_case(session, case):
 
     if case.reference:
         try:
-            ref = checks.reference_for(p, values["x_start"], values["v_start"], breakpoints, samples["time"])
+            ref = checks.reference_for(values, values["x_start"], values["v_start"], breakpoints, samples["time"])
             outcome.ref_error, where = checks.compare_reference(samples, ref, p)
             outcome.details["reference"] = where
             if outcome.ref_error > case.tol:
@@ -277,12 +276,12 @@ def _reference_cycle(p, values, n_cycles=6):
     vd = values["v_drive"]
     t_guess = 2 * p.static.force(0.0) / (p.kappa * vd) + 2 * math.pi * math.sqrt(p.M / p.kappa)
     t_end = n_cycles * t_guess
-    ref = checks.reference_for(p, values["x_start"], values["v_start"], [(0.0, vd, values["F_ext"])],
+    ref = checks.reference_for(values, values["x_start"], values["v_start"], [(0.0, vd, values["F_ext"])],
                                np.linspace(0.0, t_end, 200))
     sticks = [e.t for e in ref.events if e.kind == "stick"]
     period = float(np.mean(np.diff(sticks[1:])))
-    at = simulate_reference(p, values["x_start"], values["v_start"], [(0.0, vd, values["F_ext"])],
-                            np.array([0.0, sticks[-1]]))
+    at = checks.reference_for(values, values["x_start"], values["v_start"], [(0.0, vd, values["F_ext"])],
+                              np.array([0.0, sticks[-1]]))
     return period, float(at.x[-1]), sticks
 
 
