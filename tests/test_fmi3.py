@@ -14,13 +14,13 @@ from fmpy.validation import validate_fmu
 
 from stickslip.cli import main
 from stickslip.compare import compare, fmu_events, reference_events
-from stickslip.core import Constant, Coulomb, Lubricated, Parameters, Trajectory
+from stickslip.core import Constant, Lubricated, Parameters, Trajectory
 from stickslip.fmu3_build import is_current, source_tag3
 from stickslip.fmu3_driver import ensure_fmu3, held_input_table, run_fmu3
 from stickslip.fmu_build import built_tag
 from stickslip.fmu_driver import FMUError, run_fmu
 from stickslip.inputs import Signal
-from stickslip.reference import simulate_reference
+from stickslip.reference import parameters_from_values, simulate_reference
 from stickslip.runner import OUTPUTS, simulate
 from stickslip.scenario import load_scenario
 
@@ -219,7 +219,9 @@ def test_model_exchange_slipping_block_keeps_its_velocity_through_an_input_jump(
     inputs = held_input_table([(0.0, 1.0, 0.0), (0.1, -1.0, 0.0)], 0.2)
     outputs = ["x", "v", "mode", "n_events", "n_overshoots", "n_stick_events"]
     result = run_fmu3(fmu3_path, start, 0.2, 0.05, "me", input_signal=inputs, outputs=outputs, rtol=1e-10)
-    ref = simulate_reference(Parameters(1.0, 1.0, Coulomb(F0=0.5), Constant(F0=1.0)), 0.0, 0.0,
+    laws = {"M": 1.0, "kappa": 1.0, "kinetic.law": "coulomb", "kinetic.F0": 0.5, "static.law": "constant",
+            "static.F0": 1.0}
+    ref = simulate_reference(parameters_from_values(laws), 0.0, 0.0,
                              [(0.0, 1.0, 0.0), (0.1, -1.0, 0.0)], result["time"])
     assert np.all(result["mode"][result["time"] > 0.1] == -1)
     assert result["n_overshoots"][-1] == 1 and result["n_stick_events"][-1] == 0

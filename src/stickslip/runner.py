@@ -78,6 +78,7 @@ def run_scenario(scenario, fmu_path, out_dir=None, interface=None):
 
     ``interface``: as :func:`simulate`; "me" is checked against the ``[model_exchange]`` tolerances.
     """
+    known_miss = scenario.model_exchange.known_miss if interface == "me" else ""
     try:
         fmu, ref, fmu_s, ref_s = simulate(scenario, fmu_path, interface)
     except (StickSlipError, ReferenceFailure) as exc:
@@ -88,7 +89,8 @@ def run_scenario(scenario, fmu_path, out_dir=None, interface=None):
         write_result_csv(Path(out_dir) / f"{scenario.name}.csv", fmu, OUTPUTS)
         plot_scenario(Path(out_dir) / f"{scenario.name}.png", scenario.name, fmu, ref,
                       scenario.tolerance.max_abs_dx)
-    return Outcome(scenario.name, scenario.expected_attractor, compare(fmu, ref, scenario), fmu_s, ref_s)
+    return Outcome(scenario.name, scenario.expected_attractor, compare(fmu, ref, scenario), fmu_s, ref_s,
+                   known_miss=known_miss)
 
 
 def run_suite(paths, out_dir, jobs=2, fmu_path=None, interface=None):
