@@ -19,14 +19,16 @@ instance after the error, as libcosim does, does not crash.
 import copy
 import ctypes
 import functools
+import operator
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
 from stickslip.core import (
-    KINETIC_LAWS, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, Trajectory, kinetic_law, static_law,
+    KINETIC_LAWS, OUTPUT_NAMES, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, Trajectory, kinetic_law, static_law,
 )
 
 CONTINUOUS, DISCRETE = Fmi2Variability.continuous, Fmi2Variability.discrete
+_MAX_READ_PLANS = 64  # distinct sets of value references whose checked reader an instance keeps
 
 # FMU name, Trajectory attribute, type, variability, unit, description
 OUTPUTS = (
@@ -80,7 +82,12 @@ class SpringBlockFriction(Fmi2Slave):
         self.bounds = {}  # FMU name -> inclusive (min, max), None where unbounded; read by stickslip.fmu_build
         self.start_time = 0.0
         self.trajectory = None  # built when initialization ends
-        self._output_cache = {}  # {output name: value} at the current state, filled as outputs are read
+        self._by_reference = []  # every variable's value by value reference; the outputs' part may be stale
+        self._outputs_stale = True  # the outputs' part needs an evaluation at the current state
+        self._inputs_changed = False  # a parameter or input was set since the trajectory last saw the inputs
+        self._references = {Real: set(), Integer: set()}  # value references by variable type
+        self._reference_of = {}  # FMU name -> value reference
+        self._read_plans = {}  # (type, value references) -> (read, needs_outputs), see _read_plan
 
         self._parameter("M", Real, 1.0, "kg", "block mass")
         self._parameter("kappa", Real, 1.0, "N/m", "spring stiffness")
@@ -96,24 +103,28 @@ class SpringBlockFriction(Fmi2Slave):
         )
         self._input("v_drive", 0.1, "m/s", "surface (drive) velocity")
         self._input("F_ext", 0.0, "N", "external force on the block")
+        self._outputs_at = len(self._by_reference)  # the outputs take the value references from here on
         for name, attribute, kind, variability, unit, text in OUTPUTS:
             self._output(name, attribute, kind, variability, unit, text)
 
     # ---- variable declarations -------------------------------------------------
 
-    def _declare(self, variable, unit, bounds=(None, None)):
+    def _declare(self, variable, value, unit, bounds=(None, None)):
         self.register_variable(variable, nested=False)
+        self._by_reference.append(value)
+        self._reference_of[variable.name] = variable.value_reference
+        self._references[type(variable)].add(variable.value_reference)
         self.units[variable.name] = unit
         self.bounds[variable.name] = bounds
 
     def _parameter(self, name, kind, default, unit, description, bounds=(None, None)):
-        self.values[name] = default
+        self.values[name] = default = float(default) if kind is Real else int(default)
         self._declare(
             kind(
                 name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed, description=description,
                 getter=lambda: self.values[name], setter=lambda value: self._set_parameter(name, value),
             ),
-            unit, bounds,
+            default, unit, bounds,
         )
 
     def _input(self, name, start, unit, description):
@@ -123,16 +134,20 @@ class SpringBlockFriction(Fmi2Slave):
                 name, causality=Fmi2Causality.input, variability=CONTINUOUS, description=description,
                 getter=lambda: self.values[name], setter=lambda value: self._set_value(name, value),
             ),
-            unit,
+            start, unit,
         )
 
     def _output(self, name, attribute, kind, variability, unit, description):
+        index = OUTPUT_NAMES.index(attribute)
+        reference = len(self._by_reference)
+        if reference != self._outputs_at + index:
+            raise ValueError(f"output {name} must come at position {index} of OUTPUTS, the order of OUTPUT_NAMES")
         self._declare(
             kind(
                 name, causality=Fmi2Causality.output, variability=variability, description=description,
-                getter=lambda: self._read_output(name, attribute),
+                getter=lambda: self._current_values()[reference],
             ),
-            unit,
+            None, unit,
         )
 
     def _set_parameter(self, name, value):
@@ -142,14 +157,53 @@ class SpringBlockFriction(Fmi2Slave):
 
     def _set_value(self, name, value):
         self.values[name] = value
-        self._output_cache.clear()
+        self._inputs_changed = True
+        self._by_reference[self._reference_of[name]] = value
+        self._outputs_stale = True
 
-    def _read_output(self, name, attribute):
-        """An output at the current state, computed on its first read after a change (none is ever None)."""
-        value = self._output_cache.get(name)
-        if value is None:
-            value = self._output_cache[name] = getattr(self._current(), attribute)
-        return value
+    # ---- values of any set of variables ------------------------------------------
+
+    def _current_values(self):
+        """Every variable's value by value reference, the outputs from one evaluation at the current state."""
+        if self._outputs_stale:
+            self._by_reference[self._outputs_at:] = self._current().outputs()
+            self._outputs_stale = False
+        return self._by_reference
+
+    def _read(self, kind, references):
+        """The values of the variables ``references`` of type ``kind`` as a list (TypeError for another type)."""
+        key = (kind, tuple(references))
+        plan = self._read_plans.get(key)
+        if plan is None:
+            plan = self._read_plan(kind, key[1])
+        read, needs_outputs = plan
+        if needs_outputs and self._outputs_stale:
+            self._current_values()
+        return read(self._by_reference)
+
+    def _read_plan(self, kind, references):
+        """``(read, needs_outputs)`` for a set of value references, checked once and remembered."""
+        wrong = [r for r in references if r not in self._references[kind]]
+        if wrong:
+            raise TypeError(f"Variable with valueReference={wrong[0]} is not of type {kind.__name__}!")
+        if len(references) == 1:
+            reference = references[0]
+            plan = (lambda values: [values[reference]]), reference >= self._outputs_at
+        else:
+            pick = operator.itemgetter(*references) if references else lambda values: ()
+            plan = (lambda values: list(pick(values))), max(references, default=-1) >= self._outputs_at
+        if len(self._read_plans) >= _MAX_READ_PLANS:  # an importer reads a few fixed sets; bound the rest
+            self._read_plans.clear()
+        self._read_plans[(kind, references)] = plan
+        return plan
+
+    def get_real(self, vrs):
+        """The Real variables ``vrs`` (value references), outputs from one evaluation per state."""
+        return self._read(Real, vrs)
+
+    def get_integer(self, vrs):
+        """The Integer variables ``vrs`` (value references), outputs from one evaluation per state."""
+        return self._read(Integer, vrs)
 
     # ---- model -------------------------------------------------------------------
 
@@ -173,7 +227,9 @@ class SpringBlockFriction(Fmi2Slave):
         """The trajectory with the latest inputs applied (a fresh one during initialization)."""
         if self.trajectory is None:
             return self._new_trajectory()
-        self.trajectory.set_inputs(self.values["v_drive"], self.values["F_ext"])
+        if self._inputs_changed:
+            self.trajectory.set_inputs(self.values["v_drive"], self.values["F_ext"])
+            self._inputs_changed = False
         return self.trajectory
 
     # ---- FMI ---------------------------------------------------------------------
@@ -184,12 +240,12 @@ class SpringBlockFriction(Fmi2Slave):
 
     def exit_initialization_mode(self):
         self.trajectory = self._new_trajectory()
-        self._output_cache.clear()
+        self._outputs_stale = True
 
     def do_step(self, current_time, step_size):
         """Hold the inputs and advance to ``current_time + step_size`` s (raises on failure, never discards)."""
         self._current().advance_to(current_time + step_size)
-        self._output_cache.clear()
+        self._outputs_stale = True
         return True
 
     def _get_fmu_state(self):
@@ -198,11 +254,12 @@ class SpringBlockFriction(Fmi2Slave):
 
     def _set_fmu_state(self, state):
         state = copy.deepcopy(state)  # the importer may restore the same state again
-        self.values.update(state["values"])
+        for name, value in state["values"].items():
+            self._set_value(name, value)
         self.start_time = state["start_time"]
         snapshot = state["trajectory"]
         self.trajectory = None if snapshot is None else Trajectory.from_snapshot(self._parameters(), snapshot)
-        self._output_cache.clear()
+        self._outputs_stale = True
 
 
 # ---- PythonFMU's release of the slave on an exception -----------------------------
@@ -233,9 +290,9 @@ def _survives_release(method):
     """
 
     @functools.wraps(method)
-    def entry_point(self, *args, **kwargs):
+    def entry_point(self, *args):
         try:
-            return method(self, *args, **kwargs)
+            return method(self, *args)
         except BaseException:
             for reference in (self, type(self), self.log_queue):
                 ctypes.pythonapi.Py_IncRef(ctypes.py_object(reference))

@@ -23,10 +23,10 @@ from .laws import (
     static_law,
 )
 from .model import BACKWARD, FORWARD, STUCK, Parameters
-from .trajectory import RTOL_RANGE, Trajectory
+from .trajectory import OUTPUT_NAMES, RTOL_RANGE, Trajectory
 
 __all__ = [
-    "BACKWARD", "FORWARD", "STUCK", "KINETIC_LAWS", "STATIC_LAWS",
+    "BACKWARD", "FORWARD", "STUCK", "KINETIC_LAWS", "OUTPUT_NAMES", "STATIC_LAWS",
     "CallableKinetic", "CallableStatic", "Constant", "Coulomb", "Logarithmic", "Lubricated",
     "Parameters", "ParameterError", "RTOL_RANGE", "Saturating", "Sigmoid", "SolverError", "StickSlipError",
     "Stribeck", "Trajectory", "Viscous", "kinetic_law", "static_law",

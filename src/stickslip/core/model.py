@@ -131,8 +131,11 @@ def continued_kinetic_force(law):
 
 
 def slip_friction(mode, v_rel, p):
-    """Friction force (N) while slipping in ``mode`` (+1 or -1): ``mode * F_K(mode * v_rel)``."""
-    return mode * continued_kinetic_force(p.kinetic)(mode * v_rel)
+    """Friction force (N) while slipping in ``mode`` (+1 or -1): ``mode * F_K(mode * v_rel)``, with ``F_K``
+    continued as in :func:`continued_kinetic_force`."""
+    u = mode * v_rel
+    law = p.kinetic
+    return mode * (law.force(u) if u >= 0.0 else law.force(0.0) + law.slope(0.0) * u)
 
 
 def slip_accelerator(mode, v_drive, F_ext, p):

@@ -44,6 +44,12 @@ RTOL_RANGE = Range(1e-14, 1e-2)
 _MAX_EVENT_CHAIN = 100  # mode changes in a row without time advancing
 _STUCK_HORIZON_PERIODS = 1e6  # an aging stick is searched for a breakaway this far ahead, then re-searched
 
+# The properties that :meth:`Trajectory.outputs` returns, in its order.
+OUTPUT_NAMES = (
+    "x", "v", "v_rel", "friction_force", "spring_force", "mode", "t_stick", "z_slip", "z_stick", "n_events",
+    "n_stick_events", "n_slip_events", "n_overshoots", "t_last_event", "n_steps",
+)
+
 
 class Trajectory:
     """Solution of the hybrid spring-block model with piecewise-constant inputs."""
@@ -134,6 +140,19 @@ class Trajectory:
     # ------------------------------------------------------------------
     # state and outputs at self.t
     # ------------------------------------------------------------------
+
+    def outputs(self):
+        """Every property named in :data:`OUTPUT_NAMES`, in that order, from one evaluation of the state."""
+        segment, x, v, F_ext, p = self._segment, self._x, self._v, self.F_ext, self.params
+        mode = segment.mode
+        t_stick = segment.t_stick(self.t)
+        v_rel = 0.0 if mode == STUCK else self.v_drive - v
+        n_stick, n_slip, n_over = self.n_stick_events, self.n_slip_events, self.n_overshoots
+        return (
+            x, v, v_rel, friction_force(mode, x, v, self.v_drive, F_ext, p), -p.kappa * x, mode, t_stick,
+            z_slip(x, F_ext, t_stick, p), v_rel, n_stick + n_slip + n_over, n_stick, n_slip, n_over,
+            self.t_last_event, self._stepper.n_steps,
+        )
 
     @property
     def x(self):
