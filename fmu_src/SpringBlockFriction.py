@@ -20,6 +20,7 @@ import copy
 import ctypes
 import functools
 import operator
+from typing import NamedTuple
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
@@ -28,7 +29,6 @@ from stickslip.core import (
 )
 
 CONTINUOUS, DISCRETE = Fmi2Variability.continuous, Fmi2Variability.discrete
-_MAX_READ_PLANS = 64  # distinct sets of value references whose checked reader an instance keeps
 
 # FMU name, Trajectory attribute, type, variability, unit, description
 OUTPUTS = (
@@ -50,6 +50,19 @@ OUTPUTS = (
 )
 
 
+class Declaration(NamedTuple):
+    """One FMU variable: its value reference is its position in :data:`DECLARATIONS`."""
+
+    name: str
+    kind: type  # pythonfmu Real or Integer
+    causality: Fmi2Causality
+    variability: Fmi2Variability
+    start: object  # float or int; None for an output
+    unit: str
+    bounds: tuple  # inclusive (min, max), None where unbounded
+    description: str
+
+
 def _law_parameters(kind, laws):
     """``{FMU name: (default, Range, unit, description)}`` of every parameter of the coded laws.
 
@@ -69,104 +82,79 @@ def _inclusive_bounds(allowed):
     return low, high
 
 
+def _declarations():
+    """Every variable in value-reference order: parameters, inputs, then the outputs in OUTPUT_NAMES order."""
+    fixed, parameter = Fmi2Variability.fixed, Fmi2Causality.parameter
+    out = [
+        Declaration("M", Real, parameter, fixed, 1.0, "kg", (None, None), "block mass"),
+        Declaration("kappa", Real, parameter, fixed, 1.0, "N/m", (None, None), "spring stiffness"),
+        Declaration("x_start", Real, parameter, fixed, 0.0, "m", (None, None), "initial position"),
+        Declaration("v_start", Real, parameter, fixed, 0.0, "m/s", (None, None),
+                    "initial velocity (stuck if v_start = v_drive and the contact holds)"),
+    ]
+    for kind, laws in (("kinetic", KINETIC_LAWS), ("static", STATIC_LAWS)):
+        codes = ", ".join(f"{code} {laws[code].NAME}" for code in sorted(laws))
+        out.append(Declaration(f"{kind}.law", Integer, parameter, fixed, 1, "", (min(laws), max(laws)),
+                               f"{kind} friction law: {codes}"))
+        for name, (default, allowed, unit, text) in _law_parameters(kind, laws).items():
+            out.append(Declaration(name, Real, parameter, fixed, float(default), unit, _inclusive_bounds(allowed), text))
+    out.append(Declaration("solver.rtol", Real, parameter, fixed, 1e-10, "1", _inclusive_bounds(RTOL_RANGE),
+                           "relative tolerance of the internal solver"))
+    for name, start, unit, text in (("v_drive", 0.1, "m/s", "surface (drive) velocity"),
+                                    ("F_ext", 0.0, "N", "external force on the block")):
+        out.append(Declaration(name, Real, Fmi2Causality.input, CONTINUOUS, start, unit, (None, None), text))
+    by_attribute = {attribute: (name, *rest) for name, attribute, *rest in OUTPUTS}
+    for attribute in OUTPUT_NAMES:
+        name, kind, variability, unit, text = by_attribute[attribute]
+        out.append(Declaration(name, kind, Fmi2Causality.output, variability, None, unit, (None, None), text))
+    return tuple(out)
+
+
+DECLARATIONS = _declarations()
+OUTPUTS_AT = len(DECLARATIONS) - len(OUTPUT_NAMES)  # the outputs' first value reference
+_REFERENCES = {kind: frozenset(r for r, d in enumerate(DECLARATIONS) if d.kind is kind) for kind in (Real, Integer)}
+_MAX_READ_PLANS = 64  # distinct sets of value references whose checked reader an instance keeps
+
+
 class SpringBlockFriction(Fmi2Slave):
-    """Block of mass M on a moving surface, tied to a wall by a spring; dry friction with stick, slip and aging."""
+    """Block of mass M on a moving surface, tied to a wall by a spring; dry friction with stick, slip and aging.
+
+    The variables are :data:`DECLARATIONS`, answered from one list of values by value reference
+    (:meth:`get_real` and friends); PythonFMU's per-variable objects are made only to write the model
+    description (:meth:`to_xml`).
+    """
 
     author = "stickslip"
     description = "Spring-block dry friction (Elmer 1997) with exact stick-slip events"
+    units = {d.name: d.unit for d in DECLARATIONS}  # "" or "1": dimensionless; read by stickslip.fmu_build
+    bounds = {d.name: d.bounds for d in DECLARATIONS}  # read by stickslip.fmu_build
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.values = {}  # parameter and input values by FMU name
-        self.units = {}  # FMU name -> unit ("" or "1": dimensionless); read by stickslip.fmu_build
-        self.bounds = {}  # FMU name -> inclusive (min, max), None where unbounded; read by stickslip.fmu_build
+        self.values = {d.name: d.start for d in DECLARATIONS[:OUTPUTS_AT]}  # parameters and inputs by FMU name
         self.start_time = 0.0
         self.trajectory = None  # built when initialization ends
-        self._by_reference = []  # every variable's value by value reference; the outputs' part may be stale
+        self._by_reference = [d.start for d in DECLARATIONS]  # every value by value reference; outputs may be stale
         self._outputs_stale = True  # the outputs' part needs an evaluation at the current state
         self._inputs_changed = False  # a parameter or input was set since the trajectory last saw the inputs
-        self._references = {Real: set(), Integer: set()}  # value references by variable type
-        self._reference_of = {}  # FMU name -> value reference
         self._read_plans = {}  # (type, value references) -> (read, needs_outputs), see _read_plan
 
-        self._parameter("M", Real, 1.0, "kg", "block mass")
-        self._parameter("kappa", Real, 1.0, "N/m", "spring stiffness")
-        self._parameter("x_start", Real, 0.0, "m", "initial position")
-        self._parameter("v_start", Real, 0.0, "m/s", "initial velocity (stuck if v_start = v_drive and the contact holds)")
-        for kind, laws in (("kinetic", KINETIC_LAWS), ("static", STATIC_LAWS)):
-            codes = ", ".join(f"{code} {laws[code].NAME}" for code in sorted(laws))
-            self._parameter(f"{kind}.law", Integer, 1, "", f"{kind} friction law: {codes}", (min(laws), max(laws)))
-            for name, (default, allowed, unit, text) in _law_parameters(kind, laws).items():
-                self._parameter(name, Real, default, unit, text, _inclusive_bounds(allowed))
-        self._parameter(
-            "solver.rtol", Real, 1e-10, "1", "relative tolerance of the internal solver", _inclusive_bounds(RTOL_RANGE)
-        )
-        self._input("v_drive", 0.1, "m/s", "surface (drive) velocity")
-        self._input("F_ext", 0.0, "N", "external force on the block")
-        self._outputs_at = len(self._by_reference)  # the outputs take the value references from here on
-        for name, attribute, kind, variability, unit, text in OUTPUTS:
-            self._output(name, attribute, kind, variability, unit, text)
-
-    # ---- variable declarations -------------------------------------------------
-
-    def _declare(self, variable, value, unit, bounds=(None, None)):
-        self.register_variable(variable, nested=False)
-        self._by_reference.append(value)
-        self._reference_of[variable.name] = variable.value_reference
-        self._references[type(variable)].add(variable.value_reference)
-        self.units[variable.name] = unit
-        self.bounds[variable.name] = bounds
-
-    def _parameter(self, name, kind, default, unit, description, bounds=(None, None)):
-        self.values[name] = default = float(default) if kind is Real else int(default)
-        self._declare(
-            kind(
-                name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed, description=description,
-                getter=lambda: self.values[name], setter=lambda value: self._set_parameter(name, value),
-            ),
-            default, unit, bounds,
-        )
-
-    def _input(self, name, start, unit, description):
-        self.values[name] = start
-        self._declare(
-            Real(
-                name, causality=Fmi2Causality.input, variability=CONTINUOUS, description=description,
-                getter=lambda: self.values[name], setter=lambda value: self._set_value(name, value),
-            ),
-            start, unit,
-        )
-
-    def _output(self, name, attribute, kind, variability, unit, description):
-        index = OUTPUT_NAMES.index(attribute)
-        reference = len(self._by_reference)
-        if reference != self._outputs_at + index:
-            raise ValueError(f"output {name} must come at position {index} of OUTPUTS, the order of OUTPUT_NAMES")
-        self._declare(
-            kind(
-                name, causality=Fmi2Causality.output, variability=variability, description=description,
-                getter=lambda: self._current_values()[reference],
-            ),
-            None, unit,
-        )
-
-    def _set_parameter(self, name, value):
-        if self.trajectory is not None:
-            raise ParameterError(f"{name} is a fixed parameter: it cannot change after initialization")
-        self._set_value(name, value)
-
-    def _set_value(self, name, value):
-        self.values[name] = value
-        self._inputs_changed = True
-        self._by_reference[self._reference_of[name]] = value
-        self._outputs_stale = True
+    def to_xml(self, model_options=None):
+        """PythonFMU's model description, with the variables registered for it first."""
+        if not self.vars:
+            for d in DECLARATIONS:
+                self.register_variable(
+                    d.kind(d.name, causality=d.causality, variability=d.variability, description=d.description),
+                    nested=False,
+                )
+        return super().to_xml({} if model_options is None else model_options)
 
     # ---- values of any set of variables ------------------------------------------
 
     def _current_values(self):
         """Every variable's value by value reference, the outputs from one evaluation at the current state."""
         if self._outputs_stale:
-            self._by_reference[self._outputs_at:] = self._current().outputs()
+            self._by_reference[OUTPUTS_AT:] = self._current().outputs()
             self._outputs_stale = False
         return self._by_reference
 
@@ -183,19 +171,33 @@ class SpringBlockFriction(Fmi2Slave):
 
     def _read_plan(self, kind, references):
         """``(read, needs_outputs)`` for a set of value references, checked once and remembered."""
-        wrong = [r for r in references if r not in self._references[kind]]
-        if wrong:
-            raise TypeError(f"Variable with valueReference={wrong[0]} is not of type {kind.__name__}!")
+        _check_kind(kind, references)
         if len(references) == 1:
             reference = references[0]
-            plan = (lambda values: [values[reference]]), reference >= self._outputs_at
+            plan = (lambda values: [values[reference]]), reference >= OUTPUTS_AT
         else:
             pick = operator.itemgetter(*references) if references else lambda values: ()
-            plan = (lambda values: list(pick(values))), max(references, default=-1) >= self._outputs_at
+            plan = (lambda values: list(pick(values))), max(references, default=-1) >= OUTPUTS_AT
         if len(self._read_plans) >= _MAX_READ_PLANS:  # an importer reads a few fixed sets; bound the rest
             self._read_plans.clear()
         self._read_plans[(kind, references)] = plan
         return plan
+
+    def _write(self, kind, references, values):
+        _check_kind(kind, references)
+        for reference, value in zip(references, values):
+            if reference >= OUTPUTS_AT:
+                raise TypeError(f"Variable with valueReference={reference} is an output: it cannot be set!")
+            name, causality = DECLARATIONS[reference].name, DECLARATIONS[reference].causality
+            if causality is Fmi2Causality.parameter and self.trajectory is not None:
+                raise ParameterError(f"{name} is a fixed parameter: it cannot change after initialization")
+            self._set_value(name, value)
+
+    def _set_value(self, name, value):
+        self.values[name] = value
+        self._by_reference[_REFERENCE_OF[name]] = value
+        self._inputs_changed = True
+        self._outputs_stale = True
 
     def get_real(self, vrs):
         """The Real variables ``vrs`` (value references), outputs from one evaluation per state."""
@@ -204,6 +206,14 @@ class SpringBlockFriction(Fmi2Slave):
     def get_integer(self, vrs):
         """The Integer variables ``vrs`` (value references), outputs from one evaluation per state."""
         return self._read(Integer, vrs)
+
+    def set_real(self, vrs, values):
+        """Set the Real parameters (before initialization ends) or inputs ``vrs`` to ``values``."""
+        self._write(Real, vrs, values)
+
+    def set_integer(self, vrs, values):
+        """Set the Integer parameters ``vrs`` (before initialization ends) to ``values``."""
+        self._write(Integer, vrs, values)
 
     # ---- model -------------------------------------------------------------------
 
@@ -260,6 +270,27 @@ class SpringBlockFriction(Fmi2Slave):
         snapshot = state["trajectory"]
         self.trajectory = None if snapshot is None else Trajectory.from_snapshot(self._parameters(), snapshot)
         self._outputs_stale = True
+
+
+_REFERENCE_OF = {d.name: reference for reference, d in enumerate(DECLARATIONS)}
+
+
+def _check_kind(kind, references):
+    """Raise TypeError unless every value reference is a variable of type ``kind``."""
+    if not _REFERENCES[kind].issuperset(references):
+        wrong = next(r for r in references if r not in _REFERENCES[kind])
+        raise TypeError(f"Variable with valueReference={wrong} is not of type {kind.__name__}!")
+
+
+def hold_loader_namespace(namespace):
+    """Take one reference to ``namespace``, the globals of the module PythonFMU loads the slave from.
+
+    PythonFMU 0.7.0 (``findClass`` in its fmi2Instantiate) runs that module's source again in its globals,
+    which it gets from ``PyModule_GetDict`` (a borrowed reference) and then releases, once per instance.
+    A module whose source creates nothing that keeps its globals (a one-line import, see
+    stickslip.fmu_staging) loses its namespace after a few instances unless each run takes that reference.
+    """
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(namespace))
 
 
 # ---- PythonFMU's release of the slave on an exception -----------------------------

@@ -1,9 +1,9 @@
 """Build the SpringBlockFriction FMU (FMI 2.0 co-simulation) with PythonFMU.
 
-The runtime ``stickslip/core`` is bundled into the FMU's resources as the
-package ``sbf_runtime_<tag>`` and the slave as the module
-``springblockfriction_<tag>``, where ``<tag>`` is 10 hex digits of a sha256
-over the runtime, the slave and this builder. A host that imported its own
+The runtime ``stickslip/core`` and the slave are bundled into the FMU's resources
+as the package ``sbf_runtime_<tag>``, loaded through the module
+``springblockfriction_<tag>`` (layout: :mod:`stickslip.fmu_staging`), where
+``<tag>`` is 10 hex digits of a sha256 over the runtime, the slave and the builder. A host that imported its own
 ``stickslip``, or another build of this FMU, therefore never hands the FMU a
 different copy of the runtime. PythonFMU's model description is then completed:
 units, declared types, bounds, InitialUnknowns, a default experiment and the
@@ -12,8 +12,6 @@ FMU-state capabilities.
 
 import hashlib
 import os
-import re
-import shutil
 import sys
 import tempfile
 import zipfile
@@ -21,6 +19,7 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from .fmi_host import preserved_sys_path
+from .fmu_staging import stage_runtime
 
 REPO = Path(__file__).resolve().parents[2]
 RUNTIME = Path(__file__).resolve().parent / "core"
@@ -46,7 +45,8 @@ class BuildError(RuntimeError):
 
 
 def _sources():
-    return sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts) + [SLAVE, Path(__file__).resolve()]
+    builders = [Path(__file__).resolve(), Path(__file__).resolve().with_name("fmu_staging.py")]
+    return sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts) + [SLAVE] + builders
 
 
 def source_tag():
@@ -72,24 +72,18 @@ def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu"):
     dest = Path(dest).resolve()
     dest.parent.mkdir(parents=True, exist_ok=True)
     tag = source_tag()
-    package, module = f"sbf_runtime_{tag}", f"springblockfriction_{tag}"
-    slave_code, count = re.subn(r"\bstickslip\.core\b", package, SLAVE.read_text())
-    if count != 1:
-        raise BuildError(f"{SLAVE} must import the runtime once as 'from stickslip.core import ...'")
 
     with tempfile.TemporaryDirectory(prefix="sbf_build_") as tmp:
-        tmp = Path(tmp)
-        shutil.copytree(RUNTIME, tmp / package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
-        (tmp / f"{module}.py").write_text(slave_code)
+        staged = stage_runtime(Path(tmp), tag, RUNTIME, SLAVE, MODEL_NAME)
         try:
             with preserved_sys_path():  # PythonFMU leaves the temporary folder on sys.path
                 built = FmuBuilder.build_FMU(
-                    tmp / f"{module}.py", dest=tmp / "out", project_files=[tmp / package],
+                    staged.script, dest=Path(tmp) / "out", project_files=[staged.package_dir],
                     canGetAndSetFMUstate=True, canSerializeFMUstate=True,
                 )
-            slave = getattr(sys.modules[module], MODEL_NAME)(instance_name="build")
+            slave = getattr(sys.modules[staged.module], MODEL_NAME)(instance_name="build")
         finally:  # ... and the modules imported
-            for name in [m for m in sys.modules if m == module or m.split(".")[0] == package]:
+            for name in [m for m in sys.modules if m == staged.module or m.split(".")[0] == staged.package_dir.name]:
                 del sys.modules[name]
         partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
         with zipfile.ZipFile(built) as source, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as target:
@@ -98,6 +92,7 @@ def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu"):
                 if item.filename == "modelDescription.xml":
                     data = complete_model_description(data, slave.units, slave.bounds)
                 target.writestr(item.filename, data)
+            staged.add_to(target)
         os.replace(partial, dest)
     return dest
 
