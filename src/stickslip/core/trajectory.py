@@ -155,57 +155,57 @@ class Trajectory:
         )
 
     @property
-    def x(self):
+    def x(self) -> float:
         """Block position (m) from the spring's relaxed length."""
         return self._x
 
     @property
-    def v(self):
+    def v(self) -> float:
         """Block velocity (m/s)."""
         return self._v
 
     @property
-    def mode(self):
+    def mode(self) -> int:
         """+1 slipping forward (v < v_drive), 0 stuck, -1 slipping backward."""
         return self._segment.mode
 
     @property
-    def t_stick(self):
+    def t_stick(self) -> float:
         """Time (s) since the current stick began; 0 while slipping."""
         return self._segment.t_stick(self.t)
 
     @property
-    def v_rel(self):
+    def v_rel(self) -> float:
         """Relative sliding velocity ``v_drive - v`` (m/s); exactly 0 while stuck."""
         return 0.0 if self.mode == STUCK else self.v_drive - self._v
 
     @property
-    def friction_force(self):
+    def friction_force(self) -> float:
         """Friction force of the surface on the block (N, + along x)."""
         return friction_force(self.mode, self._x, self._v, self.v_drive, self.F_ext, self.params)
 
     @property
-    def spring_force(self):
+    def spring_force(self) -> float:
         """Spring force on the block (N): ``-kappa x``."""
         return -self.params.kappa * self._x
 
     @property
-    def z_slip(self):
+    def z_slip(self) -> float:
         """Stick-to-slip indicator (N): ``F_S(t_stick) - |kappa x - F_ext|``."""
         return z_slip(self._x, self.F_ext, self.t_stick, self.params)
 
     @property
-    def z_stick(self):
+    def z_stick(self) -> float:
         """Slip-to-stick indicator (m/s): ``v_rel``."""
         return self.v_rel
 
     @property
-    def n_events(self):
+    def n_events(self) -> int:
         """Mode changes since the start."""
         return self.n_stick_events + self.n_slip_events + self.n_overshoots
 
     @property
-    def n_steps(self):
+    def n_steps(self) -> int:
         """Runge-Kutta steps taken (closed-form phases take none)."""
         return self._stepper.n_steps
 
@@ -229,15 +229,12 @@ class Trajectory:
     @classmethod
     def from_snapshot(cls, params, snap):
         """Rebuild a trajectory saved by :meth:`snapshot` (with the same parameters)."""
-        traj = cls.__new__(cls)
-        traj.params = params
-        traj.rtol = snap["rtol"]
+        traj = cls(params, 0.0, 0.0, rtol=snap["rtol"])  # at rest: every field is replaced below
         traj.t = snap["t"]
         traj.v_drive = snap["v_drive"]
         traj.F_ext = snap["F_ext"]
         traj.n_stick_events, traj.n_slip_events, traj.n_overshoots, traj._chain = snap["counts"]
         traj.t_last_event = snap["t_last_event"]
-        traj.events = None
         traj._stepper = SlipStepper.from_snapshot(traj.rtol, snap["stepper"])
         traj._segment = segment_from_list(snap["segment"], params)
         traj._x, traj._v = traj._segment.state(traj.t)
