@@ -45,7 +45,8 @@ class BuildError(RuntimeError):
 
 
 def _sources():
-    builders = [Path(__file__).resolve(), Path(__file__).resolve().with_name("fmu_staging.py")]
+    here = Path(__file__).resolve()
+    builders = [here, here.with_name("fmu_staging.py"), here.with_name("compile_runtime.py")]
     return sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts) + [SLAVE] + builders
 
 
@@ -65,16 +66,17 @@ def built_tag(fmu_path):
     return module[len(prefix):] if module.startswith(prefix) else None
 
 
-def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu"):
-    """Build the FMU at ``dest`` (replaced atomically) and return its path."""
+def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu", pure=False):
+    """Build the FMU at ``dest`` (replaced atomically) and return its path; ``pure``: leave the runtime
+    uncompiled, under a package name of its own (so it runs beside the compiled FMU in one process)."""
     from pythonfmu import FmuBuilder
 
     dest = Path(dest).resolve()
     dest.parent.mkdir(parents=True, exist_ok=True)
-    tag = source_tag()
+    tag = source_tag() + ("p" if pure else "")
 
     with tempfile.TemporaryDirectory(prefix="sbf_build_") as tmp:
-        staged = stage_runtime(Path(tmp), tag, RUNTIME, SLAVE, MODEL_NAME)
+        staged = stage_runtime(Path(tmp), tag, RUNTIME, SLAVE, MODEL_NAME, compiled=not pure)
         try:
             with preserved_sys_path():  # PythonFMU leaves the temporary folder on sys.path
                 built = FmuBuilder.build_FMU(

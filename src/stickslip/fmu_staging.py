@@ -6,6 +6,12 @@ In the FMU's ``resources/``:
   ``fmu_src/SpringBlockFriction.py`` with its runtime import renamed), with byte-compiled files
   for the building Python in ``__pycache__`` (unchecked-hash ``.pyc``: valid whatever times the
   extraction gives the files, so a host with that Python never compiles them);
+- the hot modules of the runtime compiled by mypyc under that package name, for the building
+  Python (:mod:`stickslip.compile_runtime`; the group library ``<hash>__mypyc`` goes to the top
+  of ``resources/``), unless the build is pure or cannot compile (no C compiler: the FMU is then
+  pure Python, and the build says so on stderr). A host that cannot load them (another Python
+  version or platform) runs the sources (``core/_implementation.py``). Compiled files are cached
+  in ``build/fmu-runtime`` by package name (the source tag) and Python;
 - ``springblockfriction_<tag>.py``: the module PythonFMU loads, two lines. PythonFMU 0.7.0
   compiles and runs that module's source at every ``fmi2Instantiate`` (to find the slave class
   by its MRO; with the 300-line slave there, that was 2 ms of each instantiation and a leaked
@@ -16,8 +22,14 @@ import compileall
 import py_compile
 import re
 import shutil
+import sys
+import sysconfig
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from .compile_runtime import CompileError, compile_in_place
+
+CACHE = Path(__file__).resolve().parents[2] / "build" / "fmu-runtime"
 
 
 class StagingError(RuntimeError):
@@ -27,7 +39,7 @@ class StagingError(RuntimeError):
 @dataclass
 class StagedRuntime:
     """The staged code in a build folder: ``script`` and ``package_dir`` go to PythonFMU's builder;
-    ``extra_files`` (archive name -> path) are the files its builder leaves out of the FMU."""
+    ``extra_files`` (archive name -> path) are the files its builder may leave out of the FMU."""
 
     script: Path
     package_dir: Path
@@ -35,26 +47,55 @@ class StagedRuntime:
     extra_files: dict = field(default_factory=dict)
 
     def add_to(self, fmu_zip):
-        """Write :attr:`extra_files` into the open FMU archive ``fmu_zip``."""
+        """Write those of :attr:`extra_files` that the open FMU archive ``fmu_zip`` does not have yet."""
+        present = set(fmu_zip.namelist())
         for arcname, path in sorted(self.extra_files.items()):
-            fmu_zip.write(path, arcname)
+            if arcname not in present:
+                fmu_zip.write(path, arcname)
 
 
-def stage_runtime(folder, tag, runtime, slave, model_name):
-    """Stage the runtime folder ``runtime`` and the slave source ``slave`` (class ``model_name``) in ``folder``."""
+def stage_runtime(folder, tag, runtime, slave, model_name, compiled=True):
+    """Stage the runtime folder ``runtime`` and the slave source ``slave`` (class ``model_name``) in ``folder``;
+    ``compiled``: also compile the runtime's hot modules (if this machine can)."""
     package, module = f"sbf_runtime_{tag}", f"springblockfriction_{tag}"
     slave_code, count = re.subn(r"\bstickslip\.core\b", package, Path(slave).read_text())
     if count != 1:
         raise StagingError(f"{slave} must import the runtime once as 'from stickslip.core import ...'")
     package_dir = Path(folder) / package
-    shutil.copytree(runtime, package_dir, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.so"))
+    shutil.copytree(runtime, package_dir, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.so", "compiled_sources.sha256"))
     (package_dir / "fmu_slave.py").write_text(slave_code)
     script = Path(folder) / f"{module}.py"
     script.write_text(f"from {package}.fmu_slave import {model_name}, hold_loader_namespace  # noqa: F401\n"
                       "hold_loader_namespace(globals())  # PythonFMU releases this module's globals once per instance\n")
     staged = StagedRuntime(script, package_dir, module)
     staged.extra_files.update(_byte_compile(package_dir))
+    if compiled:
+        staged.extra_files.update(_compiled(Path(folder), package))
     return staged
+
+
+def _compiled(folder, package):
+    """The compiled modules of ``folder/package`` (from the cache or compiled now): ``{archive name: path}``."""
+    cache = CACHE / f"{package}-{sys.implementation.cache_tag}-{sysconfig.get_platform()}"
+    if not (cache / "complete").is_file():
+        try:
+            files = compile_in_place(folder, package)
+        except CompileError as exc:
+            print(f"stickslip: the FMU's runtime stays pure Python: {exc}", file=sys.stderr)
+            return {}
+        shutil.rmtree(cache, ignore_errors=True)
+        for path in files:
+            target = cache / path.relative_to(folder)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(path, target)
+        (cache / "complete").write_text("")
+    out = {}
+    for path in cache.rglob("*"):
+        if path.is_file() and path.name != "complete":
+            relative = path.relative_to(cache)
+            shutil.copy2(path, folder / relative)
+            out[f"resources/{relative.as_posix()}"] = folder / relative
+    return out
 
 
 def _byte_compile(package_dir):

@@ -37,6 +37,9 @@ class _Law:
         for name, (default, _, _) in self.PARAMETERS.items():
             setattr(self, name, float(values.get(name, default)))
 
+    def __reduce__(self):  # pickling (process pools, dask); compiled classes have no default
+        return _rebuild, (type(self), self.parameters())
+
     def parameters(self):
         """The law's parameters as ``{name: value}``."""
         return {name: getattr(self, name) for name in self.PARAMETERS}
@@ -186,6 +189,9 @@ class CallableKinetic(KineticLaw):
     def __init__(self, force, slope):  # no parameters: the base's __init__ has nothing to set
         self._force = force
         self._slope = slope
+
+    def __reduce__(self):
+        return CallableKinetic, (self._force, self._slope)
 
     def force(self, u: float) -> float:
         return float(self._force(u))
@@ -357,6 +363,9 @@ class CallableStatic(StaticLaw):
         self._curvature = curvature
         self._breaks = tuple(float(b) for b in convexity_breaks)
 
+    def __reduce__(self):
+        return CallableStatic, (self._force, self._rate, self._curvature, self._breaks)
+
     def force(self, t: float) -> float:
         return float(self._force(t))
 
@@ -376,6 +385,11 @@ class CallableStatic(StaticLaw):
 
     def __repr__(self):
         return f"CallableStatic({self._force!r})"
+
+
+def _rebuild(law_class, parameters):
+    """A law from its class and ``{name: value}`` (unpickling)."""
+    return law_class(**parameters)
 
 
 KINETIC_LAWS = {law.CODE: law for law in (Coulomb, Viscous, Stribeck, Lubricated)}

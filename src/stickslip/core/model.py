@@ -37,6 +37,9 @@ class Parameters:
         self.kinetic = kinetic
         self.static = static
 
+    def __reduce__(self):  # pickling (process pools, dask); compiled classes have no default
+        return Parameters, (self.M, self.kappa, self.kinetic, self.static)
+
     def check(self):
         """Raise ParameterError naming the first parameter outside its range."""
         check("M", self.M, POSITIVE, "kg")
