@@ -62,9 +62,14 @@ def test_quick_bench_writes_json_markdown_and_plots(tmp_path, fmu_path, monkeypa
 
     records = json.loads((out / "bench.json").read_text())["scenes"]["coulomb"]["records"]
     assert {r["family"] for r in records} == {"fmu", "stepper", "stepper-integrating", "solve_ivp", "regularized",
-                                              "floor"}
+                                              "floor", "fmu-pure", "stepper-pure", "stepper-integrating-pure"}
     assert all(r["error"] is None and len(r["times_s"]) >= 1 for r in records)
-    exact = [r for r in records if r["family"] in ("fmu", "stepper", "stepper-integrating")]
+    exact = [r for r in records if r["family"].startswith(("fmu", "stepper"))]
     assert max(r["rel_dx"] for r in exact) < 1e-12  # Coulomb slips are closed forms in the stepper
-    assert "## Matched accuracy" in (out / "bench.md").read_text()
+    for family in ("fmu", "stepper", "stepper-integrating"):  # the two implementations: the same numbers
+        compiled = {str(r["settings"]): r["max_abs_dx"] for r in records if r["family"] == family}
+        pure = {str(r["settings"]): r["max_abs_dx"] for r in records if r["family"] == f"{family}-pure"}
+        assert pure and all(compiled[key] == value for key, value in pure.items())
+    report = (out / "bench.md").read_text()
+    assert "## Matched accuracy" in report and "## Compiled and pure Python (same sources)" in report
     assert (out / "coulomb.png").stat().st_size > 0
