@@ -8,6 +8,11 @@ the parameter's name and allowed range. The variable table and the bookkeeping
 are shared with the FMI 3 slave (``block_interface``); ``build_fmu.py`` bundles
 both and the runtime under names only this FMU uses and rewrites the imports.
 
+Values are answered by value reference from one list, the outputs from one
+evaluation of the state per state change (:meth:`SpringBlockFriction.get_real`
+and friends): PythonFMU's per-variable getters are made only to write the model
+description.
+
 PythonFMU (0.7.0) reports every exception of the slave as ``fmi2Fatal``. Its
 only other failure status, ``fmi2Discard`` for a ``do_step`` that returns
 False, comes with ``fmi2Terminated = true``, which FMPy's ``simulate_fmu``
@@ -17,12 +22,24 @@ here (``balance_release``): an importer that terminates and frees the
 instance after the error, as libcosim does, does not crash.
 """
 
+import ctypes
+import operator
+
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
-from block_interface import BlockInterface, balance_release
+from block_interface import VARIABLES, BlockInterface, balance_release
+from stickslip.core import OUTPUT_NAMES
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input, "output": Fmi2Causality.output}
 _VARIABILITY = {name: getattr(Fmi2Variability, name) for name in ("fixed", "continuous", "discrete")}
+_KIND = {"real": Real, "integer": Integer}
+
+OUTPUTS_AT = len(VARIABLES) - len(OUTPUT_NAMES)  # the outputs' first value reference
+if tuple(v.attribute for v in VARIABLES[OUTPUTS_AT:]) != OUTPUT_NAMES:
+    raise ImportError("block_interface.VARIABLES must end with the outputs in Trajectory.outputs() order")
+_REFERENCE_OF = {v.name: reference for reference, v in enumerate(VARIABLES)}
+_REFERENCES = {kind: frozenset(r for r, v in enumerate(VARIABLES) if _KIND[v.kind] is kind) for kind in (Real, Integer)}
+_MAX_READ_PLANS = 64  # distinct sets of value references whose checked reader an instance keeps
 
 
 class SpringBlockFriction(Fmi2Slave, BlockInterface):
@@ -34,7 +51,86 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.init_block()
-        self.register_variables({"real": Real, "integer": Integer}, _CAUSALITY, _VARIABILITY)
+        self._by_reference = [v.start for v in VARIABLES]  # every value by value reference; outputs may be stale
+        self._outputs_stale = True  # the outputs' part needs an evaluation at the current state
+        self._inputs_changed = False  # an input was set since the trajectory last saw the inputs
+        self._read_plans = {}  # (type, value references) -> (read, needs_outputs), see _read_plan
+
+    def to_xml(self, model_options=None):
+        """PythonFMU's model description, with the variables registered for it first."""
+        if not self.vars:
+            self.register_variables(_KIND, _CAUSALITY, _VARIABILITY)
+        return super().to_xml({} if model_options is None else model_options)
+
+    # ---- values of any set of variables ------------------------------------------
+
+    def _read(self, kind, references):
+        """The values of the variables ``references`` of type ``kind`` as a list (TypeError for another type)."""
+        key = (kind, tuple(references))
+        plan = self._read_plans.get(key)
+        if plan is None:
+            plan = self._read_plan(kind, key[1])
+        read, needs_outputs = plan
+        if needs_outputs and self._outputs_stale:
+            self._by_reference[OUTPUTS_AT:] = self._current().outputs()
+            self._outputs_stale = False
+        return read(self._by_reference)
+
+    def _read_plan(self, kind, references):
+        """``(read, needs_outputs)`` for a set of value references, checked once and remembered."""
+        _check_kind(kind, references)
+        if len(references) == 1:
+            reference = references[0]
+            plan = (lambda values: [values[reference]]), reference >= OUTPUTS_AT
+        else:
+            pick = operator.itemgetter(*references) if references else lambda values: ()
+            plan = (lambda values: list(pick(values))), max(references, default=-1) >= OUTPUTS_AT
+        if len(self._read_plans) >= _MAX_READ_PLANS:  # an importer reads a few fixed sets; bound the rest
+            self._read_plans.clear()
+        self._read_plans[(kind, references)] = plan
+        return plan
+
+    def _write(self, kind, references, values):
+        _check_kind(kind, references)
+        for reference, value in zip(references, values):
+            if reference >= OUTPUTS_AT:
+                raise TypeError(f"Variable with valueReference={reference} is an output: it cannot be set!")
+            self.set_variable(VARIABLES[reference].name, value)
+
+    def set_variable(self, name, value):
+        super().set_variable(name, value)
+        self._by_reference[_REFERENCE_OF[name]] = value
+        self._inputs_changed = True
+
+    def outputs_changed(self):
+        """The state moved, or values were restored: the outputs need a new evaluation."""
+        super().outputs_changed()
+        self._outputs_stale = True
+
+    def get_real(self, vrs):
+        """The Real variables ``vrs`` (value references), outputs from one evaluation per state."""
+        return self._read(Real, vrs)
+
+    def get_integer(self, vrs):
+        """The Integer variables ``vrs`` (value references), outputs from one evaluation per state."""
+        return self._read(Integer, vrs)
+
+    def set_real(self, vrs, values):
+        """Set the Real parameters (before initialization ends) or inputs ``vrs`` to ``values``."""
+        self._write(Real, vrs, values)
+
+    def set_integer(self, vrs, values):
+        """Set the Integer parameters ``vrs`` (before initialization ends) to ``values``."""
+        self._write(Integer, vrs, values)
+
+    def _current(self):
+        """The trajectory with the latest inputs applied (a fresh one during initialization)."""
+        if self.trajectory is None:
+            return self.new_trajectory()
+        if self._inputs_changed:
+            self.trajectory.set_inputs(self.values["v_drive"], self.values["F_ext"])
+            self._inputs_changed = False
+        return self.trajectory
 
     # ---- FMI ---------------------------------------------------------------------
 
@@ -48,7 +144,7 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
 
     def do_step(self, current_time, step_size):
         """Hold the inputs and advance to ``current_time + step_size`` s (raises on failure, never discards)."""
-        self.current_trajectory().advance_to(current_time + step_size)
+        self._current().advance_to(current_time + step_size)
         self.outputs_changed()
         return True
 
@@ -57,9 +153,27 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
 
     def _set_fmu_state(self, state):
         self.restore_block_state(state)
+        self._by_reference[:OUTPUTS_AT] = [self.values[v.name] for v in VARIABLES[:OUTPUTS_AT]]
+        self._inputs_changed = False  # the restored trajectory holds the restored inputs
 
 
-# ---- PythonFMU's release of the slave on an exception -----------------------------
+def _check_kind(kind, references):
+    """Raise TypeError unless every value reference is a variable of type ``kind``."""
+    if not _REFERENCES[kind].issuperset(references):
+        wrong = next(r for r in references if r not in _REFERENCES[kind])
+        raise TypeError(f"Variable with valueReference={wrong} is not of type {kind.__name__}!")
+
+
+def hold_loader_namespace(namespace):
+    """Take one reference to ``namespace``, the globals of the module PythonFMU loads the slave from.
+
+    PythonFMU 0.7.0 (``findClass`` in its fmi2Instantiate) runs that module's source again in its globals,
+    which it gets from ``PyModule_GetDict`` (a borrowed reference) and then releases, once per instance.
+    A module whose source creates nothing that keeps its globals (a one-line import, see
+    stickslip.fmu_staging) loses its namespace after a few instances unless each run takes that reference.
+    """
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(namespace))
+
 
 # The methods PythonFMU's C++ wrapper calls on the slave (PyObject_CallMethod(pInstance_, ...) in PySlaveInstance.cpp)
 ENTRY_POINTS = (

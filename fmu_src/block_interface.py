@@ -225,7 +225,7 @@ class BlockInterface:
         self.start_time = state["start_time"]
         snapshot = state["trajectory"]
         self.trajectory = None if snapshot is None else Trajectory.from_snapshot(self.parameters(), snapshot)
-        self._output_cache.clear()
+        self.outputs_changed()
 
 
 # ---- PythonFMU's release of the slave on an exception -----------------------------

@@ -63,13 +63,19 @@ def test_quick_bench_writes_json_markdown_and_plots(tmp_path, fmu_path, fmu3_pat
 
     records = json.loads((out / "bench.json").read_text())["scenes"]["coulomb"]["records"]
     assert {r["family"] for r in records} == {"fmu", "stepper", "stepper-integrating", "solve_ivp", "regularized",
-                                              "floor", "c-host", "c-host-floor", "fmi3-me"}
+                                              "floor", "c-host", "c-host-floor", "fmi3-me", "fmu-pure",
+                                              "stepper-pure", "stepper-integrating-pure"}
     assert all(r["error"] is None and len(r["times_s"]) >= 1 for r in records)
     assert all(r["cpu_s"] > 0 for r in records if r["family"].startswith("c-host"))
-    exact = [r for r in records if r["family"] in ("fmu", "stepper", "stepper-integrating")]
+    exact = [r for r in records if r["family"].startswith(("fmu", "stepper"))]
     assert max(r["rel_dx"] for r in exact) < 1e-12  # Coulomb slips are closed forms in the stepper
+    for family in ("fmu", "stepper", "stepper-integrating"):  # the two implementations: the same numbers
+        compiled = {str(r["settings"]): r["max_abs_dx"] for r in records if r["family"] == family}
+        pure = {str(r["settings"]): r["max_abs_dx"] for r in records if r["family"] == f"{family}-pure"}
+        assert pure and all(compiled[key] == value for key, value in pure.items())
     report = (out / "bench.md").read_text()
     assert "## Matched accuracy" in report and "C host: FMU CPU µs/step" in report
+    assert "## Compiled and pure Python (same sources)" in report
     assert "## FMI 3 model exchange (FMPy CVode) beside our co-simulation" in report
     me = next(r for r in records if r["family"] == "fmi3-me")
     assert me["events_unmatched"] == 0 and me["rel_dx"] < 1e-3  # CVode at rtol 1e-6 over 20 s

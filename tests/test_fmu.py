@@ -107,12 +107,15 @@ def test_runtime_is_bundled_under_a_private_name(fmu_path):
     tag = source_tag()
     with zipfile.ZipFile(fmu_path) as fmu:
         names = fmu.namelist()
-        slave = fmu.read(f"resources/springblockfriction_{tag}.py").decode()
-        interface = fmu.read(f"resources/sbf_interface_{tag}.py").decode()
+        loader = fmu.read(f"resources/springblockfriction_{tag}.py").decode()
+        slave = fmu.read(f"resources/sbf_runtime_{tag}/fmu_slave.py").decode()
         assert fmu.read("resources/slavemodule.txt").decode() == f"springblockfriction_{tag}"
     assert f"resources/sbf_runtime_{tag}/trajectory.py" in names
-    assert f"from sbf_interface_{tag} import" in slave and "from block_interface" not in slave
-    assert f"from sbf_runtime_{tag} import" in interface and "stickslip.core" not in interface
+    assert f"resources/sbf_runtime_{tag}/__pycache__/trajectory.{sys.implementation.cache_tag}.pyc" in names
+    assert f"from sbf_runtime_{tag}.fmu_slave import SpringBlockFriction" in loader
+    assert f"from sbf_runtime_{tag} import" in slave and "stickslip.core" not in slave
+    assert f"from sbf_runtime_{tag}.block_interface import" in slave and "from block_interface" not in slave
+    assert f"resources/sbf_runtime_{tag}/block_interface.py" in names
     run_fmu(fmu_path, {}, 1.0, 1.0)
     runtime = sys.modules[f"sbf_runtime_{tag}"]  # the FMU's copy, though this host imported stickslip
     assert Path(runtime.__file__).parent != Path(sys.modules["stickslip.core"].__file__).parent

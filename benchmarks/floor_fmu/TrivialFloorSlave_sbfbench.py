@@ -9,8 +9,9 @@ with another FMU's module in the importing process.
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
-REALS = ("x", "v", "t_last_event")
-INTEGERS = ("n_stick_events", "n_slip_events", "n_overshoots")
+REALS = ("x", "v", "v_rel", "F_friction", "F_spring", "t_stick", "z_slip", "z_stick")
+DISCRETE_REALS = ("t_last_event",)
+INTEGERS = ("mode", "n_events", "n_stick_events", "n_slip_events", "n_overshoots", "n_steps")
 
 
 class TrivialFloor(Fmi2Slave):
@@ -22,6 +23,7 @@ class TrivialFloor(Fmi2Slave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         for names, kind, zero, variability in ((REALS, Real, 0.0, Fmi2Variability.continuous),
+                                               (DISCRETE_REALS, Real, 0.0, Fmi2Variability.discrete),
                                                (INTEGERS, Integer, 0, Fmi2Variability.discrete)):
             for name in names:
                 setattr(self, name, zero)

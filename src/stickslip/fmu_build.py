@@ -1,12 +1,13 @@
 """Build the SpringBlockFriction FMU (FMI 2.0 co-simulation) with PythonFMU.
 
-The runtime ``stickslip/core`` is bundled into the FMU's resources as the
-package ``sbf_runtime_<tag>``, the variable table the slaves share
-(``fmu_src/block_interface.py``) as the module ``sbf_interface_<tag>`` and the
-slave as the module ``springblockfriction_<tag>``, where ``<tag>`` is 10 hex
-digits of a sha256 over the runtime, the slave, the shared table and the
-builders. A host that imported its own ``stickslip``, or another build of this
-FMU (or the FMI 3 one, whose tag differs), therefore never hands the FMU a
+The runtime ``stickslip/core`` is bundled into the FMI 2 FMU's resources as the
+package ``sbf_runtime_<tag>``, together with the slave (``fmu_slave``) and the
+variable table the slaves share (``block_interface``), loaded through the module
+``springblockfriction_<tag>`` (layout, byte-compiled and mypyc-compiled modules:
+:mod:`stickslip.fmu_staging`), where ``<tag>`` is 10 hex digits of a sha256 over
+the runtime, the slave, the shared table and the builders. A host that imported
+its own ``stickslip``, or another build of this FMU (or the FMI 3 one, whose tag
+differs), therefore never hands the FMU a
 different copy of the runtime. PythonFMU's model description is then completed:
 units, declared types, bounds, InitialUnknowns, a default experiment and the
 FMU-state capabilities. Its linux64 binary becomes the loader of
@@ -26,6 +27,7 @@ from xml.etree import ElementTree as ET
 
 from . import fmu_loader
 from .fmi_host import preserved_sys_path
+from .fmu_staging import COMPILED_ARTIFACTS, STAGING_SOURCES, rewrite_once, stage_runtime
 
 REPO = Path(__file__).resolve().parents[2]
 RUNTIME = Path(__file__).resolve().parent / "core"
@@ -52,9 +54,9 @@ class BuildError(RuntimeError):
     """The FMU cannot be built from the current sources."""
 
 
-def source_tag(slave=SLAVE, builders=tuple(fmu_loader.SOURCES)):
+def source_tag(slave=SLAVE, builders=tuple(fmu_loader.SOURCES) + STAGING_SOURCES):
     """10 hex digits identifying the runtime, the slave, the shared table and the builder sources
-    (``builders``: more than this module; by default the FMI 2 FMU's loader)."""
+    (``builders``: more than this module; by default the FMI 2 FMU's loader and staging)."""
     sources = sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts)
     digest = hashlib.sha256()
     for path in [*sources, slave, INTERFACE, Path(__file__).resolve(), *builders]:
@@ -69,21 +71,14 @@ def built_tag(fmu_path, prefix="springblockfriction_"):
     return module[len(prefix):] if module.startswith(prefix) else None
 
 
-def _rewrite_once(path, pattern, replacement, what):
-    code, count = re.subn(pattern, replacement, path.read_text())
-    if count != 1:
-        raise BuildError(f"{path} must import {what} exactly once")
-    return code
-
-
 def bundle_sources(folder, slave, module, tag):
-    """Write the runtime, the shared variable table and the slave (as ``module``) under tagged names into
-    ``folder``; return ``(slave file, [runtime package, table module])``."""
+    """Write the pure-Python runtime, the shared variable table and the slave (as ``module``) under tagged
+    names into ``folder`` (the FMI 3 FMU's layout); return ``(slave file, [runtime package, table module])``."""
     package, interface = f"sbf_runtime_{tag}", f"sbf_interface_{tag}"
-    shutil.copytree(RUNTIME, folder / package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    shutil.copytree(RUNTIME, folder / package, ignore=shutil.ignore_patterns(*COMPILED_ARTIFACTS))
     (folder / f"{interface}.py").write_text(
-        _rewrite_once(INTERFACE, r"\bstickslip\.core\b", package, "the runtime as 'from stickslip.core import ...'"))
-    slave_code = _rewrite_once(slave, r"\bfrom block_interface import\b", f"from {interface} import",
+        rewrite_once(INTERFACE, r"\bstickslip\.core\b", package, "the runtime as 'from stickslip.core import ...'"))
+    slave_code = rewrite_once(slave, r"\bfrom block_interface import\b", f"from {interface} import",
                                "the shared table as 'from block_interface import ...'")
     (folder / f"{module}.py").write_text(re.sub(r"\bstickslip\.core\b", package, slave_code))
     return folder / f"{module}.py", [folder / package, folder / f"{interface}.py"]
@@ -95,31 +90,37 @@ def forget_modules(tag, module):
         del sys.modules[name]
 
 
-def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu"):
-    """Build the FMU at ``dest`` (replaced atomically) and return its path."""
+def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu", pure=False):
+    """Build the FMU at ``dest`` (replaced atomically) and return its path; ``pure``: leave the runtime
+    uncompiled, under a package name of its own (so it runs beside the compiled FMU in one process)."""
     from pythonfmu import FmuBuilder
 
     dest = Path(dest).resolve()
     dest.parent.mkdir(parents=True, exist_ok=True)
-    tag = source_tag()
-    module = f"springblockfriction_{tag}"
+    tag = source_tag() + ("p" if pure else "")
     with tempfile.TemporaryDirectory(prefix="sbf_build_") as tmp:
-        tmp = Path(tmp)
-        script, project_files = bundle_sources(tmp, SLAVE, module, tag)
+        staged = stage_runtime(Path(tmp), tag, RUNTIME, SLAVE, INTERFACE, MODEL_NAME, compiled=not pure)
         try:
             with preserved_sys_path():  # PythonFMU leaves the temporary folder on sys.path
                 built = FmuBuilder.build_FMU(
-                    script, dest=tmp / "out", project_files=project_files,
+                    staged.script, dest=Path(tmp) / "out", project_files=[staged.package_dir],
                     canGetAndSetFMUstate=True, canSerializeFMUstate=True,
                 )
-            slave = getattr(sys.modules[module], MODEL_NAME)(instance_name="build")
+            slave = getattr(sys.modules[staged.module], MODEL_NAME)(instance_name="build")
         finally:  # ... and the modules imported
-            forget_modules(tag, module)
+            forget_modules(tag, staged.module)
         write_completed(
             built, dest, lambda xml: complete_model_description(xml, slave.variable_units, slave.variable_bounds),
-            finish=lambda partial: fmu_loader.install(partial, MODEL_NAME, slave_survives_release=True),
+            finish=lambda partial: _finish(partial, staged),
         )
     return dest
+
+
+def _finish(partial, staged):
+    """Add the staged files PythonFMU's builder leaves out, then make the loader the linux64 binary."""
+    with zipfile.ZipFile(partial, "a", zipfile.ZIP_DEFLATED) as fmu:
+        staged.add_to(fmu)
+    fmu_loader.install(partial, MODEL_NAME, slave_survives_release=True)
 
 
 def write_completed(built, dest, complete, finish=None):

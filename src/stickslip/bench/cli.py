@@ -29,9 +29,11 @@ def run_bench(args):
     from ..fmu3_driver import ensure_fmu3
     from ..fmu_driver import ensure_fmu
     from .c_host import ensure_host
-    from .fmus import ExtractedFMU, ensure_floor_fmu
+    from .fmus import BUILD_DIR, ExtractedFMU, ensure_floor_fmu
     from .harness import run_scenes
+    from .paths import compiled_vs_pure
     from .report import markdown, plot, write_json
+    from .runtimes import ensure_pure_fmu
     from .scenes import select_scenes
 
     try:
@@ -50,12 +52,13 @@ def run_bench(args):
     }
     fmu_path = Path(args.fmu) if args.fmu else ensure_fmu()
     fmu3_path = Path(args.fmu3) if args.fmu3 else ensure_fmu3()
-    with ExtractedFMU(fmu_path) as fmu, ExtractedFMU(ensure_floor_fmu()) as floor, ExtractedFMU(fmu3_path) as fmu3:
-        records = run_scenes(scenes, fmu, floor, ensure_host(), fmu3)
+    with ExtractedFMU(fmu_path) as fmu, ExtractedFMU(ensure_floor_fmu()) as floor, ExtractedFMU(fmu3_path) as fmu3, \
+            ExtractedFMU(ensure_pure_fmu(BUILD_DIR)) as pure_fmu:
+        records = run_scenes(scenes, fmu, floor, ensure_host(), fmu3, pure_fmu)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "bench.json", meta, scenes, records)
-    (out / "bench.md").write_text(markdown(meta, scenes, records))
+    (out / "bench.md").write_text(markdown(meta, scenes, records) + "\n".join(compiled_vs_pure(scenes, records)) + "\n")
     for scene in scenes:
         plot(out / f"{scene.name}.png", scene, records[scene.name], quick=args.quick)
     print(f"wrote {out / 'bench.json'}, {out / 'bench.md'} and {len(scenes)} plots")

@@ -19,11 +19,12 @@ from typing import Callable
 import numpy as np
 from tqdm import tqdm
 
+from .. import core as compiled_core
 from ..compare import Event, fmu_events, match_events, reference_events, transition_kind
-from ..core import Trajectory
 from . import c_host
 from .peers import Run, hybrid_solve_ivp, regularized_solve_ivp
 from .report import coarse_step
+from .runtimes import PURE_CORE, in_core
 
 FMU_OUTPUTS = ("x", "v", "n_stick_events", "n_slip_events", "n_overshoots", "t_last_event")  # the floor has them too
 
@@ -41,27 +42,28 @@ class Config:
     extra: Callable | None = None
 
 
-def stepper_run(scene, rtol, reuse_steps=True):
-    """Our stepper on the scene's grid, with its recorded events (their exact times); ``reuse_steps=False``
-    integrates every step instead of replaying steps from bit-identical states."""
+def stepper_run(scene, rtol, reuse_steps=True, core=compiled_core):
+    """Our stepper (the runtime package ``core``: compiled where built, or its pure-Python copy) on the scene's
+    grid, with its recorded events (their exact times); ``reuse_steps=False`` integrates every step instead
+    of replaying steps from bit-identical states."""
     v_drive, F_ext = scene.inputs
-    traj = Trajectory(scene.params, scene.scenario.x0, scene.scenario.v0, v_drive, F_ext, 0.0, rtol,
-                      record_events=True, reuse_steps=reuse_steps)
+    traj = core.Trajectory(in_core(core, scene.params), scene.scenario.x0, scene.scenario.v0, v_drive, F_ext, 0.0,
+                           rtol, record_events=True, reuse_steps=reuse_steps)
     grid = scene.grid()
     x, v = traj.sample(grid)
     events = [Event(kind, t, t) for t, before, after in traj.events
               if (kind := transition_kind(before, after)) is not None]
-    return Run(grid, np.array(x), np.array(v), events)
+    return Run(grid, np.array(x), np.array(v), events, traj.n_steps)
 
 
 def _from_columns(result):
     return Run(result["time"], result["x"], result["v"], fmu_events(result))
 
 
-def configs(scene, fmu, floor, host=None, fmu3=None):
-    """Every configuration of ``scene``'s sweep; ``fmu``, ``floor`` and (if given) the FMI 3 FMU ``fmu3``, run
-    through model exchange, are :class:`~.fmus.ExtractedFMU`, ``host`` the compiled C host (None: no C host
-    family)."""
+def configs(scene, fmu, floor, host=None, fmu3=None, pure_fmu=None):
+    """Every configuration of ``scene``'s sweep; ``fmu``, ``floor``, (if given) the FMI 3 FMU ``fmu3``, run
+    through model exchange, and ``pure_fmu`` (the FMU built without compiling its runtime) are
+    :class:`~.fmus.ExtractedFMU`, ``host`` the compiled C host (None: no C host family)."""
     s, T = scene.sweep, scene.stop_time
     p, (v_drive, F_ext), x0, v0, grid = scene.params, scene.inputs, scene.scenario.x0, scene.scenario.v0, scene.grid()
     out = []
@@ -77,11 +79,21 @@ def configs(scene, fmu, floor, host=None, fmu3=None):
                                                           FMU_OUTPUTS, fmi_type="ModelExchange",
                                                           relative_tolerance=rtol, record_events=False),
                           _from_columns))
+    if pure_fmu is not None:
+        for rtol in s.fmu_rtols:
+            out.append(Config("fmu-pure", f"pure FMU rtol={rtol:.0e} h={scene.grid_step:g}",
+                              {"rtol": rtol, "comm_step": scene.grid_step},
+                              lambda rtol=rtol: pure_fmu.simulate(scene.start_values(rtol), T, scene.grid_step,
+                                                                  FMU_OUTPUTS),
+                              _from_columns))
     for rtol in s.stepper_rtols:
-        out.append(Config("stepper", f"stepper rtol={rtol:.0e}", {"rtol": rtol},
-                          lambda rtol=rtol: stepper_run(scene, rtol), lambda run: run))
-        out.append(Config("stepper-integrating", f"stepper, no replay, rtol={rtol:.0e}", {"rtol": rtol},
-                          lambda rtol=rtol: stepper_run(scene, rtol, reuse_steps=False), lambda run: run))
+        for suffix, core in (("", compiled_core), ("-pure", PURE_CORE)):
+            out.append(Config(f"stepper{suffix}", f"stepper{suffix} rtol={rtol:.0e}", {"rtol": rtol},
+                              lambda rtol=rtol, core=core: stepper_run(scene, rtol, core=core), lambda run: run))
+            out.append(Config(f"stepper-integrating{suffix}", f"stepper{suffix}, no replay, rtol={rtol:.0e}",
+                              {"rtol": rtol},
+                              lambda rtol=rtol, core=core: stepper_run(scene, rtol, reuse_steps=False, core=core),
+                              lambda run: run))
     for method, rtols in s.ivp.items():
         for rtol in rtols:
             out.append(Config("solve_ivp", f"{method} rtol={rtol:.0e}", {"method": method, "rtol": rtol, "atol": rtol},
@@ -175,13 +187,16 @@ def measure(config, scene):
         record.update(config.extra(result))
     if config.to_run is not None:
         window = max(config.settings.get("comm_step", 0.0), scene.grid_step)
-        record.update(accuracy(config.to_run(result), scene, window))
+        run = config.to_run(result)
+        record.update(accuracy(run, scene, window))
+        if run.n_steps is not None:
+            record["n_steps"] = run.n_steps
     return record
 
 
-def run_scenes(scenes, fmu, floor, host=None, fmu3=None):
+def run_scenes(scenes, fmu, floor, host=None, fmu3=None, pure_fmu=None):
     """``{scene name: [record, ...]}`` for every configuration, with a tqdm progress bar."""
-    plan = [(scene, config) for scene in scenes for config in configs(scene, fmu, floor, host, fmu3)]
+    plan = [(scene, config) for scene in scenes for config in configs(scene, fmu, floor, host, fmu3, pure_fmu)]
     records = {scene.name: [] for scene in scenes}
     with tqdm(plan, unit="config", dynamic_ncols=True) as bar:
         for scene, config in bar:

@@ -35,6 +35,7 @@ class Run:
     x: np.ndarray
     v: np.ndarray
     events: list | None
+    n_steps: int | None = None  # Runge-Kutta steps taken, where the method says
 
 
 def hybrid_solve_ivp(p, x0, v0, v_drive, F_ext, t_eval, method, rtol, atol):

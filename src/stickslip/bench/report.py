@@ -11,6 +11,8 @@ STYLE = {  # family -> (color, legend)
     "fmu": ("tab:red", "our FMU via fmpy.simulate_fmu"),
     "stepper": ("tab:orange", "our stepper (Trajectory) from Python"),
     "stepper-integrating": ("tab:brown", "our stepper, every step integrated (no replay)"),
+    "fmu-pure": ("tab:pink", "our FMU, runtime in pure Python"),
+    "stepper-pure": ("tab:olive", "our stepper in pure Python"),
     "solve_ivp": ("tab:blue", "solve_ivp hybrid with events"),
     "regularized": ("tab:green", "regularized friction, solve_ivp"),
     "fmi3-me": ("tab:purple", "FMI 3 model exchange, FMPy CVode"),

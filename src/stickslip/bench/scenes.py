@@ -47,6 +47,12 @@ LONG_SWEEP = Sweep(
     v_eps=(1e-3, 1e-4), regularized={"LSODA": (1e-8,)}, time_limit=10.0,
 )
 
+CONTINUOUS_SWEEP = Sweep(  # every step integrated (continuous sliding): the cost of one Runge-Kutta step
+    fmu_rtols=(1e-8, 1e-10), comm_steps=(1.0, 10.0), stepper_rtols=(1e-8, 1e-10),
+    ivp={"DOP853": (1e-8, 1e-10), "LSODA": (1e-8, 1e-10)}, v_eps=(1e-3,), regularized={}, repeats=3,
+    time_limit=10.0,
+)
+
 QUICK_SWEEP = Sweep(
     fmu_rtols=(1e-6, 1e-10), comm_steps=(0.1, 1.0), stepper_rtols=(1e-6, 1e-10), ivp={"DOP853": (1e-6, 1e-10)},
     me_rtols=(1e-6,),
@@ -116,6 +122,8 @@ SCENES = {
         Scene("stribeck-release", "stationary-stribeck-release.toml", 30.0, 0.02),
         Scene("overdamped", "overdamped-stribeck.toml", 60.0, 0.02),
         Scene("elmer-fig3-v0.1-long", "elmer-fig3-v0.1.toml", 1e4, 1.0, LONG_SWEEP),
+        Scene("elmer-fig3-v1.0-long", "elmer-fig3-v1.0.toml", 1e4, 1.0, CONTINUOUS_SWEEP),
+        Scene("msl-pendulum", "msl-pendulum.toml", 5.0, 0.01),
     )
 }
 

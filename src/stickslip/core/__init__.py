@@ -2,8 +2,15 @@
 
 Pure Python and ``math`` only (no numpy/scipy), and only relative imports, so
 ``build_fmu.py`` can bundle this folder into the FMU under a name that only the
-FMU uses.
+FMU uses. The hot modules may also be compiled from these same sources (mypyc);
+:data:`IMPLEMENTATION` says which runs (see :mod:`._implementation`).
 """
+
+import os as _os
+
+from ._implementation import select as _select
+
+IMPLEMENTATION = _select(__name__, _os.path.dirname(__file__))
 
 from .errors import ParameterError, SolverError, StickSlipError
 from .laws import (
@@ -24,10 +31,11 @@ from .laws import (
 )
 from .model import BACKWARD, FORWARD, STUCK, Parameters
 from .ranges import ANY_FINITE, POSITIVE
-from .trajectory import RTOL_RANGE, Trajectory
+from .trajectory import OUTPUT_NAMES, RTOL_RANGE, Trajectory
 
 __all__ = [
-    "ANY_FINITE", "BACKWARD", "FORWARD", "POSITIVE", "STUCK", "KINETIC_LAWS", "STATIC_LAWS",
+    "ANY_FINITE", "BACKWARD", "FORWARD", "IMPLEMENTATION", "POSITIVE", "STUCK", "KINETIC_LAWS", "OUTPUT_NAMES",
+    "STATIC_LAWS",
     "CallableKinetic", "CallableStatic", "Constant", "Coulomb", "Logarithmic", "Lubricated",
     "Parameters", "ParameterError", "RTOL_RANGE", "Saturating", "Sigmoid", "SolverError", "StickSlipError",
     "Stribeck", "Trajectory", "Viscous", "kinetic_law", "static_law",

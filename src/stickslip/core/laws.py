@@ -13,6 +13,7 @@ A Python user may pass any callable through :class:`CallableKinetic` or
 """
 
 import math
+from typing import ClassVar
 
 from .errors import ParameterError
 from .ranges import NON_NEGATIVE, POSITIVE, Range, check
@@ -21,10 +22,10 @@ from .ranges import NON_NEGATIVE, POSITIVE, Range, check
 class _Law:
     """Common parts: parameter storage, validation and a readable repr."""
 
-    PREFIX = ""
-    CODE = 0
-    NAME = ""
-    PARAMETERS = {}  # name -> (default, allowed Range, unit)
+    PREFIX: ClassVar[str] = ""
+    CODE: ClassVar[int] = 0
+    NAME: ClassVar[str] = ""
+    PARAMETERS: ClassVar[dict] = {}  # name -> (default, allowed Range, unit); each is an attribute (float)
 
     def __init__(self, **values):
         unknown = set(values) - set(self.PARAMETERS)
@@ -35,6 +36,9 @@ class _Law:
             )
         for name, (default, _, _) in self.PARAMETERS.items():
             setattr(self, name, float(values.get(name, default)))
+
+    def __reduce__(self):  # pickling (process pools, dask); compiled classes have no default
+        return _rebuild, (type(self), self.parameters())
 
     def parameters(self):
         """The law's parameters as ``{name: value}``."""
@@ -58,12 +62,12 @@ class _Law:
 class KineticLaw(_Law):
     """Base of the kinetic laws ``F_K(u)``, ``u >= 0`` in m/s, force in N."""
 
-    PREFIX = "kinetic"
+    PREFIX: ClassVar[str] = "kinetic"
 
-    def force(self, u):
+    def force(self, u: float) -> float:
         raise NotImplementedError
 
-    def slope(self, u):
+    def slope(self, u: float) -> float:
         raise NotImplementedError
 
     def affine(self):
@@ -73,7 +77,7 @@ class KineticLaw(_Law):
         """
         return None
 
-    def at_rest(self):
+    def at_rest(self) -> float:
         """``F_K(0+)`` in N, the kinetic force just after sliding starts."""
         return self.force(0.0)
 
@@ -81,13 +85,15 @@ class KineticLaw(_Law):
 class Coulomb(KineticLaw):
     """``F_K(u) = F0``."""
 
-    CODE, NAME = 1, "coulomb"
-    PARAMETERS = {"F0": (0.5, NON_NEGATIVE, "N")}
+    CODE: ClassVar[int] = 1
+    NAME: ClassVar[str] = "coulomb"
+    PARAMETERS: ClassVar[dict] = {"F0": (0.5, NON_NEGATIVE, "N")}
+    F0: float
 
-    def force(self, u):
+    def force(self, u: float) -> float:
         return self.F0
 
-    def slope(self, u):
+    def slope(self, u: float) -> float:
         return 0.0
 
     def affine(self):
@@ -97,13 +103,16 @@ class Coulomb(KineticLaw):
 class Viscous(KineticLaw):
     """``F_K(u) = F0 + gamma u``."""
 
-    CODE, NAME = 2, "viscous"
-    PARAMETERS = {"F0": (0.5, NON_NEGATIVE, "N"), "gamma": (0.1, NON_NEGATIVE, "N s/m")}
+    CODE: ClassVar[int] = 2
+    NAME: ClassVar[str] = "viscous"
+    PARAMETERS: ClassVar[dict] = {"F0": (0.5, NON_NEGATIVE, "N"), "gamma": (0.1, NON_NEGATIVE, "N s/m")}
+    F0: float
+    gamma: float
 
-    def force(self, u):
+    def force(self, u: float) -> float:
         return self.F0 + self.gamma * u
 
-    def slope(self, u):
+    def slope(self, u: float) -> float:
         return self.gamma
 
     def affine(self):
@@ -113,19 +122,25 @@ class Viscous(KineticLaw):
 class Stribeck(KineticLaw):
     """``F_K(u) = F0 + F_stribeck exp(-(u/v_stribeck)^delta) + gamma u``."""
 
-    CODE, NAME = 3, "stribeck"
-    PARAMETERS = {
+    CODE: ClassVar[int] = 3
+    NAME: ClassVar[str] = "stribeck"
+    PARAMETERS: ClassVar[dict] = {
         "F0": (0.5, NON_NEGATIVE, "N"),
         "F_stribeck": (0.3, NON_NEGATIVE, "N"),
         "v_stribeck": (0.1, POSITIVE, "m/s"),
         "delta": (1.0, Range(1.0, 10.0), "1"),
         "gamma": (0.1, NON_NEGATIVE, "N s/m"),
     }
+    F0: float
+    F_stribeck: float
+    v_stribeck: float
+    delta: float
+    gamma: float
 
-    def force(self, u):
+    def force(self, u: float) -> float:
         return self.F0 + self.F_stribeck * math.exp(-((u / self.v_stribeck) ** self.delta)) + self.gamma * u
 
-    def slope(self, u):
+    def slope(self, u: float) -> float:
         s = u / self.v_stribeck
         decay = math.exp(-(s**self.delta))
         return self.gamma - self.F_stribeck * self.delta * s ** (self.delta - 1.0) * decay / self.v_stribeck
@@ -140,19 +155,24 @@ class Lubricated(KineticLaw):
     ``F_K(u) = u (g1 + g2 + (g2 - g1) w / sqrt(dv^2 + w^2)) / 2`` with ``w = u - v_tilde``.
     """
 
-    CODE, NAME = 4, "lubricated"
-    PARAMETERS = {
+    CODE: ClassVar[int] = 4
+    NAME: ClassVar[str] = "lubricated"
+    PARAMETERS: ClassVar[dict] = {
         "gamma1": (3.0, NON_NEGATIVE, "N s/m"),
         "gamma2": (0.1, NON_NEGATIVE, "N s/m"),
         "v_tilde": (0.2, NON_NEGATIVE, "m/s"),
         "dv": (0.05, POSITIVE, "m/s"),
     }
+    gamma1: float
+    gamma2: float
+    v_tilde: float
+    dv: float
 
-    def force(self, u):
+    def force(self, u: float) -> float:
         w = u - self.v_tilde
         return 0.5 * u * (self.gamma1 + self.gamma2 + (self.gamma2 - self.gamma1) * w / math.hypot(self.dv, w))
 
-    def slope(self, u):
+    def slope(self, u: float) -> float:
         w = u - self.v_tilde
         s = math.hypot(self.dv, w)
         half_jump = 0.5 * (self.gamma2 - self.gamma1)
@@ -162,18 +182,21 @@ class Lubricated(KineticLaw):
 class CallableKinetic(KineticLaw):
     """Any Python callable ``force(u)`` with its derivative ``slope(u)`` (Python API only)."""
 
-    CODE, NAME = 0, "callable"
-    PARAMETERS = {}
+    CODE: ClassVar[int] = 0
+    NAME: ClassVar[str] = "callable"
+    PARAMETERS: ClassVar[dict] = {}
 
-    def __init__(self, force, slope):
-        super().__init__()
+    def __init__(self, force, slope):  # no parameters: the base's __init__ has nothing to set
         self._force = force
         self._slope = slope
 
-    def force(self, u):
+    def __reduce__(self):
+        return CallableKinetic, (self._force, self._slope)
+
+    def force(self, u: float) -> float:
         return float(self._force(u))
 
-    def slope(self, u):
+    def slope(self, u: float) -> float:
         return float(self._slope(u))
 
     def check(self):
@@ -194,19 +217,19 @@ class CallableKinetic(KineticLaw):
 class StaticLaw(_Law):
     """Base of the static laws ``F_S(t)``, stick time ``t >= 0`` in s, force in N."""
 
-    PREFIX = "static"
+    PREFIX: ClassVar[str] = "static"
 
-    def force(self, t):
+    def force(self, t: float) -> float:
         raise NotImplementedError
 
-    def rate(self, t):
+    def rate(self, t: float) -> float:
         raise NotImplementedError
 
-    def is_constant(self):
+    def is_constant(self) -> bool:
         """True when ``F_S`` does not age: no stick-time bookkeeping is needed."""
         return False
 
-    def curvature(self, t):
+    def curvature(self, t: float) -> float:
         """``d2F_S/dt2`` in N/s^2; its sign tells whether ``F_S`` is convex or concave at ``t``."""
         raise NotImplementedError
 
@@ -218,76 +241,91 @@ class StaticLaw(_Law):
 class Constant(StaticLaw):
     """``F_S(t) = F0``."""
 
-    CODE, NAME = 1, "constant"
-    PARAMETERS = {"F0": (1.0, POSITIVE, "N")}
+    CODE: ClassVar[int] = 1
+    NAME: ClassVar[str] = "constant"
+    PARAMETERS: ClassVar[dict] = {"F0": (1.0, POSITIVE, "N")}
+    F0: float
 
-    def force(self, t):
+    def force(self, t: float) -> float:
         return self.F0
 
-    def rate(self, t):
+    def rate(self, t: float) -> float:
         return 0.0
 
-    def curvature(self, t):
+    def curvature(self, t: float) -> float:
         return 0.0
 
-    def is_constant(self):
+    def is_constant(self) -> bool:
         return True
 
 
 class Logarithmic(StaticLaw):
     """``F_S(t) = F0 + A ln(1 + t/tau)``: concave aging."""
 
-    CODE, NAME = 2, "logarithmic"
-    PARAMETERS = {"F0": (1.0, POSITIVE, "N"), "A": (0.1, NON_NEGATIVE, "N"), "tau": (1.0, POSITIVE, "s")}
+    CODE: ClassVar[int] = 2
+    NAME: ClassVar[str] = "logarithmic"
+    PARAMETERS: ClassVar[dict] = {"F0": (1.0, POSITIVE, "N"), "A": (0.1, NON_NEGATIVE, "N"), "tau": (1.0, POSITIVE, "s")}
+    F0: float
+    A: float
+    tau: float
 
-    def force(self, t):
+    def force(self, t: float) -> float:
         return self.F0 + self.A * math.log1p(t / self.tau)
 
-    def rate(self, t):
+    def rate(self, t: float) -> float:
         return self.A / (self.tau + t)
 
-    def curvature(self, t):
+    def curvature(self, t: float) -> float:
         return -self.A / (self.tau + t) ** 2
 
-    def is_constant(self):
+    def is_constant(self) -> bool:
         return self.A == 0.0
 
 
 class Saturating(StaticLaw):
     """``F_S(t) = F0 + (F_inf - F0)(1 - exp(-t/tau))``: concave (or convex if F_inf < F0)."""
 
-    CODE, NAME = 3, "saturating"
-    PARAMETERS = {"F0": (1.0, POSITIVE, "N"), "F_inf": (1.5, POSITIVE, "N"), "tau": (1.0, POSITIVE, "s")}
+    CODE: ClassVar[int] = 3
+    NAME: ClassVar[str] = "saturating"
+    PARAMETERS: ClassVar[dict] = {"F0": (1.0, POSITIVE, "N"), "F_inf": (1.5, POSITIVE, "N"), "tau": (1.0, POSITIVE, "s")}
+    F0: float
+    F_inf: float
+    tau: float
 
-    def force(self, t):
+    def force(self, t: float) -> float:
         return self.F0 - (self.F_inf - self.F0) * math.expm1(-t / self.tau)
 
-    def rate(self, t):
+    def rate(self, t: float) -> float:
         return (self.F_inf - self.F0) * math.exp(-t / self.tau) / self.tau
 
-    def curvature(self, t):
+    def curvature(self, t: float) -> float:
         return -self.rate(t) / self.tau
 
-    def is_constant(self):
+    def is_constant(self) -> bool:
         return self.F_inf == self.F0
 
 
 class Sigmoid(StaticLaw):
     """``F_S(t) = F0 + (F_inf - F0) t^n / (tau^n + t^n)``: non-convex aging for ``n > 1``."""
 
-    CODE, NAME = 4, "sigmoid"
-    PARAMETERS = {
+    CODE: ClassVar[int] = 4
+    NAME: ClassVar[str] = "sigmoid"
+    PARAMETERS: ClassVar[dict] = {
         "F0": (1.0, POSITIVE, "N"),
         "F_inf": (1.5, POSITIVE, "N"),
         "tau": (1.0, POSITIVE, "s"),
         "n": (2.0, Range(0.5, 20.0), "1"),
     }
+    F0: float
+    F_inf: float
+    tau: float
+    n: float
 
-    def force(self, t):
+    def force(self, t: float) -> float:
         r = (t / self.tau) ** self.n
         return self.F0 + (self.F_inf - self.F0) * r / (1.0 + r)
 
-    def rate(self, t):
+    def rate(self, t: float) -> float:
         if t <= 0.0:
             if self.n > 1.0 or self.F_inf == self.F0:
                 return 0.0
@@ -295,14 +333,14 @@ class Sigmoid(StaticLaw):
         r = (t / self.tau) ** self.n
         return (self.F_inf - self.F0) * self.n * r / (t * (1.0 + r) ** 2)
 
-    def curvature(self, t):
+    def curvature(self, t: float) -> float:
         if t <= 0.0:
             return math.copysign(math.inf, (self.F_inf - self.F0) * (self.n - 1.0)) if self.n != 1.0 else 0.0
         r = (t / self.tau) ** self.n
         shape = (self.n - 1.0) - (self.n + 1.0) * r
         return (self.F_inf - self.F0) * self.n * r * shape / t / t / (1.0 + r) ** 3
 
-    def is_constant(self):
+    def is_constant(self) -> bool:
         return self.F_inf == self.F0
 
     def convexity_breaks(self):
@@ -315,23 +353,26 @@ class CallableStatic(StaticLaw):
     """Any Python callables ``force(t)``, ``rate(t)``, ``curvature(t)`` and the stick
     times where the curvature changes sign (Python API only)."""
 
-    CODE, NAME = 0, "callable"
-    PARAMETERS = {}
+    CODE: ClassVar[int] = 0
+    NAME: ClassVar[str] = "callable"
+    PARAMETERS: ClassVar[dict] = {}
 
-    def __init__(self, force, rate, curvature, convexity_breaks=()):
-        super().__init__()
+    def __init__(self, force, rate, curvature, convexity_breaks=()):  # no parameters to set
         self._force = force
         self._rate = rate
         self._curvature = curvature
         self._breaks = tuple(float(b) for b in convexity_breaks)
 
-    def force(self, t):
+    def __reduce__(self):
+        return CallableStatic, (self._force, self._rate, self._curvature, self._breaks)
+
+    def force(self, t: float) -> float:
         return float(self._force(t))
 
-    def rate(self, t):
+    def rate(self, t: float) -> float:
         return float(self._rate(t))
 
-    def curvature(self, t):
+    def curvature(self, t: float) -> float:
         return float(self._curvature(t))
 
     def convexity_breaks(self):
@@ -344,6 +385,11 @@ class CallableStatic(StaticLaw):
 
     def __repr__(self):
         return f"CallableStatic({self._force!r})"
+
+
+def _rebuild(law_class, parameters):
+    """A law from its class and ``{name: value}`` (unpickling)."""
+    return law_class(**parameters)
 
 
 KINETIC_LAWS = {law.CODE: law for law in (Coulomb, Viscous, Stribeck, Lubricated)}

@@ -14,7 +14,7 @@ the surface). Transitions are decided from the previous mode.
 import math
 
 from .errors import ParameterError
-from .laws import check_pair
+from .laws import KineticLaw, StaticLaw, check_pair
 from .ranges import ANY_FINITE, POSITIVE, check
 
 FORWARD = 1
@@ -26,12 +26,19 @@ class Parameters:
     """Mass ``M`` (kg), stiffness ``kappa`` (N/m) and the two friction laws."""
 
     __slots__ = ("M", "kappa", "kinetic", "static")
+    M: float
+    kappa: float
+    kinetic: KineticLaw
+    static: StaticLaw
 
-    def __init__(self, M, kappa, kinetic, static):
+    def __init__(self, M: float, kappa: float, kinetic: KineticLaw, static: StaticLaw) -> None:
         self.M = float(M)
         self.kappa = float(kappa)
         self.kinetic = kinetic
         self.static = static
+
+    def __reduce__(self):  # pickling (process pools, dask); compiled classes have no default
+        return Parameters, (self.M, self.kappa, self.kinetic, self.static)
 
     def check(self):
         """Raise ParameterError naming the first parameter outside its range."""
@@ -114,48 +121,50 @@ def holding_force(x, F_ext, p):
     return p.kappa * x - F_ext
 
 
-def continued_kinetic_force(law):
-    """``F_K(u)`` (N) as a function of every real ``u`` (m/s): the law for ``u >= 0``, its tangent at 0 below.
+class SlipAccelerator:
+    """``a(x, v)`` (:meth:`at`): ``dv/dt`` (m/s^2) while slipping in ``mode`` with constant inputs.
 
-    Runge-Kutta stages next to a slip's end may probe ``u < 0`` slightly; the
-    tangent continuation is smooth, defined for every law, and never becomes
-    part of the solution.
+    The kinetic law is continued below ``u = 0`` by its tangent there: Runge-Kutta stages next to
+    a slip's end may probe ``u < 0`` slightly; the continuation is smooth, defined for every law,
+    and never becomes part of the solution. The constants are bound once, so an integrator's many
+    evaluations per step cost little more than the law's own.
     """
-    force = law.force
-    force0, slope0 = force(0.0), law.slope(0.0)
 
-    def continued(u):
-        return force(u) if u >= 0.0 else force0 + slope0 * u
+    __slots__ = ("law", "force0", "slope0", "mode", "v_drive", "F_ext", "kappa", "M")
+    law: KineticLaw
+    force0: float  # N: F_K(0)
+    slope0: float  # N s/m: F_K'(0)
+    mode: int
+    v_drive: float
+    F_ext: float
+    kappa: float
+    M: float
 
-    return continued
+    def __init__(self, mode: int, v_drive: float, F_ext: float, p: Parameters) -> None:
+        self.law, self.force0, self.slope0 = p.kinetic, p.kinetic.force(0.0), p.kinetic.slope(0.0)
+        self.mode, self.v_drive, self.F_ext, self.kappa, self.M = mode, v_drive, F_ext, p.kappa, p.M
 
-
-def slip_friction(mode, v_rel, p):
-    """Friction force (N) while slipping in ``mode`` (+1 or -1): ``mode * F_K(mode * v_rel)``."""
-    return mode * continued_kinetic_force(p.kinetic)(mode * v_rel)
-
-
-def slip_accelerator(mode, v_drive, F_ext, p):
-    """``a(x, v)``: ``dv/dt`` (m/s^2) while slipping in ``mode`` with constant inputs.
-
-    The constants are bound once, so an integrator's many evaluations per step
-    cost little more than the law's own.
-    """
-    kinetic_force = continued_kinetic_force(p.kinetic)
-    kappa, M = p.kappa, p.M
-
-    def accel(x, v):
-        return (F_ext - kappa * x + mode * kinetic_force(mode * (v_drive - v))) / M
-
-    return accel
+    def at(self, x: float, v: float) -> float:
+        """``dv/dt`` (m/s^2) at position ``x`` (m) and velocity ``v`` (m/s)."""
+        u = self.mode * (self.v_drive - v)
+        force = self.law.force(u) if u >= 0.0 else self.force0 + self.slope0 * u
+        return (self.F_ext - self.kappa * x + self.mode * force) / self.M
 
 
-def slip_acceleration(mode, x, v, v_drive, F_ext, p):
+def slip_friction(mode: int, v_rel: float, p: Parameters) -> float:
+    """Friction force (N) while slipping in ``mode`` (+1 or -1): ``mode * F_K(mode * v_rel)``, with ``F_K``
+    continued below 0 as in :class:`SlipAccelerator`."""
+    u = mode * v_rel
+    law = p.kinetic
+    return mode * (law.force(u) if u >= 0.0 else law.force(0.0) + law.slope(0.0) * u)
+
+
+def slip_acceleration(mode: int, x: float, v: float, v_drive: float, F_ext: float, p: Parameters) -> float:
     """``dv/dt`` (m/s^2) while slipping in ``mode``."""
-    return slip_accelerator(mode, v_drive, F_ext, p)(x, v)
+    return SlipAccelerator(mode, v_drive, F_ext, p).at(x, v)
 
 
-def slip_acceleration_slope(mode, v, v_drive, p):
+def slip_acceleration_slope(mode: int, v: float, v_drive: float, p: Parameters) -> float:
     """``d(dv/dt)/dv`` (1/s) while slipping: ``-F_K'(mode * v_rel)/M`` (tangent-continued below 0)."""
     return -p.kinetic.slope(max(mode * (v_drive - v), 0.0)) / p.M
 

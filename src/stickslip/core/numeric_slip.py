@@ -9,19 +9,20 @@ is found), then the step is redone to end exactly there.
 """
 
 import math
+from typing import Final
 
 from . import poly
 from .errors import SolverError
-from .integrators import dopri5_step, rosenbrock_step
-from .model import slip_acceleration_slope, slip_accelerator
+from .integrators import Step, dopri5_step, rosenbrock_step
+from .model import Parameters, SlipAccelerator, slip_acceleration_slope
 from .rootfind import first_crossing
 
-_SAFETY = 0.9
-_MAX_GROWTH = 5.0
-_MIN_SHRINK = 0.2
-_EXPLICIT_STABILITY = 3.3  # DOPRI5's stability limit of h * |lambda| on the negative real axis
-_SWITCH_AFTER = 8  # consecutive steps that must agree before the method changes
-MEMO_SIZE = 4096  # accepted steps remembered for replay (0: integrate every step)
+_SAFETY: Final = 0.9
+_MAX_GROWTH: Final = 5.0
+_MIN_SHRINK: Final = 0.2
+_EXPLICIT_STABILITY: Final = 3.3  # DOPRI5's stability limit of h * |lambda| on the negative real axis
+_SWITCH_AFTER: Final = 8  # consecutive steps that must agree before the method changes
+MEMO_SIZE: Final = 4096  # accepted steps remembered for replay (0: integrate every step)
 
 
 class SlipStepper:
@@ -35,8 +36,18 @@ class SlipStepper:
     """
 
     __slots__ = ("rtol", "h", "stiff", "votes", "n_steps", "n_rejected", "_slip", "_memo", "_memo_size")
+    rtol: float
+    h: float | None  # s: the next step's size; None at the start of a slip phase
+    stiff: bool
+    votes: int
+    n_steps: int
+    n_rejected: int
+    _slip: "_Slip | None"
+    _memo: dict
+    _memo_size: int
 
-    def __init__(self, rtol, h=None, stiff=False, votes=0, n_steps=0, n_rejected=0, memo_size=MEMO_SIZE):
+    def __init__(self, rtol: float, h: float | None = None, stiff: bool = False, votes: int = 0, n_steps: int = 0,
+                 n_rejected: int = 0, memo_size: int = MEMO_SIZE) -> None:
         self.rtol = rtol
         self.h = h
         self.stiff = stiff
@@ -58,7 +69,8 @@ class SlipStepper:
         """A new slip phase begins (after an event or an input change): forget the step size."""
         self.h = None
 
-    def step(self, t0, x0, v0, mode, v_drive, F_ext, p):
+    def step(self, t0: float, x0: float, v0: float, mode: int, v_drive: float, F_ext: float,
+             p: Parameters) -> tuple[Step, bool]:
         """One accepted step from ``(t0, x0, v0)``; returns ``(step, ends_in_event)``.
 
         When the step ends in an event, ``step.x1`` is the position where
@@ -81,12 +93,13 @@ class SlipStepper:
             self._memo[key] = (step, ends_in_event, self.h, self.stiff, self.votes, self.n_rejected - rejected_before)
         return step, ends_in_event
 
-    def _integrate(self, t0, x0, v0, mode, v_drive, F_ext, p):
+    def _integrate(self, t0: float, x0: float, v0: float, mode: int, v_drive: float, F_ext: float,
+                   p: Parameters) -> tuple[Step, bool]:
         slip = self._slip
-        if slip is None or slip.key != (mode, v_drive, F_ext):
+        if slip is None or slip.mode != mode or slip.v_drive != v_drive or slip.F_ext != F_ext:
             slip = self._slip = _Slip(mode, v_drive, F_ext, p)
         accel = slip.accel
-        a0 = accel(x0, v0)
+        a0 = accel.at(x0, v0)
         stiffness = max(0.0, -slip_acceleration_slope(mode, v0, v_drive, p))
         h_max = 1.0 / slip.omega0
         if self.h is None:
@@ -107,32 +120,34 @@ class SlipStepper:
                 )
         self.n_steps += 1
         grow = _SAFETY * err ** (-1.0 / step.order) if err > 0.0 else _MAX_GROWTH
-        self.h = h * max(_MIN_SHRINK, min(grow, _MAX_GROWTH))
-        self._vote_on_stiffness(h, stiffness)
+        h_next = self.h = h * max(_MIN_SHRINK, min(grow, _MAX_GROWTH))
+        self._vote_on_stiffness(h, h_next, stiffness)
         theta = _slip_end(step.cv, mode, v_drive)
         if theta is None:
             return step, False
         return self._try(accel, mode, v_drive, p, x0, v0, a0, theta * h), True
 
-    def _try(self, accel, mode, v_drive, p, x0, v0, a0, h):
+    def _try(self, accel: SlipAccelerator, mode: int, v_drive: float, p: Parameters, x0: float, v0: float,
+             a0: float, h: float) -> Step:
         if not self.stiff:
             return dopri5_step(accel, x0, v0, a0, h)
         slope_v = slip_acceleration_slope(mode, v0, v_drive, p)
         return rosenbrock_step(accel, -p.kappa / p.M, slope_v, x0, v0, a0, h)
 
-    def _vote_on_stiffness(self, h, stiffness):
-        """Switch method after several steps agree that stability, not accuracy, limits ``h``."""
+    def _vote_on_stiffness(self, h: float, h_next: float, stiffness: float) -> None:
+        """Switch method after several steps agree that stability, not accuracy, limits the step
+        (``h`` the step just taken, ``h_next`` the next one's size)."""
         if not self.stiff:
             stiff_now = h * stiffness > 0.8 * _EXPLICIT_STABILITY
         else:
-            stiff_now = self.h * stiffness > 0.5 * _EXPLICIT_STABILITY
+            stiff_now = h_next * stiffness > 0.5 * _EXPLICIT_STABILITY
         self.votes = self.votes + 1 if stiff_now != self.stiff else 0
         if self.votes >= _SWITCH_AFTER:
             self.stiff = not self.stiff
             self.votes = 0
 
 
-def _advances(t0, h):
+def _advances(t0: float, h: float) -> bool:
     """True if a step of ``h`` s from ``t0`` moves time by more than rounding (the underflow test)."""
     return h > 1e-15 * max(1.0, abs(t0)) and h >= 1e-300
 
@@ -142,24 +157,31 @@ class _Slip:
     (m) and velocity (m/s) scales of the absolute tolerance, and the natural frequency ``omega0`` (1/s),
     whose inverse is the largest step."""
 
-    __slots__ = ("key", "accel", "scale_x", "scale_v", "omega0")
+    __slots__ = ("mode", "v_drive", "F_ext", "accel", "scale_x", "scale_v", "omega0")
+    mode: int
+    v_drive: float
+    F_ext: float
+    accel: SlipAccelerator
+    scale_x: float
+    scale_v: float
+    omega0: float
 
-    def __init__(self, mode, v_drive, F_ext, p):
-        self.key = (mode, v_drive, F_ext)
-        self.accel = slip_accelerator(mode, v_drive, F_ext, p)
+    def __init__(self, mode: int, v_drive: float, F_ext: float, p: Parameters) -> None:
+        self.mode, self.v_drive, self.F_ext = mode, v_drive, F_ext
+        self.accel = SlipAccelerator(mode, v_drive, F_ext, p)
         self.omega0 = math.sqrt(p.kappa / p.M)
         self.scale_x = (p.static.force(0.0) + abs(F_ext)) / p.kappa
         self.scale_v = max(abs(v_drive), self.omega0 * self.scale_x)
 
 
-def _error_norm(step, x0, v0, rtol, scale_x, scale_v):
+def _error_norm(step: Step, x0: float, v0: float, rtol: float, scale_x: float, scale_v: float) -> float:
     """RMS of the error relative to ``rtol * max(|y|, scale)`` per component."""
     ex = step.err_x / (rtol * max(abs(x0), abs(step.x1), scale_x))
     ev = step.err_v / (rtol * max(abs(v0), abs(step.v1), scale_v))
     return math.sqrt(0.5 * (ex * ex + ev * ev))
 
 
-def _slip_end(cv, mode, v_drive):
+def _slip_end(cv: list[float], mode: int, v_drive: float) -> float | None:
     """First step fraction where ``v`` (dense output ``cv``) reaches ``v_drive`` from the slip side.
 
     ``g = mode * (v_drive - v)`` is positive while slipping; between
@@ -171,7 +193,7 @@ def _slip_end(cv, mode, v_drive):
     if margin > 0.0:
         return None  # |v(theta) - v(0)| <= sum |c_k| on [0, 1]: v cannot reach v_drive in this step
 
-    def g(theta):
+    def g(theta: float) -> float:
         return mode * (v_drive - poly.evaluate(cv, theta))
 
     breaks = poly.monotone_breaks(cv)

@@ -3,7 +3,7 @@
 from .rootfind import brent
 
 
-def evaluate(coeffs, theta):
+def evaluate(coeffs: list[float], theta: float) -> float:
     """``sum(c_k theta^k)`` by Horner's rule."""
     result = 0.0
     for c in reversed(coeffs):
@@ -11,26 +11,27 @@ def evaluate(coeffs, theta):
     return result
 
 
-def evaluate_pair(coeffs_a, coeffs_b, theta):
+def evaluate_pair(coeffs_a: list[float], coeffs_b: list[float], theta: float) -> tuple[float, float]:
     """Both polynomials (of equal length) at ``theta``, in one Horner pass."""
     if len(coeffs_a) == 5:  # the Dormand-Prince dense output, sampled at every output point: unrolled
         a0, a1, a2, a3, a4 = coeffs_a
         b0, b1, b2, b3, b4 = coeffs_b
         return (a0 + theta * (a1 + theta * (a2 + theta * (a3 + theta * a4))),
                 b0 + theta * (b1 + theta * (b2 + theta * (b3 + theta * b4))))
-    a = b = 0.0
+    a = 0.0
+    b = 0.0
     for ca, cb in zip(reversed(coeffs_a), reversed(coeffs_b)):
         a = a * theta + ca
         b = b * theta + cb
     return a, b
 
 
-def derivative(coeffs):
+def derivative(coeffs: list[float]) -> list[float]:
     """Coefficients of ``d/dtheta``."""
     return [k * c for k, c in enumerate(coeffs)][1:]
 
 
-def monotone_breaks(coeffs, a=0.0, b=1.0):
+def monotone_breaks(coeffs: list[float], a: float = 0.0, b: float = 1.0) -> list[float]:
     """Sorted points ``a = p0 < p1 < ... = b`` between which the polynomial is monotonic.
 
     The interior points are the real roots of the derivative in ``(a, b)``,
@@ -40,7 +41,7 @@ def monotone_breaks(coeffs, a=0.0, b=1.0):
     return [a] + _roots(derivative(coeffs), a, b) + [b]
 
 
-def _roots(coeffs, a, b):
+def _roots(coeffs: list[float], a: float, b: float) -> list[float]:
     """Real roots of the polynomial strictly inside ``(a, b)`` where it changes sign."""
     while coeffs and coeffs[-1] == 0.0:
         coeffs = coeffs[:-1]

@@ -1,9 +1,11 @@
 """Bracketed scalar root finding (Brent's method), pure Python."""
 
 import math
+from typing import Callable
 
 
-def brent(f, a, b, fa=None, fb=None, xtol=0.0, max_iter=200):
+def brent(f: Callable[[float], float], a: float, b: float, fa: float | None = None, fb: float | None = None,
+          xtol: float = 0.0, max_iter: int = 200) -> float:
     """A root of ``f`` in ``[a, b]`` where ``f(a)`` and ``f(b)`` differ in sign (or one is 0).
 
     Converges to ``|error| <= 4 eps |x| + xtol``; returns the end of the final
@@ -57,7 +59,7 @@ def brent(f, a, b, fa=None, fb=None, xtol=0.0, max_iter=200):
     return b
 
 
-def first_crossing(f, a, b, fa, fb, xtol=0.0):
+def first_crossing(f: Callable[[float], float], a: float, b: float, fa: float, fb: float, xtol: float = 0.0) -> float:
     """Locate a sign change of ``f`` in ``[a, b]`` and return a point at or just past it.
 
     ``fa`` has the 'before' sign and ``fb`` the 'after' sign (or is 0). The

@@ -9,6 +9,7 @@ list of numbers (``kind`` first) so a trajectory can be saved and restored bit f
 """
 
 import math
+from typing import ClassVar
 
 from . import poly
 from .linear_slip import HarmonicSlip
@@ -27,9 +28,9 @@ class StuckSegment:
     rounding, then does not drift over many cycles.
     """
 
-    KIND = "stuck"
+    KIND: ClassVar[str] = "stuck"
     __slots__ = ("t0", "duration", "t1", "ends_in_event", "x0", "v_drive", "t_stick0", "replayable_end")
-    mode = STUCK
+    mode: ClassVar[int] = STUCK
 
     def __init__(self, t0, duration, ends_in_event, x0, v_drive, t_stick0, replayable_end):
         self.t0, self.duration, self.t1, self.ends_in_event = t0, duration, t0 + duration, ends_in_event
@@ -56,7 +57,7 @@ class StuckSegment:
 class HarmonicSegment:
     """Slip under an affine kinetic law, in closed form (see :mod:`.linear_slip`)."""
 
-    KIND = "harmonic"
+    KIND: ClassVar[str] = "harmonic"
     __slots__ = ("t0", "t1", "ends_in_event", "mode", "x0", "v0", "v_drive", "F_ext", "motion")
 
     def __init__(self, t0, t1, ends_in_event, mode, x0, v0, v_drive, F_ext, p):
@@ -90,10 +91,20 @@ class HarmonicSegment:
 class StepSegment:
     """One Runge-Kutta step of a slip under a general law; ``(x, v)`` from its dense output."""
 
-    KIND = "step"
+    KIND: ClassVar[str] = "step"
     __slots__ = ("t0", "t1", "ends_in_event", "mode", "h", "cx", "cv", "x1", "v1")
+    t0: float
+    t1: float
+    ends_in_event: bool
+    mode: int
+    h: float
+    cx: list[float]
+    cv: list[float]
+    x1: float
+    v1: float
 
-    def __init__(self, t0, t1, ends_in_event, mode, h, cx, cv, x1, v1):
+    def __init__(self, t0: float, t1: float, ends_in_event: bool, mode: int, h: float, cx: list[float],
+                 cv: list[float], x1: float, v1: float) -> None:
         self.t0, self.t1, self.ends_in_event = t0, t1, ends_in_event
         self.mode, self.h, self.cx, self.cv = mode, h, list(cx), list(cv)
         self.x1, self.v1 = x1, v1
@@ -108,7 +119,7 @@ class StepSegment:
         v1 = v_drive if ends_in_event else step.v1
         return cls(t0, t0 + step.h, ends_in_event, mode, step.h, step.cx, step.cv, step.x1, v1)
 
-    def state(self, t):
+    def state(self, t: float) -> tuple[float, float]:
         if t == self.t1:
             return self.x1, self.v1
         theta = (t - self.t0) / self.h

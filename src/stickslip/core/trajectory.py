@@ -44,6 +44,12 @@ RTOL_RANGE = Range(1e-14, 1e-2)
 _MAX_EVENT_CHAIN = 100  # mode changes in a row without time advancing
 _STUCK_HORIZON_PERIODS = 1e6  # an aging stick is searched for a breakaway this far ahead, then re-searched
 
+# The properties that :meth:`Trajectory.outputs` returns, in its order.
+OUTPUT_NAMES = (
+    "x", "v", "v_rel", "friction_force", "spring_force", "mode", "t_stick", "z_slip", "z_stick", "n_events",
+    "n_stick_events", "n_slip_events", "n_overshoots", "t_last_event", "n_steps",
+)
+
 
 class Trajectory:
     """Solution of the hybrid spring-block model with piecewise-constant inputs."""
@@ -135,58 +141,71 @@ class Trajectory:
     # state and outputs at self.t
     # ------------------------------------------------------------------
 
+    def outputs(self):
+        """Every property named in :data:`OUTPUT_NAMES`, in that order, from one evaluation of the state."""
+        segment, x, v, F_ext, p = self._segment, self._x, self._v, self.F_ext, self.params
+        mode = segment.mode
+        t_stick = segment.t_stick(self.t)
+        v_rel = 0.0 if mode == STUCK else self.v_drive - v
+        n_stick, n_slip, n_over = self.n_stick_events, self.n_slip_events, self.n_overshoots
+        return (
+            x, v, v_rel, friction_force(mode, x, v, self.v_drive, F_ext, p), -p.kappa * x, mode, t_stick,
+            z_slip(x, F_ext, t_stick, p), v_rel, n_stick + n_slip + n_over, n_stick, n_slip, n_over,
+            self.t_last_event, self._stepper.n_steps,
+        )
+
     @property
-    def x(self):
+    def x(self) -> float:
         """Block position (m) from the spring's relaxed length."""
         return self._x
 
     @property
-    def v(self):
+    def v(self) -> float:
         """Block velocity (m/s)."""
         return self._v
 
     @property
-    def mode(self):
+    def mode(self) -> int:
         """+1 slipping forward (v < v_drive), 0 stuck, -1 slipping backward."""
         return self._segment.mode
 
     @property
-    def t_stick(self):
+    def t_stick(self) -> float:
         """Time (s) since the current stick began; 0 while slipping."""
         return self._segment.t_stick(self.t)
 
     @property
-    def v_rel(self):
+    def v_rel(self) -> float:
         """Relative sliding velocity ``v_drive - v`` (m/s); exactly 0 while stuck."""
         return 0.0 if self.mode == STUCK else self.v_drive - self._v
 
     @property
-    def friction_force(self):
+    def friction_force(self) -> float:
         """Friction force of the surface on the block (N, + along x)."""
         return friction_force(self.mode, self._x, self._v, self.v_drive, self.F_ext, self.params)
 
     @property
-    def spring_force(self):
+    def spring_force(self) -> float:
         """Spring force on the block (N): ``-kappa x``."""
         return -self.params.kappa * self._x
 
     @property
-    def z_slip(self):
+    def z_slip(self) -> float:
         """Stick-to-slip indicator (N): ``F_S(t_stick) - |kappa x - F_ext|``."""
         return z_slip(self._x, self.F_ext, self.t_stick, self.params)
 
     @property
-    def z_stick(self):
+    def z_stick(self) -> float:
         """Slip-to-stick indicator (m/s): ``v_rel``."""
         return self.v_rel
 
     @property
-    def n_events(self):
+    def n_events(self) -> int:
         """Mode changes since the start."""
         return self.n_stick_events + self.n_slip_events + self.n_overshoots
 
     @property
-    def n_steps(self):
+    def n_steps(self) -> int:
         """Runge-Kutta steps taken (closed-form phases take none)."""
         return self._stepper.n_steps
 
@@ -210,15 +229,12 @@ class Trajectory:
     @classmethod
     def from_snapshot(cls, params, snap):
         """Rebuild a trajectory saved by :meth:`snapshot` (with the same parameters)."""
-        traj = cls.__new__(cls)
-        traj.params = params
-        traj.rtol = snap["rtol"]
+        traj = cls(params, 0.0, 0.0, rtol=snap["rtol"])  # at rest: every field is replaced below
         traj.t = snap["t"]
         traj.v_drive = snap["v_drive"]
         traj.F_ext = snap["F_ext"]
         traj.n_stick_events, traj.n_slip_events, traj.n_overshoots, traj._chain = snap["counts"]
         traj.t_last_event = snap["t_last_event"]
-        traj.events = None
         traj._stepper = SlipStepper.from_snapshot(traj.rtol, snap["stepper"])
         traj._segment = segment_from_list(snap["segment"], params)
         traj._x, traj._v = traj._segment.state(traj.t)

@@ -1,0 +1,47 @@
+"""setuptools hook: compile the runtime's hot modules with mypyc (src/stickslip/compile_runtime.py).
+
+Optional: without mypyc or a C compiler the package installs as pure Python, and says so.
+Everything else about the package is in pyproject.toml.
+"""
+
+import importlib.util
+import sys
+from pathlib import Path
+
+from setuptools import setup
+from setuptools.command.build_ext import build_ext
+
+SRC = Path(__file__).resolve().parent / "src"
+CORE = SRC / "stickslip" / "core"
+_spec = importlib.util.spec_from_file_location("compile_runtime", SRC / "stickslip" / "compile_runtime.py")
+compile_runtime = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(compile_runtime)
+
+
+class BuildCompiledRuntime(build_ext):
+    """build_ext that removes compiled files of older sources first and stamps the new ones."""
+
+    def run(self):
+        if self.inplace:
+            compile_runtime.remove_compiled(SRC, CORE)
+        super().run()
+        target = CORE if self.inplace else Path(self.build_lib) / "stickslip" / "core"
+        built = [name for name in compile_runtime.COMPILED_MODULES if list(target.glob(f"{name}.*.so"))]
+        if len(built) == len(compile_runtime.COMPILED_MODULES):
+            compile_runtime.write_stamp(CORE)
+            if not self.inplace:
+                compile_runtime.write_stamp(target)
+            print("stickslip: the runtime's hot modules are compiled (mypyc)", file=sys.stderr)
+        else:
+            print("stickslip: compiling the runtime failed (no C compiler?): it runs as pure Python", file=sys.stderr)
+
+
+def _extensions():
+    try:
+        return compile_runtime.extensions("src/stickslip/core")
+    except ImportError as exc:  # mypyc missing: pyproject's build-system requires it, a non-isolated build may not
+        print(f"stickslip: mypyc is not available ({exc}): the runtime runs as pure Python", file=sys.stderr)
+        return []
+
+
+setup(ext_modules=_extensions(), cmdclass={"build_ext": BuildCompiledRuntime})

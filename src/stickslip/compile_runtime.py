@@ -1,0 +1,72 @@
+"""Compile the runtime's hot modules ahead of time with mypyc, from their Python sources.
+
+Used at build time only, without importing ``stickslip`` (``setup.py`` loads this file by
+path): by ``setup.py`` for the installed package, and by :mod:`stickslip.fmu_staging` for
+the FMU's renamed copy (compiled under its final name ``sbf_runtime_<tag>``). mypyc makes
+one shared library for the group (``<hash>__mypyc``, a top-level module) and a small
+extension module per compiled module. The list of modules and the freshness stamp are
+those of ``core/_implementation.py``, which picks the compiled or the pure modules at import.
+Extensions are optional: without a working C compiler the build goes on, pure Python.
+"""
+
+import importlib.util
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+_spec = importlib.util.spec_from_file_location("_implementation", HERE / "core" / "_implementation.py")
+implementation = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(implementation)
+COMPILED_MODULES = implementation.COMPILED_MODULES
+
+
+class CompileError(RuntimeError):
+    """The runtime could not be compiled (no mypyc, no C compiler, or a compile error)."""
+
+
+def extensions(package_dir):
+    """mypyc's optional setuptools extensions for the compiled modules of ``package_dir``, given relative to
+    the current folder, which is the root of the import path (``src`` or the FMU's ``resources``)."""
+    from mypyc.build import mypycify
+
+    built = mypycify([os.path.join(package_dir, f"{name}.py") for name in COMPILED_MODULES], opt_level="3")
+    for extension in built:
+        extension.optional = True  # no compiler: setuptools warns and the package stays pure Python
+    return built
+
+
+def remove_compiled(root, package_dir):
+    """Delete compiled modules and mypyc group libraries left in ``package_dir`` and ``root`` by earlier builds."""
+    for path in [*Path(package_dir).glob("*.so"), *Path(package_dir).glob("*.pyd"),
+                 *Path(root).glob("*__mypyc.*.so"), *Path(root).glob("*__mypyc.*.pyd"),
+                 Path(package_dir) / implementation.STAMP]:
+        path.unlink(missing_ok=True)
+
+
+def write_stamp(package_dir):
+    """Record the digest of the sources the compiled modules are built from."""
+    (Path(package_dir) / implementation.STAMP).write_text(implementation.sources_digest(package_dir) + "\n")
+
+
+def compile_in_place(root, package):
+    """Compile ``root/package`` in place; its compiled files (paths), or CompileError saying why not."""
+    package_dir = Path(root) / package
+    remove_compiled(root, package_dir)
+    script = (
+        f"import sys; sys.path.insert(0, {str(HERE)!r}); import compile_runtime as c; "
+        f"from setuptools import setup; "
+        f"setup(ext_modules=c.extensions({package!r}), script_args=['build_ext', '--inplace', '--quiet'])"
+    )
+    try:
+        run = subprocess.run([sys.executable, "-c", script], cwd=root, capture_output=True, text=True, timeout=1200)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise CompileError(f"mypyc did not run: {exc}") from exc
+    modules = [path for name in COMPILED_MODULES for path in package_dir.glob(f"{name}.*.so")]
+    groups = list(Path(root).glob("*__mypyc.*.so"))
+    if run.returncode != 0 or len(modules) != len(COMPILED_MODULES) or not groups:
+        tail = "\n".join((run.stderr or run.stdout).strip().splitlines()[-5:])
+        raise CompileError(f"mypyc/C compilation failed (exit {run.returncode}): {tail}")
+    write_stamp(package_dir)
+    return [*modules, *groups, package_dir / implementation.STAMP]

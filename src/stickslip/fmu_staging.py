@@ -1,0 +1,122 @@
+"""Lay out the FMU's Python code for :func:`stickslip.fmu_build.build`: what PythonFMU loads, and how fast.
+
+In the FMU's ``resources/``:
+
+- ``sbf_runtime_<tag>/``: the runtime ``stickslip/core``, the slave (``fmu_slave.py``, from
+  ``fmu_src/SpringBlockFriction.py``) and the variable table it shares with the FMI 3 slave
+  (``block_interface.py``, from ``fmu_src/``), their imports renamed to the package, with byte-compiled files
+  for the building Python in ``__pycache__`` (unchecked-hash ``.pyc``: valid whatever times the
+  extraction gives the files, so a host with that Python never compiles them);
+- the hot modules of the runtime compiled by mypyc under that package name, for the building
+  Python (:mod:`stickslip.compile_runtime`; the group library ``<hash>__mypyc`` goes to the top
+  of ``resources/``), unless the build is pure or cannot compile (no C compiler: the FMU is then
+  pure Python, and the build says so on stderr). A host that cannot load them (another Python
+  version or platform) runs the sources (``core/_implementation.py``). Compiled files are cached
+  in ``build/fmu-runtime`` by package name (the source tag) and Python;
+- ``springblockfriction_<tag>.py``: the module PythonFMU loads, two lines. PythonFMU 0.7.0
+  compiles and runs that module's source at every ``fmi2Instantiate`` (to find the slave class
+  by its MRO; with the 300-line slave there, that was 2 ms of each instantiation and a leaked
+  copy of the class), so the slave's own source, imported once per process, stays out of it.
+"""
+
+import compileall
+import py_compile
+import re
+import shutil
+import sys
+import sysconfig
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .compile_runtime import CompileError, compile_in_place
+
+CACHE = Path(__file__).resolve().parents[2] / "build" / "fmu-runtime"
+#: files of an in-place compiled ``stickslip/core`` (pip install -e) that never go into an FMU's copy
+COMPILED_ARTIFACTS = ("__pycache__", "*.pyc", "*.so", "*.pyd", "compiled_sources.sha256")
+#: the builder modules whose source decides the FMU's layout (part of its source tag)
+STAGING_SOURCES = (Path(__file__).resolve(), Path(__file__).resolve().with_name("compile_runtime.py"))
+
+
+class StagingError(RuntimeError):
+    """The FMU's Python code cannot be laid out from the current sources."""
+
+
+@dataclass
+class StagedRuntime:
+    """The staged code in a build folder: ``script`` and ``package_dir`` go to PythonFMU's builder;
+    ``extra_files`` (archive name -> path) are the files its builder may leave out of the FMU."""
+
+    script: Path
+    package_dir: Path
+    module: str
+    extra_files: dict = field(default_factory=dict)
+
+    def add_to(self, fmu_zip):
+        """Write those of :attr:`extra_files` that the open FMU archive ``fmu_zip`` does not have yet."""
+        present = set(fmu_zip.namelist())
+        for arcname, path in sorted(self.extra_files.items()):
+            if arcname not in present:
+                fmu_zip.write(path, arcname)
+
+
+def stage_runtime(folder, tag, runtime, slave, interface, model_name, compiled=True):
+    """Stage the runtime folder ``runtime``, the slave source ``slave`` (class ``model_name``) and the shared
+    variable table ``interface`` in ``folder``; ``compiled``: also compile the runtime's hot modules (if this
+    machine can)."""
+    package, module = f"sbf_runtime_{tag}", f"springblockfriction_{tag}"
+    package_dir = Path(folder) / package
+    shutil.copytree(runtime, package_dir, ignore=shutil.ignore_patterns(*COMPILED_ARTIFACTS))
+    (package_dir / "block_interface.py").write_text(
+        rewrite_once(interface, r"\bstickslip\.core\b", package, "the runtime as 'from stickslip.core import ...'"))
+    slave_code = rewrite_once(slave, r"\bstickslip\.core\b", package, "the runtime as 'from stickslip.core import ...'")
+    slave_code = rewrite_once(slave, r"\bfrom block_interface import\b", f"from {package}.block_interface import",
+                               "the shared table as 'from block_interface import ...'", slave_code)
+    (package_dir / "fmu_slave.py").write_text(slave_code)
+    script = Path(folder) / f"{module}.py"
+    script.write_text(f"from {package}.fmu_slave import {model_name}, hold_loader_namespace  # noqa: F401\n"
+                      "hold_loader_namespace(globals())  # PythonFMU releases this module's globals once per instance\n")
+    staged = StagedRuntime(script, package_dir, module)
+    staged.extra_files.update(_byte_compile(package_dir))
+    if compiled:
+        staged.extra_files.update(_compiled(Path(folder), package))
+    return staged
+
+
+def rewrite_once(path, pattern, replacement, what, code=None):
+    """``code`` (default: the text of ``path``) with ``pattern`` replaced; StagingError unless it occurs once."""
+    code, count = re.subn(pattern, replacement, Path(path).read_text() if code is None else code)
+    if count != 1:
+        raise StagingError(f"{path} must import {what} exactly once")
+    return code
+
+
+def _compiled(folder, package):
+    """The compiled modules of ``folder/package`` (from the cache or compiled now): ``{archive name: path}``."""
+    cache = CACHE / f"{package}-{sys.implementation.cache_tag}-{sysconfig.get_platform()}"
+    if not (cache / "complete").is_file():
+        try:
+            files = compile_in_place(folder, package)
+        except CompileError as exc:
+            print(f"stickslip: the FMU's runtime stays pure Python: {exc}", file=sys.stderr)
+            return {}
+        shutil.rmtree(cache, ignore_errors=True)
+        for path in files:
+            target = cache / path.relative_to(folder)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(path, target)
+        (cache / "complete").write_text("")
+    out = {}
+    for path in cache.rglob("*"):
+        if path.is_file() and path.name != "complete":
+            relative = path.relative_to(cache)
+            shutil.copy2(path, folder / relative)
+            out[f"resources/{relative.as_posix()}"] = folder / relative
+    return out
+
+
+def _byte_compile(package_dir):
+    """Unchecked-hash ``.pyc`` of every module in ``package_dir``: ``{archive name: path}``."""
+    if not compileall.compile_dir(package_dir, quiet=1, invalidation_mode=py_compile.PycInvalidationMode.UNCHECKED_HASH):
+        raise StagingError(f"byte-compiling {package_dir} failed")
+    return {f"resources/{path.relative_to(package_dir.parent).as_posix()}": path
+            for path in package_dir.glob("__pycache__/*.pyc")}
