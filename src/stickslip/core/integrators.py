@@ -12,6 +12,8 @@ Both return a :class:`Step` whose dense output is a polynomial in the step
 fraction ``theta`` for each component.
 """
 
+from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
+
 import math
 from typing import Final
 

@@ -12,6 +12,8 @@ A Python user may pass any callable through :class:`CallableKinetic` or
 :class:`CallableStatic`.
 """
 
+from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
+
 import math
 from typing import ClassVar
 

@@ -11,6 +11,8 @@ block forward, ``v < v_drive``), STUCK (0) and BACKWARD (-1, the block overtakes
 the surface). Transitions are decided from the previous mode.
 """
 
+from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
+
 import math
 
 from .errors import ParameterError

@@ -8,6 +8,8 @@ extrema of ``v`` (so a short excursion of ``v_rel`` through 0 inside one step
 is found), then the step is redone to end exactly there.
 """
 
+from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
+
 import math
 from typing import Final
 

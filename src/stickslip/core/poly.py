@@ -1,5 +1,7 @@
 """Small polynomials in the step fraction ``theta`` in [0, 1], as coefficient lists (lowest first)."""
 
+from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
+
 from .rootfind import brent
 
 

@@ -1,5 +1,7 @@
 """Bracketed scalar root finding (Brent's method), pure Python."""
 
+from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
+
 import math
 from typing import Callable
 

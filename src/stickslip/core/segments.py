@@ -8,6 +8,8 @@ Each segment evaluates ``(x, v)`` anywhere in ``[t0, t1]`` and serializes to a
 list of numbers (``kind`` first) so a trajectory can be saved and restored bit for bit.
 """
 
+from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
+
 import math
 from typing import ClassVar
 

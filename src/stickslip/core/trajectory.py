@@ -18,6 +18,8 @@ the result at a time does not depend on how the caller slices time, only on
 when the inputs change.
 """
 
+from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
+
 import math
 
 from .errors import SolverError
