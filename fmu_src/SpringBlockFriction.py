@@ -98,9 +98,11 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
             self.set_variable(VARIABLES[reference].name, value)
 
     def set_variable(self, name, value):
+        """Set a parameter (before initialization ends) or an input: the outputs follow at the next read."""
         super().set_variable(name, value)
         self._by_reference[_REFERENCE_OF[name]] = value
         self._inputs_changed = True
+        self._outputs_stale = True
 
     def outputs_changed(self):
         """The state moved, or values were restored: the outputs need a new evaluation."""
