@@ -63,8 +63,7 @@ def test_compiled_and_pure_agree_bit_for_bit_on_every_scenario(path):
 def _probe(extra_env, code, cwd):
     env = {**os.environ, **extra_env}
     run = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, env=env,
-                         stdin=subprocess.DEVNULL,
-                         cwd=cwd)
+                         stdin=subprocess.DEVNULL, cwd=cwd)
     assert run.returncode == 0, run.stderr
     return run.stdout.strip()
 
@@ -106,7 +105,7 @@ def _fmu_run(folder, cwd):
         assert result["n_events"][-1] >= 3
         print(runtime.IMPLEMENTATION.split(":")[0])
         print(" ".join(float(x).hex() for x in result["x"]), flush=True)
-        import os; os._exit(0)  # see the note below
+        import os; os._exit(0)  # no teardown: see the docstring
     """
     implementation, xs = _probe({}, code, cwd).splitlines()
     return implementation, xs
