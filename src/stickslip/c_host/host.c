@@ -33,6 +33,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "host_common.h"
+
 typedef void *Component;
 typedef unsigned int VR;
 typedef int Status; /* 0 ok, 1 warning, 2 discard, 3 error, 4 fatal */
@@ -66,23 +68,10 @@ static struct {
 } fmi;
 
 static const char *resources, *guid;
-static double stop_time, step;
+static double stop_time;
 static VR output;
 static int n_settings;
 static char **settings;
-static pthread_mutex_t print_lock = PTHREAD_MUTEX_INITIALIZER;
-
-static void say(const char *format, ...)
-{
-    va_list args;
-    va_start(args, format);
-    pthread_mutex_lock(&print_lock);
-    vprintf(format, args);
-    fflush(stdout);
-    pthread_mutex_unlock(&print_lock);
-    va_end(args);
-}
-
 static void logger(void *env, const char *name, Status status, const char *category, const char *message, ...)
 {
     char text[4096];
@@ -97,14 +86,6 @@ static void logger(void *env, const char *name, Status status, const char *categ
 }
 
 static const Callbacks callbacks = {logger, calloc, free, NULL, NULL};
-
-static void check(const char *function, Status status)
-{
-    if (status > 1) {
-        say("failed %s %d\n", function, status);
-        exit(1);
-    }
-}
 
 static Component instantiate(const char *name)
 {
@@ -139,15 +120,6 @@ static double read_output(Component c)
     double x;
     check("fmi2GetReal", fmi.get_real(c, &output, 1, &x));
     return x;
-}
-
-/* FMPy's communication points: start + (n+1) h, the last one clipped to the stop time */
-static int close_to(double a, double b) { return fabs(a - b) <= 1e-9 * fmax(fabs(a), fabs(b)); }
-static int done(double t, double stop) { return t > stop || close_to(t, stop); }
-static double next_point(long n, double stop)
-{
-    double next = (n + 1) * step;
-    return next > stop && !close_to(next, stop) ? stop : next;
 }
 
 /* step from (t, n) to stop, printing "<tag> t x" at each point; returns the new n */

@@ -1,6 +1,6 @@
-"""The FMU's linux64 binary that loads anywhere: a small C loader in front of PythonFMU's binary.
+"""The FMUs' Linux binary that loads anywhere: a small C loader in front of PythonFMU's or pythonfmu3's binary.
 
-``loader.c`` is compiled with the system C compiler when an FMU is built
+``runtime.c`` with the front of the FMU's FMI version (``fmi2_front.c``, ``fmi3_front.c``) is compiled with the system C compiler when an FMU is built
 (:func:`install`); see its header for what it does at run time.
 """
 
