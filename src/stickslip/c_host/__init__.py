@@ -72,12 +72,14 @@ class HostRun:
         return next((line[1:] for line in self.lines if line[0] == key), None)
 
 
-def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x", env=None, timeout=600):
+def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x", env=None, timeout=600,
+             wrapper=()):
     """Run ``host`` (of the FMU's FMI version) in ``mode`` on the FMU extracted to ``fmu_folder``.
 
     ``start_values``: {name: value} or (name, value) pairs, set in this order (mode "bad" leaves the last
     one out of its second instance).
-    The child gets only ``PATH`` from this process's environment, plus ``env``.
+    The child gets only ``PATH`` from this process's environment, plus ``env``. ``wrapper``: a command that runs
+    the host, e.g. ``["valgrind"]``.
     """
     folder = Path(fmu_folder).resolve()
     description = fmpy.read_model_description(str(folder))
@@ -88,7 +90,7 @@ def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x
     version = int(description.fmiVersion[0])
     binary = folder / "binaries" / BINARY_FOLDERS[version] / f"{description.coSimulation.modelIdentifier}.so"
     resources = (folder / "resources").as_uri() if version == 2 else f"{folder / 'resources'}/"
-    command = [str(host), str(binary), resources, description.guid, mode, repr(stop_time),
+    command = [*wrapper, str(host), str(binary), resources, description.guid, mode, repr(stop_time),
                repr(step), str(variables[output].valueReference), *settings]
     child_env = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), **(env or {})}
     result = subprocess.run(command, capture_output=True, text=True, env=child_env, timeout=timeout)

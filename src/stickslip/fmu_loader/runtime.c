@@ -16,12 +16,17 @@
 #include "runtime.h"
 
 #include <dlfcn.h>
+#include <elf.h>
+#include <fcntl.h>
+#include <link.h>
 #include <pthread.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #ifndef SBF_INNER_LIBRARY
@@ -174,6 +179,57 @@ static void initialize_python(const char *where)
     thread_has_state = 1;
 }
 
+/* ---- the inner library's exit fault ----
+ * PythonFMU 0.7.0 and pythonfmu3 0.3.4 keep their Python start-up object in a global std::shared_ptr, which is
+ * destroyed twice at process exit: by its static destructor (an exit handler) and again by the library's ELF
+ * destructor, which calls finalizePythonInterpreter() to reset the pointer the first one left dangling. The
+ * second one decrements a reference count in freed memory (and may free the object again): glibc then aborts
+ * the host at exit at random ("corrupted double-linked list", "double free"). Resetting the pointer once,
+ * through that same function, before either runs makes both harmless: the handler registered here, after the
+ * library was loaded, runs before its static destructor (exit handlers run last-in, first-out). */
+static void (*inner_reset_python_state)(void);
+
+static void reset_inner_python_state(void) { inner_reset_python_state(); }
+
+/* The function `name` of the loaded library `lib` (opened from `path`): its dynamic symbol, else its entry in
+ * the file's full symbol table (PythonFMU does not export finalizePythonInterpreter); NULL if neither. */
+static void *find_function(void *lib, const char *path, const char *name)
+{
+    void *function = dlsym(lib, name);
+    struct link_map *map;
+    struct stat st;
+    if (function || dlinfo(lib, RTLD_DI_LINKMAP, &map) != 0) return function;
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return NULL;
+    const unsigned char *file = MAP_FAILED;
+    if (fstat(fd, &st) == 0 && (size_t)st.st_size >= sizeof(Elf64_Ehdr))
+        file = mmap(NULL, st.st_size, PROT_READ, MAP_PRIVATE, fd, 0);
+    close(fd);
+    if (file == MAP_FAILED) return NULL;
+    size_t size = st.st_size, name_size = strlen(name) + 1;
+    const Elf64_Ehdr *header = (const void *)file;
+    if (memcmp(header->e_ident, ELFMAG, SELFMAG) == 0 && header->e_ident[EI_CLASS] == ELFCLASS64 &&
+        header->e_shentsize == sizeof(Elf64_Shdr) && header->e_shoff + header->e_shnum * sizeof(Elf64_Shdr) <= size) {
+        const Elf64_Shdr *sections = (const void *)(file + header->e_shoff);
+        for (size_t i = 0; i < header->e_shnum && !function; ++i) {
+            const Elf64_Shdr *symbols = &sections[i], *strings = &sections[symbols->sh_link];
+            if (symbols->sh_type != SHT_SYMTAB || symbols->sh_link >= header->e_shnum ||
+                symbols->sh_offset + symbols->sh_size > size || strings->sh_offset + strings->sh_size > size)
+                continue;
+            const Elf64_Sym *symbol = (const void *)(file + symbols->sh_offset);
+            for (size_t j = 0; j < symbols->sh_size / sizeof *symbol; ++j, ++symbol)
+                if (ELF64_ST_TYPE(symbol->st_info) == STT_FUNC && symbol->st_value &&
+                    symbol->st_name + name_size <= strings->sh_size &&
+                    memcmp(file + strings->sh_offset + symbol->st_name, name, name_size) == 0) {
+                    function = (void *)(map->l_addr + symbol->st_value);
+                    break;
+                }
+        }
+    }
+    munmap((void *)file, size);
+    return function;
+}
+
 static void load_inner(sbf_resolve_inner resolve)
 {
     Dl_info self;
@@ -190,7 +246,9 @@ static void load_inner(sbf_resolve_inner resolve)
         sbf_fail("cannot load the FMU's inner binary %s: %s", path, dlerror());
         return;
     }
-    resolve(lib, path);
+    if (!resolve(lib, path)) return;
+    *(void **)&inner_reset_python_state = find_function(lib, path, "finalizePythonInterpreter");
+    if (inner_reset_python_state) atexit(reset_inner_python_state);
 }
 
 int sbf_start(sbf_resolve_inner resolve)
