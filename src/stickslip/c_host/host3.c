@@ -37,11 +37,6 @@ static struct {
     Status (*set_int32)(Instance, const VR *, size_t, const int32_t *, size_t);
 } fmi;
 
-static const char *resources, *token;
-static double stop_time;
-static VR output;
-static int n_settings;
-static char **settings;
 
 /* the instance environment is the instance's name */
 static void log_message(void *environment, Status status, const char *category, const char *message)
@@ -68,9 +63,10 @@ static Instance instantiate(const char *name)
 static Status initialize(Instance c, int n)
 {
     for (int i = 0; i < n; ++i) {
-        VR vr = (VR)strtoul(settings[i] + 1, NULL, 10);
-        const char *value = strchr(settings[i], '=') + 1;
-        if (settings[i][0] == 'i') {
+        VR vr;
+        int is_integer;
+        const char *value = setting(i, &vr, &is_integer);
+        if (is_integer) {
             int32_t v = atoi(value);
             check("fmi3SetInt32", fmi.set_int32(c, &vr, 1, &v, 1));
         } else {
@@ -118,32 +114,10 @@ static void mode_bad(void)
 
 int main(int argc, char **argv)
 {
-    if (argc < 8) {
-        fprintf(stderr, "usage: host3 BINARY RESOURCE_PATH TOKEN MODE STOP STEP OUTPUT_VR [rVR=VALUE|iVR=VALUE ...]\n");
-        return 2;
-    }
-    void *lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
-    if (!lib) {
-        say("failed dlopen %s\n", dlerror());
-        return 1;
-    }
-    const char *names[] = {"fmi3InstantiateCoSimulation", "fmi3FreeInstance", "fmi3EnterInitializationMode",
-                           "fmi3ExitInitializationMode", "fmi3Terminate", "fmi3DoStep", "fmi3GetFloat64",
-                           "fmi3SetFloat64", "fmi3SetInt32"};
-    void **slots = (void **)&fmi;
-    for (size_t i = 0; i < sizeof names / sizeof *names; ++i)
-        if (!(slots[i] = dlsym(lib, names[i]))) {
-            say("failed dlsym %s\n", names[i]);
-            return 1;
-        }
-    resources = argv[2];
-    token = argv[3];
-    const char *mode = argv[4];
-    stop_time = strtod(argv[5], NULL);
-    step = strtod(argv[6], NULL);
-    output = (VR)strtoul(argv[7], NULL, 10);
-    settings = argv + 8;
-    n_settings = argc - 8;
+    static const char *const names[] = {
+        "fmi3InstantiateCoSimulation", "fmi3FreeInstance", "fmi3EnterInitializationMode", "fmi3ExitInitializationMode",
+        "fmi3Terminate", "fmi3DoStep", "fmi3GetFloat64", "fmi3SetFloat64", "fmi3SetInt32"};
+    if (!start_host(argc, argv, names, sizeof names / sizeof *names, (void **)&fmi)) return argc < 8 ? 2 : 1;
     if (!strcmp(mode, "run")) run_one("run");
     else if (!strcmp(mode, "bad")) mode_bad();
     else {

@@ -195,23 +195,7 @@ EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, si
     return fmi2OK;
 }
 
-#ifdef SBF_SLAVE_SURVIVES_RELEASE
-#define RECOVERABLE 1
-#else
-#define RECOVERABLE 0
-#endif
-#define KEPT 0
-#define FORWARD(name, failure, params, args)                                 \
-    EXPORT fmi2Status name params                                            \
-    {                                                                        \
-        Instance *inst = c;                                                  \
-        if (!inst) return fmi2Error;                                         \
-        sbf_keep_thread_state();                                                 \
-        inst->fatal_is_error = failure;                                      \
-        fmi2Status status = inner.name(inst->inner FORWARD_ARGS args);       \
-        inst->fatal_is_error = 0;                                            \
-        return failure && status == fmi2Fatal ? fmi2Error : status;          \
-    }
-#define FORWARD_ARGS(...) __VA_OPT__(, ) __VA_ARGS__
+#define FORWARD(name, failure, params, args) \
+    SBF_FORWARD(fmi2Status, fmi2Error, fmi2Fatal, name, failure, params, args)
 FORWARDED(FORWARD)
 #undef FORWARD

@@ -319,24 +319,8 @@ EXPORT fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, siz
     return fmi3OK;
 }
 
-#ifdef SBF_SLAVE_SURVIVES_RELEASE
-#define RECOVERABLE 1
-#else
-#define RECOVERABLE 0
-#endif
-#define KEPT 0
-#define FORWARD(name, failure, params, args)                                 \
-    EXPORT fmi3Status name params                                            \
-    {                                                                        \
-        Instance *inst = c;                                                  \
-        if (!inst) return fmi3Error;                                         \
-        sbf_keep_thread_state();                                             \
-        inst->fatal_is_error = failure;                                      \
-        fmi3Status status = inner.name(inst->inner FORWARD_ARGS args);       \
-        inst->fatal_is_error = 0;                                            \
-        return failure && status == fmi3Fatal ? fmi3Error : status;          \
-    }
-#define FORWARD_ARGS(...) __VA_OPT__(, ) __VA_ARGS__
+#define FORWARD(name, failure, params, args) \
+    SBF_FORWARD(fmi3Status, fmi3Error, fmi3Fatal, name, failure, params, args)
 FORWARDED(FORWARD)
 #undef FORWARD
 

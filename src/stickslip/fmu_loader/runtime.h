@@ -34,4 +34,31 @@ void sbf_set_log_filter(sbf_log_filter *filter, int on, size_t n, const char *co
 /* Warnings, discards, errors and fatals always; other messages only as the host asked. */
 int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *category);
 
+/* ---- for the fronts: an exported FMI function forwarded to the inner library ----
+ * The front defines `Instance` (with the fields `inner`, the inner library's instance, and `fatal_is_error`),
+ * the struct `inner` of the inner library's entry points, and its list of forwarded functions as
+ * X(name, failure, parameters, arguments after the instance), the instance parameter named `c`.
+ * failure RECOVERABLE: the inner library reports an exception of the slave method it calls as fatal; with
+ * SBF_SLAVE_SURVIVES_RELEASE (a slave whose methods balance the library's release of it on an exception, as
+ * SpringBlockFriction's do) the instance stays valid for reset, state restore and free, which is what an error
+ * status means, so the fatal status is returned and logged as an error. KEPT: the status as is. */
+#ifdef SBF_SLAVE_SURVIVES_RELEASE
+#define RECOVERABLE 1
+#else
+#define RECOVERABLE 0
+#endif
+#define KEPT 0
+#define SBF_FORWARD_ARGS(...) __VA_OPT__(, ) __VA_ARGS__
+#define SBF_FORWARD(Status, error, fatal, name, failure, params, args)                  \
+    __attribute__((visibility("default"))) Status name params                           \
+    {                                                                                   \
+        Instance *inst = c;                                                             \
+        if (!inst) return error;                                                        \
+        sbf_keep_thread_state();                                                        \
+        inst->fatal_is_error = failure;                                                 \
+        Status status = inner.name(inst->inner SBF_FORWARD_ARGS args);                  \
+        inst->fatal_is_error = 0;                                                       \
+        return failure && status == fatal ? error : status;                             \
+    }
+
 #endif
