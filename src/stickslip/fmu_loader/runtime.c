@@ -11,6 +11,8 @@
  *   3. loads the inner library (PythonFMU's or pythonfmu3's binary, SBF_INNER_LIBRARY beside this one)
  *      and lets the front resolve its entry points.
  * Each host thread gets one Python thread state, kept for the thread's life (sbf_keep_thread_state).
+ * At process exit the inner library's Python start-up object is reset once before its own destructors run
+ * (see reset_inner_python_state).
  */
 #define _GNU_SOURCE
 #include "runtime.h"
@@ -212,10 +214,10 @@ static void *find_function(void *lib, const char *path, const char *name)
         header->e_shentsize == sizeof(Elf64_Shdr) && header->e_shoff + header->e_shnum * sizeof(Elf64_Shdr) <= size) {
         const Elf64_Shdr *sections = (const void *)(file + header->e_shoff);
         for (size_t i = 0; i < header->e_shnum && !function; ++i) {
-            const Elf64_Shdr *symbols = &sections[i], *strings = &sections[symbols->sh_link];
-            if (symbols->sh_type != SHT_SYMTAB || symbols->sh_link >= header->e_shnum ||
-                symbols->sh_offset + symbols->sh_size > size || strings->sh_offset + strings->sh_size > size)
-                continue;
+            const Elf64_Shdr *symbols = &sections[i];
+            if (symbols->sh_type != SHT_SYMTAB || symbols->sh_link >= header->e_shnum) continue;
+            const Elf64_Shdr *strings = &sections[symbols->sh_link];
+            if (symbols->sh_offset + symbols->sh_size > size || strings->sh_offset + strings->sh_size > size) continue;
             const Elf64_Sym *symbol = (const void *)(file + symbols->sh_offset);
             for (size_t j = 0; j < symbols->sh_size / sizeof *symbol; ++j, ++symbol)
                 if (ELF64_ST_TYPE(symbol->st_info) == STT_FUNC && symbol->st_value &&
