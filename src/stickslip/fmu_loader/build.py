@@ -24,7 +24,8 @@ HERE = Path(__file__).resolve().parent
 FRONTS = {2: (HERE / "fmi2_front.c", "binaries/linux64", "PythonFMU"),
           3: (HERE / "fmi3_front.c", "binaries/x86_64-linux", "pythonfmu3")}
 RUNTIME = (HERE / "runtime.c", HERE / "runtime.h")
-SOURCES = (*RUNTIME, *(front for front, _, _ in FRONTS.values()), Path(__file__).resolve())  # what a built binary depends on
+#: what a built binary depends on
+SOURCES = (*RUNTIME, *(front for front, _, _ in FRONTS.values()), Path(__file__).resolve())
 LIBPYTHON_VARIABLE = "SBF_LIBPYTHON"  # the loader's override: path or name of a CPython shared library
 
 
@@ -51,7 +52,8 @@ def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2):
         return f"no C compiler ({compiler!r} not found; set CC)"
     path, soname = build_libpython()
     command = [
-        compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o", str(dest), str(FRONTS[fmi_version][0]), str(RUNTIME[0]),
+        compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o", str(dest),
+        str(FRONTS[fmi_version][0]), str(RUNTIME[0]),
         f"-DSBF_INNER_LIBRARY={_c_string(inner_name)}", f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
         f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}", "-ldl", "-lpthread",
     ] + (["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else [])
@@ -79,8 +81,8 @@ def install(fmu_path, model_identifier, slave_survives_release=False, fmi_versio
         loader = Path(tmp) / binary.rsplit("/", 1)[1]
         why_not = compile_loader(loader, inner_name, slave_survives_release, fmi_version)
         if why_not is not None:
-            print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads only inside "
-                  f"a Python process: {why_not}", file=sys.stderr)
+            print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads "
+                  f"only inside a Python process: {why_not}", file=sys.stderr)
             return False
         rewritten = Path(tmp) / "fmu.zip"
         with zipfile.ZipFile(fmu_path) as source, zipfile.ZipFile(rewritten, "w", zipfile.ZIP_DEFLATED) as target:
