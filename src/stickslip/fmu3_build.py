@@ -4,6 +4,8 @@ The same runtime, variable table and tagging as the FMI 2 FMU (:mod:`stickslip.f
 ``fmu_src/SpringBlockFriction_fmi3.py``, bundled as the module ``springblockfriction3_<tag>``. pythonfmu3's
 model description is completed with units, declared types, bounds and a default experiment, and states
 the capabilities: FMU state get/set/serialize, variable communication step, no completed-step calls.
+Its x86_64-linux binary is the loader (:mod:`stickslip.fmu_loader`, FMI 3 front) in front of pythonfmu3's,
+so that it loads in hosts without Python too.
 """
 
 import importlib
@@ -12,6 +14,7 @@ import tempfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
+from . import fmu_loader
 from .fmi_host import preserved_sys_path
 from .fmu_build import (
     MODEL_NAME, REPO, annotate_variables, built_tag, bundle_sources, forget_modules, insert_definitions, source_tag,
@@ -31,7 +34,7 @@ def default_fmu3_path():
 
 def source_tag3():
     """10 hex digits identifying the sources of the FMI 3 FMU."""
-    return source_tag(SLAVE3, builders=[Path(__file__).resolve()])
+    return source_tag(SLAVE3, builders=[Path(__file__).resolve(), *fmu_loader.SOURCES])
 
 
 def is_current(fmu_path):
@@ -59,8 +62,10 @@ def build3(dest=None):
                 slave = getattr(importlib.import_module(module), MODEL_NAME)(instance_name="build")
         finally:
             forget_modules(tag, module)
-        write_completed(built, dest, lambda xml: complete_model_description3(
-            xml, slave.variable_units, slave.variable_bounds))
+        write_completed(
+            built, dest, lambda xml: complete_model_description3(xml, slave.variable_units, slave.variable_bounds),
+            finish=lambda partial: fmu_loader.install(partial, MODEL_NAME, slave_survives_release=True, fmi_version=3),
+        )
     return dest
 
 

@@ -1,9 +1,10 @@
-"""A plain C FMI 2.0 importer (``host.c``) that runs an FMU outside any Python process.
+"""Plain C importers, FMI 2.0 (``host.c``) and FMI 3.0 co-simulation (``host3.c``), that run an FMU outside
+any Python process.
 
-It stands for the C/C++ system simulators: it opens the FMU's binary with
+They stand for the C/C++ system simulators: they open the FMU's binary with
 ``dlopen(RTLD_NOW | RTLD_LOCAL)`` and nothing preloaded. :func:`compile_host`
-builds it with the system C compiler (``$CC``, default ``cc``); :func:`run_host`
-runs one of its modes (see ``host.c``) in a child process, so that a crash only
+builds one with the system C compiler (``$CC``, default ``cc``); :func:`run_host`
+runs one of its modes (see the sources) in a child process, so that a crash only
 shows as a return code, and parses what it printed.
 """
 
@@ -15,27 +16,34 @@ from pathlib import Path
 
 import fmpy
 
-SOURCE = Path(__file__).resolve().with_name("host.c")
+HERE = Path(__file__).resolve().parent
+#: FMI version: the host's source
+SOURCES = {2: HERE / "host.c", 3: HERE / "host3.c"}
+COMMON = HERE / "host_common.h"
+#: FMI version: the folder of the FMU's Linux binaries
+BINARY_FOLDERS = {2: "linux64", 3: "x86_64-linux"}
 
 
 class HostBuildError(RuntimeError):
     """The C host cannot be compiled here."""
 
 
-def compile_host(build_dir):
-    """Compile ``host.c`` into ``build_dir`` (unless it is newer than the source); return the executable's path."""
-    dest = Path(build_dir) / "sbf_c_host"
-    if dest.is_file() and dest.stat().st_mtime >= SOURCE.stat().st_mtime:
+def compile_host(build_dir, fmi_version=2):
+    """Compile the host of ``fmi_version`` into ``build_dir`` (unless it is newer than its sources); return the
+    executable's path."""
+    source = SOURCES[fmi_version]
+    dest = Path(build_dir) / f"sbf_c_host{'' if fmi_version == 2 else fmi_version}"
+    if dest.is_file() and dest.stat().st_mtime >= max(source.stat().st_mtime, COMMON.stat().st_mtime):
         return dest
     compiler = os.environ.get("CC") or "cc"
     if shutil.which(compiler) is None:
         raise HostBuildError(f"no C compiler: {compiler!r} not found (set CC)")
     dest.parent.mkdir(parents=True, exist_ok=True)
     partial = dest.with_name(f".{dest.name}.{os.getpid()}")
-    result = subprocess.run([compiler, "-O2", "-o", str(partial), str(SOURCE), "-ldl", "-lpthread", "-lm"],
+    result = subprocess.run([compiler, "-O2", "-o", str(partial), str(source), "-ldl", "-lpthread", "-lm"],
                             capture_output=True, text=True)
     if result.returncode != 0:
-        raise HostBuildError(f"{compiler} failed to compile {SOURCE.name}:\n{result.stderr}")
+        raise HostBuildError(f"{compiler} failed to compile {source.name}:\n{result.stderr}")
     os.replace(partial, dest)
     return dest
 
@@ -64,20 +72,25 @@ class HostRun:
         return next((line[1:] for line in self.lines if line[0] == key), None)
 
 
-def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x", env=None, timeout=600):
-    """Run ``host`` in ``mode`` on the FMU extracted to ``fmu_folder``.
+def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x", env=None, timeout=600,
+             wrapper=()):
+    """Run ``host`` (of the FMU's FMI version) in ``mode`` on the FMU extracted to ``fmu_folder``.
 
     ``start_values``: {name: value} or (name, value) pairs, set in this order (mode "bad" leaves the last
     one out of its second instance).
-    The child gets only ``PATH`` from this process's environment, plus ``env``.
+    The child gets only ``PATH`` from this process's environment, plus ``env``. ``wrapper``: a command that runs
+    the host, e.g. ``["valgrind"]``.
     """
     folder = Path(fmu_folder).resolve()
     description = fmpy.read_model_description(str(folder))
     variables = {v.name: v for v in description.modelVariables}
-    settings = [f"{'i' if variables[name].type == 'Integer' else 'r'}{variables[name].valueReference}={value!r}"
+    settings = [f"{'i' if variables[name].type in ('Integer', 'Int32') else 'r'}{variables[name].valueReference}"
+                f"={value!r}"
                 for name, value in (start_values.items() if hasattr(start_values, "items") else start_values)]
-    binary = folder / "binaries" / "linux64" / f"{description.coSimulation.modelIdentifier}.so"
-    command = [str(host), str(binary), (folder / "resources").as_uri(), description.guid, mode, repr(stop_time),
+    version = int(description.fmiVersion[0])
+    binary = folder / "binaries" / BINARY_FOLDERS[version] / f"{description.coSimulation.modelIdentifier}.so"
+    resources = (folder / "resources").as_uri() if version == 2 else f"{folder / 'resources'}/"
+    command = [*wrapper, str(host), str(binary), resources, description.guid, mode, repr(stop_time),
                repr(step), str(variables[output].valueReference), *settings]
     child_env = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), **(env or {})}
     result = subprocess.run(command, capture_output=True, text=True, env=child_env, timeout=timeout)

@@ -33,6 +33,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "host_common.h"
+
 typedef void *Component;
 typedef unsigned int VR;
 typedef int Status; /* 0 ok, 1 warning, 2 discard, 3 error, 4 fatal */
@@ -65,24 +67,6 @@ static struct {
     Status (*deserialize)(Component, const char *, size_t, void **);
 } fmi;
 
-static const char *resources, *guid;
-static double stop_time, step;
-static VR output;
-static int n_settings;
-static char **settings;
-static pthread_mutex_t print_lock = PTHREAD_MUTEX_INITIALIZER;
-
-static void say(const char *format, ...)
-{
-    va_list args;
-    va_start(args, format);
-    pthread_mutex_lock(&print_lock);
-    vprintf(format, args);
-    fflush(stdout);
-    pthread_mutex_unlock(&print_lock);
-    va_end(args);
-}
-
 static void logger(void *env, const char *name, Status status, const char *category, const char *message, ...)
 {
     char text[4096];
@@ -98,17 +82,9 @@ static void logger(void *env, const char *name, Status status, const char *categ
 
 static const Callbacks callbacks = {logger, calloc, free, NULL, NULL};
 
-static void check(const char *function, Status status)
-{
-    if (status > 1) {
-        say("failed %s %d\n", function, status);
-        exit(1);
-    }
-}
-
 static Component instantiate(const char *name)
 {
-    Component c = fmi.instantiate(name, 1, guid, resources, &callbacks, 0, 0);
+    Component c = fmi.instantiate(name, 1, token, resources, &callbacks, 0, 0);
     if (!c) {
         say("failed fmi2Instantiate NULL\n");
         exit(1);
@@ -120,9 +96,10 @@ static Status initialize(Component c, int n)
 {
     check("fmi2SetupExperiment", fmi.setup(c, 0, 0.0, 0.0, 1, stop_time));
     for (int i = 0; i < n; ++i) {
-        VR vr = (VR)strtoul(settings[i] + 1, NULL, 10);
-        const char *value = strchr(settings[i], '=') + 1;
-        if (settings[i][0] == 'i') {
+        VR vr;
+        int is_integer;
+        const char *value = setting(i, &vr, &is_integer);
+        if (is_integer) {
             int v = atoi(value);
             check("fmi2SetInteger", fmi.set_integer(c, &vr, 1, &v));
         } else {
@@ -139,15 +116,6 @@ static double read_output(Component c)
     double x;
     check("fmi2GetReal", fmi.get_real(c, &output, 1, &x));
     return x;
-}
-
-/* FMPy's communication points: start + (n+1) h, the last one clipped to the stop time */
-static int close_to(double a, double b) { return fabs(a - b) <= 1e-9 * fmax(fabs(a), fabs(b)); }
-static int done(double t, double stop) { return t > stop || close_to(t, stop); }
-static double next_point(long n, double stop)
-{
-    double next = (n + 1) * step;
-    return next > stop && !close_to(next, stop) ? stop : next;
 }
 
 /* step from (t, n) to stop, printing "<tag> t x" at each point; returns the new n */
@@ -291,33 +259,12 @@ static void mode_bench(void)
 
 int main(int argc, char **argv)
 {
-    if (argc < 8) {
-        fprintf(stderr, "usage: host BINARY RESOURCE_URI GUID MODE STOP STEP OUTPUT_VR [rVR=VALUE|iVR=VALUE ...]\n");
-        return 2;
-    }
-    void *lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
-    if (!lib) {
-        say("failed dlopen %s\n", dlerror());
-        return 1;
-    }
-    const char *names[] = {"fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
-                           "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2Reset", "fmi2DoStep", "fmi2GetReal", "fmi2SetReal",
-                           "fmi2SetInteger", "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate",
-                           "fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate"};
-    void **slots = (void **)&fmi;
-    for (size_t i = 0; i < sizeof names / sizeof *names; ++i)
-        if (!(slots[i] = dlsym(lib, names[i]))) {
-            say("failed dlsym %s\n", names[i]);
-            return 1;
-        }
-    resources = argv[2];
-    guid = argv[3];
-    const char *mode = argv[4];
-    stop_time = strtod(argv[5], NULL);
-    step = strtod(argv[6], NULL);
-    output = (VR)strtoul(argv[7], NULL, 10);
-    settings = argv + 8;
-    n_settings = argc - 8;
+    static const char *const names[] = {
+        "fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
+        "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2Reset", "fmi2DoStep", "fmi2GetReal", "fmi2SetReal",
+        "fmi2SetInteger", "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate",
+        "fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate"};
+    if (!start_host(argc, argv, names, sizeof names / sizeof *names, (void **)&fmi)) return argc < 8 ? 2 : 1;
     if (!strcmp(mode, "run")) run_one("run", "x");
     else if (!strcmp(mode, "bad")) mode_bad();
     else if (!strcmp(mode, "reset")) mode_reset();

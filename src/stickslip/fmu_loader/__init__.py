@@ -1,7 +1,8 @@
-"""The FMU's linux64 binary that loads anywhere: a small C loader in front of PythonFMU's binary.
+"""The FMUs' Linux binary that loads anywhere: a small C loader in front of PythonFMU's or pythonfmu3's binary.
 
-``loader.c`` is compiled with the system C compiler when an FMU is built
-(:func:`install`); see its header for what it does at run time.
+``runtime.c`` with the front of the FMU's FMI version (``fmi2_front.c``, ``fmi3_front.c``) is compiled
+with the system C compiler when an FMU is built (:func:`install`); see their headers for what they do at
+run time.
 """
 
 from .build import LIBPYTHON_VARIABLE, SOURCES, install

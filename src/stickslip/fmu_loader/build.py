@@ -1,10 +1,12 @@
-"""Compile ``loader.c`` and put it into a PythonFMU FMU as its linux64 binary.
+"""Compile the loader and put it into a PythonFMU (FMI 2) or pythonfmu3 (FMI 3) FMU as its Linux binary.
 
-The loader becomes ``binaries/linux64/<model identifier>.so``; PythonFMU's own
-binary stays beside it as ``<model identifier>_pythonfmu.so``. The loader
+The loader is ``runtime.c`` (CPython and the inner library) with the front of the
+FMU's FMI version (``fmi2_front.c`` or ``fmi3_front.c``). It becomes
+``binaries/<linux folder>/<model identifier>.so``; the library's own binary stays
+beside it as ``<model identifier>_pythonfmu.so``. The loader
 records the CPython shared library of the Python that builds the FMU (path and
 soname) as the ones to try after ``$SBF_LIBPYTHON``. The compiler is ``$CC``
-(default ``cc``); without a working one the FMU keeps PythonFMU's binary, which
+(default ``cc``); without a working one the FMU keeps its library's binary, which
 loads only inside a Python process, and the build says so on stderr.
 """
 
@@ -17,8 +19,13 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-SOURCE = Path(__file__).resolve().with_name("loader.c")
-SOURCES = (SOURCE, Path(__file__).resolve())  # what the built binary depends on
+HERE = Path(__file__).resolve().parent
+#: FMI version: (the front's source, the FMU's folder of Linux binaries, the library that built the FMU)
+FRONTS = {2: (HERE / "fmi2_front.c", "binaries/linux64", "PythonFMU"),
+          3: (HERE / "fmi3_front.c", "binaries/x86_64-linux", "pythonfmu3")}
+RUNTIME = (HERE / "runtime.c", HERE / "runtime.h")
+#: what a built binary depends on
+SOURCES = (*RUNTIME, *(front for front, _, _ in FRONTS.values()), Path(__file__).resolve())
 LIBPYTHON_VARIABLE = "SBF_LIBPYTHON"  # the loader's override: path or name of a CPython shared library
 
 
@@ -37,14 +44,16 @@ def _c_string(text):
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def compile_loader(dest, inner_name, slave_survives_release):
-    """Compile the loader to ``dest``, forwarding to ``inner_name`` beside it; None on success, else why not."""
+def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2):
+    """Compile the loader of ``fmi_version`` to ``dest``, forwarding to ``inner_name`` beside it; None on
+    success, else why not."""
     compiler = os.environ.get("CC") or "cc"
     if shutil.which(compiler) is None:
         return f"no C compiler ({compiler!r} not found; set CC)"
     path, soname = build_libpython()
     command = [
-        compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o", str(dest), str(SOURCE),
+        compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o", str(dest),
+        str(FRONTS[fmi_version][0]), str(RUNTIME[0]),
         f"-DSBF_INNER_LIBRARY={_c_string(inner_name)}", f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
         f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}", "-ldl", "-lpthread",
     ] + (["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else [])
@@ -54,32 +63,33 @@ def compile_loader(dest, inner_name, slave_survives_release):
     return None
 
 
-def install(fmu_path, model_identifier, slave_survives_release=False):
-    """Replace the linux64 binary of the FMU at ``fmu_path`` (rewritten in place) by the loader.
+def install(fmu_path, model_identifier, slave_survives_release=False, fmi_version=2):
+    """Replace the Linux binary of the FMI ``fmi_version`` FMU at ``fmu_path`` (rewritten in place) by the loader.
 
     ``slave_survives_release``: the slave's methods balance PythonFMU's release of the slave on an exception
     (as ``fmu_src/SpringBlockFriction.py`` does); the loader then reports their failures as fmi2Error, which
-    lets the host reset or free the instance, instead of PythonFMU's fmi2Fatal.
+    lets the host reset or free the instance, instead of the library's fatal status.
 
     Returns True if the loader was installed; False (after a notice on stderr) if the FMU keeps
-    PythonFMU's binary because no C compiler works.
+    its library's binary because no C compiler works.
     """
     fmu_path = Path(fmu_path)
-    binary = f"binaries/linux64/{model_identifier}.so"
+    _, folder, library = FRONTS[fmi_version]
+    binary = f"{folder}/{model_identifier}.so"
     inner_name = f"{model_identifier}_pythonfmu.so"
     with tempfile.TemporaryDirectory(prefix="sbf_loader_") as tmp:
         loader = Path(tmp) / binary.rsplit("/", 1)[1]
-        why_not = compile_loader(loader, inner_name, slave_survives_release)
+        why_not = compile_loader(loader, inner_name, slave_survives_release, fmi_version)
         if why_not is not None:
-            print(f"note: the {model_identifier} FMU keeps PythonFMU's linux64 binary, which loads only inside a Python "
-                  f"process: {why_not}", file=sys.stderr)
+            print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads "
+                  f"only inside a Python process: {why_not}", file=sys.stderr)
             return False
         rewritten = Path(tmp) / "fmu.zip"
         with zipfile.ZipFile(fmu_path) as source, zipfile.ZipFile(rewritten, "w", zipfile.ZIP_DEFLATED) as target:
             for item in source.infolist():
                 data = source.read(item)
                 if item.filename == binary:
-                    target.writestr(f"binaries/linux64/{inner_name}", data)
+                    target.writestr(f"{folder}/{inner_name}", data)
                     data = loader.read_bytes()
                 target.writestr(item, data)
         shutil.copyfile(rewritten, fmu_path)

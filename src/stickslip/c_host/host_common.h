@@ -1,0 +1,86 @@
+/* What the C hosts (host.c: FMI 2, host3.c: FMI 3) share: printing, failing, FMPy's communication points. */
+#ifndef SBF_HOST_COMMON_H
+#define SBF_HOST_COMMON_H
+#include <dlfcn.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static pthread_mutex_t print_lock = PTHREAD_MUTEX_INITIALIZER;
+
+static void say(const char *format, ...)
+{
+    va_list args;
+    va_start(args, format);
+    pthread_mutex_lock(&print_lock);
+    vprintf(format, args);
+    fflush(stdout);
+    pthread_mutex_unlock(&print_lock);
+    va_end(args);
+}
+
+/* ---- the command line: host BINARY RESOURCES TOKEN MODE STOP STEP OUTPUT_VR [rVR=VALUE | iVR=VALUE ...] ---- */
+static const char *resources, *token, *mode; /* the FMU's resources (as the FMI version passes them), its
+                                                 GUID / instantiation token, the mode to run */
+static double stop_time, step;               /* s */
+static unsigned int output;                  /* value reference of the real output printed */
+static int n_settings;
+static char **settings;                      /* start values, set in this order */
+
+/* Parse the command line and load the FMU's functions `names` into `slots`, in order; 0 after a printed failure. */
+static int start_host(int argc, char **argv, const char *const *names, size_t n, void **slots)
+{
+    if (argc < 8) {
+        fprintf(stderr, "usage: %s BINARY RESOURCES TOKEN MODE STOP STEP OUTPUT_VR [rVR=VALUE|iVR=VALUE ...]\n", argv[0]);
+        return 0;
+    }
+    void *lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+        say("failed dlopen %s\n", dlerror());
+        return 0;
+    }
+    for (size_t i = 0; i < n; ++i)
+        if (!(slots[i] = dlsym(lib, names[i]))) {
+            say("failed dlsym %s\n", names[i]);
+            return 0;
+        }
+    resources = argv[2];
+    token = argv[3];
+    mode = argv[4];
+    stop_time = strtod(argv[5], NULL);
+    step = strtod(argv[6], NULL);
+    output = (unsigned int)strtoul(argv[7], NULL, 10);
+    settings = argv + 8;
+    n_settings = argc - 8;
+    return 1;
+}
+
+/* Setting i: its value reference, whether it is an integer, and its value's text */
+static const char *setting(int i, unsigned int *vr, int *is_integer)
+{
+    *vr = (unsigned int)strtoul(settings[i] + 1, NULL, 10);
+    *is_integer = settings[i][0] == 'i';
+    return strchr(settings[i], '=') + 1;
+}
+
+static void check(const char *function, int status)
+{
+    if (status > 1) {
+        say("failed %s %d\n", function, status);
+        exit(1);
+    }
+}
+
+/* FMPy's communication points: start + (n+1) h, the last one clipped to the stop time */
+static int close_to(double a, double b) { return fabs(a - b) <= 1e-9 * fmax(fabs(a), fabs(b)); }
+static int done(double t, double stop) { return t > stop || close_to(t, stop); }
+static double next_point(long n, double stop)
+{
+    double next = (n + 1) * step;
+    return next > stop && !close_to(next, stop) ? stop : next;
+}
+
+#endif

@@ -1,0 +1,201 @@
+/* The FMI 2 FMU's linux64 binary: an FMI 2.0 co-simulation front for PythonFMU's binary.
+ *
+ * PythonFMU's binary (shipped beside this one as SBF_INNER_LIBRARY) leaves every Py* symbol unresolved
+ * and so loads only inside a Python process. This library needs nothing but libc: on the first
+ * fmi2Instantiate it finds and starts CPython and loads PythonFMU's binary (runtime.c), then forwards
+ * every FMI call to it (failures of the model's calls as fmi2Error where the slave allows it: see
+ * FORWARDED). PythonFMU logs only when its debug logging is on, errors included; it is therefore always
+ * instantiated with logging on, and this library filters: warnings, discards, errors and fatals always
+ * reach the host's logger, other messages only as the host asked (loggingOn, fmi2SetDebugLogging categories).
+ */
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "runtime.h"
+
+/* ---- FMI 2.0 types (as in the standard's fmi2TypesPlatform.h / fmi2FunctionTypes.h) ---- */
+typedef void *fmi2Component;
+typedef void *fmi2ComponentEnvironment;
+typedef void *fmi2FMUstate;
+typedef unsigned int fmi2ValueReference;
+typedef double fmi2Real;
+typedef int fmi2Integer;
+typedef int fmi2Boolean;
+typedef const char *fmi2String;
+typedef char fmi2Byte;
+typedef enum { fmi2OK, fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pending } fmi2Status;
+typedef enum { fmi2ModelExchange, fmi2CoSimulation } fmi2Type;
+typedef enum { fmi2DoStepStatus, fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated } fmi2StatusKind;
+typedef void (*fmi2CallbackLogger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, ...);
+typedef struct {
+    fmi2CallbackLogger logger;
+    void *(*allocateMemory)(size_t, size_t);
+    void (*freeMemory)(void *);
+    void (*stepFinished)(fmi2ComponentEnvironment, fmi2Status);
+    fmi2ComponentEnvironment componentEnvironment;
+} fmi2CallbackFunctions;
+
+#define EXPORT __attribute__((visibility("default")))
+
+/* ---- the functions forwarded: X(name, failure, parameters, arguments after the component) ----
+ * failure RECOVERABLE: PythonFMU reports an exception of the slave method it calls as fmi2Fatal; with
+ * SBF_SLAVE_SURVIVES_RELEASE (a slave whose methods balance PythonFMU's release of it on an exception, as
+ * SpringBlockFriction's do) the instance stays valid for fmi2Reset, fmi2SetFMUstate and fmi2FreeInstance,
+ * which is what fmi2Error means, so fmi2Fatal is returned and logged as fmi2Error. KEPT: the status as is. */
+#define FORWARDED(X)                                                                                               \
+    X(fmi2SetupExperiment, RECOVERABLE, (fmi2Component c, fmi2Boolean a, fmi2Real b, fmi2Real d, fmi2Boolean e, fmi2Real f), \
+      (a, b, d, e, f))                                                                                             \
+    X(fmi2EnterInitializationMode, RECOVERABLE, (fmi2Component c), ())                                             \
+    X(fmi2ExitInitializationMode, RECOVERABLE, (fmi2Component c), ())                                              \
+    X(fmi2Terminate, RECOVERABLE, (fmi2Component c), ())                                                           \
+    X(fmi2Reset, KEPT, (fmi2Component c), ())                                                                      \
+    X(fmi2GetReal, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Real *x), (v, n, x))  \
+    X(fmi2GetInteger, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Integer *x), (v, n, x)) \
+    X(fmi2GetBoolean, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Boolean *x), (v, n, x)) \
+    X(fmi2GetString, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2String *x), (v, n, x)) \
+    X(fmi2SetReal, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Real *x), (v, n, x)) \
+    X(fmi2SetInteger, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *x), (v, n, x)) \
+    X(fmi2SetBoolean, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Boolean *x), (v, n, x)) \
+    X(fmi2SetString, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2String *x), (v, n, x)) \
+    X(fmi2GetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate *s), (s))                                       \
+    X(fmi2SetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate s), (s))                                        \
+    X(fmi2FreeFMUstate, KEPT, (fmi2Component c, fmi2FMUstate *s), (s))                                             \
+    X(fmi2SerializedFMUstateSize, KEPT, (fmi2Component c, fmi2FMUstate s, size_t *n), (s, n))                      \
+    X(fmi2SerializeFMUstate, KEPT, (fmi2Component c, fmi2FMUstate s, fmi2Byte *b, size_t n), (s, b, n))            \
+    X(fmi2DeSerializeFMUstate, KEPT, (fmi2Component c, const fmi2Byte *b, size_t n, fmi2FMUstate *s), (b, n, s))   \
+    X(fmi2GetDirectionalDerivative, KEPT,                                                                          \
+      (fmi2Component c, const fmi2ValueReference *u, size_t nu, const fmi2ValueReference *k, size_t nk,            \
+       const fmi2Real *dk, fmi2Real *du),                                                                          \
+      (u, nu, k, nk, dk, du))                                                                                      \
+    X(fmi2SetRealInputDerivatives, KEPT,                                                                           \
+      (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *o, const fmi2Real *x),           \
+      (v, n, o, x))                                                                                                \
+    X(fmi2GetRealOutputDerivatives, KEPT,                                                                          \
+      (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *o, fmi2Real *x), (v, n, o, x))   \
+    X(fmi2DoStep, RECOVERABLE, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean k), (t, h, k))                \
+    X(fmi2CancelStep, KEPT, (fmi2Component c), ())                                                                 \
+    X(fmi2GetStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Status *x), (k, x))                       \
+    X(fmi2GetRealStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Real *x), (k, x))                     \
+    X(fmi2GetIntegerStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Integer *x), (k, x))               \
+    X(fmi2GetBooleanStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Boolean *x), (k, x))               \
+    X(fmi2GetStringStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2String *x), (k, x))
+
+/* PythonFMU's entry points */
+static struct {
+#define POINTER(name, failure, params, args) fmi2Status(*name) params;
+    FORWARDED(POINTER)
+#undef POINTER
+    fmi2Component (*fmi2Instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
+                                     fmi2Boolean, fmi2Boolean);
+    void (*fmi2FreeInstance)(fmi2Component);
+    fmi2Status (*fmi2SetDebugLogging)(fmi2Component, fmi2Boolean, size_t, const fmi2String *);
+} inner;
+
+/* ---- one instance ---- */
+typedef struct {
+    fmi2Component inner;
+    fmi2CallbackFunctions host;   /* the importer's callbacks */
+    fmi2CallbackFunctions relay;  /* handed to PythonFMU: logs through relay_log */
+    char *name;
+    sbf_log_filter logging;
+    int fatal_is_error; /* during a RECOVERABLE call: PythonFMU's fmi2Fatal is reported as fmi2Error */
+} Instance;
+
+static void host_log(const Instance *inst, fmi2Status status, const char *text)
+{
+    static const char *const categories[] = {"logStatusOK", "logStatusWarning", "logStatusDiscard",
+                                             "logStatusError", "logStatusFatal", "logStatusPending"};
+    if (inst->host.logger)
+        inst->host.logger(inst->host.componentEnvironment, inst->name, status, categories[status], "%s", text);
+    else
+        fprintf(stderr, "[%s] %s: %s\n", categories[status], inst->name, text);
+}
+
+/* PythonFMU's logger: its message is plain text (it passes no format arguments) */
+static void relay_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                      fmi2String message, ...)
+{
+    const Instance *inst = env;
+    char tidy[4096];
+    (void)name;
+    if (!message) message = "";
+    if (inst->fatal_is_error && status == fmi2Fatal) {
+        status = fmi2Error;
+        message = sbf_exception_text(message, tidy, sizeof tidy);
+    }
+    if (inst->host.logger && sbf_log_wanted(&inst->logging, status, category))
+        inst->host.logger(inst->host.componentEnvironment, inst->name, status, category, "%s", message);
+}
+
+/* sbf_start's resolver: PythonFMU's entry points */
+static int resolve_inner(void *lib, const char *path)
+{
+#define LOAD(name, failure, params, args) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
+    if (1 FORWARDED(LOAD) LOAD(fmi2Instantiate, , , ) LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , ))
+        return 1;
+#undef LOAD
+    sbf_fail("%s lacks an FMI 2 function: %s", path, dlerror());
+    return 0;
+}
+
+/* ---- exported FMI 2 functions ---- */
+
+EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
+EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
+
+static void free_instance(Instance *inst)
+{
+    sbf_set_log_filter(&inst->logging, 0, 0, NULL);
+    free(inst->name);
+    free(inst);
+}
+
+EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
+                                     const fmi2CallbackFunctions *functions, fmi2Boolean visible,
+                                     fmi2Boolean loggingOn)
+{
+    Instance *inst = calloc(1, sizeof *inst);
+    if (!inst) return NULL;
+    inst->name = strdup(name ? name : "");
+    if (functions) inst->host = *functions;
+    inst->relay = inst->host;
+    inst->relay.logger = relay_log;
+    inst->relay.componentEnvironment = inst;
+    inst->logging.on = loggingOn;
+    if (!sbf_start(resolve_inner)) {
+        host_log(inst, fmi2Fatal, sbf_start_error());
+        free_instance(inst);
+        return NULL;
+    }
+    sbf_keep_thread_state();
+    inst->inner = inner.fmi2Instantiate(name, type, guid, resources, &inst->relay, visible, 1);
+    if (!inst->inner) {
+        free_instance(inst);
+        return NULL;
+    }
+    return inst;
+}
+
+EXPORT void fmi2FreeInstance(fmi2Component c)
+{
+    Instance *inst = c;
+    if (!inst) return;
+    sbf_keep_thread_state();
+    inner.fmi2FreeInstance(inst->inner);
+    free_instance(inst);
+}
+
+EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t n, const fmi2String *categories)
+{
+    if (!c) return fmi2Error;
+    sbf_set_log_filter(&((Instance *)c)->logging, loggingOn, n, categories);
+    return fmi2OK;
+}
+
+#define FORWARD(name, failure, params, args) \
+    SBF_FORWARD(fmi2Status, fmi2Error, fmi2Fatal, name, failure, params, args)
+FORWARDED(FORWARD)
+#undef FORWARD

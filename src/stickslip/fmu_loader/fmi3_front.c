@@ -1,0 +1,334 @@
+/* The FMI 3 FMU's x86_64-linux binary: an FMI 3.0 front (co-simulation and model exchange) for pythonfmu3's binary.
+ *
+ * pythonfmu3's binary (shipped beside this one as SBF_INNER_LIBRARY) leaves every Py* symbol unresolved, as
+ * PythonFMU's does. This library needs nothing but libc: on the first instantiation it finds and starts CPython
+ * and loads pythonfmu3's binary (runtime.c), then forwards the FMI calls that pythonfmu3 implements (failures of
+ * the model's calls as fmi3Error where the slave allows it: see FORWARDED). The functions pythonfmu3 leaves
+ * unimplemented would throw a C++ exception through the host (std::terminate); they are answered here with
+ * fmi3Error and a logged message instead (UNSUPPORTED), as is scheduled execution.
+ * pythonfmu3 filters its error messages by the host's log categories too; it is therefore instantiated with
+ * logging on and no categories, and this library filters: warnings, discards, errors and fatals always reach
+ * the host's logMessage, other messages only as the host asked (loggingOn, fmi3SetDebugLogging categories).
+ */
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "runtime.h"
+
+/* ---- FMI 3.0 types (as in the standard's fmi3PlatformTypes.h / fmi3FunctionTypes.h) ---- */
+typedef void *fmi3Instance;
+typedef void *fmi3InstanceEnvironment;
+typedef void *fmi3FMUState;
+typedef uint32_t fmi3ValueReference;
+typedef float fmi3Float32;
+typedef double fmi3Float64;
+typedef int8_t fmi3Int8;
+typedef uint8_t fmi3UInt8;
+typedef int16_t fmi3Int16;
+typedef uint16_t fmi3UInt16;
+typedef int32_t fmi3Int32;
+typedef uint32_t fmi3UInt32;
+typedef int64_t fmi3Int64;
+typedef uint64_t fmi3UInt64;
+typedef bool fmi3Boolean;
+typedef const char *fmi3String;
+typedef uint8_t fmi3Byte;
+typedef const fmi3Byte *fmi3Binary;
+typedef bool fmi3Clock;
+typedef enum { fmi3OK, fmi3Warning, fmi3Discard, fmi3Error, fmi3Fatal } fmi3Status;
+typedef enum { fmi3Independent, fmi3Constant, fmi3Fixed, fmi3Tunable, fmi3Discrete, fmi3Dependent } fmi3DependencyKind;
+typedef enum { fmi3IntervalNotYetKnown, fmi3IntervalUnchanged, fmi3IntervalChanged } fmi3IntervalQualifier;
+typedef void (*fmi3LogMessageCallback)(fmi3InstanceEnvironment, fmi3Status, fmi3String category, fmi3String message);
+typedef void (*fmi3IntermediateUpdateCallback)(fmi3InstanceEnvironment, fmi3Float64, fmi3Boolean, fmi3Boolean,
+                                               fmi3Boolean, fmi3Boolean, fmi3Boolean *, fmi3Float64 *);
+typedef void (*fmi3ClockUpdateCallback)(fmi3InstanceEnvironment);
+typedef void (*fmi3LockPreemptionCallback)(void);
+typedef void (*fmi3UnlockPreemptionCallback)(void);
+
+#define EXPORT __attribute__((visibility("default")))
+
+/* parameters of fmi3Get<T> and fmi3Set<T> */
+#define GETTER(T) (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, T *values, size_t n)
+#define SETTER(T) (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, const T *values, size_t n)
+#define ARRAY_ARGS (vr, nvr, values, n)
+#define GET_AND_SET(X, suffix, T)                                                                                 \
+    X(fmi3Get##suffix, RECOVERABLE, GETTER(T), ARRAY_ARGS) X(fmi3Set##suffix, RECOVERABLE, SETTER(T), ARRAY_ARGS)
+
+/* ---- the functions forwarded: X(name, failure, parameters, arguments after the instance) ----
+ * failure RECOVERABLE: pythonfmu3 reports an exception of the slave method it calls as fmi3Fatal; with
+ * SBF_SLAVE_SURVIVES_RELEASE (a slave whose methods balance pythonfmu3's release of it on an exception, as
+ * SpringBlockFriction_fmi3's do) the instance stays valid for fmi3Reset, fmi3SetFMUState and fmi3FreeInstance,
+ * which is what fmi3Error means, so fmi3Fatal is returned and logged as fmi3Error. KEPT: the status as is. */
+#define FORWARDED(X)                                                                                               \
+    X(fmi3EnterInitializationMode, RECOVERABLE,                                                                   \
+      (fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance, fmi3Float64 startTime,                \
+       fmi3Boolean stopTimeDefined, fmi3Float64 stopTime),                                                        \
+      (toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime))                                        \
+    X(fmi3ExitInitializationMode, RECOVERABLE, (fmi3Instance c), ())                                              \
+    X(fmi3EnterEventMode, KEPT, (fmi3Instance c), ())                                                             \
+    X(fmi3Terminate, RECOVERABLE, (fmi3Instance c), ())                                                           \
+    X(fmi3Reset, KEPT, (fmi3Instance c), ())                                                                      \
+    X(fmi3EnterConfigurationMode, KEPT, (fmi3Instance c), ())                                                     \
+    X(fmi3ExitConfigurationMode, KEPT, (fmi3Instance c), ())                                                      \
+    GET_AND_SET(X, Float64, fmi3Float64)                                                                          \
+    GET_AND_SET(X, Int32, fmi3Int32)                                                                              \
+    GET_AND_SET(X, Int64, fmi3Int64)                                                                              \
+    GET_AND_SET(X, UInt64, fmi3UInt64)                                                                            \
+    GET_AND_SET(X, Boolean, fmi3Boolean)                                                                          \
+    GET_AND_SET(X, String, fmi3String)                                                                            \
+    X(fmi3GetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState *s), (s))                                       \
+    X(fmi3SetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState s), (s))                                        \
+    X(fmi3FreeFMUState, KEPT, (fmi3Instance c, fmi3FMUState *s), (s))                                             \
+    X(fmi3SerializedFMUStateSize, KEPT, (fmi3Instance c, fmi3FMUState s, size_t *size), (s, size))                \
+    X(fmi3SerializeFMUState, KEPT, (fmi3Instance c, fmi3FMUState s, fmi3Byte *bytes, size_t size), (s, bytes, size)) \
+    X(fmi3DeserializeFMUState, KEPT, (fmi3Instance c, const fmi3Byte *bytes, size_t size, fmi3FMUState *s),       \
+      (bytes, size, s))                                                                                           \
+    X(fmi3GetDirectionalDerivative, KEPT,                                                                         \
+      (fmi3Instance c, const fmi3ValueReference *unknowns, size_t nUnknowns, const fmi3ValueReference *knowns,    \
+       size_t nKnowns, const fmi3Float64 *seed, size_t nSeed, fmi3Float64 *sensitivity, size_t nSensitivity),    \
+      (unknowns, nUnknowns, knowns, nKnowns, seed, nSeed, sensitivity, nSensitivity))                             \
+    X(fmi3GetOutputDerivatives, KEPT,                                                                             \
+      (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, const fmi3Int32 *orders, fmi3Float64 *values,   \
+       size_t n),                                                                                                 \
+      (vr, nvr, orders, values, n))                                                                               \
+    X(fmi3EnterContinuousTimeMode, KEPT, (fmi3Instance c), ())                                                    \
+    X(fmi3CompletedIntegratorStep, KEPT,                                                                          \
+      (fmi3Instance c, fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *enterEventMode,                 \
+       fmi3Boolean *terminateSimulation),                                                                         \
+      (noSetFMUStatePriorToCurrentPoint, enterEventMode, terminateSimulation))                                    \
+    X(fmi3SetTime, RECOVERABLE, (fmi3Instance c, fmi3Float64 time), (time))                                       \
+    X(fmi3SetContinuousStates, RECOVERABLE, (fmi3Instance c, const fmi3Float64 *x, size_t n), (x, n))             \
+    X(fmi3GetContinuousStateDerivatives, RECOVERABLE, (fmi3Instance c, fmi3Float64 *dx, size_t n), (dx, n))       \
+    X(fmi3GetEventIndicators, RECOVERABLE, (fmi3Instance c, fmi3Float64 *z, size_t n), (z, n))                    \
+    X(fmi3GetContinuousStates, RECOVERABLE, (fmi3Instance c, fmi3Float64 *x, size_t n), (x, n))                   \
+    X(fmi3GetNominalsOfContinuousStates, RECOVERABLE, (fmi3Instance c, fmi3Float64 *nominals, size_t n),         \
+      (nominals, n))                                                                                              \
+    X(fmi3GetNumberOfEventIndicators, RECOVERABLE, (fmi3Instance c, size_t *n), (n))                              \
+    X(fmi3GetNumberOfContinuousStates, RECOVERABLE, (fmi3Instance c, size_t *n), (n))                             \
+    X(fmi3UpdateDiscreteStates, RECOVERABLE,                                                                      \
+      (fmi3Instance c, fmi3Boolean *discreteStatesNeedUpdate, fmi3Boolean *terminateSimulation,                   \
+       fmi3Boolean *nominalsChanged, fmi3Boolean *valuesChanged, fmi3Boolean *nextEventTimeDefined,               \
+       fmi3Float64 *nextEventTime),                                                                               \
+      (discreteStatesNeedUpdate, terminateSimulation, nominalsChanged, valuesChanged, nextEventTimeDefined,       \
+       nextEventTime))                                                                                            \
+    X(fmi3EnterStepMode, KEPT, (fmi3Instance c), ())                                                              \
+    X(fmi3DoStep, RECOVERABLE,                                                                                    \
+      (fmi3Instance c, fmi3Float64 currentCommunicationPoint, fmi3Float64 communicationStepSize,                  \
+       fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *eventHandlingNeeded,                            \
+       fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime),             \
+      (currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded,  \
+       terminateSimulation, earlyReturn, lastSuccessfulTime))
+
+/* ---- the functions pythonfmu3 does not implement: X(name, parameters) ---- */
+#define UNSUPPORTED(X)                                                                                             \
+    X(fmi3GetFloat32, GETTER(fmi3Float32)) X(fmi3SetFloat32, SETTER(fmi3Float32))                                 \
+    X(fmi3GetInt8, GETTER(fmi3Int8)) X(fmi3SetInt8, SETTER(fmi3Int8))                                             \
+    X(fmi3GetUInt8, GETTER(fmi3UInt8)) X(fmi3SetUInt8, SETTER(fmi3UInt8))                                         \
+    X(fmi3GetInt16, GETTER(fmi3Int16)) X(fmi3SetInt16, SETTER(fmi3Int16))                                         \
+    X(fmi3GetUInt16, GETTER(fmi3UInt16)) X(fmi3SetUInt16, SETTER(fmi3UInt16))                                     \
+    X(fmi3GetUInt32, GETTER(fmi3UInt32)) X(fmi3SetUInt32, SETTER(fmi3UInt32))                                     \
+    X(fmi3GetBinary,                                                                                              \
+      (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, size_t *sizes, fmi3Binary *values, size_t n))   \
+    X(fmi3SetBinary, (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, const size_t *sizes,              \
+                      const fmi3Binary *values, size_t n))                                                        \
+    X(fmi3GetClock, (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, fmi3Clock *values))                \
+    X(fmi3SetClock, (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, const fmi3Clock *values))          \
+    X(fmi3GetNumberOfVariableDependencies, (fmi3Instance c, fmi3ValueReference vr, size_t *n))                    \
+    X(fmi3GetVariableDependencies,                                                                                \
+      (fmi3Instance c, fmi3ValueReference dependent, size_t *elementIndicesOfDependent,                           \
+       fmi3ValueReference *independents, size_t *elementIndicesOfIndependents, fmi3DependencyKind *kinds, size_t n)) \
+    X(fmi3GetAdjointDerivative,                                                                                   \
+      (fmi3Instance c, const fmi3ValueReference *unknowns, size_t nUnknowns, const fmi3ValueReference *knowns,    \
+       size_t nKnowns, const fmi3Float64 *seed, size_t nSeed, fmi3Float64 *sensitivity, size_t nSensitivity))    \
+    X(fmi3GetIntervalDecimal, (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, fmi3Float64 *intervals, \
+                               fmi3IntervalQualifier *qualifiers))                                                \
+    X(fmi3GetIntervalFraction, (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, fmi3UInt64 *counters,  \
+                                fmi3UInt64 *resolutions, fmi3IntervalQualifier *qualifiers))                      \
+    X(fmi3GetShiftDecimal, (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, fmi3Float64 *shifts))      \
+    X(fmi3GetShiftFraction, (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, fmi3UInt64 *counters,     \
+                             fmi3UInt64 *resolutions))                                                            \
+    X(fmi3SetIntervalDecimal, (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr,                          \
+                               const fmi3Float64 *intervals))                                                     \
+    X(fmi3SetIntervalFraction, (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr,                         \
+                                const fmi3UInt64 *counters, const fmi3UInt64 *resolutions))                       \
+    X(fmi3SetShiftDecimal, (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, const fmi3Float64 *shifts)) \
+    X(fmi3SetShiftFraction, (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr,                            \
+                             const fmi3UInt64 *counters, const fmi3UInt64 *resolutions))                          \
+    X(fmi3EvaluateDiscreteStates, (fmi3Instance c))                                                               \
+    X(fmi3ActivateModelPartition, (fmi3Instance c, fmi3ValueReference clockReference, fmi3Float64 activationTime))
+
+/* pythonfmu3's entry points */
+static struct {
+#define POINTER(name, failure, params, args) fmi3Status(*name) params;
+    FORWARDED(POINTER)
+#undef POINTER
+    fmi3Instance (*fmi3InstantiateCoSimulation)(fmi3String, fmi3String, fmi3String, fmi3Boolean, fmi3Boolean,
+                                                fmi3Boolean, fmi3Boolean, const fmi3ValueReference *, size_t,
+                                                fmi3InstanceEnvironment, fmi3LogMessageCallback,
+                                                fmi3IntermediateUpdateCallback);
+    fmi3Instance (*fmi3InstantiateModelExchange)(fmi3String, fmi3String, fmi3String, fmi3Boolean, fmi3Boolean,
+                                                 fmi3InstanceEnvironment, fmi3LogMessageCallback);
+    void (*fmi3FreeInstance)(fmi3Instance);
+} inner;
+
+/* ---- one instance ---- */
+typedef struct {
+    fmi3Instance inner;
+    fmi3InstanceEnvironment environment; /* the host's */
+    fmi3LogMessageCallback log_message;   /* the host's */
+    sbf_log_filter logging;
+    int fatal_is_error; /* during a RECOVERABLE call: pythonfmu3's fmi3Fatal is reported as fmi3Error */
+} Instance;
+
+static void host_log(const Instance *inst, fmi3Status status, const char *text)
+{
+    static const char *const categories[] = {"logStatusOK", "logStatusWarning", "logStatusDiscard",
+                                             "logStatusError", "logStatusFatal"};
+    if (inst->log_message)
+        inst->log_message(inst->environment, status, categories[status], text);
+    else
+        fprintf(stderr, "[FMI 3 status %d] %s\n", (int)status, text);
+}
+
+/* pythonfmu3's logMessage (its instance environment is ours) */
+static void relay_log(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message)
+{
+    const Instance *inst = env;
+    char tidy[4096];
+    if (!message) message = "";
+    if (inst->fatal_is_error && status == fmi3Fatal) {
+        status = fmi3Error;
+        message = sbf_exception_text(message, tidy, sizeof tidy);
+    }
+    if (inst->log_message && sbf_log_wanted(&inst->logging, status, category))
+        inst->log_message(inst->environment, status, category, message);
+}
+
+/* sbf_start's resolver: pythonfmu3's entry points */
+static int resolve_inner(void *lib, const char *path)
+{
+#define LOAD(name, failure, params, args) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
+    if (1 FORWARDED(LOAD) LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
+            LOAD(fmi3FreeInstance, , , ))
+        return 1;
+#undef LOAD
+    sbf_fail("%s lacks an FMI 3 function: %s", path, dlerror());
+    return 0;
+}
+
+/* ---- exported FMI 3 functions ---- */
+
+EXPORT const char *fmi3GetVersion(void) { return "3.0"; }
+
+static void free_instance(Instance *inst)
+{
+    sbf_set_log_filter(&inst->logging, 0, 0, NULL);
+    free(inst);
+}
+
+/* A new Instance with Python and pythonfmu3 ready, or NULL after a message to the host's logger. */
+static Instance *new_instance(fmi3Boolean loggingOn, fmi3InstanceEnvironment environment,
+                              fmi3LogMessageCallback logMessage)
+{
+    Instance *inst = calloc(1, sizeof *inst);
+    if (!inst) return NULL;
+    inst->environment = environment;
+    inst->log_message = logMessage;
+    inst->logging.on = loggingOn;
+    if (!sbf_start(resolve_inner)) {
+        host_log(inst, fmi3Fatal, sbf_start_error());
+        free_instance(inst);
+        return NULL;
+    }
+    sbf_keep_thread_state();
+    return inst;
+}
+
+static Instance *instantiated(Instance *inst)
+{
+    if (inst && !inst->inner) {
+        free_instance(inst);
+        return NULL;
+    }
+    return inst;
+}
+
+/* pythonfmu3 has no intermediate update, event mode or early return in co-simulation (the model description
+ * says so); the host's intermediateUpdate callback is not passed on. */
+EXPORT fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
+                                                fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                                fmi3Boolean eventModeUsed, fmi3Boolean earlyReturnAllowed,
+                                                const fmi3ValueReference *requiredIntermediateVariables,
+                                                size_t nRequiredIntermediateVariables,
+                                                fmi3InstanceEnvironment instanceEnvironment,
+                                                fmi3LogMessageCallback logMessage,
+                                                fmi3IntermediateUpdateCallback intermediateUpdate)
+{
+    (void)intermediateUpdate;
+    Instance *inst = new_instance(loggingOn, instanceEnvironment, logMessage);
+    if (inst)
+        inst->inner = inner.fmi3InstantiateCoSimulation(instanceName, instantiationToken, resourcePath, visible, true,
+                                                        eventModeUsed, earlyReturnAllowed,
+                                                        requiredIntermediateVariables, nRequiredIntermediateVariables,
+                                                        inst, relay_log, NULL);
+    return instantiated(inst);
+}
+
+EXPORT fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
+                                                 fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                                 fmi3InstanceEnvironment instanceEnvironment,
+                                                 fmi3LogMessageCallback logMessage)
+{
+    Instance *inst = new_instance(loggingOn, instanceEnvironment, logMessage);
+    if (inst)
+        inst->inner = inner.fmi3InstantiateModelExchange(instanceName, instantiationToken, resourcePath, visible, true,
+                                                         inst, relay_log);
+    return instantiated(inst);
+}
+
+EXPORT fmi3Instance fmi3InstantiateScheduledExecution(
+    fmi3String instanceName, fmi3String instantiationToken, fmi3String resourcePath, fmi3Boolean visible,
+    fmi3Boolean loggingOn, fmi3InstanceEnvironment instanceEnvironment, fmi3LogMessageCallback logMessage,
+    fmi3ClockUpdateCallback clockUpdate, fmi3LockPreemptionCallback lockPreemption,
+    fmi3UnlockPreemptionCallback unlockPreemption)
+{
+    (void)instanceName, (void)instantiationToken, (void)resourcePath, (void)visible, (void)loggingOn;
+    (void)clockUpdate, (void)lockPreemption, (void)unlockPreemption;
+    Instance host = {.environment = instanceEnvironment, .log_message = logMessage};
+    host_log(&host, fmi3Error, "scheduled execution is not supported: this FMU offers co-simulation and model exchange");
+    return NULL;
+}
+
+EXPORT void fmi3FreeInstance(fmi3Instance c)
+{
+    Instance *inst = c;
+    if (!inst) return;
+    sbf_keep_thread_state();
+    inner.fmi3FreeInstance(inst->inner);
+    free_instance(inst);
+}
+
+EXPORT fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, size_t n, const fmi3String *categories)
+{
+    if (!c) return fmi3Error;
+    sbf_set_log_filter(&((Instance *)c)->logging, loggingOn, n, categories);
+    return fmi3OK;
+}
+
+#define FORWARD(name, failure, params, args) \
+    SBF_FORWARD(fmi3Status, fmi3Error, fmi3Fatal, name, failure, params, args)
+FORWARDED(FORWARD)
+#undef FORWARD
+
+#define REFUSE(name, params)                                                 \
+    EXPORT fmi3Status name params                                            \
+    {                                                                        \
+        if (c) host_log(c, fmi3Error, #name " is not supported by this FMU"); \
+        return fmi3Error;                                                    \
+    }
+UNSUPPORTED(REFUSE)
+#undef REFUSE

@@ -1,0 +1,325 @@
+/* The loader's shared part (runtime.h): CPython found and started, the inner library loaded.
+ *
+ * On the first instantiation a front calls sbf_start, which
+ *   1. finds a CPython: the process's own if it has one (never a second one), else the shared library
+ *      named by $SBF_LIBPYTHON, else the one the FMU was built with (SBF_BUILD_LIBPYTHON), else its
+ *      soname (SBF_LIBPYTHON_SONAME); it is loaded with RTLD_GLOBAL so that Python's extension modules
+ *      find its symbols;
+ *   2. starts that Python if nobody has, with the standard library of the library's own installation,
+ *      through PyConfig, so that a broken installation (a wrong PYTHONHOME) is an error status and a
+ *      logged message, not an exit of the host; the host's handlers of SIGINT, SIGPIPE and SIGXFSZ are kept;
+ *   3. loads the inner library (PythonFMU's or pythonfmu3's binary, SBF_INNER_LIBRARY beside this one)
+ *      and lets the front resolve its entry points.
+ * Each host thread gets one Python thread state, kept for the thread's life (sbf_keep_thread_state).
+ * At process exit the inner library's Python start-up object is reset once before its own destructors run
+ * (see reset_inner_python_state).
+ */
+#define _GNU_SOURCE
+#include "runtime.h"
+
+#include <dlfcn.h>
+#include <elf.h>
+#include <fcntl.h>
+#include <link.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#ifndef SBF_INNER_LIBRARY
+#error "define SBF_INNER_LIBRARY: the file name of the inner FMU binary beside this library"
+#endif
+#ifndef SBF_BUILD_LIBPYTHON
+#define SBF_BUILD_LIBPYTHON ""
+#endif
+#ifndef SBF_LIBPYTHON_SONAME
+#define SBF_LIBPYTHON_SONAME ""
+#endif
+#define LIBPYTHON_VARIABLE "SBF_LIBPYTHON"
+
+/* ---- CPython: the few functions used, resolved at run time (stable C API since 3.8) ---- */
+typedef struct { int type; const char *func; const char *err_msg; int exitcode; } PyStatus;
+static struct {
+    int (*Py_IsInitialized)(void);
+    int (*PyGILState_Ensure)(void);
+    void (*PyGILState_Release)(int);
+    void *(*PyEval_SaveThread)(void);
+    void (*PyConfig_InitPythonConfig)(void *);
+    PyStatus (*PyConfig_SetBytesArgv)(void *, long, char *const *);
+    PyStatus (*Py_InitializeFromConfig)(const void *);
+    void (*PyConfig_Clear)(void *);
+    int (*PyStatus_Exception)(PyStatus);
+} py;
+enum { PyGILState_LOCKED, PyGILState_UNLOCKED };
+#define PYCONFIG_BYTES 16384 /* room for any CPython 3.8-3.13 PyConfig (about 0.5 kB) */
+
+static pthread_mutex_t start_lock = PTHREAD_MUTEX_INITIALIZER;
+static int started;           /* 0 not tried, 1 ready, -1 failed (start_error says why) */
+static char start_error[2048];
+static __thread int thread_has_state; /* this host thread owns a Python thread state */
+
+const char *sbf_start_error(void) { return start_error; }
+
+/* ---- starting Python ---- */
+
+void sbf_fail(const char *format, ...)
+{
+    va_list args;
+    va_start(args, format);
+    vsnprintf(start_error, sizeof start_error, format, args);
+    va_end(args);
+    started = -1;
+}
+
+static int resolve_python(void *lib)
+{
+#define RESOLVE(symbol) (*(void **)&py.symbol = dlsym(lib, #symbol)) != NULL
+    return RESOLVE(Py_IsInitialized) && RESOLVE(PyGILState_Ensure) && RESOLVE(PyGILState_Release) &&
+           RESOLVE(PyEval_SaveThread);
+}
+
+static int resolve_config_api(void *lib)
+{
+    return RESOLVE(PyConfig_InitPythonConfig) && RESOLVE(PyConfig_SetBytesArgv) && RESOLVE(Py_InitializeFromConfig) &&
+           RESOLVE(PyConfig_Clear) && RESOLVE(PyStatus_Exception);
+#undef RESOLVE
+}
+
+/* A CPython library: the process's own (RTLD_DEFAULT), or the first that loads (RTLD_GLOBAL). 0 after sbf_fail(). */
+static int find_libpython(void **lib_out, const char **where)
+{
+    void *lib = NULL;
+    if (dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
+        *where = "the host process's own CPython";
+        *lib_out = RTLD_DEFAULT;
+        return 1;
+    }
+    const char *override = getenv(LIBPYTHON_VARIABLE);
+    if (override && *override) {
+        lib = dlopen(override, RTLD_NOW | RTLD_GLOBAL);
+        if (!lib)
+            sbf_fail("cannot load the CPython library named by %s=%s: %s. Set %s to the path of a CPython 3 shared "
+                 "library (libpython3.X.so.1.0, CPython 3.8 or newer) or unset it.",
+                 LIBPYTHON_VARIABLE, override, dlerror(), LIBPYTHON_VARIABLE);
+        *where = override;
+        *lib_out = lib;
+        return lib != NULL;
+    }
+    const char *candidates[] = {SBF_BUILD_LIBPYTHON, SBF_LIBPYTHON_SONAME};
+    char tried[1024] = "";
+    for (size_t i = 0; i < sizeof candidates / sizeof *candidates; ++i) {
+        if (!*candidates[i]) continue;
+        lib = dlopen(candidates[i], RTLD_NOW | RTLD_GLOBAL);
+        if (lib) {
+            *where = candidates[i];
+            *lib_out = lib;
+            return 1;
+        }
+        size_t used = strlen(tried);
+        snprintf(tried + used, sizeof tried - used, "%s%s (%s)", used ? ", " : "", candidates[i], dlerror());
+    }
+    sbf_fail("no CPython shared library found; tried %s. This FMU runs its model in Python: install CPython 3 with "
+         "its shared library (built with --enable-shared, e.g. the libpython3 package; the FMU was built with %s) "
+         "or set %s to the path of a libpython3.X.so.1.0 (CPython 3.8 or newer).",
+         *tried ? tried : "nothing", *SBF_BUILD_LIBPYTHON ? SBF_BUILD_LIBPYTHON : SBF_LIBPYTHON_SONAME,
+         LIBPYTHON_VARIABLE);
+    return 0;
+}
+
+/* The program name Python derives its prefix from (unless PYTHONHOME is set): <prefix>/bin/pythonX.Y of the
+ * library's installation if it exists, else a name in the library's folder; Python then looks for its
+ * standard library upwards from there, so the library and the standard library it finds belong together
+ * (the default, "python3" looked up in PATH, may find another installation's). */
+static void program_name(char *name, size_t size)
+{
+    Dl_info library;
+    if (!dladdr(*(void **)&py.Py_IsInitialized, &library) || !library.dli_fname) {
+        snprintf(name, size, "python3");
+        return;
+    }
+    char version[32] = "3";
+    const char *base = strrchr(library.dli_fname, '/');
+    base = base ? base + 1 : library.dli_fname;
+    if (sscanf(base, "libpython%31[0-9.]", version) == 1 && version[strlen(version) - 1] == '.')
+        version[strlen(version) - 1] = '\0';
+    int dir_length = base - library.dli_fname; /* with its trailing slash */
+    snprintf(name, size, "%.*s../bin/python%s", dir_length, library.dli_fname, version);
+    char resolved[4096];
+    if (!realpath(name, resolved) || access(resolved, X_OK) != 0)
+        snprintf(name, size, "%.*spython%s", dir_length, library.dli_fname, version);
+}
+
+/* Py_InitializeFromConfig, keeping the host's signal handlers; leaves the GIL released. */
+static void initialize_python(const char *where)
+{
+    char name[4096];
+    char *argv[] = {name, NULL};
+    program_name(name, sizeof name);
+    static const int kept[] = {SIGINT, SIGPIPE, SIGXFSZ};
+    struct sigaction before[sizeof kept / sizeof *kept];
+    _Alignas(16) static unsigned char config[PYCONFIG_BYTES];
+    for (size_t i = 0; i < sizeof kept / sizeof *kept; ++i) sigaction(kept[i], NULL, &before[i]);
+    py.PyConfig_InitPythonConfig(config);
+    PyStatus status = py.PyConfig_SetBytesArgv(config, 1, argv);
+    if (!py.PyStatus_Exception(status)) status = py.Py_InitializeFromConfig(config);
+    py.PyConfig_Clear(config);
+    for (size_t i = 0; i < sizeof kept / sizeof *kept; ++i) sigaction(kept[i], &before[i], NULL);
+    if (py.PyStatus_Exception(status)) {
+        const char *home = getenv("PYTHONHOME");
+        sbf_fail("Python (%s) failed to start: %s%s%s. Check PYTHONHOME (%s) and PYTHONPATH: unset them, or point "
+             "them at this Python's installation, or set %s to another CPython 3 shared library.",
+             where, status.func ? status.func : "", status.func ? ": " : "",
+             status.err_msg ? status.err_msg : "unknown error", home ? home : "not set", LIBPYTHON_VARIABLE);
+        return;
+    }
+    py.PyEval_SaveThread(); /* this thread keeps its (main) thread state */
+    thread_has_state = 1;
+}
+
+/* ---- the inner library's exit fault ----
+ * PythonFMU 0.7.0 and pythonfmu3 0.3.4 keep their Python start-up object in a global std::shared_ptr, which is
+ * destroyed twice at process exit: by its static destructor (an exit handler) and again by the library's ELF
+ * destructor, which calls finalizePythonInterpreter() to reset the pointer the first one left dangling. The
+ * second one decrements a reference count in freed memory (and may free the object again): glibc then aborts
+ * the host at exit at random ("corrupted double-linked list", "double free"). Resetting the pointer once,
+ * through that same function, before either runs makes both harmless: the handler registered here, after the
+ * library was loaded, runs before its static destructor (exit handlers run last-in, first-out). */
+static void (*inner_reset_python_state)(void);
+
+static void reset_inner_python_state(void) { inner_reset_python_state(); }
+
+/* The function `name` of the loaded library `lib` (opened from `path`): its dynamic symbol, else its entry in
+ * the file's full symbol table (PythonFMU does not export finalizePythonInterpreter); NULL if neither. */
+static void *find_function(void *lib, const char *path, const char *name)
+{
+    void *function = dlsym(lib, name);
+    struct link_map *map;
+    struct stat st;
+    if (function || dlinfo(lib, RTLD_DI_LINKMAP, &map) != 0) return function;
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return NULL;
+    const unsigned char *file = MAP_FAILED;
+    if (fstat(fd, &st) == 0 && (size_t)st.st_size >= sizeof(Elf64_Ehdr))
+        file = mmap(NULL, st.st_size, PROT_READ, MAP_PRIVATE, fd, 0);
+    close(fd);
+    if (file == MAP_FAILED) return NULL;
+    size_t size = st.st_size, name_size = strlen(name) + 1;
+    const Elf64_Ehdr *header = (const void *)file;
+    if (memcmp(header->e_ident, ELFMAG, SELFMAG) == 0 && header->e_ident[EI_CLASS] == ELFCLASS64 &&
+        header->e_shentsize == sizeof(Elf64_Shdr) && header->e_shoff + header->e_shnum * sizeof(Elf64_Shdr) <= size) {
+        const Elf64_Shdr *sections = (const void *)(file + header->e_shoff);
+        for (size_t i = 0; i < header->e_shnum && !function; ++i) {
+            const Elf64_Shdr *symbols = &sections[i];
+            if (symbols->sh_type != SHT_SYMTAB || symbols->sh_link >= header->e_shnum) continue;
+            const Elf64_Shdr *strings = &sections[symbols->sh_link];
+            if (symbols->sh_offset + symbols->sh_size > size || strings->sh_offset + strings->sh_size > size) continue;
+            const Elf64_Sym *symbol = (const void *)(file + symbols->sh_offset);
+            for (size_t j = 0; j < symbols->sh_size / sizeof *symbol; ++j, ++symbol)
+                if (ELF64_ST_TYPE(symbol->st_info) == STT_FUNC && symbol->st_value &&
+                    symbol->st_name + name_size <= strings->sh_size &&
+                    memcmp(file + strings->sh_offset + symbol->st_name, name, name_size) == 0) {
+                    function = (void *)(map->l_addr + symbol->st_value);
+                    break;
+                }
+        }
+    }
+    munmap((void *)file, size);
+    return function;
+}
+
+static void load_inner(sbf_resolve_inner resolve)
+{
+    Dl_info self;
+    char path[4096];
+    if (!dladdr((void *)&sbf_start, &self) || !self.dli_fname) {
+        sbf_fail("cannot locate the FMU's binaries folder");
+        return;
+    }
+    const char *slash = strrchr(self.dli_fname, '/');
+    int dir_length = slash ? (int)(slash - self.dli_fname + 1) : 0;
+    snprintf(path, sizeof path, "%.*s%s", dir_length, self.dli_fname, SBF_INNER_LIBRARY);
+    void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+        sbf_fail("cannot load the FMU's inner binary %s: %s", path, dlerror());
+        return;
+    }
+    if (!resolve(lib, path)) return;
+    *(void **)&inner_reset_python_state = find_function(lib, path, "finalizePythonInterpreter");
+    if (inner_reset_python_state) atexit(reset_inner_python_state);
+}
+
+int sbf_start(sbf_resolve_inner resolve)
+{
+    pthread_mutex_lock(&start_lock);
+    if (started == 0) {
+        const char *where = "";
+        void *lib = NULL;
+        int found = find_libpython(&lib, &where);
+        if (found && !resolve_python(lib))
+            sbf_fail("%s is not a usable CPython library: %s", where, dlerror());
+        else if (found && !py.Py_IsInitialized()) {
+            if (!resolve_config_api(lib))
+                sbf_fail("%s lacks the PyConfig API: CPython 3.8 or newer is needed (set %s)", where,
+                     LIBPYTHON_VARIABLE);
+            else
+                initialize_python(where);
+        }
+        if (started == 0) load_inner(resolve);
+        if (started == 0) started = 1;
+    }
+    pthread_mutex_unlock(&start_lock);
+    return started == 1;
+}
+
+void sbf_keep_thread_state(void)
+{
+    if (thread_has_state) return;
+    if (py.PyGILState_Ensure() == PyGILState_UNLOCKED)
+        py.PyEval_SaveThread(); /* release the GIL, keep the state */
+    else
+        py.PyGILState_Release(PyGILState_LOCKED); /* the thread already held the GIL: it has a state */
+    thread_has_state = 1;
+}
+
+
+const char *sbf_exception_text(const char *message, char *out, size_t size)
+{
+    static const char prefix[] = "Fatal py exception encountered: ";
+    if (strncmp(message, prefix, sizeof prefix - 1) != 0) return message;
+    const char *call = message + sizeof prefix - 1;
+    const char *call_end = strstr(call, "] ");
+    const char *exception = strchr(call, '\n');
+    if (!call_end || !exception || call_end > exception) return call;
+    snprintf(out, size, "%.*s %s", (int)(call_end + 1 - call), call, exception + 1);
+    return out;
+}
+
+/* ---- the host's log categories ---- */
+
+void sbf_set_log_filter(sbf_log_filter *filter, int on, size_t n, const char *const *categories)
+{
+    for (size_t i = 0; i < filter->n_categories; ++i) free(filter->categories[i]);
+    free(filter->categories);
+    filter->categories = NULL;
+    filter->n_categories = 0;
+    filter->on = on;
+    if (n == 0 || !categories) return;
+    filter->categories = calloc(n, sizeof(char *));
+    for (size_t i = 0; filter->categories && i < n; ++i)
+        if (categories[i]) filter->categories[filter->n_categories++] = strdup(categories[i]);
+}
+
+int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *category)
+{
+    if (status >= 1 && status <= 4) return 1; /* warning, discard, error, fatal: always */
+    if (!filter->on) return 0;
+    if (filter->n_categories == 0) return 1;
+    for (size_t i = 0; i < filter->n_categories; ++i)
+        if (category && strcmp(category, filter->categories[i]) == 0) return 1;
+    return 0;
+}

@@ -1,0 +1,64 @@
+/* What both FMI fronts of the loader share: finding and starting CPython, loading the library they
+ * forward to, Python thread states of host threads, and the filter of the host's log categories.
+ * See runtime.c; the fronts are fmi2_front.c (PythonFMU) and fmi3_front.c (pythonfmu3). */
+#ifndef SBF_RUNTIME_H
+#define SBF_RUNTIME_H
+#include <stddef.h>
+
+/* Called once, under the start lock, with the inner library (dlopen'ed beside this one) and its path:
+ * resolves the front's entry points; returns 0 after sbf_fail() if one is missing. */
+typedef int (*sbf_resolve_inner)(void *library, const char *path);
+
+/* Python and the inner library ready (once per process); 0 with sbf_start_error() saying why if not. */
+int sbf_start(sbf_resolve_inner resolve);
+const char *sbf_start_error(void);
+void sbf_fail(const char *format, ...) __attribute__((format(printf, 1, 2)));
+
+/* Give this host thread a Python thread state for its life (the inner library's per-call
+ * PyGILState_Ensure/Release then only take and give back the GIL). */
+void sbf_keep_thread_state(void);
+
+/* The inner library's text of a slave exception, "Fatal py exception encountered: [call] PyObject_CallMethod\n
+ * <exception>", as "[call] <exception>" in out; other text as is. */
+const char *sbf_exception_text(const char *message, char *out, size_t size);
+
+/* Which messages the host asked for. Status numbers as in FMI 2 and 3: 0 OK, 1 warning, 2 discard, 3 error,
+ * 4 fatal (5 pending in FMI 2). */
+typedef struct {
+    int on;             /* loggingOn / fmi*SetDebugLogging */
+    size_t n_categories;
+    char **categories;  /* none: every category */
+} sbf_log_filter;
+
+void sbf_set_log_filter(sbf_log_filter *filter, int on, size_t n, const char *const *categories);
+/* Warnings, discards, errors and fatals always; other messages only as the host asked. */
+int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *category);
+
+/* ---- for the fronts: an exported FMI function forwarded to the inner library ----
+ * The front defines `Instance` (with the fields `inner`, the inner library's instance, and `fatal_is_error`),
+ * the struct `inner` of the inner library's entry points, and its list of forwarded functions as
+ * X(name, failure, parameters, arguments after the instance), the instance parameter named `c`.
+ * failure RECOVERABLE: the inner library reports an exception of the slave method it calls as fatal; with
+ * SBF_SLAVE_SURVIVES_RELEASE (a slave whose methods balance the library's release of it on an exception, as
+ * SpringBlockFriction's do) the instance stays valid for reset, state restore and free, which is what an error
+ * status means, so the fatal status is returned and logged as an error. KEPT: the status as is. */
+#ifdef SBF_SLAVE_SURVIVES_RELEASE
+#define RECOVERABLE 1
+#else
+#define RECOVERABLE 0
+#endif
+#define KEPT 0
+#define SBF_FORWARD_ARGS(...) __VA_OPT__(, ) __VA_ARGS__
+#define SBF_FORWARD(Status, error, fatal, name, failure, params, args)                  \
+    __attribute__((visibility("default"))) Status name params                           \
+    {                                                                                   \
+        Instance *inst = c;                                                             \
+        if (!inst) return error;                                                        \
+        sbf_keep_thread_state();                                                        \
+        inst->fatal_is_error = failure;                                                 \
+        Status status = inner.name(inst->inner SBF_FORWARD_ARGS args);                  \
+        inst->fatal_is_error = 0;                                                       \
+        return failure && status == fatal ? error : status;                             \
+    }
+
+#endif
