@@ -147,3 +147,9 @@ def test_grazing_scenario_drive_is_a_relative_1e_7_below_the_critical_velocity()
     v_drive = float(s.signals["v_drive"].value[0])
     assert v_drive == pytest.approx(v_c * (1 - 1e-7), rel=1e-13)
     assert s.v0 == v_drive
+
+
+@pytest.mark.parametrize("path", sorted(SCENARIO_DIR.glob("*.toml")), ids=lambda p: p.stem)
+def test_every_scenario_runs_under_model_exchange_too(path):
+    """`stickslip run --interface me scenarios/` needs a [model_exchange] section in every file."""
+    assert load_scenario(path).model_exchange is not None
