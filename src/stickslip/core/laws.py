@@ -15,10 +15,12 @@ A Python user may pass any callable through :class:`CallableKinetic` or
 from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
 
 import math
-from typing import ClassVar
+from typing import ClassVar, Final
 
 from .errors import ParameterError
 from .ranges import NON_NEGATIVE, POSITIVE, Range, check
+
+_hypot: Final = math.hypot  # bound once: compiled code calls it without looking it up in the math module
 
 
 class _Law:
@@ -172,11 +174,11 @@ class Lubricated(KineticLaw):
 
     def force(self, u: float) -> float:
         w = u - self.v_tilde
-        return 0.5 * u * (self.gamma1 + self.gamma2 + (self.gamma2 - self.gamma1) * w / math.hypot(self.dv, w))
+        return 0.5 * u * (self.gamma1 + self.gamma2 + (self.gamma2 - self.gamma1) * w / _hypot(self.dv, w))
 
     def slope(self, u: float) -> float:
         w = u - self.v_tilde
-        s = math.hypot(self.dv, w)
+        s = _hypot(self.dv, w)
         half_jump = 0.5 * (self.gamma2 - self.gamma1)
         return 0.5 * (self.gamma1 + self.gamma2) + half_jump * (w / s + u * self.dv * self.dv / (s * s * s))
 

@@ -168,7 +168,8 @@ def slip_acceleration(mode: int, x: float, v: float, v_drive: float, F_ext: floa
 
 def slip_acceleration_slope(mode: int, v: float, v_drive: float, p: Parameters) -> float:
     """``d(dv/dt)/dv`` (1/s) while slipping: ``-F_K'(mode * v_rel)/M`` (tangent-continued below 0)."""
-    return -p.kinetic.slope(max(mode * (v_drive - v), 0.0)) / p.M
+    u = mode * (v_drive - v)
+    return -p.kinetic.slope(0.0 if u < 0.0 else u) / p.M  # max(u, 0.0), without boxing in compiled code
 
 
 def slip_departs(mode, x, v_drive, F_ext, p):

@@ -80,6 +80,8 @@ class SlipStepper:
         The step does not depend on ``t0`` (the slip is autonomous), which is what
         lets the memo replay it at another time.
         """
+        if not self._memo_size:
+            return self._integrate(t0, x0, v0, mode, v_drive, F_ext, p)
         key = (x0, v0, mode, v_drive, F_ext, self.h, self.stiff, self.votes)
         known = self._memo.get(key)
         if known is not None and _advances(t0, known[0].h):
@@ -89,10 +91,9 @@ class SlipStepper:
             return step, ends_in_event
         rejected_before = self.n_rejected
         step, ends_in_event = self._integrate(t0, x0, v0, mode, v_drive, F_ext, p)
-        if self._memo_size:
-            if len(self._memo) >= self._memo_size:
-                self._memo.clear()  # bounded memory: a long aperiodic run keeps only recent steps
-            self._memo[key] = (step, ends_in_event, self.h, self.stiff, self.votes, self.n_rejected - rejected_before)
+        if len(self._memo) >= self._memo_size:
+            self._memo.clear()  # bounded memory: a long aperiodic run keeps only recent steps
+        self._memo[key] = (step, ends_in_event, self.h, self.stiff, self.votes, self.n_rejected - rejected_before)
         return step, ends_in_event
 
     def _integrate(self, t0: float, x0: float, v0: float, mode: int, v_drive: float, F_ext: float,
@@ -102,11 +103,11 @@ class SlipStepper:
             slip = self._slip = _Slip(mode, v_drive, F_ext, p)
         accel = slip.accel
         a0 = accel.at(x0, v0)
-        stiffness = max(0.0, -slip_acceleration_slope(mode, v0, v_drive, p))
+        stiffness = _larger(0.0, -slip_acceleration_slope(mode, v0, v_drive, p))
         h_max = 1.0 / slip.omega0
         if self.h is None:
-            self.h = min(h_max, 0.5 / max(stiffness, slip.omega0) * self.rtol ** 0.2 * 10.0)
-        h = min(self.h, h_max)
+            self.h = _smaller(h_max, 0.5 / _larger(stiffness, slip.omega0) * self.rtol ** 0.2 * 10.0)
+        h = _smaller(self.h, h_max)
         while True:
             step = self._try(accel, mode, v_drive, p, x0, v0, a0, h)
             err = _error_norm(step, x0, v0, self.rtol, slip.scale_x, slip.scale_v)
@@ -114,7 +115,7 @@ class SlipStepper:
                 break
             self.n_rejected += 1
             shrink = _SAFETY * err ** (-1.0 / step.order) if math.isfinite(err) and err > 0.0 else _MIN_SHRINK
-            h *= max(_MIN_SHRINK, min(shrink, 1.0))
+            h *= _larger(_MIN_SHRINK, _smaller(shrink, 1.0))
             if not _advances(t0, h):
                 raise SolverError(
                     f"step size underflow at t = {t0!r} s in slip mode {mode:+d}: "
@@ -122,7 +123,7 @@ class SlipStepper:
                 )
         self.n_steps += 1
         grow = _SAFETY * err ** (-1.0 / step.order) if err > 0.0 else _MAX_GROWTH
-        h_next = self.h = h * max(_MIN_SHRINK, min(grow, _MAX_GROWTH))
+        h_next = self.h = h * _larger(_MIN_SHRINK, _smaller(grow, _MAX_GROWTH))
         self._vote_on_stiffness(h, h_next, stiffness)
         theta = _slip_end(step.cv, mode, v_drive)
         if theta is None:
@@ -149,9 +150,19 @@ class SlipStepper:
             self.votes = 0
 
 
+def _larger(a: float, b: float) -> float:
+    """``max(a, b)`` of two floats (``a`` unless ``b > a``, as the builtin), without boxing in compiled code."""
+    return b if b > a else a
+
+
+def _smaller(a: float, b: float) -> float:
+    """``min(a, b)`` of two floats (``a`` unless ``b < a``, as the builtin), without boxing in compiled code."""
+    return b if b < a else a
+
+
 def _advances(t0: float, h: float) -> bool:
     """True if a step of ``h`` s from ``t0`` moves time by more than rounding (the underflow test)."""
-    return h > 1e-15 * max(1.0, abs(t0)) and h >= 1e-300
+    return h > 1e-15 * _larger(1.0, abs(t0)) and h >= 1e-300
 
 
 class _Slip:
@@ -178,8 +189,8 @@ class _Slip:
 
 def _error_norm(step: Step, x0: float, v0: float, rtol: float, scale_x: float, scale_v: float) -> float:
     """RMS of the error relative to ``rtol * max(|y|, scale)`` per component."""
-    ex = step.err_x / (rtol * max(abs(x0), abs(step.x1), scale_x))
-    ev = step.err_v / (rtol * max(abs(v0), abs(step.v1), scale_v))
+    ex = step.err_x / (rtol * _larger(_larger(abs(x0), abs(step.x1)), scale_x))
+    ev = step.err_v / (rtol * _larger(_larger(abs(v0), abs(step.v1)), scale_v))
     return math.sqrt(0.5 * (ex * ex + ev * ev))
 
 
@@ -191,9 +202,16 @@ def _slip_end(cv: list[float], mode: int, v_drive: float) -> float | None:
     is bracketed exactly. A start at ``g = 0`` (right after a breakaway) is not an end.
     """
 
-    margin = mode * (v_drive - cv[0]) - sum(map(abs, cv[1:]))
-    if margin > 0.0:
-        return None  # |v(theta) - v(0)| <= sum |c_k| on [0, 1]: v cannot reach v_drive in this step
+    reach = 0.0  # bounds |v(theta) - v(0)| on [0, 1]
+    for k in range(1, len(cv)):
+        reach += abs(cv[k])
+    if mode * (v_drive - cv[0]) - reach > 0.0:
+        return None  # v cannot reach v_drive in this step
+    return _search_slip_end(cv, mode, v_drive)
+
+
+def _search_slip_end(cv: list[float], mode: int, v_drive: float) -> float | None:
+    """:func:`_slip_end` where the quick bound does not exclude an end: bracket the first crossing."""
 
     def g(theta: float) -> float:
         return mode * (v_drive - poly.evaluate(cv, theta))

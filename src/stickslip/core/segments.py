@@ -14,11 +14,45 @@ import math
 from typing import ClassVar
 
 from . import poly
+from .integrators import Step
 from .linear_slip import HarmonicSlip
-from .model import STUCK
+from .model import STUCK, Parameters
 
 
-class StuckSegment:
+class Segment:
+    """What every kind of segment has and does (a typed base: compiled code reads and calls it natively).
+
+    ``t0``, ``t1`` (s): start and end; ``ends_in_event``: a mode transition is due at ``t1``;
+    ``mode``: +1, 0 (stuck) or -1 throughout.
+    """
+
+    __slots__ = ("t0", "t1", "ends_in_event", "mode")
+    t0: float
+    t1: float
+    ends_in_event: bool
+    mode: int
+
+    def __init__(self, t0: float, t1: float, ends_in_event: bool, mode: int) -> None:
+        self.t0, self.t1, self.ends_in_event, self.mode = t0, t1, ends_in_event, mode
+
+    def state(self, t: float) -> tuple[float, float]:
+        """``(x, v)`` (m, m/s) at ``t`` in ``[t0, t1]``."""
+        raise NotImplementedError
+
+    def t_stick(self, t: float) -> float:
+        """Time (s) since the stick began, at ``t``; 0 while slipping."""
+        return 0.0
+
+    def end_state(self) -> tuple[float, float]:
+        """``(x, v)`` at ``t1`` as the next segment starts from it."""
+        raise NotImplementedError
+
+    def to_list(self) -> list:
+        """The constructor's arguments, ``kind`` first (see :func:`segment_from_list`)."""
+        raise NotImplementedError
+
+
+class StuckSegment(Segment):
     """Stuck for ``duration`` s: ``x = x0 + v_drive (t - t0)``, ``v = v_drive``, ``t_stick = t_stick0 + t - t0``.
 
     The end time ``t1 = t0 + duration`` is rounded. With ``replayable_end`` the end
@@ -31,74 +65,82 @@ class StuckSegment:
     """
 
     KIND: ClassVar[str] = "stuck"
-    __slots__ = ("t0", "duration", "t1", "ends_in_event", "x0", "v_drive", "t_stick0", "replayable_end")
-    mode: ClassVar[int] = STUCK
+    __slots__ = ("duration", "x0", "v_drive", "t_stick0", "replayable_end")
+    duration: float
+    x0: float
+    v_drive: float
+    t_stick0: float
+    replayable_end: bool
 
-    def __init__(self, t0, duration, ends_in_event, x0, v_drive, t_stick0, replayable_end):
-        self.t0, self.duration, self.t1, self.ends_in_event = t0, duration, t0 + duration, ends_in_event
-        self.x0, self.v_drive, self.t_stick0 = x0, v_drive, t_stick0
+    def __init__(self, t0: float, duration: float, ends_in_event: bool, x0: float, v_drive: float, t_stick0: float,
+                 replayable_end: bool) -> None:
+        super().__init__(t0, t0 + duration, ends_in_event, STUCK)
+        self.duration, self.x0, self.v_drive, self.t_stick0 = duration, x0, v_drive, t_stick0
         self.replayable_end = replayable_end
 
-    def state(self, t):
+    def state(self, t: float) -> tuple[float, float]:
         if t == self.t1:
             return self.end_state()
         return self.x0 + self.v_drive * (t - self.t0), self.v_drive
 
-    def t_stick(self, t):
+    def t_stick(self, t: float) -> float:
         return self.t_stick0 + (t - self.t0)
 
-    def end_state(self):
+    def end_state(self) -> tuple[float, float]:
         elapsed = self.duration if self.replayable_end else self.t1 - self.t0
         return self.x0 + self.v_drive * elapsed, self.v_drive
 
-    def to_list(self):
+    def to_list(self) -> list:
         return [self.KIND, self.t0, self.duration, self.ends_in_event, self.x0, self.v_drive, self.t_stick0,
                 self.replayable_end]
 
 
-class HarmonicSegment:
+class HarmonicSegment(Segment):
     """Slip under an affine kinetic law, in closed form (see :mod:`.linear_slip`)."""
 
     KIND: ClassVar[str] = "harmonic"
-    __slots__ = ("t0", "t1", "ends_in_event", "mode", "x0", "v0", "v_drive", "F_ext", "motion")
+    __slots__ = ("x0", "v0", "v_drive", "F_ext", "motion")
+    x0: float
+    v0: float
+    v_drive: float
+    F_ext: float
+    motion: HarmonicSlip
 
-    def __init__(self, t0, t1, ends_in_event, mode, x0, v0, v_drive, F_ext, p):
-        self.t0, self.t1, self.ends_in_event = t0, t1, ends_in_event
-        self.mode, self.x0, self.v0, self.v_drive, self.F_ext = mode, x0, v0, v_drive, F_ext
+    def __init__(self, t0: float, t1: float, ends_in_event: bool, mode: int, x0: float, v0: float, v_drive: float,
+                 F_ext: float, p: Parameters) -> None:
+        super().__init__(t0, t1, ends_in_event, mode)
+        self.x0, self.v0, self.v_drive, self.F_ext = x0, v0, v_drive, F_ext
         self.motion = HarmonicSlip(mode, x0, v0, v_drive, F_ext, p)
 
-    @classmethod
-    def start(cls, t0, mode, x0, v0, v_drive, F_ext, p):
+    @staticmethod
+    def start(t0: float, mode: int, x0: float, v0: float, v_drive: float, F_ext: float,
+              p: Parameters) -> HarmonicSegment:
         """The slip from ``(t0, x0, v0)`` up to its end (``v = v_drive``) or forever."""
-        segment = cls(t0, math.inf, False, mode, x0, v0, v_drive, F_ext, p)
+        segment = HarmonicSegment(t0, math.inf, False, mode, x0, v0, v_drive, F_ext, p)
         delay = segment.motion.stick_delay(mode, v_drive)
         if delay is not None:
             segment.t1, segment.ends_in_event = t0 + delay, True
         return segment
 
-    def state(self, t):
+    def state(self, t: float) -> tuple[float, float]:
         return self.motion.state(t - self.t0)
 
-    def t_stick(self, t):
-        return 0.0
-
-    def end_state(self):
+    def end_state(self) -> tuple[float, float]:
         x, v = self.state(self.t1)
         return (x, self.v_drive) if self.ends_in_event else (x, v)
 
-    def to_list(self):
+    def to_list(self) -> list:
         return [self.KIND, self.t0, self.t1, self.ends_in_event, self.mode, self.x0, self.v0, self.v_drive, self.F_ext]
 
 
-class StepSegment:
-    """One Runge-Kutta step of a slip under a general law; ``(x, v)`` from its dense output."""
+class StepSegment(Segment):
+    """One Runge-Kutta step of a slip under a general law; ``(x, v)`` from its dense output.
+
+    The coefficient lists are shared, not copied (with the step and its memo entry): nothing changes them.
+    """
 
     KIND: ClassVar[str] = "step"
-    __slots__ = ("t0", "t1", "ends_in_event", "mode", "h", "cx", "cv", "x1", "v1")
-    t0: float
-    t1: float
-    ends_in_event: bool
-    mode: int
+    __slots__ = ("h", "cx", "cv", "x1", "v1")
     h: float
     cx: list[float]
     cv: list[float]
@@ -107,19 +149,19 @@ class StepSegment:
 
     def __init__(self, t0: float, t1: float, ends_in_event: bool, mode: int, h: float, cx: list[float],
                  cv: list[float], x1: float, v1: float) -> None:
-        self.t0, self.t1, self.ends_in_event = t0, t1, ends_in_event
-        self.mode, self.h, self.cx, self.cv = mode, h, list(cx), list(cv)
+        super().__init__(t0, t1, ends_in_event, mode)
+        self.h, self.cx, self.cv = h, cx, cv
         self.x1, self.v1 = x1, v1
 
-    @classmethod
-    def instant(cls, t0, mode, x0, v0):
+    @staticmethod
+    def instant(t0: float, mode: int, x0: float, v0: float) -> StepSegment:
         """A slip of zero length that ends in an event at once (it cannot leave ``v_rel = 0``)."""
-        return cls(t0, t0, True, mode, 0.0, [x0], [v0], x0, v0)
+        return StepSegment(t0, t0, True, mode, 0.0, [x0], [v0], x0, v0)
 
-    @classmethod
-    def from_step(cls, t0, mode, step, ends_in_event, v_drive):
+    @staticmethod
+    def from_step(t0: float, mode: int, step: Step, ends_in_event: bool, v_drive: float) -> StepSegment:
         v1 = v_drive if ends_in_event else step.v1
-        return cls(t0, t0 + step.h, ends_in_event, mode, step.h, step.cx, step.cv, step.x1, v1)
+        return StepSegment(t0, t0 + step.h, ends_in_event, mode, step.h, step.cx, step.cv, step.x1, v1)
 
     def state(self, t: float) -> tuple[float, float]:
         if t == self.t1:
@@ -127,18 +169,16 @@ class StepSegment:
         theta = (t - self.t0) / self.h
         return poly.evaluate_pair(self.cx, self.cv, theta)
 
-    def t_stick(self, t):
-        return 0.0
-
-    def end_state(self):
+    def end_state(self) -> tuple[float, float]:
         return self.x1, self.v1
 
-    def to_list(self):
-        return [self.KIND, self.t0, self.t1, self.ends_in_event, self.mode, self.h, self.cx, self.cv, self.x1, self.v1]
+    def to_list(self) -> list:
+        return [self.KIND, self.t0, self.t1, self.ends_in_event, self.mode, self.h, list(self.cx), list(self.cv),
+                self.x1, self.v1]
 
 
 def segment_from_list(values, p):
-    """Rebuild a segment from :meth:`to_list` output."""
+    """Rebuild a segment from :meth:`~Segment.to_list` output."""
     kind, *fields = values
     if kind == StuckSegment.KIND:
         return StuckSegment(*fields)

@@ -21,6 +21,7 @@ when the inputs change.
 from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
 
 import math
+from typing import Iterable
 
 from .errors import SolverError
 from .model import (
@@ -37,9 +38,10 @@ from .model import (
     slip_departs,
     z_slip,
 )
+from .model import Parameters
 from .numeric_slip import MEMO_SIZE, SlipStepper
 from .ranges import Range, check
-from .segments import HarmonicSegment, StepSegment, StuckSegment, segment_from_list
+from .segments import HarmonicSegment, Segment, StepSegment, StuckSegment, segment_from_list
 from .stuck import breakaway_delay
 
 RTOL_RANGE = Range(1e-14, 1e-2)
@@ -55,6 +57,23 @@ OUTPUT_NAMES = (
 
 class Trajectory:
     """Solution of the hybrid spring-block model with piecewise-constant inputs."""
+
+    # typed, so that compiled code reads the state and calls the segment and the stepper natively
+    params: Parameters
+    rtol: float
+    t: float  # s
+    v_drive: float  # m/s
+    F_ext: float  # N
+    n_stick_events: int
+    n_slip_events: int
+    n_overshoots: int
+    t_last_event: float  # s
+    events: list | None
+    _chain: int
+    _stepper: SlipStepper
+    _segment: Segment
+    _x: float  # m, at t
+    _v: float  # m/s, at t
 
     def __init__(self, params, x0, v0, v_drive=0.0, F_ext=0.0, t0=0.0, rtol=1e-10, record_events=False,
                  reuse_steps=True):
@@ -80,7 +99,7 @@ class Trajectory:
         self._chain = 0
         self._stepper = SlipStepper(self.rtol, memo_size=MEMO_SIZE if reuse_steps else 0)
         mode = initial_mode(x0, v0, self.v_drive, self.F_ext, params)
-        self._segment = self._start_segment(self.t, x0, v0, mode, 0.0)
+        self._segment = self._start_segment(self.t, float(x0), float(v0), mode, 0.0)
         self._x, self._v = self._segment.state(self.t)
 
     # ------------------------------------------------------------------
@@ -106,24 +125,26 @@ class Trajectory:
         self._segment = self._start_segment(self.t, self._x, v, new_mode, t_stick)
         self._x, self._v = self._segment.state(self.t)
 
-    def advance_to(self, t):
+    def advance_to(self, t: float) -> None:
         """Advance to time ``t >= self.t`` (s), through every event up to and at ``t``."""
         if not t >= self.t:
             raise SolverError(f"cannot advance from t = {self.t!r} s back to t = {t!r} s")
         if not math.isfinite(t):
             raise SolverError(f"cannot advance from t = {self.t!r} s to t = {t!r} s: the end time must be finite")
-        while self._segment.t1 <= t:
+        end = float(t)
+        while self._segment.t1 <= end:
             self._finish_segment()
-        self.t = float(t)
+        self.t = end
         self._x, self._v = self._segment.state(self.t)
         if not (math.isfinite(self._x) and math.isfinite(self._v)):
             raise SolverError(f"the state overflowed at t = {self.t!r} s (x = {self._x!r}, v = {self._v!r})")
 
-    def sample(self, times):
+    def sample(self, times: Iterable[float]) -> tuple[list[float], list[float]]:
         """Advance through the increasing ``times`` (s); the lists of ``x`` (m) and ``v`` (m/s) there."""
-        times = [float(t) for t in times]  # plain floats: numpy scalars would slow every step's arithmetic
-        xs, vs = [], []
-        for t in times:
+        grid: list[float] = [float(t) for t in times]  # plain floats: numpy scalars would slow every step
+        xs: list[float] = []
+        vs: list[float] = []
+        for t in grid:
             segment = self._segment
             if self.t <= t < segment.t1:  # inside the current segment: no event to process, just evaluate
                 x, v = segment.state(t)
@@ -133,10 +154,10 @@ class Trajectory:
             xs.append(x)
             vs.append(v)
         if xs:
-            self.t, self._x, self._v = times[-1], xs[-1], vs[-1]
+            self.t, self._x, self._v = grid[-1], xs[-1], vs[-1]
         if not (all(map(math.isfinite, xs)) and all(map(math.isfinite, vs))):
             bad = next(i for i, (x, v) in enumerate(zip(xs, vs)) if not (math.isfinite(x) and math.isfinite(v)))
-            raise SolverError(f"the state overflowed at t = {times[bad]!r} s (x = {xs[bad]!r}, v = {vs[bad]!r})")
+            raise SolverError(f"the state overflowed at t = {grid[bad]!r} s (x = {xs[bad]!r}, v = {vs[bad]!r})")
         return xs, vs
 
     # ------------------------------------------------------------------
@@ -246,7 +267,7 @@ class Trajectory:
     # segments and transitions
     # ------------------------------------------------------------------
 
-    def _finish_segment(self):
+    def _finish_segment(self) -> None:
         """Move to the end of the current segment, apply its event, start the next one."""
         segment = self._segment
         t1 = segment.t1
@@ -264,7 +285,8 @@ class Trajectory:
             mode, t_stick = new_mode, 0.0
         self._segment = self._start_segment(t1, x1, v1, mode, t_stick, continues=not segment.ends_in_event)
 
-    def _start_segment(self, t0, x0, v0, mode, t_stick, continues=False):
+    def _start_segment(self, t0: float, x0: float, v0: float, mode: int, t_stick: float,
+                       continues: bool = False) -> Segment:
         """The segment from ``(t0, x0, v0)`` in ``mode``; ``continues``: the phase goes on from the last one."""
         p = self.params
         if mode == STUCK:
@@ -285,7 +307,7 @@ class Trajectory:
         step, ends_in_event = self._stepper.step(t0, x0, v0, mode, self.v_drive, self.F_ext, p)
         return StepSegment.from_step(t0, mode, step, ends_in_event, self.v_drive)
 
-    def _log_event(self, t, old_mode, new_mode):
+    def _log_event(self, t: float, old_mode: int, new_mode: int) -> None:
         self.t_last_event = t
         if self.events is not None:
             self.events.append((t, old_mode, new_mode))
@@ -296,7 +318,7 @@ class Trajectory:
         else:
             self.n_overshoots += 1
 
-    def _check_chain(self, t_event, t_segment_start, new_mode):
+    def _check_chain(self, t_event: float, t_segment_start: float, new_mode: int) -> None:
         """Guard against endless event chains at one instant (never hang)."""
         time_scale = math.sqrt(self.params.M / self.params.kappa)  # s: 1/omega0, the slip's natural time
         if t_event - t_segment_start > 1e-13 * max(time_scale, abs(t_event)):
