@@ -53,7 +53,6 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         self.init_block()
         self._by_reference = [v.start for v in VARIABLES]  # every value by value reference; outputs may be stale
         self._outputs_stale = True  # the outputs' part needs an evaluation at the current state
-        self._inputs_changed = False  # an input was set since the trajectory last saw the inputs
         self._read_plans = {}  # (type, value references) -> (read, needs_outputs), see _read_plan
 
     def to_xml(self, model_options=None):
@@ -72,7 +71,7 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
             plan = self._read_plan(kind, key[1])
         read, needs_outputs = plan
         if needs_outputs and self._outputs_stale:
-            self._by_reference[OUTPUTS_AT:] = self._current().outputs()
+            self._by_reference[OUTPUTS_AT:] = self.current_trajectory().outputs()
             self._outputs_stale = False
         return read(self._by_reference)
 
@@ -101,7 +100,6 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         """Set a parameter (before initialization ends) or an input: the outputs follow at the next read."""
         super().set_variable(name, value)
         self._by_reference[_REFERENCE_OF[name]] = value
-        self._inputs_changed = True
         self._outputs_stale = True
 
     def outputs_changed(self):
@@ -125,15 +123,6 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         """Set the Integer parameters ``vrs`` (before initialization ends) to ``values``."""
         self._write(Integer, vrs, values)
 
-    def _current(self):
-        """The trajectory with the latest inputs applied (a fresh one during initialization)."""
-        if self.trajectory is None:
-            return self.new_trajectory()
-        if self._inputs_changed:
-            self.trajectory.set_inputs(self.values["v_drive"], self.values["F_ext"])
-            self._inputs_changed = False
-        return self.trajectory
-
     # ---- FMI ---------------------------------------------------------------------
 
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
@@ -146,7 +135,7 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
 
     def do_step(self, current_time, step_size):
         """Hold the inputs and advance to ``current_time + step_size`` s (raises on failure, never discards)."""
-        self._current().advance_to(current_time + step_size)
+        self.current_trajectory().advance_to(current_time + step_size)
         self.outputs_changed()
         return True
 
@@ -156,7 +145,6 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
     def _set_fmu_state(self, state):
         self.restore_block_state(state)
         self._by_reference[:OUTPUTS_AT] = [self.values[v.name] for v in VARIABLES[:OUTPUTS_AT]]
-        self._inputs_changed = False  # the restored trajectory holds the restored inputs
 
 
 def _check_kind(kind, references):

@@ -142,6 +142,7 @@ class BlockInterface:
         self.variable_bounds = {v.name: v.bounds for v in VARIABLES}
         self.start_time = 0.0
         self.trajectory = None  # built when initialization ends
+        self._inputs_changed = False  # a value was set since the trajectory last saw the inputs
         self._output_cache = {}  # {output name: value} at the current state, filled as outputs are read
 
     def register_variables(self, classes, causalities, variabilities):
@@ -167,6 +168,7 @@ class BlockInterface:
         if self.trajectory is not None and name in self.values and name not in ("v_drive", "F_ext"):
             raise ParameterError(f"{name} is a fixed parameter: it cannot change after initialization")
         self.values[name] = value
+        self._inputs_changed = True
         self._output_cache.clear()
 
     def read_output(self, name, attribute):
@@ -208,7 +210,9 @@ class BlockInterface:
         """The trajectory with the latest inputs applied (a fresh one during initialization)."""
         if self.trajectory is None:
             return self.new_trajectory()
-        self.trajectory.set_inputs(self.values["v_drive"], self.values["F_ext"])
+        if self._inputs_changed:
+            self.trajectory.set_inputs(self.values["v_drive"], self.values["F_ext"])
+            self._inputs_changed = False
         return self.trajectory
 
     # ---- FMU state ---------------------------------------------------------------
@@ -225,6 +229,7 @@ class BlockInterface:
         self.start_time = state["start_time"]
         snapshot = state["trajectory"]
         self.trajectory = None if snapshot is None else Trajectory.from_snapshot(self.parameters(), snapshot)
+        self._inputs_changed = False  # the restored trajectory holds the restored inputs
         self.outputs_changed()
 
 

@@ -2,7 +2,8 @@
 
 :func:`run_fmu` turns every FMI failure into :class:`FMUError` carrying the
 FMU's own log text (for a bad parameter: its name, value and allowed range).
-PythonFMU passes that text only when debug logging is on, so it always is.
+The FMU's loader passes errors at every logging setting; logging is on so that
+an FMU built without the loader (no C compiler) passes them too.
 """
 
 import itertools

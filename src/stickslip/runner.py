@@ -62,7 +62,8 @@ def simulate(scenario, fmu_path, interface=None):
         fmu = run_fmu3(fmu_path, *args, "me", input_signal=inputs, outputs=list(OUTPUTS),
                        rtol=model_exchange(scenario).rtol)
     middle = time.perf_counter()
-    ref = simulate_reference(parameters_from_values(scenario.law_values), scenario.x0, scenario.v0, scenario.breakpoints(), fmu["time"])
+    ref = simulate_reference(parameters_from_values(scenario.law_values), scenario.x0, scenario.v0,
+                             scenario.breakpoints(), fmu["time"])
     return fmu, ref, middle - start, time.perf_counter() - middle
 
 
@@ -78,12 +79,13 @@ def run_scenario(scenario, fmu_path, out_dir=None, interface=None):
 
     ``interface``: as :func:`simulate`; "me" is checked against the ``[model_exchange]`` tolerances.
     """
-    known_miss = scenario.model_exchange.known_miss if interface == "me" else ""
     try:
         fmu, ref, fmu_s, ref_s = simulate(scenario, fmu_path, interface)
     except (StickSlipError, ReferenceFailure) as exc:
         return Outcome(scenario.name, scenario.expected_attractor, error=f"{type(exc).__name__}: {exc}")
+    known_miss = ""
     if interface == "me":
+        known_miss = scenario.model_exchange.known_miss
         scenario = replace(scenario, tolerance=scenario.model_exchange.tolerance)
     if out_dir is not None:
         write_result_csv(Path(out_dir) / f"{scenario.name}.csv", fmu, OUTPUTS)

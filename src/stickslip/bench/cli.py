@@ -31,7 +31,7 @@ def run_bench(args):
     from .c_host import ensure_host
     from .fmus import BUILD_DIR, ExtractedFMU, ensure_floor_fmu
     from .harness import run_scenes
-    from .paths import compiled_vs_pure
+    from .implementations import compiled_vs_pure
     from .report import markdown, plot, write_json
     from .runtimes import ensure_pure_fmu
     from .scenes import select_scenes

@@ -179,11 +179,10 @@ def markdown(meta, scenes, records):
             "sweep's comm_rtol); a slope the data cannot resolve comes out 0.", ""]
     rows = []
     for s in scenes:
-        fmu, floor, c_fmu, c_floor = (
-            per_step_cost(records[s.name], family, s, time)[0]
+        (fmu, note), (floor, _), (c_fmu, _), (c_floor, _) = (
+            per_step_cost(records[s.name], family, s, time)
             for family, time in (("fmu", "median_s"), ("floor", "median_s"),
                                  ("c-host", "cpu_s"), ("c-host-floor", "cpu_s")))
-        note = per_step_cost(records[s.name], "fmu", s)[1]
         rows.append([s.name, *_cost_columns(fmu, floor), *_cost_columns(c_fmu, c_floor), note])
     out += _table(["scene", "FMPy: FMU µs/step", "FMPy: trivial FMU µs/step", "ratio",
                    "C host: FMU CPU µs/step", "C host: trivial FMU CPU µs/step", "ratio", "estimate"], rows)

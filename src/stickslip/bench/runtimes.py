@@ -27,7 +27,8 @@ def ensure_pure_fmu(build_dir):
     """``SpringBlockFriction-pure.fmu`` in ``build_dir``, built from the current sources unless it is."""
     dest = Path(build_dir) / "SpringBlockFriction-pure.fmu"
     marker = dest.with_suffix(".tag")
-    if not (dest.is_file() and marker.is_file() and marker.read_text() == source_tag()):
+    tag = source_tag()
+    if not (dest.is_file() and marker.is_file() and marker.read_text() == tag):
         build(dest, pure=True)
-        marker.write_text(source_tag())
+        marker.write_text(tag)
     return dest
