@@ -300,8 +300,22 @@ def test_replayed_steps_give_exactly_the_integrated_numbers(p, vd, integrated_fr
         replayed.advance_to(t)
         assert (replayed.x, replayed.v, replayed.mode) == (integrated.x, integrated.v, integrated.mode)
     assert replayed.n_steps == integrated.n_steps and replayed.n_stick_events >= 5
-    work = len(replayed._stepper._memo)  # one entry per integrated step (the memo never filled up here)
+    work = replayed._stepper._recorded  # steps integrated and recorded (the memo never filled up here)
     assert work < min(integrated_fraction * replayed.n_steps, MEMO_SIZE), (work, replayed.n_steps)
+
+
+def test_a_slide_longer_than_the_memo_records_a_prefix_and_integrates_on_with_the_same_numbers():
+    """Continuous sliding never repeats a slip: the memo records the slip's first MEMO_SIZE steps, then stops
+    recording, and the trajectory is the integrated one bit for bit."""
+    p = Parameters(40.0, 1.0, Lubricated(), Constant(F0=1.0))  # elmer-fig3 at v_drive 1.0: it never sticks
+    integrated = Trajectory(p, 0.0, 1.0, v_drive=1.0, rtol=1e-10, reuse_steps=False)
+    replayed = Trajectory(p, 0.0, 1.0, v_drive=1.0, rtol=1e-10)
+    for t in np.arange(1, 201) * 10.0:
+        integrated.advance_to(t)
+        replayed.advance_to(t)
+        assert (replayed.x, replayed.v, replayed.mode) == (integrated.x, integrated.v, integrated.mode)
+    assert replayed.n_stick_events == 0 and replayed.n_steps == integrated.n_steps > MEMO_SIZE
+    assert replayed._stepper._recorded == MEMO_SIZE
 
 
 def test_a_stick_before_a_numeric_slip_ends_in_the_same_state_whenever_it_starts():

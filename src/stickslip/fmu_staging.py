@@ -32,7 +32,7 @@ from .compile_runtime import CompileError, compile_in_place
 
 CACHE = Path(__file__).resolve().parents[2] / "build" / "fmu-runtime"
 #: files of an in-place compiled ``stickslip/core`` (pip install -e) that never go into an FMU's copy
-COMPILED_ARTIFACTS = ("__pycache__", "*.pyc", "*.so", "*.pyd", "compiled_sources.sha256")
+COMPILED_ARTIFACTS = ("__pycache__", "*.pyc", "*.so", "*.pyd", "compiled_sources.crc32")
 #: the builder modules whose source decides the FMU's layout (part of its source tag)
 STAGING_SOURCES = (Path(__file__).resolve(), Path(__file__).resolve().with_name("compile_runtime.py"))
 

@@ -42,18 +42,24 @@ class Config:
     extra: Callable | None = None
 
 
-def stepper_run(scene, rtol, reuse_steps=True, core=compiled_core):
-    """Our stepper (the runtime package ``core``: compiled where built, or its pure-Python copy) on the scene's
-    grid, with its recorded events (their exact times); ``reuse_steps=False`` integrates every step instead
-    of replaying steps from bit-identical states."""
-    v_drive, F_ext = scene.inputs
-    traj = core.Trajectory(in_core(core, scene.params), scene.scenario.x0, scene.scenario.v0, v_drive, F_ext, 0.0,
-                           rtol, record_events=True, reuse_steps=reuse_steps)
+def stepper_call(scene, rtol, reuse_steps=True, core=compiled_core):
+    """The timed call of our stepper (the runtime package ``core``: compiled where built, or its pure-Python
+    copy) on the scene's grid, returning a Run with its recorded events (their exact times);
+    ``reuse_steps=False`` integrates every step instead of replaying steps from bit-identical states. What the
+    call need not redo is prepared here, as for the solve_ivp peers: the parameters in ``core``'s classes, the
+    inputs, the grid as a list of floats."""
+    p, (v_drive, F_ext), x0, v0 = in_core(core, scene.params), scene.inputs, scene.scenario.x0, scene.scenario.v0
     grid = scene.grid()
-    x, v = traj.sample(grid)
-    events = [Event(kind, t, t) for t, before, after in traj.events
-              if (kind := transition_kind(before, after)) is not None]
-    return Run(grid, np.array(x), np.array(v), events, traj.n_steps)
+    times = grid.tolist()
+
+    def run():
+        traj = core.Trajectory(p, x0, v0, v_drive, F_ext, 0.0, rtol, record_events=True, reuse_steps=reuse_steps)
+        x, v = traj.sample(times)
+        events = [Event(kind, t, t) for t, before, after in traj.events
+                  if (kind := transition_kind(before, after)) is not None]
+        return Run(grid, np.array(x, dtype=float), np.array(v, dtype=float), events, traj.n_steps)
+
+    return run
 
 
 def _from_columns(result):
@@ -89,10 +95,10 @@ def configs(scene, fmu, floor, host=None, fmu3=None, pure_fmu=None):
     for rtol in s.stepper_rtols:
         for suffix, core in (("", compiled_core), ("-pure", PURE_CORE)):
             out.append(Config(f"stepper{suffix}", f"stepper{suffix} rtol={rtol:.0e}", {"rtol": rtol},
-                              lambda rtol=rtol, core=core: stepper_run(scene, rtol, core=core), lambda run: run))
+                              stepper_call(scene, rtol, core=core), lambda run: run))
             out.append(Config(f"stepper-integrating{suffix}", f"stepper{suffix}, no replay, rtol={rtol:.0e}",
                               {"rtol": rtol},
-                              lambda rtol=rtol, core=core: stepper_run(scene, rtol, reuse_steps=False, core=core),
+                              stepper_call(scene, rtol, reuse_steps=False, core=core),
                               lambda run: run))
     for method, rtols in s.ivp.items():
         for rtol in rtols:
@@ -127,9 +133,9 @@ def configs(scene, fmu, floor, host=None, fmu3=None, pure_fmu=None):
 def timed(call, repeats, limit):
     """``(result of the warm-up call, [seconds of each of the repeats])``; TimeoutError past ``limit`` s a call."""
     result = _limited(call, limit)
-    seconds = []
+    gc.collect()  # once, before the repeats: a collection before each would also empty CPython's free lists
+    seconds = []  # (of floats, tuples, ...) and charge every call their refill, as no caller pays it (cf. timeit)
     for _ in range(repeats):
-        gc.collect()
         gc.disable()
         try:
             seconds.append(_limited(call, limit, clock=True))

@@ -6,8 +6,9 @@ when all of these hold, else the sources are (same numbers, slower):
 
 - the compiled files for this interpreter are there (another Python version or
   platform has none: the sources are found as usual);
-- ``compiled_sources.sha256`` beside them matches the sources (edited sources are never
-  shadowed by stale compiled code);
+- ``compiled_sources.crc32`` beside them matches the sources (edited sources are never
+  shadowed by stale compiled code; a CRC, not a cryptographic hash: it guards against edits, not
+  attacks, and costs no OpenSSL load at the FMU's first instantiation);
 - the environment variable ``STICKSLIP_PURE_PYTHON`` is not set to a non-empty value;
 - they load (an ImportError, e.g. a missing shared library, falls back).
 
@@ -15,27 +16,27 @@ This module is never compiled, and uses only the standard library, so the FMU's
 renamed copy of the package (``sbf_runtime_<tag>``) makes the same choice.
 """
 
-import hashlib
 import importlib
 import importlib.util
 import os
 import sys
+import zlib
 from importlib.machinery import EXTENSION_SUFFIXES
 
 COMPILED_MODULES = (
     "laws", "model", "integrators", "poly", "rootfind", "numeric_slip", "linear_slip", "stuck", "segments", "trajectory",
 )
-STAMP = "compiled_sources.sha256"
+STAMP = "compiled_sources.crc32"
 PURE_ENV = "STICKSLIP_PURE_PYTHON"
 
 
 def sources_digest(folder):
-    """sha256 (hex) of the sources of :data:`COMPILED_MODULES` in ``folder``."""
-    digest = hashlib.sha256()
+    """CRC-32 (8 hex digits) of the names and sources of :data:`COMPILED_MODULES` in ``folder``."""
+    crc = 0
     for name in COMPILED_MODULES:
         with open(os.path.join(folder, f"{name}.py"), "rb") as source:
-            digest.update(name.encode() + b"\0" + source.read() + b"\0")
-    return digest.hexdigest()
+            crc = zlib.crc32(name.encode() + b"\0" + source.read() + b"\0", crc)
+    return f"{crc:08x}"
 
 
 def select(package, folder):

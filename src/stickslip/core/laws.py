@@ -15,12 +15,19 @@ A Python user may pass any callable through :class:`CallableKinetic` or
 from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
 
 import math
-from typing import ClassVar, Final
+from typing import ClassVar
 
 from .errors import ParameterError
 from .ranges import NON_NEGATIVE, POSITIVE, Range, check
 
-_hypot: Final = math.hypot  # bound once: compiled code calls it without looking it up in the math module
+
+def _norm(a: float, b: float) -> float:
+    """``sqrt(a^2 + b^2)``: through ``math.sqrt``, which compiled code calls natively (``math.hypot`` it calls as
+    a Python function), unless the squares could overflow or underflow; there ``math.hypot``."""
+    s = math.sqrt(a * a + b * b)
+    if 1e-150 < s < 1e150:
+        return s
+    return math.hypot(a, b)
 
 
 class _Law:
@@ -174,11 +181,11 @@ class Lubricated(KineticLaw):
 
     def force(self, u: float) -> float:
         w = u - self.v_tilde
-        return 0.5 * u * (self.gamma1 + self.gamma2 + (self.gamma2 - self.gamma1) * w / _hypot(self.dv, w))
+        return 0.5 * u * (self.gamma1 + self.gamma2 + (self.gamma2 - self.gamma1) * w / _norm(self.dv, w))
 
     def slope(self, u: float) -> float:
         w = u - self.v_tilde
-        s = _hypot(self.dv, w)
+        s = _norm(self.dv, w)
         half_jump = 0.5 * (self.gamma2 - self.gamma1)
         return 0.5 * (self.gamma1 + self.gamma2) + half_jump * (w / s + u * self.dv * self.dv / (s * s * s))
 

@@ -31,13 +31,17 @@ class SlipStepper:
     """Step-size and method state of the numeric slip integration (serializable).
 
     Every slip phase starts from the same initial step size (:meth:`restart`), so
-    a step depends only on its start state and the stepper's state. Accepted steps
-    are kept in a bounded memo under exactly that key: a periodic stick-slip,
-    whose slips start from bit-identical states, replays them instead of
-    integrating again, and gets exactly the numbers a new integration would.
+    a slip's steps depend only on its start state, its inputs and the stepper's
+    state then. The accepted steps of each slip are kept in a bounded memo under
+    exactly that key: a periodic stick-slip, whose slips start from bit-identical
+    states, replays them instead of integrating again, and gets exactly the numbers
+    a new integration would. A slip that outgrows the memo keeps the steps it
+    recorded (a valid prefix) and integrates on without recording, so a slide that
+    never repeats pays one list append per step, then nothing.
     """
 
-    __slots__ = ("rtol", "h", "stiff", "votes", "n_steps", "n_rejected", "_slip", "_memo", "_memo_size")
+    __slots__ = ("rtol", "h", "stiff", "votes", "n_steps", "n_rejected", "_slip", "_memo", "_memo_size",
+                 "_recorded", "_record", "_cursor")
     rtol: float
     h: float | None  # s: the next step's size; None at the start of a slip phase
     stiff: bool
@@ -45,8 +49,11 @@ class SlipStepper:
     n_steps: int
     n_rejected: int
     _slip: "_Slip | None"
-    _memo: dict
-    _memo_size: int
+    _memo: dict  # slip key -> the slip's recorded steps, each (step, ends_in_event, h, stiff, votes, rejected)
+    _memo_size: int  # most steps recorded over all slips
+    _recorded: int  # steps recorded in the memo
+    _record: list | None  # the current slip's recorded steps (None: the next step starts a slip)
+    _cursor: int  # index in _record of the next step to replay; len(_record) while recording; -1: neither
 
     def __init__(self, rtol: float, h: float | None = None, stiff: bool = False, votes: int = 0, n_steps: int = 0,
                  n_rejected: int = 0, memo_size: int = MEMO_SIZE) -> None:
@@ -57,8 +64,11 @@ class SlipStepper:
         self.n_steps = n_steps
         self.n_rejected = n_rejected
         self._slip = None  # constants of the current slip, rebuilt when the mode or the inputs change
-        self._memo = {}  # step key -> (step, ends_in_event, h, stiff, votes, rejected trials)
+        self._memo = {}
         self._memo_size = memo_size
+        self._recorded = 0
+        self._record = None
+        self._cursor = -1
 
     def snapshot(self):
         return [self.h, self.stiff, self.votes, self.n_steps, self.n_rejected]
@@ -70,6 +80,7 @@ class SlipStepper:
     def restart(self):
         """A new slip phase begins (after an event or an input change): forget the step size."""
         self.h = None
+        self._record = None
 
     def step(self, t0: float, x0: float, v0: float, mode: int, v_drive: float, F_ext: float,
              p: Parameters) -> tuple[Step, bool]:
@@ -82,18 +93,34 @@ class SlipStepper:
         """
         if not self._memo_size:
             return self._integrate(t0, x0, v0, mode, v_drive, F_ext, p)
-        key = (x0, v0, mode, v_drive, F_ext, self.h, self.stiff, self.votes)
-        known = self._memo.get(key)
-        if known is not None and _advances(t0, known[0].h):
-            step, ends_in_event, self.h, self.stiff, self.votes, rejected = known
-            self.n_steps += 1
-            self.n_rejected += rejected
-            return step, ends_in_event
+        record = self._record
+        if record is None:  # the slip's first step: its steps are known, or are recorded from here
+            key = (x0, v0, mode, v_drive, F_ext, self.h, self.stiff, self.votes)
+            known = self._memo.get(key)
+            if known is None:
+                if self._recorded >= self._memo_size:
+                    self._memo.clear()  # bounded memory: a long aperiodic run keeps only recent slips
+                    self._recorded = 0
+                known = self._memo[key] = []
+            record = self._record = known
+            self._cursor = 0
+        cursor = self._cursor
+        if 0 <= cursor < len(record):
+            entry: tuple[Step, bool, float | None, bool, int, int] = record[cursor]
+            if _advances(t0, entry[0].h):  # else integrated: the record is left
+                step, ends_in_event, self.h, self.stiff, self.votes, rejected = entry
+                self._cursor = cursor + 1
+                self.n_steps += 1
+                self.n_rejected += rejected
+                return step, ends_in_event
         rejected_before = self.n_rejected
         step, ends_in_event = self._integrate(t0, x0, v0, mode, v_drive, F_ext, p)
-        if len(self._memo) >= self._memo_size:
-            self._memo.clear()  # bounded memory: a long aperiodic run keeps only recent steps
-        self._memo[key] = (step, ends_in_event, self.h, self.stiff, self.votes, self.n_rejected - rejected_before)
+        if cursor == len(record) and self._recorded < self._memo_size:
+            record.append((step, ends_in_event, self.h, self.stiff, self.votes, self.n_rejected - rejected_before))
+            self._recorded += 1
+            self._cursor = cursor + 1
+        else:
+            self._cursor = -1  # the memo is full, or this slip left its record: integrate to its end
         return step, ends_in_event
 
     def _integrate(self, t0: float, x0: float, v0: float, mode: int, v_drive: float, F_ext: float,

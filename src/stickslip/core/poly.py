@@ -15,11 +15,6 @@ def evaluate(coeffs: list[float], theta: float) -> float:
 
 def evaluate_pair(coeffs_a: list[float], coeffs_b: list[float], theta: float) -> tuple[float, float]:
     """Both polynomials (of equal length) at ``theta``, in one Horner pass."""
-    if len(coeffs_a) == 5:  # the Dormand-Prince dense output, sampled at every output point: unrolled
-        a0, a1, a2, a3, a4 = coeffs_a
-        b0, b1, b2, b3, b4 = coeffs_b
-        return (a0 + theta * (a1 + theta * (a2 + theta * (a3 + theta * a4))),
-                b0 + theta * (b1 + theta * (b2 + theta * (b3 + theta * b4))))
     a = 0.0
     b = 0.0
     for ca, cb in zip(reversed(coeffs_a), reversed(coeffs_b)):

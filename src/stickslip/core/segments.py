@@ -43,6 +43,22 @@ class Segment:
         """Time (s) since the stick began, at ``t``; 0 while slipping."""
         return 0.0
 
+    def fill(self, times: list[float], i: int, xs: list[float], vs: list[float]) -> int:
+        """Append ``(x, v)`` at ``times[i]``, ``times[i+1]``, ... while they do not decrease and stay before
+        ``t1`` (``times[i]`` must be in ``[t0, t1)``); returns the index of the first time not taken."""
+        n = len(times)
+        lower = times[i]
+        while i < n:
+            t = times[i]
+            if not lower <= t < self.t1:
+                break
+            x, v = self.state(t)
+            xs.append(x)
+            vs.append(v)
+            lower = t
+            i += 1
+        return i
+
     def end_state(self) -> tuple[float, float]:
         """``(x, v)`` at ``t1`` as the next segment starts from it."""
         raise NotImplementedError
@@ -168,6 +184,26 @@ class StepSegment(Segment):
             return self.x1, self.v1
         theta = (t - self.t0) / self.h
         return poly.evaluate_pair(self.cx, self.cv, theta)
+
+    def fill(self, times: list[float], i: int, xs: list[float], vs: list[float]) -> int:
+        if len(self.cx) != 5:
+            return super().fill(times, i, xs, vs)
+        # the Dormand-Prince dense output, at every output point of the step: poly.evaluate_pair inlined
+        a0, a1, a2, a3, a4 = self.cx
+        b0, b1, b2, b3, b4 = self.cv
+        t0, t1, h = self.t0, self.t1, self.h
+        n = len(times)
+        lower = times[i]
+        while i < n:
+            t = times[i]
+            if not lower <= t < t1:
+                break
+            theta = (t - t0) / h
+            xs.append(a0 + theta * (a1 + theta * (a2 + theta * (a3 + theta * a4))))
+            vs.append(b0 + theta * (b1 + theta * (b2 + theta * (b3 + theta * b4))))
+            lower = t
+            i += 1
+        return i
 
     def end_state(self) -> tuple[float, float]:
         return self.x1, self.v1

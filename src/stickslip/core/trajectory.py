@@ -144,15 +144,16 @@ class Trajectory:
         grid: list[float] = [float(t) for t in times]  # plain floats: numpy scalars would slow every step
         xs: list[float] = []
         vs: list[float] = []
-        for t in grid:
-            segment = self._segment
-            if self.t <= t < segment.t1:  # inside the current segment: no event to process, just evaluate
-                x, v = segment.state(t)
+        i, n = 0, len(grid)
+        while i < n:
+            t = grid[i]
+            if self.t <= t < self._segment.t1:  # inside the current segment: no event, evaluate its points
+                i = self._segment.fill(grid, i, xs, vs)
             else:
                 self.advance_to(t)
-                x, v = self._x, self._v
-            xs.append(x)
-            vs.append(v)
+                xs.append(self._x)
+                vs.append(self._v)
+                i += 1
         if xs:
             self.t, self._x, self._v = grid[-1], xs[-1], vs[-1]
         if not (all(map(math.isfinite, xs)) and all(map(math.isfinite, vs))):
