@@ -15,9 +15,11 @@ time, model exchange at t = 0 unless the host calls ``fmi3SetTime`` before the f
 (``discreteStatesNeedUpdate``, ``nominalContinuousStatesChanged``), so the update returns its own.
 """
 
+import math
 from collections import namedtuple
 
-from pythonfmu3 import CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Variability, Float64, Int32, ModelExchange
+from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, Fmi3Variability, Float64, Int32,
+                        ModelExchange)
 
 from block_interface import BlockInterface, balance_release
 from stickslip.core.exchange import INDICATORS, ExchangeBlock
@@ -85,9 +87,13 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
 
     def exit_initialization_mode(self):
         self.trajectory = self.new_trajectory()  # raises ParameterError for a bad parameter
-        v = self.values
-        self.block = ExchangeBlock(self.parameters(), v["x_start"], v["v_start"], v["v_drive"], v["F_ext"], self.time)
+        self.block = self._new_block()
         self.outputs_changed()
+
+    def _new_block(self):
+        """The ExchangeBlock the current values start (ParameterError for a bad parameter)."""
+        v = self.values
+        return ExchangeBlock(self.parameters(), v["x_start"], v["v_start"], v["v_drive"], v["F_ext"], self.time)
 
     def _get_fmu_state(self):
         block = None if self.block is None else self.block.snapshot()
@@ -114,9 +120,10 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
     # ---- FMI: model exchange ---------------------------------------------------------
 
     def _exchange_call(self):
+        """The block a model-exchange call reads; during initialization, the one the current values start."""
         self.exchange = True
         self.outputs_changed()
-        return self.block
+        return self._new_block() if self.block is None else self.block
 
     def set_time(self, time):
         self.time = float(time)
@@ -127,10 +134,20 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         return self._exchange_call().states()
 
     def set_continuous_states(self, values):
+        if self.block is None:
+            raise RuntimeError("the continuous states are set after initialization; during it, set x_start and "
+                               "v_start")
         self._exchange_call().set_states(values[0], values[1])
 
     def get_continuous_state_derivatives(self):
-        return self._exchange_call().derivatives()
+        """``[der(x), der(v)]``; never raises: pythonfmu3 0.3.4 crashes the host when this method raises (any
+        other reports the exception), so a failure is logged as an error and answered with NaN, which the
+        FMU's binary returns as fmi3Error."""
+        try:
+            return self._exchange_call().derivatives()
+        except Exception as exc:  # noqa: BLE001 - every failure must become a status, see the docstring
+            self.log(f"[getContinuousStateDerivatives] {exc!r}", Fmi3Status.error)
+            return [math.nan, math.nan]
 
     def get_nominals_of_continuous_states(self, size):
         return self._exchange_call().nominals()

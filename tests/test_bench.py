@@ -116,8 +116,9 @@ def _sweep(family, scene, cost, start, wobble=()):
 def test_per_step_cost_recovers_a_linear_cost(scene):
     from stickslip.bench.report import per_step_cost
 
-    cost, note = per_step_cost(_sweep("fmu", scene, 12e-6, 3e-3), "fmu", scene)
-    assert cost == pytest.approx(12e-6, rel=1e-9) and "5 communication steps" in note
+    cost, per_call, note = per_step_cost(_sweep("fmu", scene, 12e-6, 3e-3), "fmu", scene)
+    assert cost == pytest.approx(12e-6, rel=1e-9) and per_call == pytest.approx(3e-3, rel=1e-9)
+    assert "5 communication steps" in note
 
 
 def test_per_step_cost_is_never_negative(scene):
@@ -125,7 +126,7 @@ def test_per_step_cost_is_never_negative(scene):
     from stickslip.bench.report import per_step_cost
 
     records = _sweep("fmu", scene, 0.0, 5e-3, wobble=[-2e-3, -1e-3, 0.0, 1e-3, 2e-3])  # fewest steps slowest
-    cost, _ = per_step_cost(records, "fmu", scene)
+    cost, _, _ = per_step_cost(records, "fmu", scene)
     assert cost == 0.0
     assert np.polyfit([100000, 10000, 1000, 100, 10], [3e-3, 4e-3, 5e-3, 6e-3, 7e-3], 1)[0] < 0  # what lstsq gave
 
@@ -133,8 +134,8 @@ def test_per_step_cost_is_never_negative(scene):
 def test_per_step_cost_from_two_points_is_not_estimated(scene):
     from stickslip.bench.report import per_step_cost
 
-    cost, note = per_step_cost(_sweep("fmu", scene, 12e-6, 3e-3)[:2], "fmu", scene)
-    assert cost is None and "cannot be estimated from 2 communication steps" in note
+    cost, per_call, note = per_step_cost(_sweep("fmu", scene, 12e-6, 3e-3)[:2], "fmu", scene)
+    assert cost is None and per_call is None and "cannot be estimated from 2 communication steps" in note
 
 
 def test_report_stamps_quick_runs_names_failures_and_compares_coarse_like_with_like(scene):
@@ -157,7 +158,7 @@ def test_report_stamps_quick_runs_names_failures_and_compares_coarse_like_with_l
     assert cells[7].startswith("3.") and "h=10" in cells[7]  # FMU at 10 s steps: 3 ms + 10 x 12 µs
     assert cells[8] == "2 ms (DOP853 rtol=1e-10 on the 10 s grid)"
     assert cells[10] == "1.6"  # 3.12 ms / 2 ms, both on the 10 s grid (not 3.12 / 20 = 0.16)
-    assert "| coulomb | 12 | 9 | 1.3 | – | – | – | fit over 5 communication steps |" in text
+    assert "| coulomb | 12 | 9 | 1.3 | 3 | 2 | 1.5 | – | – | – | fit over 5 communication steps |" in text
     assert "smoke run" not in markdown(dict(META, quick=False), [scene], {scene.name: records}).splitlines()[0]
 
 

@@ -1,6 +1,8 @@
 """The FMI 3 FMU: the FMI 2 FMU's variables, co-simulation identical to it, model exchange against the reference."""
 
 import shutil
+import subprocess
+import sys
 import zipfile
 from ctypes import c_double
 from dataclasses import replace
@@ -300,3 +302,70 @@ def test_model_exchange_needs_the_scenarios_model_exchange_section(tmp_path, fmu
     bare = tmp_path / "bare.toml"
     bare.write_text(text[:text.index("[model_exchange]")])
     assert main(["run", str(bare), "--out", str(tmp_path / "out"), "--fmu", str(fmu3_path), "--interface", "me"]) == 1
+
+
+# ---------------------------------------------------------------------------
+# model-exchange calls at the edges: initialization, failures, bad states
+# ---------------------------------------------------------------------------
+
+_EDGE_SCRIPT = """
+import ctypes, sys
+from fmpy import read_model_description
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi3 import FMU3Model
+folder, case = sys.argv[1], sys.argv[2]
+description = read_model_description(folder)
+refs = {v.name: v.valueReference for v in description.modelVariables}
+fmu = FMU3Model(guid=description.guid, unzipDirectory=folder, instanceName="edge",
+                modelIdentifier=description.modelExchange.modelIdentifier)
+fmu.instantiate(loggingOn=False)
+fmu.enterInitializationMode(startTime=0.0)
+fmu.setFloat64([refs["v_start"]], [0.3])
+dx = (ctypes.c_double * 2)()
+def derivatives():
+    fmu.getContinuousStateDerivatives(dx, 2)
+    return list(dx)
+try:
+    if case == "bad parameter":
+        fmu.setFloat64([refs["M"]], [-1.0])
+        print("derivatives", derivatives())
+    else:
+        during = derivatives()
+        fmu.exitInitializationMode()
+        fmu.enterContinuousTimeMode()
+        print("same after", during == derivatives())
+        if case == "nan state":
+            fmu.setContinuousStates((ctypes.c_double * 2)(float("nan"), 0.3), 2)
+except FMICallException as exc:
+    print("status", exc.status, "then", derivatives() if case == "nan state" else "")
+print("alive")
+"""
+
+
+def _edge(unzipped3, case):
+    """Run ``_EDGE_SCRIPT``'s ``case`` in a process of its own (a crash must not take pytest down):
+    ``(its stdout, stdout and stderr)``."""
+    done = subprocess.run([sys.executable, "-c", _EDGE_SCRIPT, unzipped3[0], case], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0 and done.stdout.endswith("alive\n"), (done.returncode, done.stdout, done.stderr)
+    return done.stdout, done.stdout + done.stderr
+
+
+def test_model_exchange_derivatives_during_initialization_are_those_the_initialization_starts(unzipped3):
+    out, _ = _edge(unzipped3, "initialization")
+    assert "same after True" in out
+
+
+def test_a_failing_derivative_call_is_an_error_naming_the_parameter_not_a_crash(unzipped3):
+    """pythonfmu3 crashes the host when the slave raises in get_continuous_state_derivatives: the slave logs and
+    answers NaN, the FMU's binary returns fmi3Error, and no NaN is passed on as a success."""
+    out, everything = _edge(unzipped3, "bad parameter")
+    assert "status 3" in out and "derivatives" not in out
+    assert "M = -1.0 kg is out of range" in everything
+
+
+def test_model_exchange_rejects_a_non_finite_state_and_keeps_its_own(unzipped3):
+    out, everything = _edge(unzipped3, "nan state")
+    assert "status 3" in out and "x = nan m is out of range" in everything
+    then = [float(v) for v in out.split("then [")[1].split("]")[0].split(",")]
+    assert np.isfinite(then).all()

@@ -56,11 +56,11 @@ MIN_COST_POINTS = 3  # a straight line through two points cannot show whether th
 
 
 def per_step_cost(records, family, scene, time="median_s"):
-    """``(seconds per communication step, note)`` of ``family`` ("fmu", "floor", "c-host", "c-host-floor") over
-    the communication-step sweep: the slope of the record's ``time`` (median wall time; "cpu_s" for the C host)
-    against the number of steps, fitted with a non-negative slope and
-    intercept (events and start-up go to the intercept). The cost is None, with the note saying why, from
-    fewer than :data:`MIN_COST_POINTS` sweep points."""
+    """``(seconds per communication step, seconds per call, note)`` of ``family`` ("fmu", "floor", "c-host",
+    "c-host-floor") over the communication-step sweep: the slope and the intercept of the record's ``time``
+    (median wall time; "cpu_s" for the C host) against the number of steps, fitted with both non-negative.
+    The intercept is the fixed cost of a whole call (instantiate, initialize, terminate, free, and the
+    events). Both are None, with the note saying why, from fewer than :data:`MIN_COST_POINTS` sweep points."""
     from scipy.optimize import nnls
 
     steps = set(scene.comm_steps())
@@ -68,18 +68,18 @@ def per_step_cost(records, family, scene, time="median_s"):
               if r["family"] == family and r.get("error") is None and r["settings"]["comm_step"] in steps
               and r["settings"].get("rtol", scene.sweep.comm_rtol) == scene.sweep.comm_rtol]
     if len(points) < MIN_COST_POINTS:
-        return None, f"cannot be estimated from {len(points)} communication steps (needs {MIN_COST_POINTS})"
+        return None, None, f"cannot be estimated from {len(points)} communication steps (needs {MIN_COST_POINTS})"
     n, t = np.array(points, float).T
     scale = n.max()  # fit in units of the largest step count: both columns of order 1
-    (slope, _), _ = nnls(np.column_stack([n / scale, np.ones_like(n)]), t)
-    return slope / scale, f"fit over {len(points)} communication steps"
+    (slope, intercept), _ = nnls(np.column_stack([n / scale, np.ones_like(n)]), t)
+    return slope / scale, intercept, f"fit over {len(points)} communication steps"
 
 
-def _cost_columns(cost, floor):
-    """Table cells ``(ours µs, floor µs, ratio)`` of two per-step costs (s); "–" where one is unknown."""
+def _cost_columns(cost, floor, unit=1e6):
+    """Table cells ``(ours, floor, ratio)`` of two costs (s) in ``unit`` (1e6: µs); "–" where one is unknown."""
     if cost is None or floor is None:
         return ["–"] * 3
-    return [f"{1e6 * cost:.3g}", f"{1e6 * floor:.3g}", f"{cost / floor:.2g}" if floor > 0 else "–"]
+    return [f"{unit * cost:.3g}", f"{unit * floor:.3g}", f"{cost / floor:.2g}" if floor > 0 else "–"]
 
 
 def write_json(path, meta, scenes, records):
@@ -176,16 +176,19 @@ def markdown(meta, scenes, records):
     out += ["FMPy: wall time of fmpy.simulate_fmu recording six outputs. C host: CPU time of fmi2DoStep + "
             "fmi2GetReal(x) in a plain C importer (stickslip.c_host), Python start-up excluded. Each cost is a "
             "least-squares line with a non-negative slope and intercept over the communication-step sweep (at the "
-            "sweep's comm_rtol); a slope the data cannot resolve comes out 0.", ""]
+            "sweep's comm_rtol); a slope the data cannot resolve comes out 0. Per call: the intercept, the fixed "
+            "cost of one simulate_fmu call (instantiate, initialize, terminate, free, and the scene's events).", ""]
     rows = []
     for s in scenes:
-        (fmu, note), (floor, _), (c_fmu, _), (c_floor, _) = (
+        (fmu, fmu_call, note), (floor, floor_call, _), (c_fmu, _, _), (c_floor, _, _) = (
             per_step_cost(records[s.name], family, s, time)
             for family, time in (("fmu", "median_s"), ("floor", "median_s"),
                                  ("c-host", "cpu_s"), ("c-host-floor", "cpu_s")))
-        rows.append([s.name, *_cost_columns(fmu, floor), *_cost_columns(c_fmu, c_floor), note])
-    out += _table(["scene", "FMPy: FMU µs/step", "FMPy: trivial FMU µs/step", "ratio",
-                   "C host: FMU CPU µs/step", "C host: trivial FMU CPU µs/step", "ratio", "estimate"], rows)
+        rows.append([s.name, *_cost_columns(fmu, floor), *_cost_columns(fmu_call, floor_call, unit=1e3),
+                     *_cost_columns(c_fmu, c_floor), note])
+    out += _table(["scene", "FMPy: FMU µs/step", "FMPy: trivial FMU µs/step", "ratio", "FMPy: FMU ms/call",
+                   "FMPy: trivial FMU ms/call", "ratio", "C host: FMU CPU µs/step",
+                   "C host: trivial FMU CPU µs/step", "ratio", "estimate"], rows)
     out += ["", "## FMU across communication steps (at the sweep's comm_rtol, default 1e-10)", ""]
     rows = []
     for s in scenes:

@@ -43,6 +43,7 @@ from .model import (
     check_inputs,
     check_scales,
     check_state,
+    check_state_scales,
     friction_force,
     initial_mode,
     mode_after_input_change,
@@ -87,8 +88,12 @@ class ExchangeBlock:
         return [self._x, self.v]
 
     def set_states(self, x, v):
-        """The host's states; while stuck ``v`` is the surface's, whatever the host holds."""
-        self._x, self._v = float(x), float(v)
+        """The host's states; while stuck ``v`` is the surface's, whatever the host holds. ParameterError (the
+        states kept) for a non-finite one, or one whose force scale overflows: no NaN enters the model."""
+        x, v = float(x), float(v)
+        check_state(x, v, ("x", "v"))
+        check_state_scales(x, v, self.params)
+        self._x, self._v = x, v
 
     def nominals(self):
         """Scales of ``x`` and ``v`` (m, m/s): ``F_S(0)/kappa`` and ``F_S(0)/sqrt(kappa M)``, the stick-slip

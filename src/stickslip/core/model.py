@@ -58,10 +58,10 @@ def check_inputs(v_drive, F_ext):
     check("F_ext", F_ext, ANY_FINITE, "N")
 
 
-def check_state(x, v):
-    """Raise ParameterError unless the initial state is finite."""
-    check("x_start", x, ANY_FINITE, "m")
-    check("v_start", v, ANY_FINITE, "m/s")
+def check_state(x, v, names=("x_start", "v_start")):
+    """Raise ParameterError, naming the state by ``names``, unless ``x`` (m) and ``v`` (m/s) are finite."""
+    check(names[0], x, ANY_FINITE, "m")
+    check(names[1], v, ANY_FINITE, "m/s")
 
 
 MAX_FORCE_SCALE = 1e150  # N: forces, and the products that build them, stay far from float overflow
@@ -91,6 +91,12 @@ def check_scales(x, v, v_drive, F_ext, p, state_names=("x", "v")):
             if law.PARAMETERS[name][2] == "N":
                 _check_force_scale(f"{prefix}.{name}", value, lambda: f"{prefix}.{name} = {value!r} N")
     _check_force_scale("F_S(0)", p.static.force(0.0), lambda: f"static law {p.static!r}")
+    check_state_scales(x, v, p, state_names)
+
+
+def check_state_scales(x, v, p, state_names=("x", "v")):
+    """Raise ParameterError, naming the state by ``state_names``, if ``kappa |x|`` or ``sqrt(kappa M) |v|``
+    exceeds :data:`MAX_FORCE_SCALE`."""
     x_name, v_name = state_names
     _check_force_scale(f"kappa * |{x_name}|", p.kappa * abs(x), lambda: f"kappa = {p.kappa!r} N/m, {x_name} = {x!r} m")
     _check_force_scale(f"sqrt(kappa M) * |{v_name}|", _impedance(p) * abs(v),

@@ -12,6 +12,7 @@
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
+#include <math.h>
 #include <stdbool.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -102,7 +103,6 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
       (noSetFMUStatePriorToCurrentPoint, enterEventMode, terminateSimulation))                                    \
     X(fmi3SetTime, RECOVERABLE, (fmi3Instance c, fmi3Float64 time), (time))                                       \
     X(fmi3SetContinuousStates, RECOVERABLE, (fmi3Instance c, const fmi3Float64 *x, size_t n), (x, n))             \
-    X(fmi3GetContinuousStateDerivatives, RECOVERABLE, (fmi3Instance c, fmi3Float64 *dx, size_t n), (dx, n))       \
     X(fmi3GetEventIndicators, RECOVERABLE, (fmi3Instance c, fmi3Float64 *z, size_t n), (z, n))                    \
     X(fmi3GetContinuousStates, RECOVERABLE, (fmi3Instance c, fmi3Float64 *x, size_t n), (x, n))                   \
     X(fmi3GetNominalsOfContinuousStates, RECOVERABLE, (fmi3Instance c, fmi3Float64 *nominals, size_t n),         \
@@ -173,6 +173,7 @@ static struct {
     fmi3Instance (*fmi3InstantiateModelExchange)(fmi3String, fmi3String, fmi3String, fmi3Boolean, fmi3Boolean,
                                                  fmi3InstanceEnvironment, fmi3LogMessageCallback);
     void (*fmi3FreeInstance)(fmi3Instance);
+    fmi3Status (*fmi3GetContinuousStateDerivatives)(fmi3Instance, fmi3Float64 *, size_t); /* see below */
 } inner;
 
 /* ---- one instance ---- */
@@ -213,7 +214,7 @@ static int resolve_inner(void *lib, const char *path)
 {
 #define LOAD(name, failure, params, args) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
     if (1 FORWARDED(LOAD) LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
-            LOAD(fmi3FreeInstance, , , ))
+            LOAD(fmi3FreeInstance, , , ) LOAD(fmi3GetContinuousStateDerivatives, , , ))
         return 1;
 #undef LOAD
     sbf_fail("%s lacks an FMI 3 function: %s", path, dlerror());
@@ -323,6 +324,24 @@ EXPORT fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, siz
     SBF_FORWARD(fmi3Status, fmi3Error, fmi3Fatal, name, failure, params, args)
 FORWARDED(FORWARD)
 #undef FORWARD
+
+/* Forwarded as RECOVERABLE, and more: pythonfmu3 0.3.4 crashes the process when the slave raises in
+ * get_continuous_state_derivatives (in every other call it reports the exception). The slave therefore logs
+ * such a failure as an error and answers NaN, returned here as fmi3Error: no non-finite derivative reaches
+ * the host with a success status. */
+EXPORT fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 *dx, size_t n)
+{
+    Instance *inst = c;
+    if (!inst) return fmi3Error;
+    sbf_keep_thread_state();
+    inst->fatal_is_error = RECOVERABLE;
+    fmi3Status status = inner.fmi3GetContinuousStateDerivatives(inst->inner, dx, n);
+    inst->fatal_is_error = 0;
+    if (status == fmi3Fatal) return RECOVERABLE ? fmi3Error : status;
+    for (size_t i = 0; i < n && status <= fmi3Warning; i++)
+        if (!isfinite(dx[i])) status = fmi3Error;
+    return status;
+}
 
 #define REFUSE(name, params)                                                 \
     EXPORT fmi3Status name params                                            \
