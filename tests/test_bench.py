@@ -63,7 +63,7 @@ def test_quick_bench_writes_json_markdown_and_plots(tmp_path, fmu_path, fmu3_pat
 
     records = json.loads((out / "bench.json").read_text())["scenes"]["coulomb"]["records"]
     assert {r["family"] for r in records} == {"fmu", "stepper", "stepper-integrating", "solve_ivp", "regularized",
-                                              "floor", "c-host", "c-host-floor", "fmi3-me", "fmu-pure",
+                                              "floor", "c-host", "c-host-floor", "fmi3-me", "cvode-bare", "fmu-pure",
                                               "stepper-pure", "stepper-integrating-pure"}
     assert all(r["error"] is None and len(r["times_s"]) >= 1 for r in records)
     assert all(r["cpu_s"] > 0 for r in records if r["family"].startswith("c-host"))
@@ -79,6 +79,9 @@ def test_quick_bench_writes_json_markdown_and_plots(tmp_path, fmu_path, fmu3_pat
     assert "## FMI 3 model exchange (FMPy CVode) beside our co-simulation" in report
     me = next(r for r in records if r["family"] == "fmi3-me")
     assert me["events_unmatched"] == 0 and me["rel_dx"] < 1e-3  # CVode at rtol 1e-6 over 20 s
+    bare = next(r for r in records if r["family"] == "cvode-bare")
+    assert bare["events_unmatched"] == 0 and 0.5 <= me["rel_dx"] / bare["rel_dx"] <= 2.0  # the same CVode, no FMU
+    assert "| error FMU / bare |" in report
     assert (out / "coulomb.png").stat().st_size > 0
 
 
@@ -160,6 +163,20 @@ def test_report_stamps_quick_runs_names_failures_and_compares_coarse_like_with_l
     assert cells[10] == "1.6"  # 3.12 ms / 2 ms, both on the 10 s grid (not 3.12 / 20 = 0.16)
     assert "| coulomb | 12 | 9 | 1.3 | 3 | 2 | 1.5 | – | – | – | fit over 5 communication steps |" in text
     assert "smoke run" not in markdown(dict(META, quick=False), [scene], {scene.name: records}).splitlines()[0]
+
+
+def test_model_exchange_table_sets_bare_cvode_beside_the_fmu_at_each_rtol(scene):
+    from stickslip.bench.report import model_exchange_section
+
+    records = [_record("fmi3-me", "FMI 3 ME, CVode rtol=1e-08", 0.100, rel_dx=3.5e-5, rtol=1e-8),
+               _record("fmi3-me", "FMI 3 ME, CVode rtol=1e-06", 0.080, rel_dx=1e-4, rtol=1e-6),
+               _record("cvode-bare", "bare CVode rtol=1e-08", 0.020, rel_dx=3.5e-5, rtol=1e-8),
+               _record("cvode-bare", "bare CVode rtol=1e-06", 0.016, rel_dx=2.5e-5, rtol=1e-6),
+               _record("cvode-bare", "bare CVode rtol=1e-10", 0.030, rel_dx=1e-7, rtol=1e-10)]
+    text = "\n".join(model_exchange_section([scene], {scene.name: records}))
+    assert "| coulomb | 1e-08 | 3.5e-05 | – | None | 100 ms | 3.5e-05 | 1 | 20 ms | 5 |" in text
+    assert "| coulomb | 1e-06 | 0.0001 | – | None | 80 ms | 2.5e-05 | 4 | 16 ms | 5 |" in text
+    assert "| coulomb | 1e-10 |" not in text  # bare CVode alone: nothing to set it beside
 
 
 def test_solve_ivp_peer_on_a_coarse_grid_is_the_fine_run_thinned(coulomb):

@@ -22,6 +22,7 @@ from tqdm import tqdm
 from .. import core as compiled_core
 from ..compare import Event, fmu_events, match_events, reference_events, transition_kind
 from . import c_host
+from .bare_cvode import simulate_bare_cvode
 from .peers import Run, hybrid_solve_ivp, regularized_solve_ivp
 from .report import coarse_step
 from .runtimes import PURE_CORE, in_core
@@ -68,7 +69,7 @@ def _from_columns(result):
 
 def configs(scene, fmu, floor, host=None, fmu3=None, pure_fmu=None):
     """Every configuration of ``scene``'s sweep; ``fmu``, ``floor``, (if given) the FMI 3 FMU ``fmu3``, run
-    through model exchange, and ``pure_fmu`` (the FMU built without compiling its runtime) are
+    through model exchange (beside it the same CVode with no FMU, :mod:`.bare_cvode`), and ``pure_fmu`` (the FMU built without compiling its runtime) are
     :class:`~.fmus.ExtractedFMU`, ``host`` the compiled C host (None: no C host family)."""
     s, T = scene.sweep, scene.stop_time
     p, (v_drive, F_ext), x0, v0, grid = scene.params, scene.inputs, scene.scenario.x0, scene.scenario.v0, scene.grid()
@@ -85,6 +86,9 @@ def configs(scene, fmu, floor, host=None, fmu3=None, pure_fmu=None):
                                                           FMU_OUTPUTS, fmi_type="ModelExchange",
                                                           relative_tolerance=rtol, record_events=False),
                           _from_columns))
+    for rtol in s.me_rtols:  # the same CVode with no FMU: the model-exchange error that is the solver's own
+        out.append(Config("cvode-bare", f"bare CVode rtol={rtol:.0e}", {"rtol": rtol},
+                          lambda rtol=rtol: simulate_bare_cvode(scene, rtol), lambda run: run))
     if pure_fmu is not None:
         for rtol in s.fmu_rtols:
             out.append(Config("fmu-pure", f"pure FMU rtol={rtol:.0e} h={scene.grid_step:g}",

@@ -16,6 +16,7 @@ STYLE = {  # family -> (color, legend)
     "solve_ivp": ("tab:blue", "solve_ivp hybrid with events"),
     "regularized": ("tab:green", "regularized friction, solve_ivp"),
     "fmi3-me": ("tab:purple", "FMI 3 model exchange, FMPy CVode"),
+    "cvode-bare": ("tab:gray", "FMPy's CVode on the model in Python, no FMU"),
 }
 MARKERS = {"RK45": "o", "DOP853": "s", "LSODA": "^", "Radau": "D"}
 
@@ -221,13 +222,21 @@ def markdown(meta, scenes, records):
 
 
 def model_exchange_section(scenes, records):
-    """Markdown lines: the FMI 3 model exchange's error and time over CVode's tolerance, and the ratio to
+    """Markdown lines: the FMI 3 model exchange's error and time over CVode's tolerance beside the same CVode
+    with no FMU (``cvode-bare``: their error ratio near 1 says the error is the solver's), and the ratio to
     our co-simulation at the grid's step at matched accuracy."""
-    out = ["", "## FMI 3 model exchange (FMPy CVode) beside our co-simulation", ""]
-    rows = [[s.name, f"{r['settings']['rtol']:.0e}", f"{r['rel_dx']:.2g}", _fmt(r.get("event_time_error")),
-             str(r.get("events_unmatched")), _ms(r)]
-            for s in scenes for r in records[s.name] if r["family"] == "fmi3-me" and ok(r)]
-    out += _table(["scene", "CVode rtol", "max\\|dx\\|/A", "event-time error (s)", "unmatched events", "time"], rows)
+    out = ["", "## FMI 3 model exchange (FMPy CVode) beside our co-simulation", "",
+           "Bare CVode: the same solver, driven the same way, on the model written in Python from the "
+           "reference's laws, no FMU. Error ratio FMU / bare near 1: the FMU adds no error of its own.", ""]
+    rows = []
+    for s in scenes:
+        bare = {r["settings"]["rtol"]: r for r in records[s.name] if r["family"] == "cvode-bare" and ok(r)}
+        for r in records[s.name]:
+            if r["family"] == "fmi3-me" and ok(r):
+                rows.append([s.name, f"{r['settings']['rtol']:.0e}", f"{r['rel_dx']:.2g}", _fmt(r.get("event_time_error")),
+                             str(r.get("events_unmatched")), _ms(r), *_bare_columns(r, bare.get(r["settings"]["rtol"]))])
+    out += _table(["scene", "CVode rtol", "max\\|dx\\|/A", "event-time error (s)", "unmatched events", "time",
+                   "bare: max\\|dx\\|/A", "error FMU / bare", "bare: time", "time FMU / bare"], rows)
     rows = []
     for s in scenes:
         for thr in THRESHOLDS:
@@ -236,6 +245,15 @@ def model_exchange_section(scenes, records):
     out += ["", "At matched accuracy (fastest configuration reaching it):", ""]
     out += _table(["scene", "max\\|dx\\|/A ≤", "model exchange", "co-simulation (FMU)", "ME / CS"], rows)
     return out
+
+
+def _bare_columns(me, bare):
+    """Cells beside an ``fmi3-me`` record: bare CVode's max|dx|/A, the error ratio FMU / bare, bare CVode's
+    time and the time ratio FMU / bare ("–" where bare CVode has no record at that rtol)."""
+    if bare is None:
+        return ["–"] * 4
+    error_ratio = f"{me['rel_dx'] / bare['rel_dx']:.3g}" if bare["rel_dx"] > 0.0 else "–"
+    return [f"{bare['rel_dx']:.2g}", error_ratio, _ms(bare), _ratio(me, bare)]
 
 
 def _fmt(value):
