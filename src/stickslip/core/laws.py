@@ -131,7 +131,8 @@ class Viscous(KineticLaw):
 
 
 class Stribeck(KineticLaw):
-    """``F_K(u) = F0 + F_stribeck exp(-(u/v_stribeck)^delta) + gamma u``."""
+    """``F_K(u) = F0 + F_stribeck exp(-(u/v_stribeck)^delta) + gamma u`` (``u >= 0``; powers by ``math.pow``,
+    which compiled code calls natively, where ``**`` goes through Python's number protocol)."""
 
     CODE: ClassVar[int] = 3
     NAME: ClassVar[str] = "stribeck"
@@ -149,12 +150,12 @@ class Stribeck(KineticLaw):
     gamma: float
 
     def force(self, u: float) -> float:
-        return self.F0 + self.F_stribeck * math.exp(-((u / self.v_stribeck) ** self.delta)) + self.gamma * u
+        return self.F0 + self.F_stribeck * math.exp(-math.pow(u / self.v_stribeck, self.delta)) + self.gamma * u
 
     def slope(self, u: float) -> float:
         s = u / self.v_stribeck
-        decay = math.exp(-(s**self.delta))
-        return self.gamma - self.F_stribeck * self.delta * s ** (self.delta - 1.0) * decay / self.v_stribeck
+        decay = math.exp(-math.pow(s, self.delta))
+        return self.gamma - self.F_stribeck * self.delta * math.pow(s, self.delta - 1.0) * decay / self.v_stribeck
 
     def affine(self):
         return (self.F0 + self.F_stribeck, self.gamma) if self.F_stribeck == 0.0 else None
