@@ -188,3 +188,24 @@ def test_solve_ivp_peer_on_a_coarse_grid_is_the_fine_run_thinned(coulomb):
     assert b.x.shape == coarse.shape
     assert np.abs(b.x - a.x[::200]).max() < 1e-9
     assert [e.kind for e in b.events] == [e.kind for e in a.events]
+
+
+def test_bench_versus_times_fmus_in_turn_and_gives_their_ratios(fmu_path, capsys):
+    """The same FMU twice: both rows end in the same state; the first row's ratios are 1."""
+    from stickslip.cli import main
+
+    code = main(["bench-versus", str(fmu_path), str(fmu_path), "--scene", "msl-pendulum", "--comm-step", "0.1",
+                 "--rounds", "2", "--repeats", "1"])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    rows = [line.split(" | ") for line in out.out.splitlines() if line.startswith(f"| {fmu_path}")]
+    assert len(rows) == 2 and rows[0][3:5] == ["1", "1"] and rows[0][5] == rows[1][5]
+    assert all(len(row[1].split(", ")) == 2 for row in rows)  # one median per round
+    assert out.err.count("round 2/2") == 2
+
+
+def test_bench_versus_refuses_an_unknown_scene(fmu_path, capsys):
+    from stickslip.cli import main
+
+    assert main(["bench-versus", str(fmu_path), "--scene", "no-such-scene"]) == 2
+    assert "no-such-scene" in capsys.readouterr().err

@@ -8,6 +8,7 @@ import argparse
 import sys
 
 from .bench.cli import add_bench_parser
+from .bench.versus import add_versus_parser
 from .analysis.cli import add_bifurcation, add_chart, add_map, add_slow_manifold, add_vc
 from .core.errors import StickSlipError
 from .stress.cli import add_stress_parser
@@ -46,7 +47,7 @@ def _build_fmu(args):
     return 0
 
 
-COMMANDS = (add_run, add_build_fmu, add_bench_parser,
+COMMANDS = (add_run, add_build_fmu, add_bench_parser, add_versus_parser,
             add_bifurcation, add_vc, add_map, add_slow_manifold, add_chart, add_stress_parser)
 
 
