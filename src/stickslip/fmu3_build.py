@@ -1,7 +1,8 @@
 """Build the SpringBlockFriction FMU for FMI 3.0 (co-simulation and model exchange) with pythonfmu3.
 
-The same runtime, variable table and tagging as the FMI 2 FMU (:mod:`stickslip.fmu_build`); the slave is
-``fmu_src/SpringBlockFriction_fmi3.py``, bundled as the module ``springblockfriction3_<tag>``. pythonfmu3's
+The same runtime (compiled where this machine can), variable table, layout and tagging as the FMI 2 FMU
+(:mod:`stickslip.fmu_build`, :mod:`stickslip.fmu_staging`); the slave is ``fmu_src/SpringBlockFriction_fmi3.py``,
+loaded by pythonfmu3 through the module ``springblockfriction3_<tag>``. pythonfmu3's
 model description is completed with units, declared types, bounds and a default experiment, and states
 the capabilities: FMU state get/set/serialize, variable communication step, no completed-step calls.
 Its x86_64-linux binary is the loader (:mod:`stickslip.fmu_loader`, FMI 3 front) in front of pythonfmu3's,
@@ -17,12 +18,13 @@ from xml.etree import ElementTree as ET
 from . import fmu_loader
 from .fmi_host import preserved_sys_path
 from .fmu_build import (
-    MODEL_NAME, REPO, annotate_variables, built_tag, bundle_sources, forget_modules, insert_definitions, source_tag,
-    write_completed,
+    INTERFACE, MODEL_NAME, REPO, RUNTIME, annotate_variables, built_tag, finish_staged, forget_modules,
+    insert_definitions, source_tag, write_completed,
 )
+from .fmu_staging import FMI3_LOADER, STAGING_SOURCES, stage_runtime
 
 SLAVE3 = REPO / "fmu_src" / "SpringBlockFriction_fmi3.py"
-MODULE_PREFIX = "springblockfriction3_"
+MODULE_PREFIX = FMI3_LOADER.prefix
 CAPABILITIES = {"canGetAndSetFMUState": True, "canSerializeFMUState": True,
                 "canHandleVariableCommunicationStepSize": True, "needsCompletedIntegratorStep": False}
 
@@ -34,7 +36,7 @@ def default_fmu3_path():
 
 def source_tag3():
     """10 hex digits identifying the sources of the FMI 3 FMU."""
-    return source_tag(SLAVE3, builders=[Path(__file__).resolve(), *fmu_loader.SOURCES])
+    return source_tag(SLAVE3, builders=[Path(__file__).resolve(), *fmu_loader.SOURCES, *STAGING_SOURCES])
 
 
 def is_current(fmu_path):
@@ -50,21 +52,19 @@ def build3(dest=None):
     dest = Path(dest or default_fmu3_path()).resolve()
     dest.parent.mkdir(parents=True, exist_ok=True)
     tag = source_tag3()
-    module = f"{MODULE_PREFIX}{tag}"
     with tempfile.TemporaryDirectory(prefix="sbf3_build_") as tmp:
-        tmp = Path(tmp)
-        (tmp / "src").mkdir()
-        script, project_files = bundle_sources(tmp / "src", SLAVE3, module, tag)
+        staged = stage_runtime(Path(tmp), tag, RUNTIME, SLAVE3, INTERFACE, MODEL_NAME, loader=FMI3_LOADER)
         try:
-            with preserved_sys_path():  # the builder and our import put the source folder on sys.path
-                built = FmuBuilder.build_FMU(script, dest=tmp / "out", project_files=project_files, **CAPABILITIES)
-                sys.path.insert(0, str(tmp / "src"))
-                slave = getattr(importlib.import_module(module), MODEL_NAME)(instance_name="build")
+            with preserved_sys_path():  # the builder and our import put the staging folder on sys.path
+                built = FmuBuilder.build_FMU(staged.script, dest=Path(tmp) / "out",
+                                             project_files=staged.project_files(), **CAPABILITIES)
+                sys.path.insert(0, tmp)
+                slave = getattr(importlib.import_module(staged.module), MODEL_NAME)(instance_name="build")
         finally:
-            forget_modules(tag, module)
+            forget_modules(tag, staged.module)
         write_completed(
             built, dest, lambda xml: complete_model_description3(xml, slave.variable_units, slave.variable_bounds),
-            finish=lambda partial: fmu_loader.install(partial, MODEL_NAME, slave_survives_release=True, fmi_version=3),
+            finish=lambda partial: finish_staged(partial, staged, fmi_version=3),
         )
     return dest
 

@@ -17,8 +17,6 @@ Python processes. :mod:`stickslip.fmu3_build` builds the FMI 3 FMU beside it.
 
 import hashlib
 import os
-import re
-import shutil
 import sys
 import tempfile
 import zipfile
@@ -27,7 +25,7 @@ from xml.etree import ElementTree as ET
 
 from . import fmu_loader
 from .fmi_host import preserved_sys_path
-from .fmu_staging import COMPILED_ARTIFACTS, STAGING_SOURCES, rewrite_once, stage_runtime
+from .fmu_staging import STAGING_SOURCES, stage_runtime
 
 REPO = Path(__file__).resolve().parents[2]
 RUNTIME = Path(__file__).resolve().parent / "core"
@@ -71,19 +69,6 @@ def built_tag(fmu_path, prefix="springblockfriction_"):
     return module[len(prefix):] if module.startswith(prefix) else None
 
 
-def bundle_sources(folder, slave, module, tag):
-    """Write the pure-Python runtime, the shared variable table and the slave (as ``module``) under tagged
-    names into ``folder`` (the FMI 3 FMU's layout); return ``(slave file, [runtime package, table module])``."""
-    package, interface = f"sbf_runtime_{tag}", f"sbf_interface_{tag}"
-    shutil.copytree(RUNTIME, folder / package, ignore=shutil.ignore_patterns(*COMPILED_ARTIFACTS))
-    (folder / f"{interface}.py").write_text(
-        rewrite_once(INTERFACE, r"\bstickslip\.core\b", package, "the runtime as 'from stickslip.core import ...'"))
-    slave_code = rewrite_once(slave, r"\bfrom block_interface import\b", f"from {interface} import",
-                               "the shared table as 'from block_interface import ...'")
-    (folder / f"{module}.py").write_text(re.sub(r"\bstickslip\.core\b", package, slave_code))
-    return folder / f"{module}.py", [folder / package, folder / f"{interface}.py"]
-
-
 def forget_modules(tag, module):
     """Drop the bundled modules that building imported into this process."""
     for name in [m for m in sys.modules if m == module or m.split(".")[0].endswith(f"_{tag}")]:
@@ -103,7 +88,7 @@ def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu", pure=False):
         try:
             with preserved_sys_path():  # PythonFMU leaves the temporary folder on sys.path
                 built = FmuBuilder.build_FMU(
-                    staged.script, dest=Path(tmp) / "out", project_files=[staged.package_dir],
+                    staged.script, dest=Path(tmp) / "out", project_files=staged.project_files(),
                     canGetAndSetFMUstate=True, canSerializeFMUstate=True,
                 )
             slave = getattr(sys.modules[staged.module], MODEL_NAME)(instance_name="build")
@@ -111,16 +96,16 @@ def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu", pure=False):
             forget_modules(tag, staged.module)
         write_completed(
             built, dest, lambda xml: complete_model_description(xml, slave.variable_units, slave.variable_bounds),
-            finish=lambda partial: _finish(partial, staged),
+            finish=lambda partial: finish_staged(partial, staged),
         )
     return dest
 
 
-def _finish(partial, staged):
-    """Add the staged files PythonFMU's builder leaves out, then make the loader the linux64 binary."""
+def finish_staged(partial, staged, fmi_version=2):
+    """Add the staged files the library's builder leaves out, then make the loader the linux64 binary."""
     with zipfile.ZipFile(partial, "a", zipfile.ZIP_DEFLATED) as fmu:
         staged.add_to(fmu)
-    fmu_loader.install(partial, MODEL_NAME, slave_survives_release=True)
+    fmu_loader.install(partial, MODEL_NAME, slave_survives_release=True, fmi_version=fmi_version)
 
 
 def write_completed(built, dest, complete, finish=None):

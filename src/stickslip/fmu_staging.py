@@ -1,10 +1,11 @@
-"""Lay out the FMU's Python code for :func:`stickslip.fmu_build.build`: what PythonFMU loads, and how fast.
+"""Lay out the FMUs' Python code (:func:`stickslip.fmu_build.build`, :func:`stickslip.fmu3_build.build3`): what
+PythonFMU or pythonfmu3 loads, and how fast.
 
 In the FMU's ``resources/``:
 
 - ``sbf_runtime_<tag>/``: the runtime ``stickslip/core``, the slave (``fmu_slave.py``, from
-  ``fmu_src/SpringBlockFriction.py``) and the variable table it shares with the FMI 3 slave
-  (``block_interface.py``, from ``fmu_src/``), their imports renamed to the package, with byte-compiled files
+  ``fmu_src/SpringBlockFriction.py`` or ``fmu_src/SpringBlockFriction_fmi3.py``) and the variable table
+  the two slaves share (``block_interface.py``, from ``fmu_src/``), their imports renamed to the package, with byte-compiled files
   for the building Python in ``__pycache__`` (unchecked-hash ``.pyc``: valid whatever times the
   extraction gives the files, so a host with that Python never compiles them);
 - the hot modules of the runtime compiled by mypyc under that package name, for the building
@@ -13,10 +14,11 @@ In the FMU's ``resources/``:
   pure Python, and the build says so on stderr). A host that cannot load them (another Python
   version or platform) runs the sources (``core/_implementation.py``). Compiled files are cached
   in ``build/fmu-runtime`` by package name (the source tag) and Python;
-- ``springblockfriction_<tag>.py``: the module PythonFMU loads, two lines. PythonFMU 0.7.0
-  compiles and runs that module's source at every ``fmi2Instantiate`` (to find the slave class
-  by its MRO; with the 300-line slave there, that was 2 ms of each instantiation and a leaked
-  copy of the class), so the slave's own source, imported once per process, stays out of it.
+- ``springblockfriction_<tag>.py`` (FMI 3: ``springblockfriction3_<tag>.py``): the module PythonFMU
+  (pythonfmu3) loads, a few lines (:data:`FMI2_LOADER`, :data:`FMI3_LOADER`). PythonFMU 0.7.0 compiles
+  and runs that module's source at every ``fmi2Instantiate`` (to find the slave class by its MRO; with
+  the 300-line slave there, that was 2 ms of each instantiation and a leaked copy of the class), so the
+  slave's own source, imported once per process, stays out of it.
 """
 
 import compileall
@@ -33,6 +35,29 @@ from .compile_runtime import CompileError, compile_in_place
 CACHE = Path(__file__).resolve().parents[2] / "build" / "fmu-runtime"
 #: files of an in-place compiled ``stickslip/core`` (pip install -e) that never go into an FMU's copy
 COMPILED_ARTIFACTS = ("__pycache__", "*.pyc", "*.so", "*.pyd", "compiled_sources.crc32")
+
+
+@dataclass(frozen=True)
+class LoaderModule:
+    """The module the FMI library loads: ``prefix`` of its name (the source tag follows) and its source, a
+    ``template`` formatted with the runtime ``package`` and the slave class ``model_name``."""
+
+    prefix: str
+    template: str
+
+
+#: PythonFMU 0.7.0 compiles and runs this module's source at every fmi2Instantiate in the module's globals, which
+#: it releases once per instance: the slave's module holds them (``hold_loader_namespace``).
+FMI2_LOADER = LoaderModule("springblockfriction_", (
+    "from {package}.fmu_slave import {model_name}, hold_loader_namespace  # noqa: F401\n"
+    "hold_loader_namespace(globals())  # PythonFMU releases this module's globals once per instance\n"))
+#: pythonfmu3 0.3.4 imports this module once and takes the slave class by the name in its first line that reads
+#: ``class <name>(... Fmi3SlaveBase ...):`` (a regular expression over the file, in its builder and its binary):
+#: the class is defined here, a subclass adding nothing.
+FMI3_LOADER = LoaderModule("springblockfriction3_", (
+    "from pythonfmu3 import Fmi3SlaveBase\n\nfrom {package} import fmu_slave\n\n\n"
+    "class {model_name}(fmu_slave.{model_name}, Fmi3SlaveBase):\n"
+    '    """The slave (fmu_slave), named where pythonfmu3 looks for it."""\n'))
 #: the builder modules whose source decides the FMU's layout (part of its source tag)
 STAGING_SOURCES = (Path(__file__).resolve(), Path(__file__).resolve().with_name("compile_runtime.py"))
 
@@ -51,6 +76,13 @@ class StagedRuntime:
     module: str
     extra_files: dict = field(default_factory=dict)
 
+    def project_files(self):
+        """What the library's builder copies into ``resources/``: the package, and the compiled group library
+        beside it (the builder imports the slave to write the model description, and pythonfmu3 imports it
+        from the copy)."""
+        return [self.package_dir, *(path for arcname, path in sorted(self.extra_files.items())
+                                    if arcname.count("/") == 1)]
+
     def add_to(self, fmu_zip):
         """Write those of :attr:`extra_files` that the open FMU archive ``fmu_zip`` does not have yet."""
         present = set(fmu_zip.namelist())
@@ -59,11 +91,11 @@ class StagedRuntime:
                 fmu_zip.write(path, arcname)
 
 
-def stage_runtime(folder, tag, runtime, slave, interface, model_name, compiled=True):
-    """Stage the runtime folder ``runtime``, the slave source ``slave`` (class ``model_name``) and the shared
-    variable table ``interface`` in ``folder``; ``compiled``: also compile the runtime's hot modules (if this
-    machine can)."""
-    package, module = f"sbf_runtime_{tag}", f"springblockfriction_{tag}"
+def stage_runtime(folder, tag, runtime, slave, interface, model_name, compiled=True, loader=FMI2_LOADER):
+    """Stage the runtime folder ``runtime``, the slave source ``slave`` (class ``model_name``), the shared
+    variable table ``interface`` and the ``loader`` module in ``folder``; ``compiled``: also compile the
+    runtime's hot modules (if this machine can)."""
+    package, module = f"sbf_runtime_{tag}", f"{loader.prefix}{tag}"
     package_dir = Path(folder) / package
     shutil.copytree(runtime, package_dir, ignore=shutil.ignore_patterns(*COMPILED_ARTIFACTS))
     (package_dir / "block_interface.py").write_text(
@@ -73,8 +105,7 @@ def stage_runtime(folder, tag, runtime, slave, interface, model_name, compiled=T
                                "the shared table as 'from block_interface import ...'", slave_code)
     (package_dir / "fmu_slave.py").write_text(slave_code)
     script = Path(folder) / f"{module}.py"
-    script.write_text(f"from {package}.fmu_slave import {model_name}, hold_loader_namespace  # noqa: F401\n"
-                      "hold_loader_namespace(globals())  # PythonFMU releases this module's globals once per instance\n")
+    script.write_text(loader.template.format(package=package, model_name=model_name))
     staged = StagedRuntime(script, package_dir, module)
     staged.extra_files.update(_byte_compile(package_dir))
     if compiled:

@@ -102,6 +102,7 @@ class _SourcesFirst:
 
     def find_spec(self, fullname, path=None, target=None):
         package, _, name = fullname.rpartition(".")
-        if package != self.package or name not in COMPILED_MODULES:
-            return None
-        return importlib.util.spec_from_file_location(fullname, os.path.join(self.folder, f"{name}.py"))
+        source = os.path.join(self.folder, f"{name}.py")
+        if package != self.package or name not in COMPILED_MODULES or not os.path.isfile(source):
+            return None  # not ours, or a folder gone since (a build's copy of the package): the usual search
+        return importlib.util.spec_from_file_location(fullname, source)
