@@ -9,19 +9,12 @@ Its x86_64-linux binary is the loader (:mod:`stickslip.fmu_loader`, FMI 3 front)
 so that it loads in hosts without Python too.
 """
 
-import importlib
-import sys
-import tempfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from . import fmu_loader
-from .fmi_host import preserved_sys_path
-from .fmu_build import (
-    INTERFACE, MODEL_NAME, REPO, RUNTIME, annotate_variables, built_tag, finish_staged, forget_modules,
-    insert_definitions, source_tag, write_completed,
-)
-from .fmu_staging import FMI3_LOADER, STAGING_SOURCES, stage_runtime
+from .fmu_build import MODEL_NAME, REPO, annotate_variables, build_staged, built_tag, insert_definitions, source_tag
+from .fmu_staging import FMI3_LOADER, STAGING_SOURCES
 
 SLAVE3 = REPO / "fmu_src" / "SpringBlockFriction_fmi3.py"
 MODULE_PREFIX = FMI3_LOADER.prefix
@@ -49,24 +42,8 @@ def build3(dest=None):
     """Build the FMI 3 FMU at ``dest`` (default :func:`default_fmu3_path`, replaced atomically); return its path."""
     from pythonfmu3 import FmuBuilder
 
-    dest = Path(dest or default_fmu3_path()).resolve()
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    tag = source_tag3()
-    with tempfile.TemporaryDirectory(prefix="sbf3_build_") as tmp:
-        staged = stage_runtime(Path(tmp), tag, RUNTIME, SLAVE3, INTERFACE, MODEL_NAME, loader=FMI3_LOADER)
-        try:
-            with preserved_sys_path():  # the builder and our import put the staging folder on sys.path
-                built = FmuBuilder.build_FMU(staged.script, dest=Path(tmp) / "out",
-                                             project_files=staged.project_files(), **CAPABILITIES)
-                sys.path.insert(0, tmp)
-                slave = getattr(importlib.import_module(staged.module), MODEL_NAME)(instance_name="build")
-        finally:
-            forget_modules(tag, staged.module)
-        write_completed(
-            built, dest, lambda xml: complete_model_description3(xml, slave.variable_units, slave.variable_bounds),
-            finish=lambda partial: finish_staged(partial, staged, fmi_version=3),
-        )
-    return dest
+    return build_staged(dest or default_fmu3_path(), source_tag3(), SLAVE3, FmuBuilder, complete_model_description3,
+                        fmi_version=3, loader=FMI3_LOADER, **CAPABILITIES)
 
 
 def complete_model_description3(xml, units, bounds):

@@ -16,6 +16,7 @@ Python processes. :mod:`stickslip.fmu3_build` builds the FMI 3 FMU beside it.
 """
 
 import hashlib
+import importlib
 import os
 import sys
 import tempfile
@@ -25,7 +26,7 @@ from xml.etree import ElementTree as ET
 
 from . import fmu_loader
 from .fmi_host import preserved_sys_path
-from .fmu_staging import STAGING_SOURCES, stage_runtime
+from .fmu_staging import FMI2_LOADER, STAGING_SOURCES, stage_runtime
 
 REPO = Path(__file__).resolve().parents[2]
 RUNTIME = Path(__file__).resolve().parent / "core"
@@ -80,28 +81,36 @@ def build(dest=REPO / "dist" / f"{MODEL_NAME}.fmu", pure=False):
     uncompiled, under a package name of its own (so it runs beside the compiled FMU in one process)."""
     from pythonfmu import FmuBuilder
 
+    return build_staged(dest, source_tag() + ("p" if pure else ""), SLAVE, FmuBuilder, complete_model_description,
+                        compiled=not pure, canGetAndSetFMUstate=True, canSerializeFMUstate=True)
+
+
+def build_staged(dest, tag, slave, builder, complete, fmi_version=2, loader=FMI2_LOADER, compiled=True,
+                 **capabilities):
+    """Build the FMU at ``dest`` (replaced atomically) from the slave source ``slave``, staged with the runtime
+    under ``tag`` (:func:`~stickslip.fmu_staging.stage_runtime`) and built by the library's ``builder`` (PythonFMU's
+    or pythonfmu3's ``FmuBuilder``, with ``capabilities``); its model description passes through
+    ``complete(xml, units, bounds)``, its linux64 binary becomes the FMI ``fmi_version`` loader. Returns ``dest``."""
     dest = Path(dest).resolve()
     dest.parent.mkdir(parents=True, exist_ok=True)
-    tag = source_tag() + ("p" if pure else "")
     with tempfile.TemporaryDirectory(prefix="sbf_build_") as tmp:
-        staged = stage_runtime(Path(tmp), tag, RUNTIME, SLAVE, INTERFACE, MODEL_NAME, compiled=not pure)
+        staged = stage_runtime(Path(tmp), tag, RUNTIME, slave, INTERFACE, MODEL_NAME, compiled=compiled, loader=loader)
         try:
-            with preserved_sys_path():  # PythonFMU leaves the temporary folder on sys.path
-                built = FmuBuilder.build_FMU(
-                    staged.script, dest=Path(tmp) / "out", project_files=staged.project_files(),
-                    canGetAndSetFMUstate=True, canSerializeFMUstate=True,
-                )
-            slave = getattr(sys.modules[staged.module], MODEL_NAME)(instance_name="build")
+            with preserved_sys_path():  # the builder, and the import below, put the staging folder on sys.path
+                built = builder.build_FMU(staged.script, dest=Path(tmp) / "out", project_files=staged.project_files(),
+                                          **capabilities)
+                sys.path.insert(0, tmp)
+                instance = getattr(importlib.import_module(staged.module), MODEL_NAME)(instance_name="build")
         finally:  # ... and the modules imported
             forget_modules(tag, staged.module)
         write_completed(
-            built, dest, lambda xml: complete_model_description(xml, slave.variable_units, slave.variable_bounds),
-            finish=lambda partial: finish_staged(partial, staged),
+            built, dest, lambda xml: complete(xml, instance.variable_units, instance.variable_bounds),
+            finish=lambda partial: _finish_staged(partial, staged, fmi_version),
         )
     return dest
 
 
-def finish_staged(partial, staged, fmi_version=2):
+def _finish_staged(partial, staged, fmi_version):
     """Add the staged files the library's builder leaves out, then make the loader the linux64 binary."""
     with zipfile.ZipFile(partial, "a", zipfile.ZIP_DEFLATED) as fmu:
         staged.add_to(fmu)

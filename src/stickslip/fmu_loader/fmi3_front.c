@@ -329,15 +329,12 @@ FORWARDED(FORWARD)
  * get_continuous_state_derivatives (in every other call it reports the exception). The slave therefore logs
  * such a failure as an error and answers NaN, returned here as fmi3Error: no non-finite derivative reaches
  * the host with a success status. */
+SBF_FORWARD_AS(static, forward_derivatives, fmi3Status, fmi3Error, fmi3Fatal, fmi3GetContinuousStateDerivatives,
+               RECOVERABLE, (fmi3Instance c, fmi3Float64 *dx, size_t n), (dx, n))
+
 EXPORT fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 *dx, size_t n)
 {
-    Instance *inst = c;
-    if (!inst) return fmi3Error;
-    sbf_keep_thread_state();
-    inst->fatal_is_error = RECOVERABLE;
-    fmi3Status status = inner.fmi3GetContinuousStateDerivatives(inst->inner, dx, n);
-    inst->fatal_is_error = 0;
-    if (status == fmi3Fatal) return RECOVERABLE ? fmi3Error : status;
+    fmi3Status status = forward_derivatives(c, dx, n);
     for (size_t i = 0; i < n && status <= fmi3Warning; i++)
         if (!isfinite(dx[i])) status = fmi3Error;
     return status;

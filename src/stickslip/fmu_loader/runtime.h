@@ -49,16 +49,20 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
 #endif
 #define KEPT 0
 #define SBF_FORWARD_ARGS(...) __VA_OPT__(, ) __VA_ARGS__
-#define SBF_FORWARD(Status, error, fatal, name, failure, params, args)                  \
-    __attribute__((visibility("default"))) Status name params                           \
-    {                                                                                   \
-        Instance *inst = c;                                                             \
-        if (!inst) return error;                                                        \
-        sbf_keep_thread_state();                                                        \
-        inst->fatal_is_error = failure;                                                 \
-        Status status = inner.name(inst->inner SBF_FORWARD_ARGS args);                  \
-        inst->fatal_is_error = 0;                                                       \
-        return failure && status == fatal ? error : status;                             \
+/* The function `function` (with linkage `Linkage`) that forwards to the inner library's `name`. */
+#define SBF_FORWARD_AS(Linkage, function, Status, error, fatal, name, failure, params, args) \
+    Linkage Status function params                                                        \
+    {                                                                                     \
+        Instance *inst = c;                                                               \
+        if (!inst) return error;                                                          \
+        sbf_keep_thread_state();                                                          \
+        inst->fatal_is_error = failure;                                                   \
+        Status status = inner.name(inst->inner SBF_FORWARD_ARGS args);                    \
+        inst->fatal_is_error = 0;                                                         \
+        return failure && status == fatal ? error : status;                               \
     }
+/* The exported FMI function `name`, forwarded as is. */
+#define SBF_FORWARD(Status, error, fatal, name, failure, params, args) \
+    SBF_FORWARD_AS(__attribute__((visibility("default"))), name, Status, error, fatal, name, failure, params, args)
 
 #endif
