@@ -1,14 +1,13 @@
-"""Build dist/SpringBlockFriction.fmu (FMI 2.0) and dist/SpringBlockFriction-fmi3.fmu (FMI 3.0) and print
-their paths: ``python build_fmu.py``."""
+"""Build dist/SpringBlockFriction.fmu (FMI 2.0) and dist/SpringBlockFriction-fmi3.fmu (FMI 3.0) and print their
+paths: ``python build_fmu.py [--out DIR]``, the same as ``stickslip build [--out DIR]``. Needs the package
+installed (``bash scripts/setup.sh`` or ``pip install .``)."""
 
 import sys
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent / "src"))
-
-from stickslip.fmu3_build import build3  # noqa: E402
-from stickslip.fmu_build import build  # noqa: E402
+try:
+    from stickslip.cli import main
+except ImportError as exc:
+    sys.exit(f"build_fmu.py: the stickslip package is not installed ({exc}); run: bash scripts/setup.sh")
 
 if __name__ == "__main__":
-    print(build())
-    print(build3())
+    sys.exit(main(["build", *sys.argv[1:]]))

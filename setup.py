@@ -1,19 +1,20 @@
-"""setuptools hook: compile the runtime's hot modules with mypyc (src/stickslip/compile_runtime.py).
+"""setuptools hook: compile the runtime's hot modules with mypyc (src/stickslip/fmu/compile_runtime.py).
 
 Optional: without mypyc or a C compiler the package installs as pure Python, and says so.
-Everything else about the package is in pyproject.toml.
+The packages are those below src/ plus the slaves' sources, the top-level fmu_src/ mapped in as
+stickslip.fmu_src (the builders read them from there). Everything else is in pyproject.toml.
 """
 
 import importlib.util
 import sys
 from pathlib import Path
 
-from setuptools import setup
+from setuptools import find_packages, setup
 from setuptools.command.build_ext import build_ext
 
 SRC = Path(__file__).resolve().parent / "src"
 CORE = SRC / "stickslip" / "core"
-_spec = importlib.util.spec_from_file_location("compile_runtime", SRC / "stickslip" / "compile_runtime.py")
+_spec = importlib.util.spec_from_file_location("compile_runtime", SRC / "stickslip" / "fmu" / "compile_runtime.py")
 compile_runtime = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(compile_runtime)
 
@@ -44,4 +45,9 @@ def _extensions():
         return []
 
 
-setup(ext_modules=_extensions(), cmdclass={"build_ext": BuildCompiledRuntime})
+setup(
+    packages=[*find_packages("src"), "stickslip.fmu_src"],
+    package_dir={"": "src", "stickslip.fmu_src": "fmu_src"},
+    ext_modules=_extensions(),
+    cmdclass={"build_ext": BuildCompiledRuntime},
+)

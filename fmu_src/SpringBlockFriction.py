@@ -160,7 +160,7 @@ def hold_loader_namespace(namespace):
     PythonFMU 0.7.0 (``findClass`` in its fmi2Instantiate) runs that module's source again in its globals,
     which it gets from ``PyModule_GetDict`` (a borrowed reference) and then releases, once per instance.
     A module whose source creates nothing that keeps its globals (a one-line import, see
-    stickslip.fmu_staging) loses its namespace after a few instances unless each run takes that reference.
+    stickslip.fmu.staging) loses its namespace after a few instances unless each run takes that reference.
     """
     ctypes.pythonapi.Py_IncRef(ctypes.py_object(namespace))
 

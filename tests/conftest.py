@@ -5,8 +5,7 @@ import shutil
 import fmpy
 import pytest
 
-from stickslip.fmu3_build import build3
-from stickslip.fmu_build import build
+from stickslip.fmu import build
 
 
 @pytest.fixture(scope="session")
@@ -18,7 +17,7 @@ def fmu_path(tmp_path_factory):
 @pytest.fixture(scope="session")
 def fmu3_path(tmp_path_factory):
     """Path of a SpringBlockFriction-fmi3.fmu freshly built from the working tree."""
-    return build3(tmp_path_factory.mktemp("fmu3") / "SpringBlockFriction-fmi3.fmu")
+    return build(fmi_version=3, dest=tmp_path_factory.mktemp("fmu3") / "SpringBlockFriction-fmi3.fmu")
 
 
 def _extracted(path):

@@ -7,7 +7,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from stickslip.analysis import classify
-from stickslip.scenario import load_scenario
+from stickslip.suite.scenario import load_scenario
 
 from test_analysis_cli import SCENARIOS
 

@@ -17,8 +17,8 @@ import pytest
 
 from stickslip.core import KINETIC_LAWS, STATIC_LAWS, RTOL_RANGE, StickSlipError
 from stickslip.core.ranges import ANY_FINITE, POSITIVE
-from stickslip.fmu_driver import FMUError, run_fmu
-from stickslip.scenario import ScenarioError, load_scenario, load_scenarios
+from stickslip.hosts.fmpy_host import FMUError, run_fmu
+from stickslip.suite.scenario import ScenarioError, load_scenario, load_scenarios
 from stickslip.stress.session import FmuCallError, FmuSession, fmi2Error, fmi2Fatal
 
 from scenario_texts import VALID

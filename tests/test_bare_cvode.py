@@ -9,8 +9,8 @@ import pytest
 
 from stickslip.bench.bare_cvode import simulate_bare_cvode
 from stickslip.bench.scenes import SCENES
-from stickslip.compare import reference_events
-from stickslip.fmu3_driver import run_fmu3
+from stickslip.suite.compare import reference_events
+from stickslip.hosts.fmpy_host import run_fmu
 
 RTOLS = (1e-6, 1e-8, 1e-10)
 
@@ -45,7 +45,7 @@ def test_the_fmu_adds_no_error_to_cvodes_own(rtol, fmu3_path, bare_errors):
     against the reference, within a factor 2 (measured: equal to 3 digits, 5e-8 to 2e-4 of the amplitude)."""
     name = "elmer-fig3-v0.1"
     scene = SCENES[name]
-    result = run_fmu3(fmu3_path, scene.start_values(1e-10), scene.stop_time, scene.grid_step, interface="me",
+    result = run_fmu(fmu3_path, scene.start_values(1e-10), scene.stop_time, scene.grid_step, interface="me",
                       outputs=["x"], rtol=rtol)
     fmu_error, bare_error = relative_error(result["x"], scene), bare_errors[name, rtol]
     assert 0.5 <= fmu_error / bare_error <= 2.0
@@ -89,5 +89,5 @@ def test_bare_cvode_imports_nothing_from_the_runtime():
         for attr, value in vars(module).items():
             origin = getattr(value, "__module__", None) or getattr(value, "__name__", "")
             assert not str(origin).startswith("stickslip.core"), f"{name}: {attr} comes from {origin}"
-    assert {"stickslip.reference.rules", "stickslip.reference.laws", "stickslip.compare"} <= checked
+    assert {"stickslip.reference.rules", "stickslip.reference.laws", "stickslip.suite.compare"} <= checked
     assert bare.simulate_bare_cvode.__module__ == "stickslip.bench.bare_cvode"

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from stickslip.bench import fmus
-from stickslip.bench.cli import add_bench_parser
+from stickslip.cli.bench import add_bench_parser
 from stickslip.bench.peers import hybrid_solve_ivp, regularized_solve_ivp
 from stickslip.core import Constant, Coulomb, Parameters
 

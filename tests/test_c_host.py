@@ -21,15 +21,14 @@ import pytest
 
 import pythonfmu
 import pythonfmu3
-from stickslip.c_host import HostBuildError, compile_host, run_host
-from stickslip.fmu3_driver import run_fmu3
-from stickslip.fmu_build import REPO, build
-from stickslip.fmu_driver import run_fmu
-from stickslip.fmu_loader import LIBPYTHON_VARIABLE
-from stickslip.scenario import load_scenario
+from stickslip.hosts.c_host import HostBuildError, compile_host, run_host
+from stickslip.hosts.fmpy_host import run_fmu
+from stickslip.fmu import build
+from stickslip.fmu.loader import LIBPYTHON_VARIABLE
+from stickslip.suite.scenario import load_scenario
 from stickslip.stress.session import FmuCallError, FmuSession, fmi2Error
 
-SCENE = load_scenario(REPO / "scenarios" / "elmer-fig3-v0.1.toml")
+SCENE = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "elmer-fig3-v0.1.toml")
 START = SCENE.start_values()
 SHORT = 20.0  # s: stop time of the runs that check behaviour rather than the whole scene
 BAD_MASS = "M = -1.0 kg is out of range: allowed is a finite value in (0, inf)"
@@ -239,7 +238,7 @@ def fmpy3_x(fmu3_path):
 
     def x(stop):
         if stop not in runs:
-            result = run_fmu3(fmu3_path, START, stop, SCENE.output_interval, interface="cs", outputs=["x"])
+            result = run_fmu(fmu3_path, START, stop, SCENE.output_interval, interface="cs", outputs=["x"])
             runs[stop] = (list(result["time"]), list(result["x"]))
         return runs[stop]
 

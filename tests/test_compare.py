@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from stickslip.compare import Event, classify_attractor, fmu_events, match_events, transition_kind
+from stickslip.suite.compare import Event, classify_attractor, fmu_events, match_events, transition_kind
 
 
 def fmu_result(times, sticks, slips, overshoots, t_last):
@@ -59,7 +59,7 @@ def test_a_known_miss_passes_only_while_it_misses(met, passed, verdict):
     """A scenario run marked ``known_miss`` behaves like a strict xfail."""
     from types import SimpleNamespace
 
-    from stickslip.report import Outcome
+    from stickslip.suite.report import Outcome
 
     comparison = SimpleNamespace(passed=met, failures=() if met else ("attractor",))
     outcome = Outcome("s", "stick-slip", comparison, known_miss="a double root")

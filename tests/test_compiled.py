@@ -13,12 +13,12 @@ import pytest
 
 import stickslip.core as compiled
 from stickslip.core._implementation import COMPILED_MODULES, import_pure_copy
-from stickslip.fmu_build import REPO, build, source_tag
-from stickslip.scenario import load_scenario
+from stickslip.fmu import build, source_tag
+from stickslip.suite.scenario import load_scenario
 
 CORE = Path(compiled.__file__).parent
 pure = import_pure_copy(str(CORE), "stickslip_pure_core")
-SCENARIOS = sorted((REPO / "scenarios").glob("*.toml"))
+SCENARIOS = sorted((Path(__file__).resolve().parents[1] / "scenarios").glob("*.toml"))
 HAS_COMPILED = all(list(CORE.glob(f"{name}.*.so")) for name in COMPILED_MODULES)
 
 
@@ -128,9 +128,9 @@ def test_the_fmu_falls_back_to_its_sources_when_its_compiled_modules_cannot_load
 def test_a_build_without_a_c_compiler_gives_a_working_pure_fmu_and_says_so(tmp_path):
     code = f"""
         from pathlib import Path
-        import stickslip.fmu_staging as staging
+        import stickslip.fmu.staging as staging
         staging.CACHE = Path({str(tmp_path / "cache")!r})  # nothing compiled earlier to reuse
-        from stickslip.fmu_build import build
+        from stickslip.fmu import build
         print(build(Path({str(tmp_path / "SpringBlockFriction.fmu")!r})))
     """
     run = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True,

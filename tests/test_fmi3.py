@@ -15,16 +15,15 @@ from fmpy.fmi3 import FMU3Model, FMU3Slave
 from fmpy.validation import validate_fmu
 
 from stickslip.cli import main
-from stickslip.compare import compare, fmu_events, reference_events
+from stickslip.suite.compare import compare, fmu_events, reference_events
 from stickslip.core import Constant, Lubricated, Parameters, Trajectory
-from stickslip.fmu3_build import is_current, source_tag3
-from stickslip.fmu3_driver import ensure_fmu3, held_input_table, run_fmu3
-from stickslip.fmu_build import built_tag
-from stickslip.fmu_driver import FMUError, run_fmu
-from stickslip.inputs import Signal
+from stickslip.fmu import ensure_fmu, is_current, source_tag
+from stickslip.fmu.sources import built_tag
+from stickslip.hosts.fmpy_host import FMUError, run_fmu
+from stickslip.suite.inputs import Signal, held_input_table
 from stickslip.reference import parameters_from_values, simulate_reference
-from stickslip.runner import OUTPUTS, simulate
-from stickslip.scenario import load_scenario
+from stickslip.suite.runner import OUTPUTS, simulate
+from stickslip.suite.scenario import load_scenario
 
 SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 SCENARIOS = sorted(SCENARIO_DIR.glob("*.toml"))
@@ -78,19 +77,19 @@ def test_same_variables_units_ranges_and_defaults_as_the_fmi2_fmu(fmu_path, fmu3
             assert str(actual) == str(expected), (name, attribute)
 
 
-def test_ensure_fmu3_builds_only_when_the_sources_changed(tmp_path, fmu3_path):
+def test_ensure_fmu_fmi3_builds_only_when_the_sources_changed(tmp_path, fmu3_path):
     target = tmp_path / "SpringBlockFriction-fmi3.fmu"
     shutil.copy(fmu3_path, target)
-    assert is_current(target) and built_tag(target, "springblockfriction3_") == source_tag3()
+    assert is_current(target, 3) and built_tag(target, 3) == source_tag(3)
     before = target.stat().st_mtime_ns
-    assert ensure_fmu3(target) == target and target.stat().st_mtime_ns == before
+    assert ensure_fmu(target, 3) == target and target.stat().st_mtime_ns == before
     with zipfile.ZipFile(fmu3_path) as source, zipfile.ZipFile(target, "w") as stale:
         for item in source.infolist():
             data = source.read(item)
             stale.writestr(item, b"springblockfriction3_0000000000" if item.filename.endswith("slavemodule.txt") else data)
-    assert not is_current(target)
-    ensure_fmu3(target)
-    assert is_current(target)
+    assert not is_current(target, 3)
+    ensure_fmu(target, 3)
+    assert is_current(target, 3)
 
 
 def test_both_interfaces_states_indicators_and_state_capabilities(unzipped3):
@@ -114,7 +113,7 @@ def test_co_simulation_equals_the_fmi2_fmu_bit_for_bit(path, fmu_path, fmu3_path
     scenario = load_scenario(path)
     args = (scenario.start_values(), scenario.stop_time, scenario.output_interval)
     fmi2 = run_fmu(fmu_path, *args, input_signal=scenario.input_table(), outputs=list(OUTPUTS))
-    fmi3 = run_fmu3(fmu3_path, *args, "cs", input_signal=scenario.input_table(), outputs=list(OUTPUTS))
+    fmi3 = run_fmu(fmu3_path, *args, "cs", input_signal=scenario.input_table(), outputs=list(OUTPUTS))
     assert np.array_equal(fmi2["time"], fmi3["time"])
     for name in OUTPUTS:
         assert np.array_equal(fmi2[name], fmi3[name]), name
@@ -207,7 +206,7 @@ def test_model_exchange_sees_the_shallow_dips_next_to_the_grazing_boundary(v_dri
 def test_model_exchange_stuck_block_follows_an_input_jump(fmu3_path):
     inputs = held_input_table([(0.0, 0.1, 0.0), (4.0, 0.3, 0.0)], 6.0)
     start = {**ELMER, "v_start": 0.1}
-    result = run_fmu3(fmu3_path, start, 6.0, 0.5, "me", input_signal=inputs, outputs=["x", "v", "mode", "n_events"])
+    result = run_fmu(fmu3_path, start, 6.0, 0.5, "me", input_signal=inputs, outputs=["x", "v", "mode", "n_events"])
     t = result["time"]
     expected = np.where(t <= 4.0, 0.1 * t, 0.4 + 0.3 * (t - 4.0))
     # 1e-8, not 0: FMPy's root function sets the input's left limit (0.1) again at t = 4 after the event,
@@ -222,7 +221,7 @@ def test_model_exchange_slipping_block_keeps_its_velocity_through_an_input_jump(
     start = {"M": 1.0, "kappa": 1.0, "kinetic.F0": 0.5, "static.F0": 1.0, "x_start": 0.0, "v_start": 0.0}
     inputs = held_input_table([(0.0, 1.0, 0.0), (0.1, -1.0, 0.0)], 0.2)
     outputs = ["x", "v", "mode", "n_events", "n_overshoots", "n_stick_events"]
-    result = run_fmu3(fmu3_path, start, 0.2, 0.05, "me", input_signal=inputs, outputs=outputs, rtol=1e-10)
+    result = run_fmu(fmu3_path, start, 0.2, 0.05, "me", input_signal=inputs, outputs=outputs, rtol=1e-10)
     laws = {"M": 1.0, "kappa": 1.0, "kinetic.law": "coulomb", "kinetic.F0": 0.5, "static.law": "constant",
             "static.F0": 1.0}
     ref = simulate_reference(parameters_from_values(laws), 0.0, 0.0,
@@ -236,14 +235,14 @@ def test_model_exchange_slipping_block_keeps_its_velocity_through_an_input_jump(
 @pytest.mark.parametrize("interface", ["cs", "me"])
 def test_bad_parameter_is_named(interface, fmu3_path):
     with pytest.raises(FMUError, match=r"M = -1\.0 kg is out of range"):
-        run_fmu3(fmu3_path, {"M": -1.0}, 1.0, 0.5, interface)
-    assert np.isfinite(run_fmu3(fmu3_path, {}, 1.0, 0.5, interface)["x"]).all()  # the process goes on
+        run_fmu(fmu3_path, {"M": -1.0}, 1.0, 0.5, interface)
+    assert np.isfinite(run_fmu(fmu3_path, {}, 1.0, 0.5, interface)["x"]).all()  # the process goes on
 
 
 def test_model_exchange_nan_input_names_the_input(fmu3_path):
     inputs = held_input_table([(0.0, 0.1, 0.0), (0.5, float("nan"), 0.0)], 1.0)
     with pytest.raises(FMUError, match=r"v_drive = nan m/s is out of range"):
-        run_fmu3(fmu3_path, {}, 1.0, 0.25, "me", input_signal=inputs)
+        run_fmu(fmu3_path, {}, 1.0, 0.25, "me", input_signal=inputs)
 
 
 def test_model_exchange_state_restore_and_serialization(unzipped3):

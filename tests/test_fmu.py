@@ -11,8 +11,8 @@ import pytest
 from fmpy.validation import validate_fmu
 
 from stickslip.core import Parameters, StickSlipError, Trajectory, kinetic_law, static_law
-from stickslip.fmu_build import REPO, source_tag
-from stickslip.fmu_driver import FMUError, default_fmu_path, ensure_fmu, run_fmu
+from stickslip.fmu import default_fmu_path, ensure_fmu, source_tag
+from stickslip.hosts.fmpy_host import FMUError, run_fmu
 
 from fmu_instances import instantiate
 
@@ -122,7 +122,8 @@ def test_runtime_is_bundled_under_a_private_name(fmu_path):
 
 
 def test_ensure_fmu_builds_only_when_the_sources_changed(tmp_path, fmu_path):
-    assert default_fmu_path() == REPO / "dist" / "SpringBlockFriction.fmu"
+    assert default_fmu_path() == Path.cwd() / "dist" / "SpringBlockFriction.fmu"
+    assert default_fmu_path(3) == Path.cwd() / "dist" / "SpringBlockFriction-fmi3.fmu"
     target = tmp_path / "SpringBlockFriction.fmu"
     assert ensure_fmu(target) == target and target.is_file()
     built = target.stat().st_mtime_ns

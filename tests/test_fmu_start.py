@@ -8,7 +8,7 @@ import textwrap
 import zipfile
 from pathlib import Path
 
-from stickslip.fmu_build import source_tag
+from stickslip.fmu import source_tag
 
 from fmu_instances import instantiate
 

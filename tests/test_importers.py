@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from stickslip.core import Parameters, Trajectory, kinetic_law, static_law
-from stickslip.fmu_driver import run_fmu
-from stickslip.inputs import zoh_breakpoints
+from stickslip.hosts.fmpy_host import run_fmu
+from stickslip.suite.inputs import zoh_breakpoints
 from stickslip.reference import parameters_from_values, simulate_reference
 from stickslip.stress import cosim
 

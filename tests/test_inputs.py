@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from stickslip.fmu_driver import run_fmu
-from stickslip.inputs import Signal, communication_points, input_table, zoh_breakpoints
+from stickslip.hosts.fmpy_host import run_fmu
+from stickslip.suite.inputs import Signal, communication_points, input_table, zoh_breakpoints
 
 RAMP_STEP = {
     # ramp, hold, a step at a time off the output grid, then a ramp down

@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 from stickslip.core.errors import StickSlipError
-from stickslip.scenario import ScenarioError, load_scenario, load_scenarios
+from stickslip.suite.scenario import ScenarioError, load_scenario, load_scenarios
 
 from scenario_texts import VALID
 

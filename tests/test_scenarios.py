@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from stickslip.cli import main
-from stickslip.runner import run_scenario, run_suite
-from stickslip.scenario import load_scenario
+from stickslip.suite.runner import run_scenario, run_suite
+from stickslip.suite.scenario import load_scenario
 
 SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 SCENARIOS = sorted(SCENARIO_DIR.glob("*.toml"))

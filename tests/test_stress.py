@@ -12,10 +12,10 @@ import math
 import numpy as np
 import pytest
 
+from stickslip.cli import main
 from stickslip.core import Constant, Coulomb, Parameters, Saturating, Sigmoid, SolverError, Trajectory
 from stickslip.stress.cases import GROUPS, stress_cases
 from stickslip.stress.checks import coulomb_cycle
-from stickslip.stress.cli import main as stress_main
 from stickslip.stress.runner import run_case, summary_table
 from stickslip.stress.session import FmuSession
 
@@ -60,7 +60,7 @@ def test_full_matrix_spans_the_regimes_of_the_issue():
 
 
 def test_stress_cli_lists_cases_and_builds_a_table(capsys):
-    assert stress_main(["--list", "--group", "grazing"]) == 0
+    assert main(["stress", "--list", "--group", "grazing"]) == 0
     listed = capsys.readouterr().out.splitlines()
     assert len(listed) == len(stress_cases(groups=["grazing"])) and all("grazing" in line for line in listed)
 

@@ -3,7 +3,7 @@
 import math
 
 from stickslip.core import ANY_FINITE, KINETIC_LAWS, POSITIVE, RTOL_RANGE, STATIC_LAWS
-from stickslip.variable_table import README, markdown, readme_table, replace_table, rows, split_description
+from stickslip.fmu.variable_docs import README, markdown, readme_table, replace_table, rows, split_description
 
 OWN_RANGES = {"M": POSITIVE, "kappa": POSITIVE, "x_start": ANY_FINITE, "v_start": ANY_FINITE,
               "solver.rtol": RTOL_RANGE, "v_drive": ANY_FINITE, "F_ext": ANY_FINITE}

@@ -231,7 +231,7 @@ def write_outputs(d, out_dir):
     import csv
     from pathlib import Path
 
-    from .cli import write_json
+    from .json_output import write_json
     from .plots import plot_bifurcation
 
     out = Path(out_dir)

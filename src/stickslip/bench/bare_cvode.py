@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from ..compare import Event, transition_kind
+from ..suite.compare import Event, transition_kind
 from ..reference.laws import parameters_from_values
 from ..reference.rules import STUCK, acceleration, breakaway_mode, hold_or_break, initial_mode, z_slip
 from .peers import Run
@@ -35,7 +35,7 @@ class BareBlock:
     """The block's discrete state between CVode's calls; its methods are ``CVodeSolver``'s callbacks.
 
     ``p``: :class:`~stickslip.reference.laws.ReferenceParameters`; constant inputs ``v_drive`` (m/s),
-    ``F_ext`` (N). ``events`` collects the transitions as :class:`~stickslip.compare.Event` at their times.
+    ``F_ext`` (N). ``events`` collects the transitions as :class:`~stickslip.suite.compare.Event` at their times.
     """
 
     def __init__(self, p, x0, v0, v_drive, F_ext):

@@ -1,4 +1,4 @@
-"""The C host family: our FMU and the trivial floor FMU in a plain C importer (:mod:`stickslip.c_host`).
+"""The C host family: our FMU and the trivial floor FMU in a plain C importer (:mod:`stickslip.hosts.c_host`).
 
 Each run is one child process of the C host in its ``bench`` mode: instantiate,
 initialize, then every communication step as ``fmi2DoStep`` + ``fmi2GetReal`` of
@@ -7,7 +7,7 @@ Python excluded). The records carry ``cpu_s``, that time in s; the report takes
 the slope of ``cpu_s`` over the number of steps (the per-step cost).
 """
 
-from ..c_host import HostBuildError, compile_host, run_host
+from ..hosts.c_host import HostBuildError, compile_host, run_host
 from . import fmus
 
 

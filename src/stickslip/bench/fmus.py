@@ -12,12 +12,12 @@ from pathlib import Path
 
 import fmpy
 
-from .. import fmu_loader
-from ..fmi_host import preserved_sys_path
-from ..fmu_build import REPO
+from ..fmu import loader
+from ..fmu.python_path import preserved_sys_path
 
-FLOOR_SOURCE = REPO / "benchmarks" / "floor_fmu" / "TrivialFloorSlave_sbfbench.py"
-BUILD_DIR = REPO / "benchmarks" / "build"
+FLOOR_SOURCE = Path(__file__).resolve().parent / "floor_fmu" / "TrivialFloorSlave_sbfbench.py"
+#: where the benchmark builds its FMUs and C hosts (relative to the current folder)
+BUILD_DIR = Path("build") / "bench"
 
 
 class ExtractedFMU:
@@ -49,7 +49,7 @@ def ensure_floor_fmu(build_dir=None):
     from pythonfmu import FmuBuilder
 
     dest = Path(build_dir or BUILD_DIR) / "TrivialFloor.fmu"
-    newest_source = max(path.stat().st_mtime for path in (FLOOR_SOURCE, *fmu_loader.SOURCES))
+    newest_source = max(path.stat().st_mtime for path in (FLOOR_SOURCE, *loader.SOURCES))
     if dest.is_file() and dest.stat().st_mtime >= newest_source:
         return dest
     dest.parent.mkdir(parents=True, exist_ok=True)
@@ -59,6 +59,6 @@ def ensure_floor_fmu(build_dir=None):
             FmuBuilder.build_FMU(FLOOR_SOURCE, dest=partial)
     finally:  # ... and the module imported
         sys.modules.pop(FLOOR_SOURCE.stem, None)
-    fmu_loader.install(partial, "TrivialFloor")
+    loader.install(partial, "TrivialFloor")
     os.replace(partial, dest)
     return dest

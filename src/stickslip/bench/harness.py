@@ -20,7 +20,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .. import core as compiled_core
-from ..compare import Event, fmu_events, match_events, reference_events, transition_kind
+from ..suite.compare import Event, fmu_events, match_events, reference_events, transition_kind
 from . import c_host
 from .bare_cvode import simulate_bare_cvode
 from .peers import Run, hybrid_solve_ivp, regularized_solve_ivp

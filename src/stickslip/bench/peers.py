@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..compare import Event
+from ..suite.compare import Event
 
 MAX_EVENTS_AT_ONE_TIME = 100
 
@@ -28,7 +28,7 @@ MAX_EVENTS_AT_ONE_TIME = 100
 class Run:
     """One simulation on its output times ``t`` (s): ``x`` (m), ``v`` (m/s).
 
-    ``events`` are :class:`~stickslip.compare.Event` (None: the method has no events).
+    ``events`` are :class:`~stickslip.suite.compare.Event` (None: the method has no events).
     """
 
     t: np.ndarray

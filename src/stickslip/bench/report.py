@@ -175,7 +175,7 @@ def markdown(meta, scenes, records):
                    "stepper / regularized"], rows)
     out += ["", "## Cost per communication step (slope over the communication-step sweep)", ""]
     out += ["FMPy: wall time of fmpy.simulate_fmu recording six outputs. C host: CPU time of fmi2DoStep + "
-            "fmi2GetReal(x) in a plain C importer (stickslip.c_host), Python start-up excluded. Each cost is a "
+            "fmi2GetReal(x) in a plain C importer (stickslip.hosts.c_host), Python start-up excluded. Each cost is a "
             "least-squares line with a non-negative slope and intercept over the communication-step sweep (at the "
             "sweep's comm_rtol); a slope the data cannot resolve comes out 0. Per call: the intercept, the fixed "
             "cost of one simulate_fmu call (instantiate, initialize, terminate, free, and the scene's events).", ""]

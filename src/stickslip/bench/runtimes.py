@@ -10,7 +10,7 @@ from pathlib import Path
 
 from .. import core
 from ..core._implementation import import_pure_copy
-from ..fmu_build import build, source_tag
+from ..fmu import build, source_tag
 
 PURE_CORE = import_pure_copy(os.path.dirname(core.__file__), "stickslip_bench_pure_core")
 

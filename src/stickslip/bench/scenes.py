@@ -8,13 +8,15 @@ configurations run on a scene.
 
 from dataclasses import dataclass, field, replace
 from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 
-from ..fmu_build import REPO
 from ..reference import parameters_from_values, simulate_reference
-from ..scenario import load_scenario
+from ..suite.scenario import load_scenario
 
+#: the scenario files the scenes run: the project's ``scenarios/`` (the benchmark runs in a checkout)
+SCENARIO_DIR = Path("scenarios")
 REFERENCE_RTOL = 1e-13  # the reference integrator's tightest useful tolerance
 
 
@@ -72,7 +74,7 @@ class Scene:
 
     @cached_property
     def scenario(self):
-        return load_scenario(REPO / "scenarios" / self.scenario_file)
+        return load_scenario(SCENARIO_DIR / self.scenario_file)
 
     @property
     def params(self):

@@ -1,7 +1,7 @@
 """Which implementation of this package runs: its compiled modules or their Python sources.
 
 The modules in :data:`COMPILED_MODULES` may sit beside their sources as extension
-modules compiled from them by mypyc (``stickslip.compile_runtime``). They are used
+modules compiled from them by mypyc (``stickslip.fmu.compile_runtime``). They are used
 when all of these hold, else the sources are (same numbers, slower):
 
 - the compiled files for this interpreter are there (another Python version or

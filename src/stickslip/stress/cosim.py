@@ -35,8 +35,7 @@ import math
 import subprocess
 import sys
 
-from ..fmu_driver import FMUError
-from ..fmi_host import callbacks
+from ..hosts.fmpy_host import FMUError, fmi2_callbacks
 from .session import INTEGER_OUTPUTS, FmuSession, Instance
 
 RESULT_MARK = "@@cosim-results@@"
@@ -165,7 +164,7 @@ def _instantiate_in_init(session, name, start):
 
     fmu = FMU2Slave(guid=session.description.guid, unzipDirectory=session.folder,
                     modelIdentifier=session.description.coSimulation.modelIdentifier, instanceName=name)
-    fmu.instantiate(callbacks=callbacks(), loggingOn=True)
+    fmu.instantiate(callbacks=fmi2_callbacks(), loggingOn=True)
     inst = Instance(session, fmu, name)
     for key, value in start.items():
         inst.set_value(key, value)

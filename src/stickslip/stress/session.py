@@ -6,12 +6,12 @@ log text and status code, FMU states, and timing per ``doStep``. A
 :class:`FmuSession` extracts the FMU once and makes :class:`Instance` objects.
 
 PythonFMU reports every Python exception as ``fmi2Fatal`` (this FMU's Linux
-loader, :mod:`stickslip.fmu_loader`, reports it as ``fmi2Error``) and releases the
+loader, :mod:`stickslip.fmu.loader`, reports it as ``fmi2Error``) and releases the
 slave itself. This FMU balances that release so that an importer may still
 free the instance, but other builds and other PythonFMU FMUs do not, and FMI
 allows no call after ``fmi2Fatal``: an instance that returned ``fmi2Fatal`` is
 never terminated or freed here (its slave stays allocated until the process
-ends). Instances log through the process-wide logger of :mod:`stickslip.fmi_host`.
+ends). Instances log through the process-wide logger of :mod:`stickslip.hosts.fmpy_host`.
 """
 
 import shutil
@@ -27,8 +27,7 @@ from fmpy.fmi2 import (
     fmi2LastSuccessfulTime,
 )
 
-from ..fmi_host import callbacks, log_mark, messages_since
-from ..fmu_driver import FMUError
+from ..hosts.fmpy_host import FMUError, fmi2_callbacks, log_mark, messages_since
 
 REAL_OUTPUTS = ("x", "v", "v_rel", "F_friction", "F_spring", "t_stick", "z_slip", "z_stick", "t_last_event")
 INTEGER_OUTPUTS = ("mode", "n_events", "n_stick_events", "n_slip_events", "n_overshoots", "n_steps")
@@ -88,7 +87,7 @@ class FmuSession:
         name = name or f"stress{self._count}"
         fmu = FMU2Slave(guid=self.description.guid, unzipDirectory=self.folder,
                         modelIdentifier=self.description.coSimulation.modelIdentifier, instanceName=name)
-        fmu.instantiate(callbacks=callbacks(), loggingOn=logging_on)
+        fmu.instantiate(callbacks=fmi2_callbacks(), loggingOn=logging_on)
         instance = Instance(self, fmu, name)
         try:
             instance.call("fmi2SetupExperiment", fmu.setupExperiment, startTime=start_time)

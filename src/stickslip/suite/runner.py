@@ -1,9 +1,9 @@
 """The main job: run every scenario through the FMU and the reference, compare, and report.
 
-For each scenario: the FMU under FMPy (:func:`~stickslip.fmu_driver.run_fmu`; the FMI 3
-FMU's co-simulation or model exchange with :func:`~stickslip.fmu3_driver.run_fmu3`),
+For each scenario: the FMU under FMPy (:func:`~stickslip.hosts.fmpy_host.run_fmu`: the FMI 2
+FMU's co-simulation, the FMI 3 FMU's co-simulation or model exchange),
 the reference on the FMU's output grid with the inputs the FMU actually saw,
-:func:`~stickslip.compare.compare`, then ``OUT/<name>.csv`` (FMU result),
+:func:`~stickslip.suite.compare.compare`, then ``OUT/<name>.csv`` (FMU result),
 ``OUT/<name>.png`` and finally ``OUT/report.md``.
 """
 
@@ -17,11 +17,12 @@ import fmpy
 from tqdm import tqdm
 
 from .compare import compare
-from .core.errors import StickSlipError
-from .fmu3_driver import ensure_fmu3, held_input_table, run_fmu3
-from .fmu_driver import ensure_fmu, run_fmu
+from ..core.errors import StickSlipError
+from ..fmu import ensure_fmu
+from ..hosts.fmpy_host import run_fmu
+from .inputs import held_input_table
 from .plots import plot_scenario
-from .reference import ReferenceFailure, parameters_from_values, simulate_reference
+from ..reference import ReferenceFailure, parameters_from_values, simulate_reference
 from .report import Outcome, failure_lines, summary_table, write_report, write_result_csv
 from .scenario import ScenarioError, load_scenarios
 
@@ -56,10 +57,10 @@ def simulate(scenario, fmu_path, interface=None):
     if interface is None:
         fmu = run_fmu(fmu_path, *args, input_signal=scenario.input_table(), outputs=list(OUTPUTS))
     elif interface == "cs":
-        fmu = run_fmu3(fmu_path, *args, "cs", input_signal=scenario.input_table(), outputs=list(OUTPUTS))
+        fmu = run_fmu(fmu_path, *args, "cs", input_signal=scenario.input_table(), outputs=list(OUTPUTS))
     else:
         inputs = held_input_table(scenario.breakpoints(), scenario.stop_time)
-        fmu = run_fmu3(fmu_path, *args, "me", input_signal=inputs, outputs=list(OUTPUTS),
+        fmu = run_fmu(fmu_path, *args, "me", input_signal=inputs, outputs=list(OUTPUTS),
                        rtol=model_exchange(scenario).rtol)
     middle = time.perf_counter()
     ref = simulate_reference(parameters_from_values(scenario.law_values), scenario.x0, scenario.v0,
@@ -106,7 +107,7 @@ def run_suite(paths, out_dir, jobs=2, fmu_path=None, interface=None):
     Writes the per-scenario files and ``report.md`` into ``out_dir``, prints the
     summary table, and returns a :class:`SuiteResult` (``.ok`` is False if any
     scenario missed its tolerance or its attractor). A malformed scenario file
-    raises :class:`~stickslip.scenario.ScenarioError` before anything runs.
+    raises :class:`~stickslip.suite.scenario.ScenarioError` before anything runs.
     """
     start = time.perf_counter()
     scenarios = load_scenarios(paths)
@@ -115,7 +116,7 @@ def run_suite(paths, out_dir, jobs=2, fmu_path=None, interface=None):
         for scenario in scenarios:
             model_exchange(scenario)
     if fmu_path is None:
-        fmu_path = ensure_fmu() if interface is None else ensure_fmu3()
+        fmu_path = ensure_fmu(fmi_version=2 if interface is None else 3)
     fmu_path = Path(fmu_path)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

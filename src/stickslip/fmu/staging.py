@@ -1,5 +1,5 @@
-"""Lay out the FMUs' Python code (:func:`stickslip.fmu_build.build`, :func:`stickslip.fmu3_build.build3`): what
-PythonFMU or pythonfmu3 loads, and how fast.
+"""Lay out the FMUs' Python code (:func:`stickslip.fmu.build.build`): what PythonFMU or pythonfmu3 loads, and
+how fast.
 
 In the FMU's ``resources/``:
 
@@ -9,11 +9,12 @@ In the FMU's ``resources/``:
   for the building Python in ``__pycache__`` (unchecked-hash ``.pyc``: valid whatever times the
   extraction gives the files, so a host with that Python never compiles them);
 - the hot modules of the runtime compiled by mypyc under that package name, for the building
-  Python (:mod:`stickslip.compile_runtime`; the group library ``<hash>__mypyc`` goes to the top
+  Python (:mod:`stickslip.fmu.compile_runtime`; the group library ``<hash>__mypyc`` goes to the top
   of ``resources/``), unless the build is pure or cannot compile (no C compiler: the FMU is then
   pure Python, and the build says so on stderr). A host that cannot load them (another Python
   version or platform) runs the sources (``core/_implementation.py``). Compiled files are cached
-  in ``build/fmu-runtime`` by package name (the source tag) and Python;
+  in the user's cache folder (``$XDG_CACHE_HOME/stickslip/fmu-runtime``, default
+  ``~/.cache/...``) by package name (the source tag) and Python;
 - ``springblockfriction_<tag>.py`` (FMI 3: ``springblockfriction3_<tag>.py``): the module PythonFMU
   (pythonfmu3) loads, a few lines (:data:`FMI2_LOADER`, :data:`FMI3_LOADER`). PythonFMU 0.7.0 compiles
   and runs that module's source at every ``fmi2Instantiate`` (to find the slave class by its MRO; with
@@ -22,6 +23,7 @@ In the FMU's ``resources/``:
 """
 
 import compileall
+import os
 import py_compile
 import re
 import shutil
@@ -32,7 +34,7 @@ from pathlib import Path
 
 from .compile_runtime import CompileError, compile_in_place
 
-CACHE = Path(__file__).resolve().parents[2] / "build" / "fmu-runtime"
+CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stickslip" / "fmu-runtime"
 #: files of an in-place compiled ``stickslip/core`` (pip install -e) that never go into an FMU's copy
 COMPILED_ARTIFACTS = ("__pycache__", "*.pyc", "*.so", "*.pyd", "compiled_sources.crc32")
 
@@ -58,8 +60,8 @@ FMI3_LOADER = LoaderModule("springblockfriction3_", (
     "from pythonfmu3 import Fmi3SlaveBase\n\nfrom {package} import fmu_slave\n\n\n"
     "class {model_name}(fmu_slave.{model_name}, Fmi3SlaveBase):\n"
     '    """The slave (fmu_slave), named where pythonfmu3 looks for it."""\n'))
-#: the builder modules whose source decides the FMU's layout (part of its source tag)
-STAGING_SOURCES = (Path(__file__).resolve(), Path(__file__).resolve().with_name("compile_runtime.py"))
+#: FMI version: its loader module
+LOADERS = {2: FMI2_LOADER, 3: FMI3_LOADER}
 
 
 class StagingError(RuntimeError):

@@ -119,3 +119,14 @@ def zoh_breakpoints(table, start_time, stop_time, output_interval):
             breakpoints.append((float(t), float(v_drive), float(F_ext)))
     return breakpoints
 
+
+
+def held_input_table(breakpoints, stop_time):
+    """FMPy input table that holds each of ``breakpoints`` ``[(t, v_drive, F_ext), ...]`` until the next (a step
+    there) and the last until ``stop_time``: the inputs of a model-exchange run that sees exactly what a
+    co-simulation holds."""
+    rows = [(breakpoints[0][0], *breakpoints[0][1:])]
+    for (_, *before), (t, *after) in zip(breakpoints, breakpoints[1:]):
+        rows += [(t, *before), (t, *after)]
+    rows.append((stop_time, *breakpoints[-1][1:]))
+    return np.array(rows, dtype=[("time", np.float64)] + [(name, np.float64) for name in INPUT_NAMES])

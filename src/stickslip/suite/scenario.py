@@ -9,9 +9,9 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from .core import KINETIC_LAWS, RTOL_RANGE, STATIC_LAWS, Parameters
-from .core.errors import ParameterError, StickSlipError
-from .core.ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, Range
+from ..core import KINETIC_LAWS, RTOL_RANGE, STATIC_LAWS, Parameters
+from ..core.errors import ParameterError, StickSlipError
+from ..core.ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, Range
 from .inputs import INPUT_NAMES, Signal, input_table, zoh_breakpoints
 
 ATTRACTORS = ("continuous-sliding", "oscillatory-sliding", "stick-slip", "rest")

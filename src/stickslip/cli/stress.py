@@ -1,12 +1,4 @@
-"""``stickslip stress``: run the stress matrix through the FMU and print the table.
-
-Wiring (in ``stickslip/cli.py``)::
-
-    from .stress.cli import add_stress_parser
-    COMMANDS = (add_run, add_build_fmu, add_stress_parser)
-
-``add_stress_parser`` sets ``handler=run_stress`` like the other commands.
-"""
+"""``stickslip stress``: run the stress matrix (:mod:`stickslip.stress`) through the FMU and print the table."""
 
 from pathlib import Path
 
@@ -30,9 +22,9 @@ def add_stress_parser(subparsers):
 
 def run_stress(args):
     """Handler of ``stickslip stress``; returns 0 unless a case failed unexpectedly (known bugs are listed)."""
-    from ..fmu_driver import ensure_fmu
-    from . import runner
-    from .cases import stress_cases
+    from ..fmu import ensure_fmu
+    from ..stress import runner
+    from ..stress.cases import stress_cases
 
     cases = stress_cases(quick=args.quick, groups=args.group)
     if args.case:
@@ -67,17 +59,3 @@ def run_stress(args):
         Path(args.report).write_text("\n".join(text) + "\n")
     return 0 if n_unexpected == 0 else 1
 
-
-def main(argv=None):
-    """``python -m stickslip.stress.cli``: the command without the ``stickslip`` front end."""
-    import argparse
-
-    parser = argparse.ArgumentParser(prog="stickslip")
-    subparsers = parser.add_subparsers(dest="command", required=True)
-    add_stress_parser(subparsers)
-    args = parser.parse_args(["stress", *(argv if argv is not None else __import__("sys").argv[1:])])
-    return args.handler(args)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

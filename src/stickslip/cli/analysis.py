@@ -8,7 +8,6 @@ and/or flags that override single values in the FMU's names::
     --kinetic viscous --set kinetic.F0=0.5 --set kinetic.gamma=0.3 --set M=2 --set F_ext=0.1
 """
 
-import json
 import math
 import tomllib
 from pathlib import Path
@@ -16,6 +15,7 @@ from pathlib import Path
 from ..core import Parameters
 from ..core.errors import ParameterError, StickSlipError
 from ..core.laws import KINETIC_LAWS, STATIC_LAWS
+from ..analysis.json_output import write_json
 
 _DEFAULT_MODEL = {"M": (1.0, "kg"), "kappa": (1.0, "N/m")}  # name -> (default, unit)
 
@@ -36,7 +36,7 @@ def _law_list(laws):
 
 def add_model_arguments(p):
     g = p.add_argument_group("model (a preset or scenario file, then single overrides)")
-    g.add_argument("--preset", help="named parameter set (stickslip.scenario.PRESETS), e.g. elmer-fig3")
+    g.add_argument("--preset", help="named parameter set (stickslip.suite.scenario.PRESETS), e.g. elmer-fig3")
     g.add_argument("--scenario", metavar="FILE", help="TOML file with [model], [kinetic], [static] "
                    "(or a preset) and optionally a constant [inputs.F_ext]")
     g.add_argument("--kinetic", metavar="LAW", help=f"kinetic law name or code ({_law_list(KINETIC_LAWS)})")
@@ -65,7 +65,7 @@ def model_from_args(args, report=print):
     Values nobody gave (``M``, ``kappa`` and law parameters left to their defaults)
     are passed to ``report`` as one line, so a run says which numbers it used.
     """
-    from ..scenario import PRESETS
+    from ..suite.scenario import PRESETS
 
     model, kin, sta, F_ext = {}, {}, {}, 0.0
     if args.preset:
@@ -149,7 +149,7 @@ def add_scan_arguments(p, v_min=0.01, v_max=1.2, n=400):
 
 
 def _executor(args):
-    from .scan import Executor
+    from ..analysis.scan import Executor
 
     return Executor(jobs=args.jobs, scheduler=args.scheduler)
 
@@ -158,20 +158,6 @@ def _out_dir(args):
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     return out
-
-
-def _json(obj):
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if isinstance(obj, dict):
-        return {k: _json(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json(v) for v in obj]
-    return obj
-
-
-def write_json(path, obj):
-    Path(path).write_text(json.dumps(_json(obj), indent=2) + "\n")
 
 
 # ----------------------------------------------------------------------
@@ -190,7 +176,7 @@ def add_vc(subparsers):
 def _vc(args):
     import numpy as np
 
-    from .critical import critical_velocities, default_scan_range, from_changes
+    from ..analysis.critical import critical_velocities, default_scan_range, from_changes
 
     params, F_ext = model_from_args(args)
     default = default_scan_range(params, F_ext)
@@ -205,7 +191,7 @@ def _vc(args):
             result = critical_velocities(params, v_min, v_max, args.points, F_ext, tol=args.tol,
                                          scan=lambda p, grid: ex.margins(p, grid, F_ext))
     else:  # aging: stick-slip is a fixed point of the stick-slip map
-        from . import aging_map as am
+        from ..analysis import aging_map as am
 
         grid = np.linspace(v_min, v_max, args.points)
         fps = am.fixed_points_scan(params, grid, F_ext)
@@ -225,7 +211,7 @@ def _vc(args):
                                  "changes": [{"v_drive": v, "change": w, "kind": k} for v, w, k in result.changes]})
     written = [out / "vc.json"]
     if params.static.is_constant():
-        from .plots import plot_margin
+        from ..analysis.plots import plot_margin
 
         plot_margin(out / "margin.png", params, result, F_ext)
         written.append(out / "margin.png")
@@ -252,7 +238,7 @@ def add_bifurcation(subparsers):
 
 
 def _bifurcation(args):
-    from .bifurcation import bifurcation_diagram, write_outputs
+    from ..analysis.bifurcation import bifurcation_diagram, write_outputs
 
     params, F_ext = model_from_args(args)
     if not 0.0 < args.v_min < args.v_max or args.points < 2:
@@ -303,8 +289,8 @@ def add_map(subparsers):
 def _map(args):
     import numpy as np
 
-    from . import aging_map as am
-    from .plots import plot_fixed_points, plot_map, plot_orbit_diagram
+    from ..analysis import aging_map as am
+    from ..analysis.plots import plot_fixed_points, plot_map, plot_orbit_diagram
 
     params, F_ext = model_from_args(args)
     natural = (params.static.force(0.0) + abs(F_ext)) / math.sqrt(params.kappa * params.M)
@@ -357,7 +343,7 @@ def _map(args):
 
 
 def _orbit_chunk(params, grid, F_ext, transient, keep):
-    from .aging_map import orbit_diagram
+    from ..analysis.aging_map import orbit_diagram
 
     return orbit_diagram(params, grid, F_ext, transient, keep)
 
@@ -381,8 +367,8 @@ def add_slow_manifold(subparsers):
 def _slow_manifold(args):
     import numpy as np
 
-    from .overdamped import relaxation_run, slow_manifold
-    from .plots import plot_slow_manifold
+    from ..analysis.overdamped import relaxation_run, slow_manifold
+    from ..analysis.plots import plot_slow_manifold
 
     params, F_ext = model_from_args(args)
     v_drive = _v_drive(args)
@@ -422,8 +408,8 @@ def _chart(args):
 
     import numpy as np
 
-    from .plots import plot_chart
-    from .scan import stability_chart
+    from ..analysis.plots import plot_chart
+    from ..analysis.scan import stability_chart
 
     params, F_ext = model_from_args(args)
     try:

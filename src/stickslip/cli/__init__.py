@@ -6,12 +6,13 @@ sets ``handler``, a function of the parsed arguments returning the exit code.
 
 import argparse
 import sys
+from pathlib import Path
 
-from .bench.cli import add_bench_parser
-from .bench.versus import add_versus_parser
-from .analysis.cli import add_bifurcation, add_chart, add_map, add_slow_manifold, add_vc
-from .core.errors import StickSlipError
-from .stress.cli import add_stress_parser
+from ..bench.versus import add_versus_parser
+from ..core.errors import StickSlipError
+from .analysis import add_bifurcation, add_chart, add_map, add_slow_manifold, add_vc
+from .bench import add_bench_parser
+from .stress import add_stress_parser
 
 
 def add_run(subparsers):
@@ -27,27 +28,28 @@ def add_run(subparsers):
 
 
 def _run(args):
-    from .runner import run_suite
+    from ..suite.runner import run_suite
 
     return 0 if run_suite(args.paths, args.out, jobs=args.jobs, fmu_path=args.fmu, interface=args.interface).ok else 1
 
 
-def add_build_fmu(subparsers):
-    p = subparsers.add_parser("build-fmu", help="build dist/SpringBlockFriction.fmu and dist/SpringBlockFriction-fmi3.fmu "
-                                                "if missing or stale")
-    p.set_defaults(handler=_build_fmu)
+def add_build(subparsers):
+    p = subparsers.add_parser("build", aliases=["build-fmu"],
+                              help="build SpringBlockFriction.fmu (FMI 2) and SpringBlockFriction-fmi3.fmu (FMI 3) "
+                                   "into DIR if missing or stale, and print their paths")
+    p.add_argument("--out", metavar="DIR", default="dist", help="output folder (default: dist)")
+    p.set_defaults(handler=_build)
 
 
-def _build_fmu(args):
-    from .fmu3_driver import ensure_fmu3
-    from .fmu_driver import ensure_fmu
+def _build(args):
+    from ..fmu import FILE_NAMES, FMI_VERSIONS, ensure_fmu
 
-    print(ensure_fmu())
-    print(ensure_fmu3())
+    for version in FMI_VERSIONS:
+        print(ensure_fmu((Path(args.out) / FILE_NAMES[version]).resolve(), version))
     return 0
 
 
-COMMANDS = (add_run, add_build_fmu, add_bench_parser, add_versus_parser,
+COMMANDS = (add_run, add_build, add_bench_parser, add_versus_parser,
             add_bifurcation, add_vc, add_map, add_slow_manifold, add_chart, add_stress_parser)
 
 

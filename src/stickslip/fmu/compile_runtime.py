@@ -1,7 +1,7 @@
 """Compile the runtime's hot modules ahead of time with mypyc, from their Python sources.
 
 Used at build time only, without importing ``stickslip`` (``setup.py`` loads this file by
-path): by ``setup.py`` for the installed package, and by :mod:`stickslip.fmu_staging` for
+path): by ``setup.py`` for the installed package, and by :mod:`stickslip.fmu.staging` for
 the FMU's renamed copy (compiled under its final name ``sbf_runtime_<tag>``). mypyc makes
 one shared library for the group (``<hash>__mypyc``, a top-level module) and a small
 extension module per compiled module. The list of modules and the freshness stamp are
@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-_spec = importlib.util.spec_from_file_location("_implementation", HERE / "core" / "_implementation.py")
+_spec = importlib.util.spec_from_file_location("_implementation", HERE.parent / "core" / "_implementation.py")
 implementation = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(implementation)
 COMPILED_MODULES = implementation.COMPILED_MODULES
@@ -55,7 +55,8 @@ def compile_in_place(root, package):
     package_dir = Path(root) / package
     remove_compiled(root, package_dir)
     script = (
-        f"import sys; sys.path.insert(0, {str(HERE)!r}); import compile_runtime as c; "
+        f"import importlib.util as u; s = u.spec_from_file_location('compile_runtime', {str(Path(__file__).resolve())!r}); "
+        f"c = u.module_from_spec(s); s.loader.exec_module(c); "
         f"from setuptools import setup; "
         f"setup(ext_modules=c.extensions({package!r}), script_args=['build_ext', '--inplace', '--quiet'])"
     )

@@ -1,4 +1,5 @@
-"""The ``bench`` command: ``add_bench_parser(subparsers)`` adds it, ``run_bench(args)`` runs it."""
+"""``stickslip bench``: the work-precision benchmark (:mod:`stickslip.bench`); ``add_bench_parser(subparsers)`` adds
+it, ``run_bench(args)`` runs it."""
 
 import sys
 
@@ -26,15 +27,14 @@ def run_bench(args):
     import numpy
     import scipy
 
-    from ..fmu3_driver import ensure_fmu3
-    from ..fmu_driver import ensure_fmu
-    from .c_host import ensure_host
-    from .fmus import BUILD_DIR, ExtractedFMU, ensure_floor_fmu
-    from .harness import run_scenes
-    from .implementations import compiled_vs_pure
-    from .report import markdown, plot, write_json
-    from .runtimes import ensure_pure_fmu
-    from .scenes import select_scenes
+    from ..bench.c_host import ensure_host
+    from ..bench.fmus import BUILD_DIR, ExtractedFMU, ensure_floor_fmu
+    from ..bench.harness import run_scenes
+    from ..bench.implementations import compiled_vs_pure
+    from ..bench.report import markdown, plot, write_json
+    from ..bench.runtimes import ensure_pure_fmu
+    from ..bench.scenes import select_scenes
+    from ..fmu import ensure_fmu
 
     try:
         scenes = select_scenes(args.scenes, args.quick)
@@ -51,7 +51,7 @@ def run_bench(args):
         "quick": args.quick,
     }
     fmu_path = Path(args.fmu) if args.fmu else ensure_fmu()
-    fmu3_path = Path(args.fmu3) if args.fmu3 else ensure_fmu3()
+    fmu3_path = Path(args.fmu3) if args.fmu3 else ensure_fmu(fmi_version=3)
     with ExtractedFMU(fmu_path) as fmu, ExtractedFMU(ensure_floor_fmu()) as floor, ExtractedFMU(fmu3_path) as fmu3, \
             ExtractedFMU(ensure_pure_fmu(BUILD_DIR)) as pure_fmu:
         records = run_scenes(scenes, fmu, floor, ensure_host(), fmu3, pure_fmu)

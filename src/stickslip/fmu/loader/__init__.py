@@ -5,6 +5,6 @@ with the system C compiler when an FMU is built (:func:`install`); see their hea
 run time.
 """
 
-from .build import LIBPYTHON_VARIABLE, SOURCES, install
+from .install import LIBPYTHON_VARIABLE, SOURCES, install
 
 __all__ = ["LIBPYTHON_VARIABLE", "SOURCES", "install"]

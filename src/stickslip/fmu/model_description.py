@@ -1,0 +1,102 @@
+"""Complete the model description that PythonFMU (FMI 2) or pythonfmu3 (FMI 3) writes.
+
+The libraries write names, causalities and start values. :func:`complete` adds what an importer needs: units
+and declared types, the bounds the slave checks (``min``/``max``), a DefaultExperiment and, for FMI 2, the
+ModelStructure's Outputs and InitialUnknowns.
+"""
+
+from xml.etree import ElementTree as ET
+
+DEFAULT_EXPERIMENT = {"startTime": "0.0", "stopTime": "100.0", "tolerance": "1e-10"}
+
+# unit as the slave states it -> (FMI unit name, declared type, exponents of the SI base units)
+UNITS = {
+    "kg": ("kg", "Mass", {"kg": 1}),
+    "m": ("m", "Position", {"m": 1}),
+    "m/s": ("m/s", "Velocity", {"m": 1, "s": -1}),
+    "s": ("s", "Time", {"s": 1}),
+    "N": ("N", "Force", {"kg": 1, "m": 1, "s": -2}),
+    "N/m": ("N/m", "TranslationalSpringConstant", {"kg": 1, "s": -2}),
+    "N s/m": ("N.s/m", "TranslationalDampingConstant", {"kg": 1, "s": -1}),
+    "m/s2": ("m/s2", "Acceleration", {"m": 1, "s": -2}),
+}
+DIMENSIONLESS = ("", "1")
+
+
+class ModelDescriptionError(RuntimeError):
+    """The slave declares something the model description cannot state."""
+
+
+def complete(xml, units, bounds, fmi_version):
+    """``xml`` (the library's model description, bytes) completed; ``units``/``bounds``: {variable name: unit
+    as the slave states it / (min, max) with None for an open end}."""
+    root = ET.fromstring(xml)
+    variables = root.find("ModelVariables")
+    if fmi_version == 2:
+        used = _annotate(variables, units, bounds, lambda variable: variable[0])
+        _insert_definitions(root, used, _add_simple_type)
+        _fmi2_structure(root.find("ModelStructure"), variables)
+    else:
+        used = _annotate(variables, units, bounds, lambda variable: variable)
+        for old in root.findall("UnitDefinitions") + root.findall("TypeDefinitions"):
+            root.remove(old)
+        _insert_definitions(root, used, _add_float64_type)
+    ET.indent(root)
+    return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+
+
+def _annotate(variables, units, bounds, element_of):
+    """Set declaredType, unit, min and max on ``element_of(variable)`` for each model variable; return the units
+    used, ``{unit: (FMI unit name, declared type, exponents)}``."""
+    used = {}
+    for variable in variables:
+        name = variable.get("name")
+        element = element_of(variable)
+        unit = units[name]
+        if unit not in DIMENSIONLESS:
+            if unit not in UNITS:
+                raise ModelDescriptionError(f"variable {name} has the unit {unit!r}, which the builder does not know")
+            fmi_unit, declared, _ = used[unit] = UNITS[unit]
+            element.set("declaredType", declared)
+            element.set("unit", fmi_unit)
+        for key, bound in zip(("min", "max"), bounds[name]):
+            if bound is not None:
+                element.set(key, repr(bound) if element.tag in ("Real", "Float64") else str(int(bound)))
+    return used
+
+
+def _insert_definitions(root, used, add_type):
+    """Insert UnitDefinitions and TypeDefinitions of the ``used`` units after the CoSimulation element, each type
+    added by ``add_type(type_definitions, declared type, FMI unit)``; and the DefaultExperiment."""
+    unit_definitions = ET.Element("UnitDefinitions")
+    type_definitions = ET.Element("TypeDefinitions")
+    for fmi_unit, declared, exponents in sorted(used.values(), key=lambda entry: entry[1]):
+        unit = ET.SubElement(unit_definitions, "Unit", name=fmi_unit)
+        ET.SubElement(unit, "BaseUnit", {k: str(e) for k, e in exponents.items()})
+        add_type(type_definitions, declared, fmi_unit)
+    position = list(root).index(root.find("CoSimulation")) + 1
+    root.insert(position, unit_definitions)
+    root.insert(position + 1, type_definitions)
+    for old in root.findall("DefaultExperiment"):
+        root.remove(old)
+    root.insert(list(root).index(root.find("ModelVariables")), ET.Element("DefaultExperiment", DEFAULT_EXPERIMENT))
+
+
+def _add_simple_type(type_definitions, declared, fmi_unit):
+    simple = ET.SubElement(type_definitions, "SimpleType", name=declared)
+    ET.SubElement(simple, "Real", quantity=declared, unit=fmi_unit)
+
+
+def _add_float64_type(type_definitions, declared, fmi_unit):
+    ET.SubElement(type_definitions, "Float64Type", name=declared, quantity=declared, unit=fmi_unit)
+
+
+def _fmi2_structure(structure, variables):
+    """FMI 2's ModelStructure: every output in Outputs and InitialUnknowns (dependencies omitted: an output may
+    depend on every input)."""
+    structure.clear()
+    outputs = [str(i) for i, v in enumerate(variables, start=1) if v.get("causality") == "output"]
+    for section in ("Outputs", "InitialUnknowns"):
+        node = ET.SubElement(structure, section)
+        for index in outputs:
+            ET.SubElement(node, "Unknown", index=index)
