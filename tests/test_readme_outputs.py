@@ -1,40 +1,28 @@
-"""Every folder the README's commands write by default or by their --out is ignored by git (issue 11)."""
+"""Every folder the documented commands write by default or by their --out is ignored by git (issues 11, 18)."""
 
-import argparse
 import re
-from pathlib import Path
 
-from stickslip.cli import COMMANDS
-
-REPO = Path(__file__).resolve().parents[1]
-
-
-def _ignored():
-    return {line.strip() for line in (REPO / ".gitignore").read_text().splitlines()}
+from test_docs import DOCUMENTS, command_parsers, ignored_folders
 
 
 def _default_outs():
-    parser = argparse.ArgumentParser()
-    subparsers = parser.add_subparsers()
-    for add in COMMANDS:
-        add(subparsers)
-    outs = {}
-    for name, sub in subparsers.choices.items():
-        for action in sub._actions:
-            if action.dest == "out" and action.default:
-                outs[name] = action.default
-    return outs
+    """``{command: its default --out folder}`` of the commands that have one."""
+    defaults = {name: parser.get_default("out") for name, parser in command_parsers().items()}
+    return {name: out for name, out in defaults.items() if out}
 
 
 def test_default_output_folders_are_ignored():
     outs = _default_outs()
     assert {"run", "bench", "bifurcation", "vc", "map", "slow-manifold", "chart"} <= set(outs)
-    missing = {name: out for name, out in outs.items() if f"{out.strip('/')}/" not in _ignored()}
+    missing = {name: out for name, out in outs.items() if out.strip("/") not in ignored_folders()}
     assert not missing, f"add to .gitignore: {missing}"
 
 
-def test_readme_out_folders_are_ignored():
-    outs = re.findall(r"stickslip \S+ .*--out (\S+)", (REPO / "README.md").read_text())
+def test_documented_out_folders_are_ignored():
+    """The ``--out`` folders of the commands in README.md, docs/ and benchmarks/README.md (not placeholders
+    such as ``DIR``)."""
+    found = [re.findall(r"stickslip \S+ .*--out ([^\s`\]]+)", document.read_text()) for document in DOCUMENTS]
+    outs = [out for per_document in found for out in per_document if not out.isupper()]
     assert len(outs) >= 4
-    missing = [out for out in outs if f"{out.strip('/').split('/')[0]}/" not in _ignored()]
+    missing = [out for out in outs if out.strip("/").split("/")[0] not in ignored_folders()]
     assert not missing, f"add to .gitignore: {missing}"
