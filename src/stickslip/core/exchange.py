@@ -21,7 +21,7 @@ discrete state between the host's calls.
                        because the extremum between them changes this sign.
                        Stuck phases have none: with constant inputs ``z_slip``
                        can dip below zero and back only where ``F_S`` is convex
-                       (saturating with F_inf < F0, parts of sigmoid), see README.
+                       (saturating with F_inf < F0, parts of sigmoid), see docs/fmi3.md.
 
 - :meth:`ExchangeBlock.update` is the event update: a stuck block breaks away
   when ``z_slip < 0``, or when ``z_slip = 0`` exactly and falling (the

@@ -1,7 +1,7 @@
 """Scenario files (TOML): load, validate, and turn into parameters, FMU start values and inputs.
 
 A malformed file raises :class:`ScenarioError` naming the file, the key and
-what was expected. The format is described in README.md ("Scenario file format").
+what was expected. The format is described in docs/scenarios.md.
 """
 
 import re
