@@ -11,7 +11,7 @@ smooth as long as ``s v_rel > 0``; past ``v_rel = 0`` it is continued smoothly
 (``F_K`` by its tangent at 0), so grazing margins are continuous functions.
 
 :func:`run` integrates a batch with the 8th-order Dormand-Prince method
-(DOP853, the coefficients of :mod:`scipy.integrate`), vectorized over the
+(DOP853, the coefficients of :mod:`.dop853_tableau`), vectorized over the
 batch with one adaptive step size per member, forward or backward in time.
 Along the way it reports, exactly, the events every tool needs:
 
@@ -32,15 +32,10 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate._ivp import dop853_coefficients as _dop
 
+from .dop853_tableau import A, B, E3, E5, N_STAGES
 from .kinetic import Kinetic
 
-_NS = 12
-_A = _dop.A[:_NS, :_NS]
-_B = _dop.B
-_E3 = _dop.E3
-_E5 = _dop.E5
 _SAFETY, _MIN_FACTOR, _MAX_FACTOR = 0.9, 0.2, 10.0
 _STEPS_PER_PERIOD = 16
 
@@ -100,23 +95,23 @@ class System:
 def _dop853(sys, y, v, fy, fv, h):
     """One DOP853 step of size ``h`` (array) for every member; returns the new state, slopes and K."""
     n = y.shape[0]
-    Ky = np.empty((_NS + 1, n))
-    Kv = np.empty((_NS + 1, n))
+    Ky = np.empty((N_STAGES + 1, n))
+    Kv = np.empty((N_STAGES + 1, n))
     Ky[0], Kv[0] = fy, fv
-    for s in range(1, _NS):
-        a = _A[s, :s]
+    for s in range(1, N_STAGES):
+        a = A[s, :s]
         Ky[s], Kv[s] = sys.rhs(y + h * (a @ Ky[:s]), v + h * (a @ Kv[:s]))
-    y1 = y + h * (_B @ Ky[:_NS])
-    v1 = v + h * (_B @ Kv[:_NS])
-    Ky[_NS], Kv[_NS] = sys.rhs(y1, v1)
+    y1 = y + h * (B @ Ky[:N_STAGES])
+    v1 = v + h * (B @ Kv[:N_STAGES])
+    Ky[N_STAGES], Kv[N_STAGES] = sys.rhs(y1, v1)
     return y1, v1, Ky, Kv
 
 
 def _error_norm(y, v, y1, v1, Ky, Kv, h, rtol, atol_y, atol_v):
     sy = atol_y + rtol * np.maximum(np.abs(y), np.abs(y1))
     sv = atol_v + rtol * np.maximum(np.abs(v), np.abs(v1))
-    e5 = (_E5 @ Ky / sy) ** 2 + (_E5 @ Kv / sv) ** 2
-    e3 = (_E3 @ Ky / sy) ** 2 + (_E3 @ Kv / sv) ** 2
+    e5 = (E5 @ Ky / sy) ** 2 + (E5 @ Kv / sv) ** 2
+    e3 = (E3 @ Ky / sy) ** 2 + (E3 @ Kv / sv) ** 2
     denom = e5 + 0.01 * e3
     with np.errstate(invalid="ignore", divide="ignore"):
         err = np.abs(h) * e5 / np.sqrt(denom * 2.0)
@@ -126,7 +121,7 @@ def _error_norm(y, v, y1, v1, Ky, Kv, h, rtol, atol_y, atol_v):
 def _substate(sys, y, v, fy, fv, tau):
     """State at step length ``tau`` from ``(y, v)``: a fresh DOP853 step (exact to the method's order)."""
     y1, v1, Ky, Kv = _dop853(sys, y, v, fy, fv, tau)
-    return y1, v1, Kv[_NS] * sys.dirn  # physical acceleration at the end
+    return y1, v1, Kv[N_STAGES] * sys.dirn  # physical acceleration at the end
 
 
 def _event_value(kind, sys, y, v, a):
@@ -239,7 +234,7 @@ def run(params, x0, v0, v_drive, F_ext=0.0, mode=1, *, backward=False, rtol=1e-1
         stop = np.zeros(idx.size, bool)
         if ok.any():
             k = np.flatnonzero(ok)
-            fy1, fv1 = Ky[_NS], Kv[_NS]
+            fy1, fv1 = Ky[N_STAGES], Kv[N_STAGES]
             ended = _events(sys, k, idx, y, v, fy, fv, y1, v1, fv1, h, t, first, records, stop_at_cross, policy)
             stop[k] = ended
             go = k[~ended]
