@@ -1,4 +1,5 @@
-"""Every friction law, in the runtime (``core``) and in the reference, pinned against SPEC section 2.
+"""Every friction law, in the runtime (``core``) and in the reference, pinned against SPEC section 2; and the
+kinetic laws of the analysis (:mod:`stickslip.analysis.kinetic`, the same formulas on numpy arrays).
 
 The SPEC formulas are written out here once more; each law is evaluated at many
 points across each branch (below, at and above its characteristic speed or
@@ -11,8 +12,10 @@ fails here (it changes the values by far more than the 1e-12 allowed).
 
 import math
 
+import numpy as np
 import pytest
 
+from stickslip.analysis.kinetic import Kinetic
 from stickslip.core import kinetic_law, static_law
 from stickslip.reference import laws as reference_laws
 
@@ -27,6 +30,20 @@ def spec_kinetic(name, p, u):
         return p["F0"] + p["F_stribeck"] * math.exp(-((u / p["v_stribeck"]) ** p["delta"])) + p["gamma"] * u
     g1, g2, vt, dv = p["gamma1"], p["gamma2"], p["v_tilde"], p["dv"]
     return u * (g1 + g2 + (g2 - g1) * (u - vt) / math.sqrt(dv**2 + (u - vt) ** 2)) / 2
+
+
+def spec_kinetic_slope(name, p, u):
+    """``F_K'(u)`` (N s/m): SPEC section 2's formula differentiated by hand."""
+    if name == "coulomb":
+        return 0.0
+    if name == "viscous":
+        return p["gamma"]
+    if name == "stribeck":
+        s, d = u / p["v_stribeck"], p["delta"]
+        return p["gamma"] - p["F_stribeck"] * d * s ** (d - 1) * math.exp(-(s**d)) / p["v_stribeck"]
+    g1, g2, vt, dv = p["gamma1"], p["gamma2"], p["v_tilde"], p["dv"]
+    root = math.sqrt(dv**2 + (u - vt) ** 2)
+    return (g1 + g2) / 2 + (g2 - g1) / 2 * ((u - vt) / root + u * dv**2 / root**3)
 
 
 def spec_static(name, p, t):
@@ -215,3 +232,30 @@ def test_affine_is_reported_exactly_when_the_law_is_affine(build, name, p, scale
             assert F0 + gamma * u == pytest.approx(spec_kinetic(name, p, u), rel=1e-14, abs=1e-15)
     elif name == "stribeck" or coefficients is not None:
         assert coefficients is None or p.get("gamma1") == p.get("gamma2")
+
+
+def analysis_speeds(scale):
+    """Speeds (m/s) for the analysis's laws: the points of every branch and a fine grid up to 5 ``scale``."""
+    return np.unique(np.concatenate([points(scale), np.linspace(0.0, 5.0 * scale, 401)]))
+
+
+@KINETIC_CASES
+def test_analysis_kinetic_force_and_slope_are_the_spec_formulas(name, p, scale):
+    """The analysis evaluates whole arrays of speeds at once, in its own numpy copy of the formulas."""
+    law = Kinetic(kinetic_law(name, **p))
+    u = analysis_speeds(scale)
+    assert law.force(u) == pytest.approx([spec_kinetic(name, p, w) for w in u], rel=1e-13, abs=1e-15)
+    assert law.slope(u) == pytest.approx([spec_kinetic_slope(name, p, w) for w in u], rel=1e-13, abs=1e-15)
+
+
+@KINETIC_CASES
+def test_analysis_kinetic_is_continued_by_its_tangent_at_zero_below_zero(name, p, scale):
+    """Below ``u = 0`` (the smooth continuation of a slip past ``v_rel = 0``): ``F_K(0) + F_K'(0) u``."""
+    law = Kinetic(kinetic_law(name, **p))
+    below = -analysis_speeds(scale)[1:]
+    u = np.concatenate([below, analysis_speeds(scale)])
+    F0, slope0 = spec_kinetic(name, p, 0.0), spec_kinetic_slope(name, p, 0.0)
+    expected_force = [F0 + slope0 * w if w < 0.0 else spec_kinetic(name, p, w) for w in u]
+    expected_slope = [slope0 if w < 0.0 else spec_kinetic_slope(name, p, w) for w in u]
+    assert law.force(u) == pytest.approx(expected_force, rel=1e-13, abs=1e-15)
+    assert law.slope(u) == pytest.approx(expected_slope, rel=1e-13, abs=1e-15)

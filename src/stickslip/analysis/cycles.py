@@ -151,52 +151,43 @@ def cycle_at(rmap, sigma0, v_drive, tol=1e-12, max_iter=30):
 
 
 class _Walker:
-    """State of one branch direction under continuation."""
+    """One branch direction under continuation: the point ``z = (sigma, v_drive)`` (m/s), the unit tangent
+    ``t``, the arclength step ``h`` (m/s), the index of its start, how it ended (``done``, "" while it runs), its
+    accepted steps and its last accepted ``(z, values, G_sigma, G_v)``."""
 
-    def __init__(self, z, t, h, branch, side):
+    def __init__(self, z, t, h, branch):
         self.z, self.t, self.h = np.array(z, float), np.array(t, float), h
-        self.branch, self.side = branch, side
+        self.branch = branch
         self.done = ""
         self.steps = 0
-        self.last = None  # previous accepted (z, values, gs, gv)
+        self.last = None
 
 
-def continue_branches(rmap, starts, v_min, v_max, h0=None, h_max=None, max_steps=400, sigma_min=None):
-    """Pseudo-arclength continuation from ``starts``: ``[(sigma, v_drive, tangent (ds, dv)), ...]``.
+@dataclass
+class _Continuation:
+    """One pseudo-arclength continuation: the return map, the velocity scale (m/s), the largest step and the
+    smallest ``sigma`` (m/s), the range of ``v_drive`` (m/s) and the number of steps a walker may take."""
 
-    Each start is followed in the direction of its tangent until the branch
-    grazes (``v_max >= v_drive``), shrinks into continuous sliding (``sigma <
-    sigma_min``), leaves ``[v_min, v_max]`` or runs out of steps. Returns, for each
-    start, the list of accepted ``(sigma, v_drive, values, G_sigma, G_v)``.
-    """
-    scale = max(abs(v_max), abs(v_min), 1e-6)
-    h0 = 0.01 * scale if h0 is None else h0
-    h_max = 0.08 * scale if h_max is None else h_max
-    sigma_min = 1e-4 * scale if sigma_min is None else sigma_min
-    walkers = []
-    for k, (s, v, t) in enumerate(starts):
-        t = np.array(t, float)
-        walkers.append(_Walker((s, v), t / np.linalg.norm(t), h0, k, 0))
-    paths = [[] for _ in starts]
-    # the starting points themselves
-    vals, gs, gv = rmap.with_gradient([w.z[0] for w in walkers], [w.z[1] for w in walkers])
-    for i, w in enumerate(walkers):
-        w.last = (w.z.copy(), {k: a[i] for k, a in vals.items()}, gs[i], gv[i])
-        paths[w.branch].append(w.last)
-    while True:
-        live = [w for w in walkers if not w.done]
-        if not live:
-            break
-        preds = [w.z + w.h * w.t for w in live]
+    rmap: ReturnMap
+    scale: float
+    h_max: float
+    sigma_min: float
+    v_min: float
+    v_max: float
+    max_steps: int
+
+    def correct(self, live, preds):
+        """Newton corrector of every walker at once from its predicted point; for each, ``(values, G_sigma,
+        G_v, z)`` at its last evaluated point (within 1e-9 of the branch), or None if it did not converge."""
         zs = [p.copy() for p in preds]
         converged = [False] * len(live)
         failed = [False] * len(live)
         info = [None] * len(live)
-        for it in range(8):
+        for _ in range(8):
             idx = [i for i in range(len(live)) if not converged[i] and not failed[i]]
             if not idx:
                 break
-            vals, gs, gv = rmap.with_gradient([zs[i][0] for i in idx], [zs[i][1] for i in idx])
+            vals, gs, gv = self.rmap.with_gradient([zs[i][0] for i in idx], [zs[i][1] for i in idx])
             for n, i in enumerate(idx):
                 w = live[i]
                 g, a, b = vals["G"][n], gs[n], gv[n]
@@ -212,37 +203,72 @@ def continue_branches(rmap, starts, v_min, v_max, h0=None, h_max=None, max_steps
                     continue
                 info[i] = ({k: arr[n] for k, arr in vals.items()}, a, b, zs[i].copy())
                 zs[i] = zs[i] + d
-                if np.hypot(*d) <= 1e-9 * scale:
+                if np.hypot(*d) <= 1e-9 * self.scale:
                     converged[i] = True
                 elif np.hypot(*d) > 0.5 * w.h + 1e-12:
                     failed[i] = True
-        for i, w in enumerate(live):
-            if not converged[i] or info[i] is None or not np.isfinite(info[i][0]["G"]):
-                w.h *= 0.5
-                if w.h < 1e-7 * scale:
-                    w.done = "lost"
-                continue
-            values, a, b, z = info[i]  # the last evaluated point: within 1e-9 of the branch
-            t_new = np.array([-b, a])
-            t_new /= np.linalg.norm(t_new)
-            if t_new @ w.t < 0.0:
-                t_new = -t_new
-            if t_new @ w.t < math.cos(_MAX_TURN) and w.h > 1e-4 * scale:
-                w.h *= 0.5  # the branch bends: take a shorter step
-                continue
-            w.z, w.t = z, t_new
-            w.last = (z.copy(), values, a, b)
-            paths[w.branch].append(w.last)
-            w.steps += 1
-            w.h = min(w.h * 1.4, h_max)
-            if values["v_max"] >= z[1]:
-                w.done = "grazing"
-            elif z[0] < sigma_min:
-                w.done = "hopf"
-            elif not v_min <= z[1] <= v_max:
-                w.done = "range"
-            elif w.steps >= max_steps:
-                w.done = "steps"
+        return [found if ok else None for found, ok in zip(info, converged)]
+
+    def advance(self, w, found):
+        """Accept the corrected point ``found`` of walker ``w`` (True), or shorten its step (False); mark the
+        walker done where its branch grazes, shrinks into a Hopf point, leaves the range or runs out of steps."""
+        if found is None or not np.isfinite(found[0]["G"]):
+            w.h *= 0.5
+            if w.h < 1e-7 * self.scale:
+                w.done = "lost"
+            return False
+        values, a, b, z = found
+        t_new = np.array([-b, a])
+        t_new /= np.linalg.norm(t_new)
+        if t_new @ w.t < 0.0:
+            t_new = -t_new
+        if t_new @ w.t < math.cos(_MAX_TURN) and w.h > 1e-4 * self.scale:
+            w.h *= 0.5  # the branch bends: take a shorter step
+            return False
+        w.z, w.t = z, t_new
+        w.last = (z.copy(), values, a, b)
+        w.steps += 1
+        w.h = min(w.h * 1.4, self.h_max)
+        if values["v_max"] >= z[1]:
+            w.done = "grazing"
+        elif z[0] < self.sigma_min:
+            w.done = "hopf"
+        elif not self.v_min <= z[1] <= self.v_max:
+            w.done = "range"
+        elif w.steps >= self.max_steps:
+            w.done = "steps"
+        return True
+
+
+def continue_branches(rmap, starts, v_min, v_max, h0=None, h_max=None, max_steps=400, sigma_min=None):
+    """Pseudo-arclength continuation from ``starts``: ``[(sigma, v_drive, tangent (ds, dv)), ...]``.
+
+    Each start is followed in the direction of its tangent until the branch
+    grazes (``v_max >= v_drive``), shrinks into continuous sliding (``sigma <
+    sigma_min``), leaves ``[v_min, v_max]`` or runs out of steps. Returns, for each
+    start, the list of accepted ``(sigma, v_drive, values, G_sigma, G_v)``.
+    """
+    scale = max(abs(v_max), abs(v_min), 1e-6)
+    h0 = 0.01 * scale if h0 is None else h0
+    cont = _Continuation(rmap, scale, 0.08 * scale if h_max is None else h_max,
+                         1e-4 * scale if sigma_min is None else sigma_min, v_min, v_max, max_steps)
+    walkers = []
+    for k, (s, v, t) in enumerate(starts):
+        t = np.array(t, float)
+        walkers.append(_Walker((s, v), t / np.linalg.norm(t), h0, k))
+    paths = [[] for _ in starts]
+    # the starting points themselves
+    vals, gs, gv = rmap.with_gradient([w.z[0] for w in walkers], [w.z[1] for w in walkers])
+    for i, w in enumerate(walkers):
+        w.last = (w.z.copy(), {k: a[i] for k, a in vals.items()}, gs[i], gv[i])
+        paths[w.branch].append(w.last)
+    while True:
+        live = [w for w in walkers if not w.done]
+        if not live:
+            break
+        for w, found in zip(live, cont.correct(live, [w.z + w.h * w.t for w in live])):
+            if cont.advance(w, found):
+                paths[w.branch].append(w.last)
     return paths, [w.done for w in walkers]
 
 
@@ -363,13 +389,28 @@ def sliding_cycles(params, v_min, v_max, F_ext=0.0, hopf=None, n_scan=40, rtol=1
     rmap = ReturnMap(params, F_ext, rtol)
     if hopf is None:
         hopf = hopf_points(params, v_min, v_max, F_ext)
+    starts, origins = _hopf_starts(rmap, hopf)
+    branches = []  # (Branch, path)
+    if starts:
+        paths, ends = continue_branches(rmap, starts, v_min, v_max, max_steps=max_steps)
+        for path, end, h in zip(paths, ends, origins):
+            b = Branch(_points(rmap, path), ends=("hopf", end), hopf=h)
+            branches.append((b, path))
+    _add_unreached_branches(rmap, branches, v_min, v_max, n_scan, max_steps)
+    _refine_folds_and_grazings(rmap, branches)
+    return [b for b, _ in branches]
+
+
+def _hopf_starts(rmap, hopf):
+    """Continuation starts ``(sigma, v_drive, tangent)`` on the cycles next to the Hopf points, and the points."""
+    kinetic = rmap.params.kinetic
     starts, origins = [], []
     for h in hopf:
         if h.side == 0:
             continue
         dv = 1e-3 * max(abs(h.v_drive), 1e-3)
         v = h.v_drive + h.side * dv
-        amp = h.amplitude(v, slope=params.kinetic.slope(v))
+        amp = h.amplitude(v, slope=kinetic.slope(v))
         if not math.isfinite(amp):
             continue
         c = cycle_at(rmap, amp * h.omega, v)
@@ -377,13 +418,11 @@ def sliding_cycles(params, v_min, v_max, F_ext=0.0, hopf=None, n_scan=40, rtol=1
             continue
         starts.append((c.sigma, c.v_drive, (c.sigma, 2.0 * (c.v_drive - h.v_drive))))
         origins.append(h)
-    branches = []
-    if starts:
-        paths, ends = continue_branches(rmap, starts, v_min, v_max, max_steps=max_steps)
-        for path, end, h in zip(paths, ends, origins):
-            b = Branch(_points(rmap, path), ends=("hopf", end), hopf=h)
-            branches.append((b, path))
-    # cycles the Hopf branches did not reach
+    return starts, origins
+
+
+def _add_unreached_branches(rmap, branches, v_min, v_max, n_scan, max_steps):
+    """Continue both ways from cycles of a coarse scan that no branch of ``branches`` covers (up to 6 more)."""
     found, _ = scan_cycles(rmap, np.linspace(v_min, v_max, n_scan))
     found = [f for f in found if f[0] < 1.05 * f[1]]  # velocity amplitude above v_drive: grazed long ago
     for _ in range(6):
@@ -402,6 +441,10 @@ def sliding_cycles(params, v_min, v_max, F_ext=0.0, hopf=None, n_scan=40, rtol=1
         path = paths[1][::-1] + paths[0][1:]
         b = Branch(_points(rmap, path), ends=(ends[1], ends[0]))
         branches.append((b, path))
+
+
+def _refine_folds_and_grazings(rmap, branches):
+    """Locate the folds (``dG/dsigma`` changes sign) and grazings (``v_max - v_drive`` does) along each path."""
     fold_guess, graze_guess = [], []
     for k, (b, path) in enumerate(branches):
         for j in range(1, len(path)):
@@ -415,7 +458,6 @@ def sliding_cycles(params, v_min, v_max, F_ext=0.0, hopf=None, n_scan=40, rtol=1
             for (k, _), pt in zip(guesses, refine(rmap, [z for _, z in guesses])):
                 if pt is not None:
                     getattr(branches[k][0], attr).append(pt)
-    return [b for b, _ in branches]
 
 
 def _covered(found, branches, rel=0.05):

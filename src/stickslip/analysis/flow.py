@@ -11,7 +11,7 @@ smooth as long as ``s v_rel > 0``; past ``v_rel = 0`` it is continued smoothly
 (``F_K`` by its tangent at 0), so grazing margins are continuous functions.
 
 :func:`run` integrates a batch with the 8th-order Dormand-Prince method
-(DOP853, the coefficients of :mod:`scipy.integrate`), vectorized over the
+(DOP853, the coefficients of :mod:`.dop853_tableau`), vectorized over the
 batch with one adaptive step size per member, forward or backward in time.
 Along the way it reports, exactly, the events every tool needs:
 
@@ -29,18 +29,14 @@ function's time derivative is known in closed form), to rounding.
 """
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate._ivp import dop853_coefficients as _dop
 
+from .dop853_tableau import A, B, E3, E5, N_STAGES
 from .kinetic import Kinetic
 
-_NS = 12
-_A = _dop.A[:_NS, :_NS]
-_B = _dop.B
-_E3 = _dop.E3
-_E5 = _dop.E5
 _SAFETY, _MIN_FACTOR, _MAX_FACTOR = 0.9, 0.2, 10.0
 _STEPS_PER_PERIOD = 16
 
@@ -100,23 +96,23 @@ class System:
 def _dop853(sys, y, v, fy, fv, h):
     """One DOP853 step of size ``h`` (array) for every member; returns the new state, slopes and K."""
     n = y.shape[0]
-    Ky = np.empty((_NS + 1, n))
-    Kv = np.empty((_NS + 1, n))
+    Ky = np.empty((N_STAGES + 1, n))
+    Kv = np.empty((N_STAGES + 1, n))
     Ky[0], Kv[0] = fy, fv
-    for s in range(1, _NS):
-        a = _A[s, :s]
+    for s in range(1, N_STAGES):
+        a = A[s, :s]
         Ky[s], Kv[s] = sys.rhs(y + h * (a @ Ky[:s]), v + h * (a @ Kv[:s]))
-    y1 = y + h * (_B @ Ky[:_NS])
-    v1 = v + h * (_B @ Kv[:_NS])
-    Ky[_NS], Kv[_NS] = sys.rhs(y1, v1)
+    y1 = y + h * (B @ Ky[:N_STAGES])
+    v1 = v + h * (B @ Kv[:N_STAGES])
+    Ky[N_STAGES], Kv[N_STAGES] = sys.rhs(y1, v1)
     return y1, v1, Ky, Kv
 
 
 def _error_norm(y, v, y1, v1, Ky, Kv, h, rtol, atol_y, atol_v):
     sy = atol_y + rtol * np.maximum(np.abs(y), np.abs(y1))
     sv = atol_v + rtol * np.maximum(np.abs(v), np.abs(v1))
-    e5 = (_E5 @ Ky / sy) ** 2 + (_E5 @ Kv / sv) ** 2
-    e3 = (_E3 @ Ky / sy) ** 2 + (_E3 @ Kv / sv) ** 2
+    e5 = (E5 @ Ky / sy) ** 2 + (E5 @ Kv / sv) ** 2
+    e3 = (E3 @ Ky / sy) ** 2 + (E3 @ Kv / sv) ** 2
     denom = e5 + 0.01 * e3
     with np.errstate(invalid="ignore", divide="ignore"):
         err = np.abs(h) * e5 / np.sqrt(denom * 2.0)
@@ -126,7 +122,7 @@ def _error_norm(y, v, y1, v1, Ky, Kv, h, rtol, atol_y, atol_v):
 def _substate(sys, y, v, fy, fv, tau):
     """State at step length ``tau`` from ``(y, v)``: a fresh DOP853 step (exact to the method's order)."""
     y1, v1, Ky, Kv = _dop853(sys, y, v, fy, fv, tau)
-    return y1, v1, Kv[_NS] * sys.dirn  # physical acceleration at the end
+    return y1, v1, Kv[N_STAGES] * sys.dirn  # physical acceleration at the end
 
 
 def _event_value(kind, sys, y, v, a):
@@ -195,123 +191,250 @@ def run(params, x0, v0, v_drive, F_ext=0.0, mode=1, *, backward=False, rtol=1e-1
     |F_ext|)/kappa``); ``x_shift`` (m) is subtracted from ``x`` for the
     integration, so that small oscillations about it are resolved relatively.
     """
-    x0, v0, vd, fe, md, bw = np.broadcast_arrays(*(np.asarray(a, float) for a in
-                                                  (x0, v0, v_drive, F_ext, mode, backward)))
-    n = x0.size
-    x0, v0, vd, fe, md, bw = (a.ravel().copy() for a in (x0, v0, vd, fe, md, bw))
-    M, kappa = params.M, params.kappa
-    omega0 = math.sqrt(kappa / M)
-    period0 = 2.0 * math.pi / omega0
-    if t_max is None:
-        t_max = 200.0 * period0
-    natural = (params.static.force(0.0) + np.abs(fe)) / kappa
-    scale = np.broadcast_to(np.asarray(natural if scale is None else scale, float), (n,)).copy()
-    xs = np.zeros(n) if x_shift is None else np.broadcast_to(np.asarray(x_shift, float), (n,)).copy()
-    dirn = np.where(bw > 0.0, -1.0, 1.0)
-    full = System(Kinetic(params.kinetic), M, kappa, vd, fe, md, dirn, xs)
-    records = [Record() for _ in range(n)]
-    h_max = period0 / _STEPS_PER_PERIOD
-    bound_x = escape * np.maximum(scale, np.abs(xs) + np.abs(x0 - xs) + 1e-300)
-    bound_v = escape * np.maximum(scale * omega0 + np.abs(vd), np.abs(v0) + 1e-300)
-
-    idx = np.arange(n)  # members still running
-    y = x0 - xs
-    v = v0.copy()
-    t = np.zeros(n)
-    sys = full
-    fy, fv = sys.rhs(y, v)
-    h = np.full(n, min(h_max, 0.01 * period0))
-    atol_y = rtol * scale
-    atol_v = rtol * scale * omega0
-    first = np.ones(n, bool)
-    steps = np.zeros(n, int)
-    rejected = np.zeros(n, int)
-    XM, Xm, VM, Vm = x0.copy(), x0.copy(), v0.copy(), v0.copy()
-
-    while idx.size:
-        y1, v1, Ky, Kv = _dop853(sys, y, v, fy, fv, h)
-        err = _error_norm(y, v, y1, v1, Ky, Kv, h, rtol, atol_y[idx], atol_v[idx])
-        ok = (err <= 1.0) & np.isfinite(y1) & np.isfinite(v1)
-        with np.errstate(divide="ignore"):
-            factor = np.where(err > 0.0, _SAFETY * err ** (-1.0 / 8.0), _MAX_FACTOR)
-        factor = np.clip(np.where(np.isfinite(factor), factor, _MIN_FACTOR), _MIN_FACTOR, _MAX_FACTOR)
-        h_next = np.minimum(h * np.where(ok, factor, np.minimum(factor, 1.0)), h_max)
-        stop = np.zeros(idx.size, bool)
-        if ok.any():
-            k = np.flatnonzero(ok)
-            fy1, fv1 = Ky[_NS], Kv[_NS]
-            ended = _events(sys, k, idx, y, v, fy, fv, y1, v1, fv1, h, t, first, records, stop_at_cross, policy)
-            stop[k] = ended
-            go = k[~ended]
-            t[go] += dirn[idx[go]] * h[go]
-            y[go], v[go], fy[go], fv[go] = y1[go], v1[go], fy1[go], fv1[go]
-            first[go] = False
-            steps[go] += 1
-            xg = y[go] + xs[idx[go]]
-            ig = idx[go]
-            XM[ig] = np.maximum(XM[ig], xg)
-            Xm[ig] = np.minimum(Xm[ig], xg)
-            VM[ig] = np.maximum(VM[ig], v[go])
-            Vm[ig] = np.minimum(Vm[ig], v[go])
-            over_t = np.abs(t[go]) >= t_max
-            escaped = (np.abs(y[go] + xs[idx[go]]) > bound_x[idx[go]]) | (np.abs(v[go]) > bound_v[idx[go]])
-            over_s = steps[go] >= max_steps
-            for j, reason in ((go[escaped], "escape"), (go[over_t & ~escaped], "time"),
-                              (go[over_s & ~over_t & ~escaped], "steps")):
-                for jj in j:
-                    r = records[idx[jj]]
-                    r.reason = reason
-                    r.t, r.x, r.v = t[jj], y[jj] + xs[idx[jj]], v[jj]
-                stop[j] = True
-        h = np.maximum(h_next, 1e-14 * period0)
-        rejected = np.where(ok, 0, rejected + 1)
-        stuck = (rejected > 60) & ~stop
-        for j in np.flatnonzero(stuck):
-            r = records[idx[j]]
-            r.reason, r.t, r.x, r.v = "fail", t[j], y[j] + xs[idx[j]], v[j]
-        stop |= stuck
+    starts = np.broadcast_arrays(*(np.asarray(a, float) for a in (x0, v0, v_drive, F_ext, mode, backward)))
+    batch = _Batch(params, [a.ravel().copy() for a in starts], rtol, scale, x_shift, t_max, escape, max_steps)
+    recorder = _Recorder([Record() for _ in range(batch.x0.size)], stop_at_cross, policy)
+    running = _Running.start(batch)
+    while running.idx.size:
+        stop = _step(batch, running, recorder)
         if stop.any():
-            keep = ~stop
-            idx, y, v, fy, fv, h, t = idx[keep], y[keep], v[keep], fy[keep], fv[keep], h[keep], t[keep]
-            first, steps, rejected = first[keep], steps[keep], rejected[keep]
-            sys = full.take(idx)
-    for i, r in enumerate(records):
-        r.x_max, r.x_min = max(r.x_max, XM[i]), min(r.x_min, Xm[i])
-        r.v_max, r.v_min = max(r.v_max, VM[i]), min(r.v_min, Vm[i])
-    return records
+            running.drop(stop, batch.system)
+    for i, r in enumerate(recorder.records):
+        r.x_max, r.x_min = max(r.x_max, batch.x_range[0][i]), min(r.x_min, batch.x_range[1][i])
+        r.v_max, r.v_min = max(r.v_max, batch.v_range[0][i]), min(r.v_min, batch.v_range[1][i])
+    return recorder.records
 
 
-def _events(sys, k, idx, y, v, fy, fv, y1, v1, fv1, h, t, first, records, stop_at_cross, policy):
+class _Batch:
+    """What stays fixed while a batch runs, per member in batch order: its dynamics, tolerances and limits;
+    and the largest and smallest ``x`` (m) and ``v`` (m/s) its accepted steps reached."""
+
+    def __init__(self, params, starts, rtol, scale, x_shift, t_max, escape, max_steps):
+        x0, v0, vd, fe, md, bw = starts
+        n = x0.size
+        M, kappa = params.M, params.kappa
+        omega0 = math.sqrt(kappa / M)
+        self.period0 = 2.0 * math.pi / omega0
+        self.t_max = 200.0 * self.period0 if t_max is None else t_max
+        self.max_steps = max_steps
+        natural = (params.static.force(0.0) + np.abs(fe)) / kappa
+        scale = np.broadcast_to(np.asarray(natural if scale is None else scale, float), (n,)).copy()
+        xs = np.zeros(n) if x_shift is None else np.broadcast_to(np.asarray(x_shift, float), (n,)).copy()
+        self.system = System(Kinetic(params.kinetic), M, kappa, vd, fe, md, np.where(bw > 0.0, -1.0, 1.0), xs)
+        self.x0, self.v0 = x0, v0
+        self.h_max = self.period0 / _STEPS_PER_PERIOD
+        self.bound_x = escape * np.maximum(scale, np.abs(xs) + np.abs(x0 - xs) + 1e-300)
+        self.bound_v = escape * np.maximum(scale * omega0 + np.abs(vd), np.abs(v0) + 1e-300)
+        self.rtol = rtol
+        self.atol_y = rtol * scale
+        self.atol_v = rtol * scale * omega0
+        self.x_range = (x0.copy(), x0.copy())  # (largest, smallest)
+        self.v_range = (v0.copy(), v0.copy())
+
+    def extend_ranges(self, members, x, v):
+        """Widen the ranges of ``members`` (batch indices) by their states ``x`` (m), ``v`` (m/s)."""
+        (XM, Xm), (VM, Vm) = self.x_range, self.v_range
+        XM[members] = np.maximum(XM[members], x)
+        Xm[members] = np.minimum(Xm[members], x)
+        VM[members] = np.maximum(VM[members], v)
+        Vm[members] = np.minimum(Vm[members], v)
+
+
+@dataclass
+class _Running:
+    """The members still running (``idx``: their batch indices) and their state: ``y = x - x_shift`` (m),
+    ``v`` (m/s), the right-hand side ``(fy, fv)`` there, the next step length ``h`` (s), the time ``t`` along
+    the run (s), whether no step was accepted yet, accepted steps and rejections in a row; ``sys`` their
+    dynamics."""
+
+    idx: np.ndarray
+    y: np.ndarray
+    v: np.ndarray
+    fy: np.ndarray
+    fv: np.ndarray
+    h: np.ndarray
+    t: np.ndarray
+    first: np.ndarray
+    steps: np.ndarray
+    rejected: np.ndarray
+    sys: System
+
+    @classmethod
+    def start(cls, batch):
+        n = batch.x0.size
+        y = batch.x0 - batch.system.xs
+        v = batch.v0.copy()
+        fy, fv = batch.system.rhs(y, v)
+        return cls(np.arange(n), y, v, fy, fv, np.full(n, min(batch.h_max, 0.01 * batch.period0)), np.zeros(n),
+                   np.ones(n, bool), np.zeros(n, int), np.zeros(n, int), batch.system)
+
+    def drop(self, stop, system):
+        """Keep only the members where ``stop`` is False; ``system`` is the whole batch's."""
+        keep = ~stop
+        for name in ("idx", "y", "v", "fy", "fv", "h", "t", "first", "steps", "rejected"):
+            setattr(self, name, getattr(self, name)[keep])
+        self.sys = system.take(self.idx)
+
+    def x(self, j):
+        """Position (m) of running member ``j``."""
+        return self.y[j] + self.sys.xs[j]
+
+    def refine(self, kind, k, lo, hi, glo, ghi):
+        """:func:`_refine` for the running members ``k``, from the start of their step."""
+        return _refine(kind, self.sys.take(k), self.y[k], self.v[k], self.fy[k], self.fv[k], lo, hi, glo, ghi)
+
+
+@dataclass
+class _Recorder:
+    """Where a batch's events go: one :class:`Record` per member; a slip ends at its crossing of ``v_rel = 0``
+    if ``stop_at_cross``, or where ``policy(member, record, event)`` says so."""
+
+    records: list
+    stop_at_cross: bool
+    policy: Callable | None
+
+    def end(self, member, reason, t, x, v):
+        r = self.records[member]
+        r.reason, r.t, r.x, r.v = reason, t, x, v
+
+    def record(self, member, events, t_start, direction, x_shift):
+        """Add ``events`` ``[(tau, kind, y, v), ...]`` of one step from ``t_start`` in path order; True where
+        the member's run ends at one of them (the later ones are dropped)."""
+        rec = self.records[member]
+        for tau, kind, yy, vv in sorted(events, key=lambda e: e[0]):
+            x = yy + x_shift
+            ev = (kind, t_start + direction * tau, x, vv)
+            rec.events.append(ev)
+            rec.x_max, rec.x_min = max(rec.x_max, x), min(rec.x_min, x)
+            rec.v_max, rec.v_min = max(rec.v_max, vv), min(rec.v_min, vv)
+            if kind == "cross" and self.stop_at_cross:
+                self.end(member, "cross", ev[1], x, vv)
+                return True
+            if self.policy is not None and self.policy(member, rec, ev):
+                self.end(member, "policy", ev[1], x, vv)
+                return True
+        return False
+
+
+def _step(batch, running, recorder):
+    """One DOP853 step of every running member, accepted or rejected by its error; True where a member stops."""
+    y1, v1, Ky, Kv = _dop853(running.sys, running.y, running.v, running.fy, running.fv, running.h)
+    err = _error_norm(running.y, running.v, y1, v1, Ky, Kv, running.h, batch.rtol, batch.atol_y[running.idx],
+                      batch.atol_v[running.idx])
+    ok = (err <= 1.0) & np.isfinite(y1) & np.isfinite(v1)
+    with np.errstate(divide="ignore"):
+        factor = np.where(err > 0.0, _SAFETY * err ** (-1.0 / 8.0), _MAX_FACTOR)
+    factor = np.clip(np.where(np.isfinite(factor), factor, _MIN_FACTOR), _MIN_FACTOR, _MAX_FACTOR)
+    h_next = np.minimum(running.h * np.where(ok, factor, np.minimum(factor, 1.0)), batch.h_max)
+    stop = np.zeros(running.idx.size, bool)
+    if ok.any():
+        _accept(batch, running, recorder, np.flatnonzero(ok), (y1, v1, Ky[N_STAGES], Kv[N_STAGES]), stop)
+    running.h = np.maximum(h_next, 1e-14 * batch.period0)
+    running.rejected = np.where(ok, 0, running.rejected + 1)
+    stuck = (running.rejected > 60) & ~stop
+    for j in np.flatnonzero(stuck):
+        recorder.end(running.idx[j], "fail", running.t[j], running.x(j), running.v[j])
+    return stop | stuck
+
+
+def _accept(batch, running, recorder, k, ends, stop):
+    """Take the accepted steps ``k`` (``ends``: the new ``y, v, fy, fv``) up to their events; sets ``stop``
+    where a member's run ends (at an event, or past its time, bounds or step count)."""
+    y1, v1, fy1, fv1 = ends
+    ended = _events(running, k, v1, fv1, recorder)
+    stop[k] = ended
+    go = k[~ended]
+    ig = running.idx[go]
+    running.t[go] += running.sys.dirn[go] * running.h[go]
+    running.y[go], running.v[go], running.fy[go], running.fv[go] = y1[go], v1[go], fy1[go], fv1[go]
+    running.first[go] = False
+    running.steps[go] += 1
+    xg = running.x(go)
+    batch.extend_ranges(ig, xg, running.v[go])
+    over_t = np.abs(running.t[go]) >= batch.t_max
+    escaped = (np.abs(xg) > batch.bound_x[ig]) | (np.abs(running.v[go]) > batch.bound_v[ig])
+    over_s = running.steps[go] >= batch.max_steps
+    for j, reason in ((go[escaped], "escape"), (go[over_t & ~escaped], "time"),
+                      (go[over_s & ~over_t & ~escaped], "steps")):
+        for jj in j:
+            recorder.end(running.idx[jj], reason, running.t[jj], running.x(jj), running.v[jj])
+        stop[j] = True
+
+
+@dataclass
+class _StepEnds:
+    """The accepted steps ``k`` seen from their two ends: direction, mode, drive (m/s), step length (s), and at
+    each end the acceleration ``a`` (m/s^2), ``v`` (m/s) and the slip-side velocity ``c = s v_rel`` (m/s);
+    ``extremum``: ``v`` has an extremum inside the step (``a`` changes sign)."""
+
+    dirn: np.ndarray
+    s: np.ndarray
+    vd: np.ndarray
+    h: np.ndarray
+    a0: np.ndarray
+    a1: np.ndarray
+    v0: np.ndarray
+    v1: np.ndarray
+    c0: np.ndarray
+    c1: np.ndarray
+    extremum: np.ndarray
+
+    @classmethod
+    def of(cls, running, k, v1, fv1):
+        """The ends of steps ``k``; a start on an event surface (first step only) is not an event."""
+        dirn, s, vd = running.sys.dirn[k], running.sys.s[k], running.sys.vd[k]
+        a0, a1 = running.fv[k] * dirn, fv1[k] * dirn
+        v0k, v1k = running.v[k], v1[k]
+        c0, c1 = s * (vd - v0k), s * (vd - v1k)
+        fst = running.first[k]
+        if fst.any():
+            a0 = np.where(fst & (np.abs(a0) <= 1e-9 * np.abs(a1)), 0.0, a0)
+            v0k = np.where(fst & (np.abs(v0k) <= 1e-9 * np.abs(v1k)), 0.0, v0k)
+            c0 = np.where(fst & (np.abs(c0) <= 1e-9 * np.abs(c1)), 0.0, c0)
+        return cls(dirn, s, vd, running.h[k], a0, a1, v0k, v1k, c0, c1, a0 * a1 < 0.0)
+
+
+def _events(running, k, v1, fv1, recorder):
     """Find, refine and record the events inside the accepted steps ``k``; True where a member stops."""
+    ends = _StepEnds.of(running, k, v1, fv1)
+    tau_e, ye, ve = _v_extremum(running, k, ends)
+    found = _level_crossings(running, k, ends, tau_e, ve)
+    per = {}  # member j of k -> [(tau, kind, y, v), ...]
+    for j in np.flatnonzero(ends.extremum):
+        kind = "vmax" if ends.dirn[j] * ends.a0[j] > 0.0 else "vmin"
+        per.setdefault(j, []).append((tau_e[j], kind, ye[j], ve[j]))
+    if "v" in found:
+        j, tau, yy, glo = found["v"]
+        for jj, tt, yv, gl in zip(j, tau, yy, glo):
+            per.setdefault(jj, []).append((tt, "xmax" if ends.dirn[jj] * gl > 0.0 else "xmin", yv, 0.0))
+    if "c" in found:
+        j, tau, yy, _ = found["c"]
+        for jj, tt, yv in zip(j, tau, yy):
+            per.setdefault(jj, []).append((tt, "cross", yv, ends.vd[jj]))
     ended = np.zeros(k.size, bool)
-    dirn = sys.dirn[k]
-    a0 = fv[k] * dirn
-    a1 = fv1[k] * dirn
-    v0k, v1k = v[k], v1[k]
-    s = sys.s[k]
-    vd = sys.vd[k]
-    c0, c1 = s * (vd - v0k), s * (vd - v1k)
-    fst = first[k]
-    if fst.any():  # a start on an event surface is not an event
-        a0 = np.where(fst & (np.abs(a0) <= 1e-9 * np.abs(a1)), 0.0, a0)
-        v0k = np.where(fst & (np.abs(v0k) <= 1e-9 * np.abs(v1k)), 0.0, v0k)
-        c0 = np.where(fst & (np.abs(c0) <= 1e-9 * np.abs(c1)), 0.0, c0)
-    hk = h[k]
-    ext = a0 * a1 < 0.0
-    # the extremum of v inside the step, if any
+    for j, evs in per.items():
+        ended[j] = recorder.record(running.idx[k[j]], evs, running.t[k[j]], ends.dirn[j], running.sys.xs[k[j]])
+    return ended
+
+
+def _v_extremum(running, k, ends):
+    """``(tau, y, v)`` at the extremum of ``v`` inside each step ``k`` (NaN where there is none)."""
     tau_e = np.full(k.size, np.nan)
     ye = np.full(k.size, np.nan)
     ve = np.full(k.size, np.nan)
-    if ext.any():
-        j = np.flatnonzero(ext)
-        kk = k[j]
-        sub = sys.take(kk)
-        tau_e[j], ye[j], ve[j], _ = _refine("a", sub, y[kk], v[kk], fy[kk], fv[kk], np.zeros(j.size), hk[j],
-                                            a0[j], a1[j])
-    ce = s * (vd - ve)
+    if ends.extremum.any():
+        j = np.flatnonzero(ends.extremum)
+        tau_e[j], ye[j], ve[j], _ = running.refine("a", k[j], np.zeros(j.size), ends.h[j], ends.a0[j], ends.a1[j])
+    return tau_e, ye, ve
+
+
+def _level_crossings(running, k, ends, tau_e, ve):
+    """The crossings of ``v = 0`` (``"v"``) and the falls of ``s v_rel`` to 0 (``"c"``) inside the steps ``k``,
+    on the monotone pieces ``[0, tau_e]``, ``[tau_e, h]`` or ``[0, h]`` (``tau_e``, ``ve``: the extremum of
+    ``v``): ``{kind: (j, tau, y, g at the start of the bracket)}``."""
+    ext = ends.extremum
     found = {}
-    # level crossings (v = 0 and s v_rel = 0) on the monotone pieces [0, tau_e], [tau_e, h] or [0, h]
-    for kind, g0, ge, g1 in (("v", v0k, ve, v1k), ("c", c0, ce, c1)):
+    for kind, g0, ge, g1 in (("v", ends.v0, ve, ends.v1), ("c", ends.c0, ends.s * (ends.vd - ve), ends.c1)):
         first_piece = ext & (g0 * ge < 0.0)
         second_piece = ext & ~first_piece & (ge * g1 < 0.0)
         whole = ~ext & (g0 * g1 < 0.0)
@@ -326,45 +449,9 @@ def _events(sys, k, idx, y, v, fy, fv, y1, v1, fv1, h, t, first, records, stop_a
             continue
         j = np.flatnonzero(has)
         lo = np.where(second_piece, tau_e, 0.0)[j]
-        hi = np.where(first_piece, tau_e, hk)[j]
+        hi = np.where(first_piece, tau_e, ends.h)[j]
         glo = np.where(second_piece, ge, g0)[j]
         ghi = np.where(first_piece, ge, g1)[j]
-        kk = k[j]
-        sub = sys.take(kk)
-        tau, yy, vv, _ = _refine(kind, sub, y[kk], v[kk], fy[kk], fv[kk], lo, hi, glo, ghi)
-        found[kind] = (j, tau, yy, vv, glo)
-    # assemble in path order per member
-    per = {}
-    if ext.any():
-        for j in np.flatnonzero(ext):
-            kind = "vmax" if dirn[j] * a0[j] > 0.0 else "vmin"
-            per.setdefault(j, []).append((tau_e[j], kind, ye[j], ve[j]))
-    if "v" in found:
-        j, tau, yy, vv, glo = found["v"]
-        for jj, tt, yv, gl in zip(j, tau, yy, glo):
-            per.setdefault(jj, []).append((tt, "xmax" if dirn[jj] * gl > 0.0 else "xmin", yv, 0.0))
-    if "c" in found:
-        j, tau, yy, vv, _ = found["c"]
-        for jj, tt, yv in zip(j, tau, yy):
-            per.setdefault(jj, []).append((tt, "cross", yv, vd[jj]))
-    for j, evs in per.items():
-        member = idx[k[j]]
-        rec = records[member]
-        xs = sys.xs[k[j]]
-        tstart = t[k[j]]
-        d = dirn[j]
-        for tau, kind, yy, vv in sorted(evs, key=lambda e: e[0]):
-            x = yy + xs
-            ev = (kind, tstart + d * tau, x, vv)
-            rec.events.append(ev)
-            rec.x_max, rec.x_min = max(rec.x_max, x), min(rec.x_min, x)
-            rec.v_max, rec.v_min = max(rec.v_max, vv), min(rec.v_min, vv)
-            if kind == "cross" and stop_at_cross:
-                rec.reason, rec.t, rec.x, rec.v = "cross", ev[1], x, vv
-                ended[j] = True
-                break
-            if policy is not None and policy(member, rec, ev):
-                rec.reason, rec.t, rec.x, rec.v = "policy", ev[1], x, vv
-                ended[j] = True
-                break
-    return ended
+        tau, yy, _, _ = running.refine(kind, k[j], lo, hi, glo, ghi)
+        found[kind] = (j, tau, yy, glo)
+    return found

@@ -3,8 +3,9 @@
 The core laws (:mod:`stickslip.core.laws`) are scalar (pure ``math``, bundled
 into the FMU). The analysis integrates whole batches of slips at once, so it
 needs ``F_K(u)`` and ``F_K'(u)`` on numpy arrays: :func:`vectorized` returns
-them for the four coded laws in closed form (the same formulas as the core) and
-wraps any other law (``CallableKinetic``) with :func:`numpy.vectorize`.
+them for the four coded laws in closed form (SPEC section 2's formulas, as in the
+core; ``tests/test_law_formulas.py`` pins both, and the continuation below 0, to
+SPEC) and wraps any other law (``CallableKinetic``) with :func:`numpy.vectorize`.
 
 The normal form of the Hopf points needs ``F_K''`` and ``F_K'''``.
 :func:`derivatives` gets them by high-order central differences of the law's

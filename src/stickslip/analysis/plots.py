@@ -52,21 +52,51 @@ def plot_bifurcation(png_path, d):
     fig = _figure((14, 7))
     ax, side = fig.subplots(1, 2, width_ratios=(4.2, 1))
     side.axis("off")
-    p = d.params
     grid = d.v_grid
     spacing = 1.5 * (grid[1] - grid[0]) if grid.size > 1 else math.inf
+    _draw_continuous_sliding(ax, d)
+    _draw_sliding_cycles(ax, d)
+    _draw_stick_slip(ax, d, spacing)
+    _draw_overshoot_sliding(ax, d, spacing)
+    _draw_boundary(ax, d)
+    ax.plot([], [], "k-", label="stable")
+    ax.plot([], [], "k:", label="unstable")
+    table, labelled = _draw_points(ax, d)
+    ax.set_xlim(grid[0], grid[-1])
+    ax.autoscale_view()
+    for v, y, names, col, offset in _label_groups(ax, labelled):
+        ax.annotate(names, (v, y), textcoords="offset points", xytext=offset, fontsize=8, color=col)
+    for kind, (marker, col, prefix) in _POINT_STYLE.items():
+        ax.plot([], [], marker, color=col, mfc="white", mew=1.6, ls="none", label=f"{prefix}: {kind}")
+    p = d.params
+    ax.set(xlabel="drive velocity v_drive (m/s)", ylabel="amplitude: largest x (m)",
+           title=f"Bifurcation diagram: M = {p.M:g} kg, kappa = {p.kappa:g} N/m, {p.kinetic!r}, {p.static!r}")
+    ax.title.set_fontsize(9)
+    fig.legend(loc="outside lower center", fontsize=7.5, ncols=4)
+    side.text(0.0, 1.0, "bifurcation points\n\n" + "\n".join(table), transform=side.transAxes, ha="left",
+              va="top", fontsize=7.5, family="monospace")
+    fig.savefig(png_path, dpi=120)
+
+
+def _draw_continuous_sliding(ax, d):
+    """Continuous sliding ``x_c = (F_K(v_drive) + F_ext)/kappa``: solid where stable (``F_K' > 0``)."""
+    p, grid = d.params, d.v_grid
     xc = np.array([(p.kinetic.force(float(v)) + d.F_ext) / p.kappa for v in grid])
     stable = np.array([p.kinetic.slope(float(v)) > 0.0 for v in grid])
     color, label = _BRANCH_STYLE["continuous-sliding"]
     for vs, ys, st in _segments(grid, xc, stable):
         ax.plot(vs, ys, "-" if st else ":", color=color, lw=1.6 if st else 1.3)
     ax.plot([], [], "-", color=color, label=label)
+
+
+def _draw_sliding_cycles(ax, d):
+    """Each branch of sliding cycles along its arc, from its Hopf point (if any) to its grazings."""
+    from .cycles import CyclePoint
+
     color, label = _BRANCH_STYLE["oscillatory-sliding"]
     for b in d.sliding:
         pts = [c for c in b.points if not c.grazes]
         if b.hopf is not None:
-            from .cycles import CyclePoint
-
             h = b.hopf
             pts = [CyclePoint(h.v_drive, 0.0, h.x, h.x, 0.0, 0.0, h.period, h.cycles_stable)] + pts
         pts += list(b.grazings)
@@ -79,6 +109,10 @@ def plot_bifurcation(png_path, d):
         for sv, sy, s in _segments(vs, ys, st):
             ax.plot(sv, sy, "-" if s else ":", color=color, lw=1.6 if s else 1.3)
     ax.plot([], [], "-", color=color, label=label)
+
+
+def _draw_stick_slip(ax, d, spacing):
+    """The stick-slip cycles (a line, cut at gaps wider than ``spacing`` m/s), or the aging map's fixed points."""
     color, label = _BRANCH_STYLE["stick-slip"]
     ss = [(c.v_drive, c.x_max) for c in d.stick_slip if c.exists]
     for vs, ys in _gaps([a for a, _ in ss], [b for _, b in ss], spacing):
@@ -89,12 +123,19 @@ def plot_bifurcation(png_path, d):
                     mfc=color if f.stable else "white")
     ax.plot([], [], "-", color=color, label=label + (" (aging map: dots, open = unstable)" if d.map_points
                                                      else " (stable)"))
+
+
+def _draw_overshoot_sliding(ax, d, spacing):
     color, label = _BRANCH_STYLE["overshoot-sliding"]
     ov = [(o.v_drive, o.x_max, o.stable) for o in d.overshoot if o is not None]
     for vs, ys in _gaps([a for a, _, _ in ov], [b for _, b, _ in ov], spacing):
         ax.plot(vs, ys, "-", color=color, lw=1.6)
     if ov:
         ax.plot([], [], "-", color=color, label=label)
+
+
+def _draw_boundary(ax, d):
+    """The special stick-slip boundary: bold where, backward, it reaches the stick line."""
     bv = np.array([o.v_drive for o in d.boundary])
     bx = np.array([o.x_max for o in d.boundary])
     line = np.array([o.fate == "stick-line" for o in d.boundary])
@@ -104,11 +145,14 @@ def plot_bifurcation(png_path, d):
             "backward to the stick line (stick-slip exists iff the onset lies beyond it)")
     ax.plot([], [], "-.", color="C2", lw=0.8, alpha=0.5, label="the same orbit where, backward, it spirals into "
             "sliding\ninstead of reaching the stick line (it bounds nothing there)")
-    ax.plot([], [], "k-", label="stable")
-    ax.plot([], [], "k:", label="unstable")
+
+
+def _draw_points(ax, d):
+    """Mark the bifurcation points; returns the side table's lines and ``[(v_drive, x, name, color), ...]`` of
+    the drawn points (named H1, F1, ... by kind)."""
     counters = {}
     table = []
-    labelled = []  # (v_drive, x, name, color) of the drawn points
+    labelled = []
     for pt in d.points:
         marker, col, prefix = _POINT_STYLE[pt["kind"]]
         counters[prefix] = counters.get(prefix, 0) + 1
@@ -119,19 +163,7 @@ def plot_bifurcation(png_path, d):
         if math.isfinite(y):
             ax.plot(pt["v_drive"], y, marker, color=col, ms=7, mfc="white", mew=1.6, zorder=5)
             labelled.append((pt["v_drive"], y, name, col))
-    ax.set_xlim(grid[0], grid[-1])
-    ax.autoscale_view()
-    for v, y, names, col, offset in _label_groups(ax, labelled):
-        ax.annotate(names, (v, y), textcoords="offset points", xytext=offset, fontsize=8, color=col)
-    for kind, (marker, col, prefix) in _POINT_STYLE.items():
-        ax.plot([], [], marker, color=col, mfc="white", mew=1.6, ls="none", label=f"{prefix}: {kind}")
-    ax.set(xlabel="drive velocity v_drive (m/s)", ylabel="amplitude: largest x (m)",
-           title=f"Bifurcation diagram: M = {p.M:g} kg, kappa = {p.kappa:g} N/m, {p.kinetic!r}, {p.static!r}")
-    ax.title.set_fontsize(9)
-    fig.legend(loc="outside lower center", fontsize=7.5, ncols=4)
-    side.text(0.0, 1.0, "bifurcation points\n\n" + "\n".join(table), transform=side.transAxes, ha="left",
-              va="top", fontsize=7.5, family="monospace")
-    fig.savefig(png_path, dpi=120)
+    return table, labelled
 
 
 def _label_groups(ax, points, same=4.0, clear=14.0):

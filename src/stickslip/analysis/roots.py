@@ -24,11 +24,6 @@ def sign_changes(x, f):
     return out
 
 
-def label_changes(x, labels):
-    """Brackets ``[(x_i, x_{i+1}, label_i, label_{i+1}), ...]`` where a label changes."""
-    return [(x[i], x[i + 1], labels[i], labels[i + 1]) for i in range(len(x) - 1) if labels[i] != labels[i + 1]]
-
-
 def refine(fun, brackets, tol=1e-7, k=8, max_rounds=40):
     """Refine sign changes of ``fun`` (array -> array) inside ``[(a, b, fa, fb), ...]``.
 

@@ -180,79 +180,99 @@ def slips_to_stick(params, x_start, v_drives, F_ext=0.0, rtol=1e-11, max_phases=
     """
     vd = np.atleast_1d(np.asarray(v_drives, float))
     n = vd.size
-    fs0 = params.static.force(0.0)
     kappa = params.kappa
-    x_start = np.broadcast_to(np.asarray(x_start, float), (n,))
     out = [StickSlipCycle(float(v), False, math.nan, "") for v in vd]
-    x = x_start.copy()
-    mode = np.array([breakaway_direction(float(xi), F_ext, params) for xi in x], float)
-    t_slip = np.zeros(n)
-    xmax = x.copy()
-    xmin = x.copy()
-    vmax = vd.copy()
-    vmin = vd.copy()
+    slips = _Slips(params, F_ext, np.broadcast_to(np.asarray(x_start, float), (n,)).copy(), vd)
     active = np.arange(n)
-    ext = [[] for _ in range(n)]
-    scale = fs0 / kappa + abs(F_ext) / kappa
+    scale = slips.fs0 / kappa + abs(F_ext) / kappa
     for _ in range(max_phases):
         if active.size == 0:
             break
-        policy = _Approach(mode[active], vd[active], max_revs, 1e-12 * np.maximum(vd[active], 1e-300))
-        recs = flow.run(params, x[active], vd[active], vd[active], F_ext, mode[active], rtol=rtol,
+        policy = _Approach(slips.mode[active], vd[active], max_revs, 1e-12 * np.maximum(vd[active], 1e-300))
+        recs = flow.run(params, slips.x[active], vd[active], vd[active], F_ext, slips.mode[active], rtol=rtol,
                         stop_at_cross=False, policy=policy, scale=scale)
         still = []
         for j, (i, rec) in enumerate(zip(active, recs)):
-            c = out[i]
-            s = mode[i]
-            m = policy.margin.get(j)
-            if j in policy.crossed:
-                tc, xc = policy.crossed[j]
-                for kind, t, xe, ve in rec.events:
-                    if t > tc:
-                        break
-                    if kind in ("xmax", "xmin"):
-                        xmax[i], xmin[i] = max(xmax[i], xe), min(xmin[i], xe)
-                    elif kind in ("vmax", "vmin"):
-                        vmax[i], vmin[i] = max(vmax[i], ve), min(vmin[i], ve)
-                xmax[i], xmin[i] = max(xmax[i], xc), min(xmin[i], xc)
-                c.phases.append((int(s), tc, xc, m))
-                if s > 0:
-                    c.graze_margin = min(c.graze_margin, m if m is not None else math.inf)
-                t_slip[i] += tc
-                z = fs0 - abs(kappa * xc - F_ext)
-                c.stick_margin = max(c.stick_margin, z)
-                if z >= 0.0:
-                    c.exists, c.fate = True, "stick"
-                    c.x_stick = xc
-                    c.slip_time = t_slip[i]
-                    c.x_max, c.x_min, c.v_min, c.v_max = xmax[i], xmin[i], vmin[i], vmax[i]
-                    continue
-                c.overshoots += 1
-                ext[i].append((xc, xmax_before(rec, tc), xmin_before(rec, tc)))
-                x[i] = xc
-                mode[i] = breakaway_direction(xc, F_ext, params)
+            if j not in policy.crossed:
+                slips.never_returned(out[i], i, rec, policy.margin.get(j))
+            elif slips.returned(out[i], i, rec, policy.crossed[j], policy.margin.get(j)):
                 still.append(i)
-            else:
-                if rec.reason == "escape":
-                    c.fate, c.margin = "escape", -math.inf
-                    continue
-                c.phases.append((int(s), rec.t, rec.x, m))
-                c.graze_margin = min(c.graze_margin, m if m is not None else -math.inf)
-                c.fate = "slides" if rec.reason == "policy" else "undecided"
         active = np.array(still, int)
     for i in active:
         out[i].fate = "no-stick"
-        out[i].overshoot_cycle = _last_turn(out[i].phases, ext[i])
+        out[i].overshoot_cycle = _last_turn(out[i].phases, slips.turns[i])
     unit = math.sqrt(kappa * params.M)
     for c in out:
-        if c.fate == "escape":
-            c.margin = -math.inf
-        elif c.graze_margin < 0.0:
-            c.margin, c.kind = c.graze_margin, "graze"
-        else:
-            s_v = c.stick_margin / unit
-            c.margin, c.kind = (c.graze_margin, "graze") if c.graze_margin <= s_v else (s_v, "zero-stick")
+        _set_existence_margin(c, unit)
     return out
+
+
+class _Slips:
+    """The slips of :func:`slips_to_stick`, per member: where the current phase starts (``x`` m, ``mode``), the
+    slip time so far (s), the ranges of ``x`` (m) and ``v`` (m/s), and for each overshoot ``(x m, largest x m,
+    smallest x m)`` of the phase it ended."""
+
+    def __init__(self, params, F_ext, x_start, v_drives):
+        self.params, self.F_ext = params, F_ext
+        self.fs0 = params.static.force(0.0)
+        self.x = x_start
+        self.mode = np.array([breakaway_direction(float(xi), F_ext, params) for xi in self.x], float)
+        self.t_slip = np.zeros(x_start.size)
+        self.xmax, self.xmin = self.x.copy(), self.x.copy()
+        self.vmax, self.vmin = v_drives.copy(), v_drives.copy()
+        self.turns = [[] for _ in range(x_start.size)]
+
+    def returned(self, c, i, rec, crossed, m):
+        """Member ``i``'s phase (record ``rec``, approach margin ``m`` m/s) returned to ``v_rel = 0`` at
+        ``crossed = (t s, x m)``: fill in ``c``; True if it overshoots there (a next phase follows)."""
+        tc, xc = crossed
+        s = self.mode[i]
+        for kind, t, xe, ve in rec.events:
+            if t > tc:
+                break
+            if kind in ("xmax", "xmin"):
+                self.xmax[i], self.xmin[i] = max(self.xmax[i], xe), min(self.xmin[i], xe)
+            elif kind in ("vmax", "vmin"):
+                self.vmax[i], self.vmin[i] = max(self.vmax[i], ve), min(self.vmin[i], ve)
+        self.xmax[i], self.xmin[i] = max(self.xmax[i], xc), min(self.xmin[i], xc)
+        c.phases.append((int(s), tc, xc, m))
+        if s > 0:
+            c.graze_margin = min(c.graze_margin, m if m is not None else math.inf)
+        self.t_slip[i] += tc
+        z = self.fs0 - abs(self.params.kappa * xc - self.F_ext)
+        c.stick_margin = max(c.stick_margin, z)
+        if z >= 0.0:
+            c.exists, c.fate = True, "stick"
+            c.x_stick = xc
+            c.slip_time = self.t_slip[i]
+            c.x_max, c.x_min, c.v_min, c.v_max = self.xmax[i], self.xmin[i], self.vmin[i], self.vmax[i]
+            return False
+        c.overshoots += 1
+        self.turns[i].append((xc, xmax_before(rec, tc), xmin_before(rec, tc)))
+        self.x[i] = xc
+        self.mode[i] = breakaway_direction(xc, self.F_ext, self.params)
+        return True
+
+    def never_returned(self, c, i, rec, m):
+        """Member ``i``'s phase ended without returning to ``v_rel = 0``: it escaped, slides or is undecided."""
+        if rec.reason == "escape":
+            c.fate, c.margin = "escape", -math.inf
+            return
+        c.phases.append((int(self.mode[i]), rec.t, rec.x, m))
+        c.graze_margin = min(c.graze_margin, m if m is not None else -math.inf)
+        c.fate = "slides" if rec.reason == "policy" else "undecided"
+
+
+def _set_existence_margin(c, unit):
+    """``c.margin`` (m/s) and ``c.kind``: the existence margin ``E`` from the grazing and holding margins
+    (``unit = sqrt(kappa M)`` turns N into m/s)."""
+    if c.fate == "escape":
+        c.margin = -math.inf
+    elif c.graze_margin < 0.0:
+        c.margin, c.kind = c.graze_margin, "graze"
+    else:
+        s_v = c.stick_margin / unit
+        c.margin, c.kind = (c.graze_margin, "graze") if c.graze_margin <= s_v else (s_v, "zero-stick")
 
 
 def xmax_before(rec, t_end):

@@ -69,10 +69,21 @@ def _from_columns(result):
 
 def configs(scene, fmu, floor, host=None, fmu3=None, pure_fmu=None):
     """Every configuration of ``scene``'s sweep; ``fmu``, ``floor``, (if given) the FMI 3 FMU ``fmu3``, run
-    through model exchange (beside it the same CVode with no FMU, :mod:`.bare_cvode`), and ``pure_fmu`` (the FMU built without compiling its runtime) are
-    :class:`~.fmus.ExtractedFMU`, ``host`` the compiled C host (None: no C host family)."""
+    through model exchange (beside it the same CVode with no FMU, :mod:`.bare_cvode`), and ``pure_fmu`` (the FMU
+    built without compiling its runtime) are :class:`~.fmus.ExtractedFMU`, ``host`` the compiled C host (None:
+    no C host family)."""
+    return (_fmu_configs(scene, fmu, fmu3, pure_fmu) + _stepper_configs(scene) + _solve_ivp_configs(scene)
+            + _regularized_configs(scene)
+            + [Config("floor", f"floor h={h:g}", {"comm_step": h},
+                      lambda h=h: floor.simulate({}, scene.stop_time, h, FMU_OUTPUTS), None)
+               for h in sorted(set(scene.comm_steps()) | {scene.grid_step})]
+            + c_host.configs(scene, fmu, floor, host, Config))
+
+
+def _fmu_configs(scene, fmu, fmu3, pure_fmu):
+    """The FMU over its rtols and communication steps; FMI 3 model exchange and bare CVode over CVode's rtols;
+    the FMU with its runtime in pure Python (if ``pure_fmu``)."""
     s, T = scene.sweep, scene.stop_time
-    p, (v_drive, F_ext), x0, v0, grid = scene.params, scene.inputs, scene.scenario.x0, scene.scenario.v0, scene.grid()
     out = []
     coarse = [h for h in scene.comm_steps() if h >= scene.grid_step] + [scene.grid_step]
     fmu_points = {(rtol, h) for rtol in s.fmu_rtols for h in coarse} | {(s.comm_rtol, h) for h in scene.comm_steps()}
@@ -96,7 +107,13 @@ def configs(scene, fmu, floor, host=None, fmu3=None, pure_fmu=None):
                               lambda rtol=rtol: pure_fmu.simulate(scene.start_values(rtol), T, scene.grid_step,
                                                                   FMU_OUTPUTS),
                               _from_columns))
-    for rtol in s.stepper_rtols:
+    return out
+
+
+def _stepper_configs(scene):
+    """Our stepper, compiled and in pure Python, replaying steps and integrating every one."""
+    out = []
+    for rtol in scene.sweep.stepper_rtols:
         for suffix, core in (("", compiled_core), ("-pure", PURE_CORE)):
             out.append(Config(f"stepper{suffix}", f"stepper{suffix} rtol={rtol:.0e}", {"rtol": rtol},
                               stepper_call(scene, rtol, core=core), lambda run: run))
@@ -104,6 +121,20 @@ def configs(scene, fmu, floor, host=None, fmu3=None, pure_fmu=None):
                               {"rtol": rtol},
                               stepper_call(scene, rtol, reuse_steps=False, core=core),
                               lambda run: run))
+    return out
+
+
+def _peer_problem(scene):
+    """What the solve_ivp peers take: ``(params, x0 m, v0 m/s, v_drive m/s, F_ext N, common grid s)``."""
+    v_drive, F_ext = scene.inputs
+    return scene.params, scene.scenario.x0, scene.scenario.v0, v_drive, F_ext, scene.grid()
+
+
+def _solve_ivp_configs(scene):
+    """The hybrid solve_ivp peer on the common grid, and on the coarse grid of the sweep (if it has one)."""
+    s = scene.sweep
+    p, x0, v0, v_drive, F_ext, grid = _peer_problem(scene)
+    out = []
     for method, rtols in s.ivp.items():
         for rtol in rtols:
             out.append(Config("solve_ivp", f"{method} rtol={rtol:.0e}", {"method": method, "rtol": rtol, "atol": rtol},
@@ -119,6 +150,14 @@ def configs(scene, fmu, floor, host=None, fmu3=None, pure_fmu=None):
                     {"method": method, "rtol": rtol, "atol": rtol, "out_step": h_c},
                     lambda m=method, r=rtol: hybrid_solve_ivp(p, x0, v0, v_drive, F_ext, grid[::every], m, r, r),
                     lambda run: run))
+    return out
+
+
+def _regularized_configs(scene):
+    """The regularized-friction peer over its methods, regularization speeds and rtols."""
+    s = scene.sweep
+    p, x0, v0, v_drive, F_ext, grid = _peer_problem(scene)
+    out = []
     for method, rtols in s.regularized.items():
         for v_eps in s.v_eps:
             for rtol in rtols:
@@ -128,10 +167,7 @@ def configs(scene, fmu, floor, host=None, fmu3=None, pure_fmu=None):
                     lambda m=method, e=v_eps, r=rtol:
                         regularized_solve_ivp(p, x0, v0, v_drive, F_ext, grid, e, m, r, r),
                     lambda run: run))
-    for h in sorted(set(scene.comm_steps()) | {scene.grid_step}):
-        out.append(Config("floor", f"floor h={h:g}", {"comm_step": h},
-                          lambda h=h: floor.simulate({}, T, h, FMU_OUTPUTS), None))
-    return out + c_host.configs(scene, fmu, floor, host, Config)
+    return out
 
 
 def timed(call, repeats, limit):

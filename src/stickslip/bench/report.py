@@ -152,8 +152,21 @@ def markdown(meta, scenes, records):
             "return the whole common grid (the FMU at the grid's communication step). The coarse columns compare "
             "like with like on the sweep's coarsest communication step H (e.g. 10 s): the FMU at h = H and "
             "solve_ivp asked for the same H-spaced output times, both measured on those points of the grid. "
-            "A cell also names the configurations of its family that failed, with the exception.", "",
-            "## Matched accuracy", ""]
+            "A cell also names the configurations of its family that failed, with the exception.", ""]
+    out += matched_accuracy_section(scenes, records)
+    out += cost_section(scenes, records)
+    out += comm_step_section(scenes, records)
+    out += model_exchange_section(scenes, records)
+    out += best_accuracy_section(scenes, records)
+    failed = [(s.name, r) for s in scenes for r in records[s.name] if r.get("error")]
+    if failed:
+        out += ["", "## Failed configurations", ""]
+        out += [f"- {name}: {r['label']}: {_reason(r)}" for name, r in failed]
+    return "\n".join(out) + "\n"
+
+
+def matched_accuracy_section(scenes, records):
+    """Markdown lines: per scene and accuracy, the fastest configuration of each family and the ratios."""
     rows = []
     for s in scenes:
         h_c = coarse_step(s)
@@ -169,11 +182,15 @@ def markdown(meta, scenes, records):
                          _ratio(best["fmu"], best["solve_ivp"]), _ratio(coarse_fmu, coarse_ivp),
                          _ratio(best["stepper"], best["solve_ivp"]), _ratio(integrating, best["solve_ivp"]),
                          _ratio(best["fmu"], best["regularized"]), _ratio(best["stepper"], best["regularized"])])
-    out += _table(["scene", "max\\|dx\\|/A ≤", "FMU", "stepper", "solve_ivp", "regularized", "coarse H (s)",
-                   "FMU at h = H", "solve_ivp on the H grid", "FMU / solve_ivp", "FMU / solve_ivp, both on the H grid",
-                   "stepper / solve_ivp", "stepper no replay / solve_ivp", "FMU / regularized",
-                   "stepper / regularized"], rows)
-    out += ["", "## Cost per communication step (slope over the communication-step sweep)", ""]
+    return ["## Matched accuracy", ""] + _table(
+        ["scene", "max\\|dx\\|/A ≤", "FMU", "stepper", "solve_ivp", "regularized", "coarse H (s)",
+         "FMU at h = H", "solve_ivp on the H grid", "FMU / solve_ivp", "FMU / solve_ivp, both on the H grid",
+         "stepper / solve_ivp", "stepper no replay / solve_ivp", "FMU / regularized", "stepper / regularized"], rows)
+
+
+def cost_section(scenes, records):
+    """Markdown lines: the cost per communication step and per call, FMU beside the trivial FMU (FMPy, C host)."""
+    out = ["", "## Cost per communication step (slope over the communication-step sweep)", ""]
     out += ["FMPy: wall time of fmpy.simulate_fmu recording six outputs. C host: CPU time of fmi2DoStep + "
             "fmi2GetReal(x) in a plain C importer (stickslip.hosts.c_host), Python start-up excluded. Each cost is a "
             "least-squares line with a non-negative slope and intercept over the communication-step sweep (at the "
@@ -187,10 +204,13 @@ def markdown(meta, scenes, records):
                                  ("c-host", "cpu_s"), ("c-host-floor", "cpu_s")))
         rows.append([s.name, *_cost_columns(fmu, floor), *_cost_columns(fmu_call, floor_call, unit=1e3),
                      *_cost_columns(c_fmu, c_floor), note])
-    out += _table(["scene", "FMPy: FMU µs/step", "FMPy: trivial FMU µs/step", "ratio", "FMPy: FMU ms/call",
-                   "FMPy: trivial FMU ms/call", "ratio", "C host: FMU CPU µs/step",
-                   "C host: trivial FMU CPU µs/step", "ratio", "estimate"], rows)
-    out += ["", "## FMU across communication steps (at the sweep's comm_rtol, default 1e-10)", ""]
+    return out + _table(["scene", "FMPy: FMU µs/step", "FMPy: trivial FMU µs/step", "ratio", "FMPy: FMU ms/call",
+                         "FMPy: trivial FMU ms/call", "ratio", "C host: FMU CPU µs/step",
+                         "C host: trivial FMU CPU µs/step", "ratio", "estimate"], rows)
+
+
+def comm_step_section(scenes, records):
+    """Markdown lines: the FMU at each communication step of the sweep, beside the trivial FMU."""
     rows = []
     for s in scenes:
         floor = {r["settings"]["comm_step"]: r for r in records[s.name]
@@ -200,10 +220,13 @@ def markdown(meta, scenes, records):
             if r["family"] == "fmu" and ok(r) and r["settings"]["rtol"] == s.sweep.comm_rtol and h in floor:
                 rows.append([s.name, f"{h:g}", r["n_comm_steps"], _ms(r), _ms(floor[h]), f"{r['max_abs_dx']:.2g}",
                              _fmt(r.get("event_time_error")), f"{r['final_abs_dx']:.2g}"])
-    out += _table(["scene", "h (s)", "steps", "FMU", "trivial FMU", "max\\|dx\\| (m)", "event-time error (s)",
-                   "final \\|dx\\| (m)"], rows)
-    out += model_exchange_section(scenes, records)
-    out += ["", "## Best accuracy of each family", ""]
+    return ["", "## FMU across communication steps (at the sweep's comm_rtol, default 1e-10)", ""] + _table(
+        ["scene", "h (s)", "steps", "FMU", "trivial FMU", "max\\|dx\\| (m)", "event-time error (s)",
+         "final \\|dx\\| (m)"], rows)
+
+
+def best_accuracy_section(scenes, records):
+    """Markdown lines: the smallest error each family reached, where, and its event-time error."""
     rows = []
     for s in scenes:
         for family in STYLE:
@@ -213,12 +236,8 @@ def markdown(meta, scenes, records):
                 best = min(done, key=lambda r: r["rel_dx"])
                 rows.append([s.name, family, f"{best['rel_dx']:.2g}", _cell(best), _fmt(best.get("event_time_error")),
                              best.get("events_unmatched", "–")])
-    out += _table(["scene", "family", "best max\\|dx\\|/A", "at", "event-time error (s)", "unmatched events"], rows)
-    failed = [(s.name, r) for s in scenes for r in records[s.name] if r.get("error")]
-    if failed:
-        out += ["", "## Failed configurations", ""]
-        out += [f"- {name}: {r['label']}: {_reason(r)}" for name, r in failed]
-    return "\n".join(out) + "\n"
+    return ["", "## Best accuracy of each family", ""] + _table(
+        ["scene", "family", "best max\\|dx\\|/A", "at", "event-time error (s)", "unmatched events"], rows)
 
 
 def model_exchange_section(scenes, records):

@@ -10,6 +10,7 @@ and/or flags that override single values in the FMU's names::
 
 import math
 import tomllib
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..core import Parameters
@@ -65,42 +66,62 @@ def model_from_args(args, report=print):
     Values nobody gave (``M``, ``kappa`` and law parameters left to their defaults)
     are passed to ``report`` as one line, so a run says which numbers it used.
     """
-    from ..suite.scenario import PRESETS
-
-    model, kin, sta, F_ext = {}, {}, {}, 0.0
+    spec = _ModelSpec()
     if args.preset:
-        if args.preset not in PRESETS:
-            raise AnalysisError(f"--preset {args.preset!r}: expected one of {sorted(PRESETS)}")
-        pre = PRESETS[args.preset]
-        model.update(pre.get("model", {}))
-        kin, sta = dict(pre.get("kinetic", {})), dict(pre.get("static", {}))
+        spec.take_preset(args.preset, f"--preset {args.preset!r}")
     if args.scenario:
+        spec.read_scenario(args.scenario)
+    if args.kinetic:
+        spec.kinetic = {"law": args.kinetic}
+    if args.static:
+        spec.static = {"law": args.static}
+    for item in args.set:
+        spec.override(item)
+    return spec.parameters(report)
+
+
+@dataclass
+class _ModelSpec:
+    """The model as the arguments give it, in the FMU's names: ``model`` (``M`` kg, ``kappa`` N/m), the kinetic
+    and static law (``law`` and parameters), and a constant ``F_ext`` (N); later sources override earlier."""
+
+    model: dict = field(default_factory=dict)
+    kinetic: dict = field(default_factory=dict)
+    static: dict = field(default_factory=dict)
+    F_ext: float = 0.0
+
+    def take_preset(self, name, where):
+        """The preset ``name`` (``where``: what named it, for the error) replaces the laws and sets the model."""
+        from ..suite.scenario import PRESETS
+
+        preset = PRESETS.get(name)
+        if preset is None:
+            raise AnalysisError(f"{where}: expected one of {sorted(PRESETS)}")
+        self.model.update(preset.get("model", {}))
+        self.kinetic, self.static = dict(preset.get("kinetic", {})), dict(preset.get("static", {}))
+
+    def read_scenario(self, path):
+        """A scenario file's ``preset``, ``[model]``, ``[kinetic]``, ``[static]`` and constant ``[inputs.F_ext]``."""
         try:
-            with open(args.scenario, "rb") as f:
+            with open(path, "rb") as f:
                 data = tomllib.load(f)
         except (OSError, tomllib.TOMLDecodeError) as exc:
-            raise AnalysisError(f"{args.scenario}: cannot read a TOML file: {exc}") from exc
+            raise AnalysisError(f"{path}: cannot read a TOML file: {exc}") from exc
         if "preset" in data:
-            pre = PRESETS.get(data["preset"])
-            if pre is None:
-                raise AnalysisError(f"{args.scenario}: key 'preset': expected one of {sorted(PRESETS)}")
-            model.update(pre.get("model", {}))
-            kin, sta = dict(pre.get("kinetic", {})), dict(pre.get("static", {}))
-        model.update(data.get("model", {}))
+            self.take_preset(data["preset"], f"{path}: key 'preset'")
+        self.model.update(data.get("model", {}))
         if "kinetic" in data:
-            kin = dict(data["kinetic"])
+            self.kinetic = dict(data["kinetic"])
         if "static" in data:
-            sta = dict(data["static"])
+            self.static = dict(data["static"])
         fe = data.get("inputs", {}).get("F_ext", {})
         if "constant" in fe:
-            F_ext = float(fe["constant"])
+            self.F_ext = float(fe["constant"])
         elif fe:
-            raise AnalysisError(f"{args.scenario}: key 'inputs.F_ext': the analysis needs a constant F_ext")
-    if args.kinetic:
-        kin = {"law": args.kinetic}
-    if args.static:
-        sta = {"law": args.static}
-    for item in args.set:
+            raise AnalysisError(f"{path}: key 'inputs.F_ext': the analysis needs a constant F_ext")
+
+    def override(self, item):
+        """One ``--set NAME=VALUE``."""
         name, sep, value = item.partition("=")
         try:
             number = float(value)
@@ -109,33 +130,38 @@ def model_from_args(args, report=print):
         if not sep or number is None:
             raise AnalysisError(f"--set {item!r}: expected NAME=NUMBER")
         if name in ("M", "kappa"):
-            model[name] = number
+            self.model[name] = number
         elif name == "F_ext":
-            F_ext = number
+            self.F_ext = number
         elif name.startswith("kinetic."):
-            kin[name[8:]] = number
+            self.kinetic[name[8:]] = number
         elif name.startswith("static."):
-            sta[name[7:]] = number
+            self.static[name[7:]] = number
         else:
             raise AnalysisError(f"--set {item!r}: NAME must be M, kappa, F_ext, kinetic.<param> or static.<param>")
-    kinetic_cls = _law_class("--kinetic", KINETIC_LAWS, kin.pop("law")) if "law" in kin else None
-    static_cls = _law_class("--static", STATIC_LAWS, sta.pop("law")) if "law" in sta else None
-    if kinetic_cls is None or static_cls is None:
-        raise AnalysisError("no friction laws: give --preset, --scenario, or --kinetic LAW and --static LAW "
-                            f"(kinetic: {_law_list(KINETIC_LAWS)}; static: {_law_list(STATIC_LAWS)})")
-    defaults = [_value_text(name, value, unit) for name, (value, unit) in _DEFAULT_MODEL.items() if name not in model]
-    for prefix, cls, given in (("kinetic", kinetic_cls, kin), ("static", static_cls, sta)):
-        defaults += [_value_text(f"{prefix}.{name}", value, unit) for name, (value, _, unit)
-                     in cls.PARAMETERS.items() if name not in given]
-    model = {name: model.get(name, value) for name, (value, _) in _DEFAULT_MODEL.items()}
-    try:
-        params = Parameters(model["M"], model["kappa"], kinetic_cls(**kin), static_cls(**sta))
-        params.check()
-    except ParameterError as exc:
-        raise AnalysisError(str(exc)) from exc
-    if defaults:
-        report(f"defaults used ({kinetic_cls.NAME} kinetic, {static_cls.NAME} static law): " + ", ".join(defaults))
-    return params, F_ext
+
+    def parameters(self, report):
+        """``(Parameters, F_ext)``, checked; the defaults used go to ``report`` as one line."""
+        kin, sta = dict(self.kinetic), dict(self.static)
+        kinetic_cls = _law_class("--kinetic", KINETIC_LAWS, kin.pop("law")) if "law" in kin else None
+        static_cls = _law_class("--static", STATIC_LAWS, sta.pop("law")) if "law" in sta else None
+        if kinetic_cls is None or static_cls is None:
+            raise AnalysisError("no friction laws: give --preset, --scenario, or --kinetic LAW and --static LAW "
+                                f"(kinetic: {_law_list(KINETIC_LAWS)}; static: {_law_list(STATIC_LAWS)})")
+        defaults = [_value_text(name, value, unit) for name, (value, unit) in _DEFAULT_MODEL.items()
+                    if name not in self.model]
+        for prefix, cls, given in (("kinetic", kinetic_cls, kin), ("static", static_cls, sta)):
+            defaults += [_value_text(f"{prefix}.{name}", value, unit) for name, (value, _, unit)
+                         in cls.PARAMETERS.items() if name not in given]
+        model = {name: self.model.get(name, value) for name, (value, _) in _DEFAULT_MODEL.items()}
+        try:
+            params = Parameters(model["M"], model["kappa"], kinetic_cls(**kin), static_cls(**sta))
+            params.check()
+        except ParameterError as exc:
+            raise AnalysisError(str(exc)) from exc
+        if defaults:
+            report(f"defaults used ({kinetic_cls.NAME} kinetic, {static_cls.NAME} static law): " + ", ".join(defaults))
+        return params, self.F_ext
 
 
 def add_scan_arguments(p, v_min=0.01, v_max=1.2, n=400):

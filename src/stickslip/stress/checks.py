@@ -47,6 +47,7 @@ catches wrong event states, wrong friction signs and integration drift.
 """
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -124,7 +125,33 @@ def check_invariants(samples, p, t0=0.0, violations=None):
       and ``z_slip = F_S(0) - |kappa x - F_ext|`` (to rounding).
     """
     v = violations if violations is not None else Violations()
-    n = len(samples["time"])
+    _check_columns(samples, v)
+    FS0 = p.static.force(0.0)
+    for i in range(len(samples["time"])):
+        s = _Sample.at(samples, i)
+        if not all(math.isfinite(c) for c in (s.x, s.v, s.v_rel, s.v_drive, s.F_ext, s.t_stick, s.F_friction,
+                                              s.z_slip)):
+            continue  # reported by _check_columns
+        if s.mode not in (-1, 0, 1):
+            v.add("mode", f"mode = {s.mode} {s.where}")
+            continue
+        if s.F_spring != -p.kappa * s.x:
+            v.add("F_spring", f"F_spring = {s.F_spring!r} != -kappa x = {-p.kappa * s.x!r} {s.where}")
+        if s.z_stick != s.v_rel:
+            v.add("z_stick", f"z_stick = {s.z_stick!r} != v_rel = {s.v_rel!r} {s.where}")
+        if s.t_last_event > s.t:
+            v.add("t_last_event", f"t_last_event = {s.t_last_event!r} > t {s.where}")
+        hold = p.kappa * s.x - s.F_ext
+        rounding = ROUND * (abs(p.kappa * s.x) + abs(s.F_ext) + FS0)
+        if s.mode == 0:
+            _check_stuck(v, s, p, hold, rounding, t0)
+        else:
+            _check_slipping(v, s, p, hold, rounding, FS0)
+    return v
+
+
+def _check_columns(samples, v):
+    """Every Real column is finite; the event counters add up and never decrease."""
     real_columns = ("x", "v", "v_rel", "F_friction", "F_spring", "t_stick", "z_slip", "z_stick", "t_last_event",
                     "v_drive", "F_ext")
     for name in real_columns:
@@ -140,53 +167,66 @@ def check_invariants(samples, p, t0=0.0, violations=None):
     for name in ("n_events", "n_stick_events", "n_slip_events", "n_overshoots", "n_steps"):
         for i in np.flatnonzero(np.diff(samples[name]) < 0)[:1]:
             v.add("counters", f"{name} decreased at t = {samples['time'][i + 1]!r}")
-    kappa = p.kappa
-    FS0 = p.static.force(0.0)
-    for i in range(n):
-        t = float(samples["time"][i])
-        mode = int(samples["mode"][i])
-        x, vel, v_rel = float(samples["x"][i]), float(samples["v"][i]), float(samples["v_rel"][i])
-        vd, F_ext, t_stick = float(samples["v_drive"][i]), float(samples["F_ext"][i]), float(samples["t_stick"][i])
-        F_f, z_slip = float(samples["F_friction"][i]), float(samples["z_slip"][i])
-        where = f"at t = {t!r}"
-        if not all(math.isfinite(c) for c in (x, vel, v_rel, vd, F_ext, t_stick, F_f, z_slip)):
-            continue  # reported above
-        if mode not in (-1, 0, 1):
-            v.add("mode", f"mode = {mode} {where}")
-            continue
-        if samples["F_spring"][i] != -kappa * x:
-            v.add("F_spring", f"F_spring = {float(samples['F_spring'][i])!r} != -kappa x = {-kappa * x!r} {where}")
-        if samples["z_stick"][i] != v_rel:
-            v.add("z_stick", f"z_stick = {float(samples['z_stick'][i])!r} != v_rel = {v_rel!r} {where}")
-        if samples["t_last_event"][i] > t:
-            v.add("t_last_event", f"t_last_event = {float(samples['t_last_event'][i])!r} > t {where}")
-        hold = kappa * x - F_ext
-        rounding = ROUND * (abs(kappa * x) + abs(F_ext) + FS0)
-        if mode == 0:
-            FS = p.static.force(t_stick)
-            if vel != vd or v_rel != 0.0:
-                v.add("stuck v == v_drive", f"v = {vel!r}, v_drive = {vd!r}, v_rel = {v_rel!r} {where}")
-            if abs(hold) > FS + rounding + ROUND * FS:
-                v.add("stuck holds", f"|kappa x - F_ext| = {abs(hold)!r} > F_S(t_stick = {t_stick!r}) = {FS!r} {where}")
-            if abs(F_f - hold) > rounding:
-                v.add("stuck friction", f"F_friction = {F_f!r} != kappa x - F_ext = {hold!r} {where}")
-            if abs(z_slip - (FS - abs(hold))) > rounding + ROUND * FS:
-                v.add("z_slip", f"z_slip = {z_slip!r} != F_S - |kappa x - F_ext| = {FS - abs(hold)!r} {where}")
-            if not -ROUND * max(1.0, abs(t - t0)) <= t_stick <= (t - t0) * (1 + ROUND) + ROUND:
-                v.add("t_stick", f"t_stick = {t_stick!r} outside [0, t - t0] {where}")
-        else:
-            started_now = samples["t_last_event"][i] == t
-            if mode * v_rel < 0.0 or (v_rel == 0.0 and not started_now):
-                v.add("slip sign", f"mode {mode:+d} but v_rel = {v_rel!r} {where}")
-            if t_stick != 0.0:
-                v.add("t_stick", f"t_stick = {t_stick!r} while slipping {where}")
-            u = max(mode * v_rel, 0.0)
-            FK = mode * p.kinetic.force(u)
-            if abs(F_f - FK) > ROUND * (abs(FK) + FS0):
-                v.add("slip friction", f"F_friction = {F_f!r} != mode F_K(|v_rel|) = {FK!r} {where}")
-            if abs(z_slip - (FS0 - abs(hold))) > rounding:
-                v.add("z_slip", f"z_slip = {z_slip!r} != F_S(0) - |kappa x - F_ext| = {FS0 - abs(hold)!r} {where}")
-    return v
+
+
+@dataclass
+class _Sample:
+    """One sample of a run, in the FMU's names and SI units (``mode`` an int, the rest floats)."""
+
+    t: float
+    mode: int
+    x: float
+    v: float
+    v_rel: float
+    v_drive: float
+    F_ext: float
+    t_stick: float
+    F_friction: float
+    z_slip: float
+    F_spring: float
+    z_stick: float
+    t_last_event: float
+
+    @classmethod
+    def at(cls, samples, i):
+        return cls(float(samples["time"][i]), int(samples["mode"][i]),
+                   *(float(samples[name][i]) for name in ("x", "v", "v_rel", "v_drive", "F_ext", "t_stick",
+                                                          "F_friction", "z_slip", "F_spring", "z_stick",
+                                                          "t_last_event")))
+
+    @property
+    def where(self):
+        return f"at t = {self.t!r}"
+
+
+def _check_stuck(v, s, p, hold, rounding, t0):
+    """A stuck sample: moves with the drive, is held (``hold = kappa x - F_ext``, N), ``t_stick`` in range."""
+    FS = p.static.force(s.t_stick)
+    if s.v != s.v_drive or s.v_rel != 0.0:
+        v.add("stuck v == v_drive", f"v = {s.v!r}, v_drive = {s.v_drive!r}, v_rel = {s.v_rel!r} {s.where}")
+    if abs(hold) > FS + rounding + ROUND * FS:
+        v.add("stuck holds", f"|kappa x - F_ext| = {abs(hold)!r} > F_S(t_stick = {s.t_stick!r}) = {FS!r} {s.where}")
+    if abs(s.F_friction - hold) > rounding:
+        v.add("stuck friction", f"F_friction = {s.F_friction!r} != kappa x - F_ext = {hold!r} {s.where}")
+    if abs(s.z_slip - (FS - abs(hold))) > rounding + ROUND * FS:
+        v.add("z_slip", f"z_slip = {s.z_slip!r} != F_S - |kappa x - F_ext| = {FS - abs(hold)!r} {s.where}")
+    if not -ROUND * max(1.0, abs(s.t - t0)) <= s.t_stick <= (s.t - t0) * (1 + ROUND) + ROUND:
+        v.add("t_stick", f"t_stick = {s.t_stick!r} outside [0, t - t0] {s.where}")
+
+
+def _check_slipping(v, s, p, hold, rounding, FS0):
+    """A slipping sample: ``v_rel`` has the mode's sign, no stick time, kinetic friction, ``z_slip`` at ``F_S(0)``."""
+    started_now = s.t_last_event == s.t
+    if s.mode * s.v_rel < 0.0 or (s.v_rel == 0.0 and not started_now):
+        v.add("slip sign", f"mode {s.mode:+d} but v_rel = {s.v_rel!r} {s.where}")
+    if s.t_stick != 0.0:
+        v.add("t_stick", f"t_stick = {s.t_stick!r} while slipping {s.where}")
+    u = max(s.mode * s.v_rel, 0.0)
+    FK = s.mode * p.kinetic.force(u)
+    if abs(s.F_friction - FK) > ROUND * (abs(FK) + FS0):
+        v.add("slip friction", f"F_friction = {s.F_friction!r} != mode F_K(|v_rel|) = {FK!r} {s.where}")
+    if abs(s.z_slip - (FS0 - abs(hold))) > rounding:
+        v.add("z_slip", f"z_slip = {s.z_slip!r} != F_S(0) - |kappa x - F_ext| = {FS0 - abs(hold)!r} {s.where}")
 
 
 # ---------------------------------------------------------------------------

@@ -129,6 +129,11 @@ def _check_expectations(case, samples, outcome):
         outcome.failures.append(f"final mode {samples['mode'][-1]} != expected {expect['final_mode']}")
 
 
+def _fmu_error_text(exc):
+    """An FMU error (its message and the FMU's log lines) on one line."""
+    return " | ".join(str(exc).splitlines())
+
+
 def run_case(session, case):
     """Run and check one case; returns an :class:`Outcome`."""
     if case.long:
@@ -143,7 +148,7 @@ def run_case(session, case):
         outcome.seconds = time.perf_counter() - start
         if "error" in case.expect and case.expect["error"] in str(exc):
             return outcome
-        outcome.failures.append(f"FMU error: {' | '.join(str(exc).splitlines())}")
+        outcome.failures.append(f"FMU error: {_fmu_error_text(exc)}")
         return outcome
     if "error" in case.expect:
         outcome.failures.append(f"expected an FMU error containing {case.expect['error']!r}, the run succeeded")
@@ -157,24 +162,52 @@ def run_case(session, case):
     violations = checks.check_invariants(samples, p, t0=case.grid[0])
     if violations:
         outcome.failures.append(f"invariants: {violations.summary()}")
-
+    run = _CaseRun(session, case, values, p, samples, breakpoints)
     if case.reference:
+        run.check_reference(outcome)
+    if case.refine:
+        run.check_grid(outcome)
+    if case.energy:
+        run.check_energy(outcome)
+    _check_expectations(case, samples, outcome)
+    outcome.seconds = time.perf_counter() - start
+    return outcome
+
+
+@dataclass
+class _CaseRun:
+    """A standard case's run and what its checks need: the session, the case, the FMU start ``values`` and their
+    ``Parameters`` ``p``, the ``samples`` and the ``breakpoints`` (the inputs as the FMU got them)."""
+
+    session: FmuSession
+    case: object
+    values: dict
+    p: object
+    samples: dict
+    breakpoints: list
+
+    def check_reference(self, outcome):
+        """The independent reference on the same times with the same inputs: state error and mode changes."""
+        values, samples = self.values, self.samples
         try:
-            ref = checks.reference_for(values, values["x_start"], values["v_start"], breakpoints, samples["time"])
-            outcome.ref_error, where = checks.compare_reference(samples, ref, p)
+            ref = checks.reference_for(values, values["x_start"], values["v_start"], self.breakpoints,
+                                       samples["time"])
+            outcome.ref_error, where = checks.compare_reference(samples, ref, self.p)
             outcome.details["reference"] = where
-            if outcome.ref_error > case.tol:
-                outcome.failures.append(f"reference: {where} > {case.tol:g}")
+            if outcome.ref_error > self.case.tol:
+                outcome.failures.append(f"reference: {where} > {self.case.tol:g}")
             n_ref = checks.mode_changes(ref)
             if n_ref != outcome.n_events:
                 outcome.failures.append(f"events: FMU {outcome.n_events}, reference {n_ref}")
         except StickSlipError as exc:
             outcome.failures.append(f"reference failed: {exc}")
 
-    if case.refine:
-        other, _, _, _ = simulate(session, values, case.refine, case.inputs)
+    def check_grid(self, outcome):
+        """A second run on the case's other grid agrees at the common times (to ``grid_tol``, same events)."""
+        case, samples = self.case, self.samples
+        other, _, _, _ = simulate(self.session, self.values, case.refine, case.inputs)
         i, j = _common(samples, other, set(case.grid) & set(case.refine))
-        x_scale, v_scale, _ = checks.scales(p, samples)
+        x_scale, v_scale, _ = checks.scales(self.p, samples)
         expected = min(len(set(case.grid)), len(set(case.refine)))
         if len(i) < expected:
             outcome.failures.append(f"second grid: only {len(i)} of {expected} times in common")
@@ -186,22 +219,21 @@ def run_case(session, case):
         if not np.array_equal(samples["n_events"][i], other["n_events"][j]):
             outcome.failures.append("grid dependence: event counts differ at common times")
 
-    if case.energy:
-        rtol = values["solver.rtol"]
-        t0, t_end = case.grid[0], samples["time"][-1]
+    def check_energy(self, outcome):
+        """The energy balance on every smooth piece (:func:`.checks.energy_balance`), through fresh instances."""
+        p, values = self.p, self.values
+        t0, t_end = self.case.grid[0], self.samples["time"][-1]
 
         def make_instance():
-            return session.instantiate(values)
+            return self.session.instantiate(values)
 
-        allowed = checks.energy_tolerance(rtol, case.affine, t_end, math.sqrt(p.M / p.kappa))
+        allowed = checks.energy_tolerance(values["solver.rtol"], self.case.affine, t_end, math.sqrt(p.M / p.kappa))
         try:
-            result = checks.energy_balance(make_instance, p, breakpoints, t_end, (t_end - t0) / 100.0,
+            result = checks.energy_balance(make_instance, p, self.breakpoints, t_end, (t_end - t0) / 100.0,
                                            quad_rel=max(0.01 * allowed, 2e-12))
         except FmuCallError as exc:
-            outcome.failures.append(f"energy passes: FMU error: {' | '.join(str(exc).splitlines())}")
-            _check_expectations(case, samples, outcome)
-            outcome.seconds = time.perf_counter() - start
-            return outcome
+            outcome.failures.append(f"energy passes: FMU error: {_fmu_error_text(exc)}")
+            return
         outcome.energy_error = result.worst
         outcome.details["energy"] = f"{result.where}; {result.cells} cells"
         allowed += result.quadrature
@@ -209,10 +241,6 @@ def run_case(session, case):
             outcome.failures.append(f"energy balance {result.worst:.2e} > {allowed:.1e}: {result.where}")
         if result.n_events != outcome.n_events:
             outcome.failures.append(f"energy pass found {result.n_events} events, the run {outcome.n_events}")
-
-    _check_expectations(case, samples, outcome)
-    outcome.seconds = time.perf_counter() - start
-    return outcome
 
 
 # ---------------------------------------------------------------------------
@@ -301,118 +329,135 @@ def run_long(session, case):
     values = session.start_values(case.start)
     p = checks.params_from_start(values)
     settings = case.long
-    H = settings["step"]
     inst = session.instantiate(values)
     try:
-        checkpoints = []  # (t, n_events, rss, objects)
-        if settings["kind"] == "time":
-            n_steps = int(round(settings["amount"] / H))
-            marks = {int(round(n_steps * k / 10)) for k in range(1, 11)}
-            for k in range(1, n_steps + 1):
-                inst.step_to(k * H)
-                if k in marks:
-                    gc.collect()
-                    checkpoints.append((inst.time, inst.read()["n_events"], rss_bytes(), len(gc.get_objects())))
-        else:
-            target = settings["amount"]
-            next_mark, k = target / 10, 0
-            while True:
-                k += 1
-                inst.step_to(k * H)
-                n = inst.read()["n_events"]
-                if n >= next_mark:
-                    gc.collect()
-                    checkpoints.append((inst.time, n, rss_bytes(), len(gc.get_objects())))
-                    next_mark += target / 10
-                    if n >= target:
-                        break
+        checkpoints = _long_steps(inst, settings)
         outcome.n_steps = len(inst.step_seconds)
         outcome.max_step_s = max(inst.step_seconds)
         outcome.mean_step_s = sum(inst.step_seconds) / outcome.n_steps
         last = inst.read()
         outcome.n_events = int(last["n_events"])
-        samples = as_columns([last])
-        violations = checks.check_invariants(samples, p)
+        violations = checks.check_invariants(as_columns([last]), p)
         if violations:
             outcome.failures.append(f"invariants at the end: {violations.summary()}")
-
-        # memory
-        rss = [c[2] for c in checkpoints]
-        objects = [c[3] for c in checkpoints]
-        outcome.details["rss MB (10%..100%)"] = f"{rss[0] / 2**20:.1f} .. {rss[-1] / 2**20:.1f}"
-        outcome.details["gc objects"] = f"{objects[0]} .. {objects[-1]}"
-        if rss[-1] - rss[0] > MEMORY_GROWTH_LIMIT:
-            outcome.failures.append(f"RSS grew by {(rss[-1] - rss[0]) / 2**20:.1f} MB")
-        if objects[-1] - objects[0] > OBJECT_GROWTH_LIMIT:
-            outcome.failures.append(f"live Python objects grew by {objects[-1] - objects[0]}")
-
-        # the cycle at the end, located exactly
-        if settings["closed_form"]:
-            exact = _coulomb_exact(values)
-            period, x_stick, x_slip = exact["period"], exact["x_stick"], exact["x_slip"]
-            t1 = exact["t_first_slip"] + exact["t_slip"]  # first stick
-        else:
-            period, x_stick, sticks_ref = _reference_cycle(p, values)
-            x_slip = p.static.force(0.0) / p.kappa
-            t1 = sticks_ref[0]
-        events = _fine_events(inst, 3.2 * period, period / 400.0)
-        sticks = [(t, x, n) for kind, t, x, n in events if kind == "n_stick_events"]
-        slips = [(t, x, n) for kind, t, x, n in events if kind == "n_slip_events"]
-        if len(sticks) < 2 or not slips:
-            outcome.failures.append(f"end of run: {len(sticks)} sticks, {len(slips)} slips located in 3.2 periods")
-        else:
-            t_last, _, n_sticks = sticks[-1]
-            period_end = (t_last - sticks[0][0]) / (n_sticks - sticks[0][2])
-            phase = abs(t_last - (t1 + (n_sticks - 1) * period))
-            x_err = max(max(abs(x - x_stick) for _, x, _ in sticks), max(abs(x - x_slip) for _, x, _ in slips))
-            x_scale = p.static.force(0.0) / p.kappa
-            outcome.details["period"] = f"{period_end!r} (expected {period!r})"
-            outcome.details["phase drift (s)"] = f"{phase:.3g} after {n_sticks} cycles"
-            outcome.details["stick/slip position error (m)"] = f"{x_err:.3g}"
-            # Absolute times are doubles: each event time is a sum rounded to half an ulp of t, so the
-            # phase may wander by up to one ulp per event (a naive double accumulation of the exact
-            # Coulomb cycle drifts 1.4e-6 s over 1e6 s); period and positions carry that rounding only.
-            ulp = math.ulp(max(t_last, 1.0))
-            n_all = int(inst.read()["n_events"])
-            rounding = 4 * ulp / max(n_sticks - sticks[0][2], 1) + 64 * checks.EPS * period
-            # numeric laws: the FMU's cycle and the reference's differ by the integrators' errors (rtol 1e-10
-            # and 1e-12), measured 6e-11 of a period; 1e-9 per cycle is allowed
-            period_tol = (1e-12 if settings["closed_form"] else 1e-9) * period + rounding
-            phase_tol = n_all * ulp + (0.0 if settings["closed_form"] else 1e-9 * period * n_sticks)
-            outcome.details["phase tolerance (s)"] = f"{phase_tol:.3g}"
-            outcome.ref_error = max(abs(period_end - period) / period, x_err / x_scale)
-            if abs(period_end - period) > period_tol:
-                outcome.failures.append(f"period drifted: {period_end!r} vs {period!r}")
-            if phase > phase_tol:
-                outcome.failures.append(f"phase drifted by {phase:.3g} s (allowed {phase_tol:.2g})")
-            v_scale = max(abs(values["v_drive"]), math.sqrt(p.kappa / p.M) * x_scale)
-            if x_err > (1e-12 if settings["closed_form"] else 1e-8) * x_scale + v_scale * 8 * ulp:
-                outcome.failures.append(f"amplitude drifted: stick/slip positions off by {x_err:.3g} m")
-
-        # linear event counts
-        ts = np.array([c[0] for c in checkpoints])
-        ns = np.array([c[1] for c in checkpoints], float)
-        if settings["closed_form"]:
-            exact = _coulomb_exact(values)
-            cycles = np.floor((ts - exact["t_first_slip"]) / exact["period"])
-            phase_in = (ts - exact["t_first_slip"]) - cycles * exact["period"]
-            predicted = 2 * cycles + 1 + (phase_in >= exact["t_slip"])
-            off = np.abs(ns - predicted).max()
-            outcome.details["event count vs closed form"] = f"max off {off:g}"
-            if off > 1:
-                outcome.failures.append(f"event counts off the closed form by {off:g}")
-        else:
-            slope, intercept = np.polyfit(ts, ns, 1)
-            off = np.abs(ns - (slope * ts + intercept)).max()
-            outcome.details["event count vs straight line"] = f"max off {off:.2f}"
-            if off > 2:
-                outcome.failures.append(f"event counts not linear in time (off by {off:.1f})")
+        _check_memory(outcome, checkpoints)
+        _check_cycle_at_end(outcome, inst, values, p, settings["closed_form"])
+        _check_event_counts(outcome, checkpoints, values, settings["closed_form"])
     except FmuCallError as exc:
-        outcome.failures.append(f"FMU error: {' | '.join(str(exc).splitlines())}")
+        outcome.failures.append(f"FMU error: {_fmu_error_text(exc)}")
     finally:
         inst.free()
     outcome.seconds = time.perf_counter() - start
     return outcome
+
+
+def _long_steps(inst, settings):
+    """Step ``inst`` by ``settings["step"]`` s through the long run; returns the 10 checkpoints ``(t s,
+    n_events, RSS bytes, live Python objects)`` at each tenth of its time or events (after a collection)."""
+    H = settings["step"]
+    checkpoints = []
+    if settings["kind"] == "time":
+        n_steps = int(round(settings["amount"] / H))
+        marks = {int(round(n_steps * k / 10)) for k in range(1, 11)}
+        for k in range(1, n_steps + 1):
+            inst.step_to(k * H)
+            if k in marks:
+                gc.collect()
+                checkpoints.append((inst.time, inst.read()["n_events"], rss_bytes(), len(gc.get_objects())))
+        return checkpoints
+    target = settings["amount"]
+    next_mark, k = target / 10, 0
+    while True:
+        k += 1
+        inst.step_to(k * H)
+        n = inst.read()["n_events"]
+        if n >= next_mark:
+            gc.collect()
+            checkpoints.append((inst.time, n, rss_bytes(), len(gc.get_objects())))
+            next_mark += target / 10
+            if n >= target:
+                return checkpoints
+
+
+def _check_memory(outcome, checkpoints):
+    """RSS and live Python objects grow by at most their limits from the first checkpoint to the last."""
+    rss = [c[2] for c in checkpoints]
+    objects = [c[3] for c in checkpoints]
+    outcome.details["rss MB (10%..100%)"] = f"{rss[0] / 2**20:.1f} .. {rss[-1] / 2**20:.1f}"
+    outcome.details["gc objects"] = f"{objects[0]} .. {objects[-1]}"
+    if rss[-1] - rss[0] > MEMORY_GROWTH_LIMIT:
+        outcome.failures.append(f"RSS grew by {(rss[-1] - rss[0]) / 2**20:.1f} MB")
+    if objects[-1] - objects[0] > OBJECT_GROWTH_LIMIT:
+        outcome.failures.append(f"live Python objects grew by {objects[-1] - objects[0]}")
+
+
+def _expected_cycle(values, p, closed_form):
+    """``(period s, stick x m, breakaway x m, time of the first stick s)`` of the limit cycle: the closed form
+    (Coulomb) or the reference integrator's."""
+    if closed_form:
+        exact = _coulomb_exact(values)
+        return exact["period"], exact["x_stick"], exact["x_slip"], exact["t_first_slip"] + exact["t_slip"]
+    period, x_stick, sticks_ref = _reference_cycle(p, values)
+    return period, x_stick, p.static.force(0.0) / p.kappa, sticks_ref[0]
+
+
+def _check_cycle_at_end(outcome, inst, values, p, closed_form):
+    """The cycle at the end of the run, located exactly, has not drifted in period, phase or amplitude."""
+    period, x_stick, x_slip, t1 = _expected_cycle(values, p, closed_form)
+    events = _fine_events(inst, 3.2 * period, period / 400.0)
+    sticks = [(t, x, n) for kind, t, x, n in events if kind == "n_stick_events"]
+    slips = [(t, x, n) for kind, t, x, n in events if kind == "n_slip_events"]
+    if len(sticks) < 2 or not slips:
+        outcome.failures.append(f"end of run: {len(sticks)} sticks, {len(slips)} slips located in 3.2 periods")
+        return
+    t_last, _, n_sticks = sticks[-1]
+    period_end = (t_last - sticks[0][0]) / (n_sticks - sticks[0][2])
+    phase = abs(t_last - (t1 + (n_sticks - 1) * period))
+    x_err = max(max(abs(x - x_stick) for _, x, _ in sticks), max(abs(x - x_slip) for _, x, _ in slips))
+    x_scale = p.static.force(0.0) / p.kappa
+    outcome.details["period"] = f"{period_end!r} (expected {period!r})"
+    outcome.details["phase drift (s)"] = f"{phase:.3g} after {n_sticks} cycles"
+    outcome.details["stick/slip position error (m)"] = f"{x_err:.3g}"
+    # Absolute times are doubles: each event time is a sum rounded to half an ulp of t, so the
+    # phase may wander by up to one ulp per event (a naive double accumulation of the exact
+    # Coulomb cycle drifts 1.4e-6 s over 1e6 s); period and positions carry that rounding only.
+    ulp = math.ulp(max(t_last, 1.0))
+    n_all = int(inst.read()["n_events"])
+    rounding = 4 * ulp / max(n_sticks - sticks[0][2], 1) + 64 * checks.EPS * period
+    # numeric laws: the FMU's cycle and the reference's differ by the integrators' errors (rtol 1e-10
+    # and 1e-12), measured 6e-11 of a period; 1e-9 per cycle is allowed
+    period_tol = (1e-12 if closed_form else 1e-9) * period + rounding
+    phase_tol = n_all * ulp + (0.0 if closed_form else 1e-9 * period * n_sticks)
+    outcome.details["phase tolerance (s)"] = f"{phase_tol:.3g}"
+    outcome.ref_error = max(abs(period_end - period) / period, x_err / x_scale)
+    if abs(period_end - period) > period_tol:
+        outcome.failures.append(f"period drifted: {period_end!r} vs {period!r}")
+    if phase > phase_tol:
+        outcome.failures.append(f"phase drifted by {phase:.3g} s (allowed {phase_tol:.2g})")
+    v_scale = max(abs(values["v_drive"]), math.sqrt(p.kappa / p.M) * x_scale)
+    if x_err > (1e-12 if closed_form else 1e-8) * x_scale + v_scale * 8 * ulp:
+        outcome.failures.append(f"amplitude drifted: stick/slip positions off by {x_err:.3g} m")
+
+
+def _check_event_counts(outcome, checkpoints, values, closed_form):
+    """The event count grows linearly: the closed form's within 1 event, or a straight line within 2."""
+    ts = np.array([c[0] for c in checkpoints])
+    ns = np.array([c[1] for c in checkpoints], float)
+    if closed_form:
+        exact = _coulomb_exact(values)
+        cycles = np.floor((ts - exact["t_first_slip"]) / exact["period"])
+        phase_in = (ts - exact["t_first_slip"]) - cycles * exact["period"]
+        predicted = 2 * cycles + 1 + (phase_in >= exact["t_slip"])
+        off = np.abs(ns - predicted).max()
+        outcome.details["event count vs closed form"] = f"max off {off:g}"
+        if off > 1:
+            outcome.failures.append(f"event counts off the closed form by {off:g}")
+    else:
+        slope, intercept = np.polyfit(ts, ns, 1)
+        off = np.abs(ns - (slope * ts + intercept)).max()
+        outcome.details["event count vs straight line"] = f"max off {off:.2f}"
+        if off > 2:
+            outcome.failures.append(f"event counts not linear in time (off by {off:.1f})")
 
 
 # ---------------------------------------------------------------------------

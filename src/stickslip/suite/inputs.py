@@ -4,15 +4,15 @@ A signal is piecewise linear through its points, held constant before the first
 and after the last point; a time given twice is a step. FMPy (2.0 co-simulation,
 ``fmpy.simulation.simulateCS``) samples the table at every communication point
 (the value after a step at that time), holds it during ``doStep``, and inserts a
-communication point at every step of the table. :func:`zoh_breakpoints`
-reproduces that loop, so the reference integrates the same piecewise-constant
-inputs as the FMU.
+communication point at every step of the table. :func:`applied_inputs` and
+:func:`zoh_breakpoints` reproduce that loop (bit for bit: the test drives the FMU
+through FMPy and compares), so the reference integrates the same
+piecewise-constant inputs as the FMU.
 """
 
 from math import isclose
 
 import numpy as np
-from fmpy.simulation import Input
 
 INPUT_NAMES = ("v_drive", "F_ext")
 
@@ -101,9 +101,35 @@ def communication_points(table, start_time, stop_time, output_interval):
 
 
 def applied_inputs(table, times):
-    """Inputs FMPy applies at each communication point: rows ``(v_drive, F_ext)``."""
-    values = np.stack([table[name] for name in INPUT_NAMES])
-    return np.array([Input.interpolate(t, table["time"], values, after_event=True)[0].ravel() for t in times])
+    """Inputs FMPy applies at each communication point: rows ``(v_drive, F_ext)``, see :func:`sampled_row`."""
+    values = np.stack([table[name] for name in INPUT_NAMES], axis=1)
+    return np.array([sampled_row(table["time"], values, t) for t in times])
+
+
+def sampled_row(table_times, rows, time):
+    """The row of input values FMPy applies at ``time`` (s) from a table (``rows[i]`` at ``table_times[i]``).
+
+    Held before the first and after the last time; at a step (a time listed
+    twice, or within FMPy's ``math.isclose``) the value after it, i.e. at the
+    last copy of that time; elsewhere linear between the neighbouring rows, as
+    ``w0 v0 + w1 v1`` with ``w0 = (t1 - time)/(t1 - t0)``, ``w1 = 1 - w0``
+    (FMPy's weights, so the same doubles).
+    """
+    if len(table_times) < 2 or time <= table_times[0]:
+        return rows[0]
+    if time > table_times[-1]:
+        return rows[-1]
+    i = int(np.searchsorted(table_times, time))  # the first row at or after time
+    at_step = isclose(time, table_times[i]) and i + 1 < len(table_times) and isclose(table_times[i],
+                                                                                     table_times[i + 1])
+    if at_step:
+        while i + 1 < len(table_times) and isclose(table_times[i], table_times[i + 1]):
+            i += 1
+        return rows[i]
+    t0, t1 = table_times[i - 1], table_times[i]
+    w0 = (t1 - time) / (t1 - t0)
+    w1 = 1 - w0
+    return w0 * rows[i - 1] + w1 * rows[i]
 
 
 def zoh_breakpoints(table, start_time, stop_time, output_interval):
