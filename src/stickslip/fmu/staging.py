@@ -85,12 +85,10 @@ class StagedRuntime:
         return [self.package_dir, *(path for arcname, path in sorted(self.extra_files.items())
                                     if arcname.count("/") == 1)]
 
-    def add_to(self, fmu_zip):
-        """Write those of :attr:`extra_files` that the open FMU archive ``fmu_zip`` does not have yet."""
-        present = set(fmu_zip.namelist())
-        for arcname, path in sorted(self.extra_files.items()):
-            if arcname not in present:
-                fmu_zip.write(path, arcname)
+    def add_to(self, entries):
+        """Add those of :attr:`extra_files` that the FMU's ``entries`` (``{name: bytes}``) do not have yet."""
+        for arcname, path in self.extra_files.items():
+            entries.setdefault(arcname, path.read_bytes())
 
 
 def stage_runtime(folder, tag, runtime, slave, interface, model_name, compiled=True, loader=FMI2_LOADER):
@@ -148,8 +146,10 @@ def _compiled(folder, package):
 
 
 def _byte_compile(package_dir):
-    """Unchecked-hash ``.pyc`` of every module in ``package_dir``: ``{archive name: path}``."""
-    if not compileall.compile_dir(package_dir, quiet=1, invalidation_mode=py_compile.PycInvalidationMode.UNCHECKED_HASH):
+    """Unchecked-hash ``.pyc`` of every module in ``package_dir``: ``{archive name: path}``. They name their
+    sources ``<package>/<module>.py``, not the build folder (importing them names the real path)."""
+    if not compileall.compile_dir(package_dir, ddir=package_dir.name, quiet=1,
+                                  invalidation_mode=py_compile.PycInvalidationMode.UNCHECKED_HASH):
         raise StagingError(f"byte-compiling {package_dir} failed")
     return {f"resources/{path.relative_to(package_dir.parent).as_posix()}": path
             for path in package_dir.glob("__pycache__/*.pyc")}
