@@ -29,10 +29,11 @@ import re
 import shutil
 import sys
 import sysconfig
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .compile_runtime import CompileError, compile_in_place
+from .compile_runtime import COMPILED_MODULES, CompileError, compile_in_place
 
 CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stickslip" / "fmu-runtime"
 #: files of an in-place compiled ``stickslip/core`` (pip install -e) that never go into an FMU's copy
@@ -125,11 +126,15 @@ def _compiled(folder, package):
     """The compiled modules of ``folder/package`` (from the cache or compiled now): ``{archive name: path}``."""
     cache = CACHE / f"{package}-{sys.implementation.cache_tag}-{sysconfig.get_platform()}"
     if not (cache / "complete").is_file():
+        print(f"stickslip: compiling the FMU's runtime {package} with mypyc ({len(COMPILED_MODULES)} modules; "
+              f"kept in {CACHE}) ...", file=sys.stderr)
+        start = time.monotonic()
         try:
             files = compile_in_place(folder, package)
         except CompileError as exc:
             print(f"stickslip: the FMU's runtime stays pure Python: {exc}", file=sys.stderr)
             return {}
+        print(f"stickslip: ... compiled in {time.monotonic() - start:.0f} s", file=sys.stderr)
         shutil.rmtree(cache, ignore_errors=True)
         for path in files:
             target = cache / path.relative_to(folder)
