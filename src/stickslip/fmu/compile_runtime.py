@@ -57,6 +57,8 @@ def compile_in_place(root, package):
     depend on the folder they were compiled in.
     """
     package_dir = Path(root) / package
+    if importlib.util.find_spec("mypyc") is None:
+        raise CompileError("mypyc is not installed (it comes with mypy: the extra 'stickslip[compile]')")
     remove_compiled(root, package_dir)
     script = (
         f"import importlib.util as u; s = u.spec_from_file_location('compile_runtime', {str(Path(__file__).resolve())!r}); "
