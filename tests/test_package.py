@@ -92,6 +92,9 @@ def test_two_builds_are_byte_identical(tmp_path, monkeypatch, fmu_path, fmu3_pat
     monkeypatch.setattr(staging, "CACHE", tmp_path / "empty-cache")
     for version, first in ((2, fmu_path), (3, fmu3_path)):
         second = build(tmp_path / "again" / first.name, version)
+        first_entries, second_entries = archive.read_entries(first), archive.read_entries(second)
+        assert [name for name in sorted(first_entries.keys() | second_entries.keys())
+                if first_entries.get(name) != second_entries.get(name)] == [], f"FMI {version}: entries differ"
         assert second.read_bytes() == first.read_bytes(), f"FMI {version}: two builds differ"
         with zipfile.ZipFile(second) as fmu:
             items = fmu.infolist()

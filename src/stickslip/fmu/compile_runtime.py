@@ -54,7 +54,7 @@ def compile_in_place(root, package):
     """Compile ``root/package`` in place; its compiled files (paths), or CompileError saying why not.
 
     The C compiler maps ``root`` to ``.`` in the paths it records (debug information), so that the files do not
-    depend on the folder they were compiled in.
+    depend on the folder they were compiled in; mypyc runs with a fixed hash seed (the order of sets).
     """
     package_dir = Path(root) / package
     if importlib.util.find_spec("mypyc") is None:
@@ -68,7 +68,8 @@ def compile_in_place(root, package):
     )
     try:
         prefix_map = f"-ffile-prefix-map={Path(root).resolve()}=."
-        environment = {**os.environ, "CFLAGS": f"{os.environ.get('CFLAGS', '')} {prefix_map}".strip()}
+        environment = {**os.environ, "CFLAGS": f"{os.environ.get('CFLAGS', '')} {prefix_map}".strip(),
+                       "PYTHONHASHSEED": "0"}
         run = subprocess.run([sys.executable, "-c", script], cwd=root, env=environment, capture_output=True,
                              text=True, timeout=1200)
     except (OSError, subprocess.TimeoutExpired) as exc:

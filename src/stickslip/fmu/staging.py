@@ -22,11 +22,10 @@ In the FMU's ``resources/``:
   slave's own source, imported once per process, stays out of it.
 """
 
-import compileall
 import os
-import py_compile
 import re
 import shutil
+import subprocess
 import sys
 import sysconfig
 import time
@@ -151,10 +150,17 @@ def _compiled(folder, package):
 
 
 def _byte_compile(package_dir):
-    """Unchecked-hash ``.pyc`` of every module in ``package_dir``: ``{archive name: path}``. They name their
-    sources ``<package>/<module>.py``, not the build folder (importing them names the real path)."""
-    if not compileall.compile_dir(package_dir, ddir=package_dir.name, quiet=1,
-                                  invalidation_mode=py_compile.PycInvalidationMode.UNCHECKED_HASH):
-        raise StagingError(f"byte-compiling {package_dir} failed")
+    """Unchecked-hash ``.pyc`` of every module in ``package_dir``: ``{archive name: path}``.
+
+    They name their sources ``<package>/<module>.py``, not the build folder (importing them names the real path).
+    A new interpreter writes them, without ``site`` and with a fixed hash seed: marshal's bytes depend on the
+    interpreter's state (which objects other modules also hold, the order of sets), so only then do two builds
+    write the same bytes.
+    """
+    command = [sys.executable, "-S", "-s", "-m", "compileall", "-q", "-d", package_dir.name,
+               "--invalidation-mode", "unchecked-hash", str(package_dir)]
+    run = subprocess.run(command, env={**os.environ, "PYTHONHASHSEED": "0"}, capture_output=True, text=True)
+    if run.returncode != 0:
+        raise StagingError(f"byte-compiling {package_dir} failed: {(run.stdout + run.stderr).strip()[-2000:]}")
     return {f"resources/{path.relative_to(package_dir.parent).as_posix()}": path
             for path in package_dir.glob("__pycache__/*.pyc")}
