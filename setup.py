@@ -7,6 +7,7 @@ stickslip.fmu_src (the builders read them from there). Everything else is in pyp
 
 import importlib.util
 import sys
+import time
 from pathlib import Path
 
 from setuptools import find_packages, setup
@@ -20,11 +21,14 @@ _spec.loader.exec_module(compile_runtime)
 
 
 class BuildCompiledRuntime(build_ext):
-    """build_ext that removes compiled files of older sources first and stamps the new ones."""
+    """build_ext that removes compiled files of older sources first, says how far it is, and stamps the new ones."""
 
     def run(self):
         if self.inplace:
             compile_runtime.remove_compiled(SRC, CORE)
+        self.n_started, start = 0, time.monotonic()
+        print(f"stickslip: compiling the C that mypyc made of the runtime's {len(compile_runtime.COMPILED_MODULES)} "
+              f"hot modules: {len(self.extensions)} extensions, the first the largest", file=sys.stderr)
         super().run()
         target = CORE if self.inplace else Path(self.build_lib) / "stickslip" / "core"
         built = [name for name in compile_runtime.COMPILED_MODULES if list(target.glob(f"{name}.*.so"))]
@@ -32,9 +36,15 @@ class BuildCompiledRuntime(build_ext):
             compile_runtime.write_stamp(CORE)
             if not self.inplace:
                 compile_runtime.write_stamp(target)
-            print("stickslip: the runtime's hot modules are compiled (mypyc)", file=sys.stderr)
+            print(f"stickslip: the runtime's hot modules are compiled (mypyc) in {time.monotonic() - start:.0f} s",
+                  file=sys.stderr)
         else:
             print("stickslip: compiling the runtime failed (no C compiler?): it runs as pure Python", file=sys.stderr)
+
+    def build_extension(self, ext):
+        self.n_started += 1
+        print(f"stickslip: extension {self.n_started}/{len(self.extensions)}: {ext.name}", file=sys.stderr)
+        super().build_extension(ext)
 
 
 def _extensions():

@@ -1,10 +1,20 @@
 #!/usr/bin/env bash
 # Set up a fresh checkout for the main job: .venv with stickslip, its runtime dependencies and mypy (mypyc
-# compiles the runtime's hot modules) from PyPI, then build the FMUs. An argument names more extras to install
-# (scripts/test.sh passes "test"). Needs python3 >= 3.11 with venv. Safe to run again.
+# compiles the runtime's hot modules) from PyPI, then build the FMUs into dist/. An argument names more extras to
+# install (scripts/test.sh passes "test"). Needs python3 >= 3.11 with venv. Safe to run again.
+# It says what it does as it goes: pip's steps in short (scripts/pip_progress.py; pip's whole log is
+# .venv/pip-install.log), each C extension as it is compiled, and each FMU.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-echo "setup: installing stickslip and its runtime dependencies${1:+ (and the extra: $1)} into .venv"
+LOG=.venv/pip-install.log
+
+echo "setup: creating .venv; installing stickslip (editable), its dependencies and mypy${1:+, and the extra: $1}"
 python3 -m venv .venv
-.venv/bin/python -m pip install --quiet -e ".[compile${1:+,$1}]"
+if ! PYTHONUNBUFFERED=1 .venv/bin/python -m pip install -v -e ".[compile${1:+,$1}]" 2>&1 | tee "$LOG" \
+        | python3 -u scripts/pip_progress.py; then
+    echo "setup: pip failed; the end of its log ($LOG):" >&2
+    tail -n 40 "$LOG" >&2
+    exit 1
+fi
+echo "setup: building the FMUs (FMI 2, FMI 3) into dist/"
 .venv/bin/python build_fmu.py | sed 's/^/setup: FMU built at /'  # one line per FMU (FMI 2, FMI 3)

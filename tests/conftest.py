@@ -1,11 +1,35 @@
-"""Shared fixtures: the FMUs (FMI 2 and FMI 3) built once per test session from the current sources."""
+"""Shared fixtures: the FMUs (FMI 2 and FMI 3) built once per test session from the current sources, and a
+folder of the session's own for the FMUs built at the default path (the main job's ``dist/`` stays as it is)."""
 
 import shutil
+from pathlib import Path
 
 import fmpy
 import pytest
 
 from stickslip.fmu import build
+
+#: the main job's FMUs (``scripts/setup.sh`` builds them there), which no test may replace
+MAIN_DIST = Path(__file__).resolve().parents[1] / "dist"
+
+
+def _files(folder):
+    """``{path: (size in bytes, modification time in ns)}`` of the files below ``folder`` (none if it is missing)."""
+    return {path: (path.stat().st_size, path.stat().st_mtime_ns) for path in sorted(folder.rglob("*"))
+            if path.is_file()}
+
+
+@pytest.fixture(scope="session", autouse=True)
+def session_dist(tmp_path_factory):
+    """The folder of the FMUs built at the default path during the tests: ``$STICKSLIP_DIST``, which
+    ``stickslip.fmu.default_fmu_path`` reads, set for the session. At the end, the main job's ``dist/`` must be
+    as it was at the start."""
+    before = _files(MAIN_DIST)
+    folder = tmp_path_factory.mktemp("dist")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("STICKSLIP_DIST", str(folder))
+        yield folder
+    assert _files(MAIN_DIST) == before, f"the tests changed the main job's FMUs in {MAIN_DIST}"
 
 
 @pytest.fixture(scope="session")

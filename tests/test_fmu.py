@@ -121,9 +121,16 @@ def test_runtime_is_bundled_under_a_private_name(fmu_path):
     assert Path(runtime.__file__).parent != Path(sys.modules["stickslip.core"].__file__).parent
 
 
-def test_ensure_fmu_builds_only_when_the_sources_changed(tmp_path, fmu_path):
+def test_default_fmu_path_is_dist_unless_stickslip_dist_is_set(monkeypatch, tmp_path, session_dist):
+    assert default_fmu_path().parent == session_dist  # the tests' own folder (conftest), not the main job's
+    monkeypatch.delenv("STICKSLIP_DIST")
     assert default_fmu_path() == Path.cwd() / "dist" / "SpringBlockFriction.fmu"
     assert default_fmu_path(3) == Path.cwd() / "dist" / "SpringBlockFriction-fmi3.fmu"
+    monkeypatch.setenv("STICKSLIP_DIST", str(tmp_path))
+    assert default_fmu_path(3) == tmp_path / "SpringBlockFriction-fmi3.fmu"
+
+
+def test_ensure_fmu_builds_only_when_the_sources_changed(tmp_path, fmu_path):
     target = tmp_path / "SpringBlockFriction.fmu"
     assert ensure_fmu(target) == target and target.is_file()
     built = target.stat().st_mtime_ns

@@ -37,15 +37,16 @@ def add_build(subparsers):
     p = subparsers.add_parser("build", aliases=["build-fmu"],
                               help="build SpringBlockFriction.fmu (FMI 2) and SpringBlockFriction-fmi3.fmu (FMI 3) "
                                    "into DIR if missing or stale, and print their paths")
-    p.add_argument("--out", metavar="DIR", default="dist", help="output folder (default: dist)")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: dist, or $STICKSLIP_DIST if set)")
     p.set_defaults(handler=_build)
 
 
 def _build(args):
-    from ..fmu import FILE_NAMES, FMI_VERSIONS, ensure_fmu
+    from ..fmu import FILE_NAMES, FMI_VERSIONS, default_fmu_path, ensure_fmu
 
     for version in FMI_VERSIONS:
-        print(ensure_fmu((Path(args.out) / FILE_NAMES[version]).resolve(), version))
+        dest = default_fmu_path(version) if args.out is None else Path(args.out).resolve() / FILE_NAMES[version]
+        print(ensure_fmu(dest, version))
     return 0
 
 

@@ -5,6 +5,7 @@
 - :mod:`~stickslip.fmu.staging`: how the runtime and the slave are laid out in the FMU;
 - :mod:`~stickslip.fmu.compile_runtime`: mypyc compilation of the runtime's hot modules;
 - :mod:`~stickslip.fmu.model_description`: completion of the library's model description;
+- :mod:`~stickslip.fmu.archive`: the FMU's zip archive, written reproducibly;
 - :mod:`~stickslip.fmu.loader`: the C loader that becomes the FMU's Linux binary;
 - :mod:`~stickslip.fmu.variable_docs`: ``docs/variables.md`` from a built FMU.
 """

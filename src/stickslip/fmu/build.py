@@ -8,18 +8,18 @@ and mypyc-compiled modules: :mod:`stickslip.fmu.staging`); ``<tag>`` is :func:`~
 A host that imported its own ``stickslip``, or another build of this FMU, therefore never hands the FMU a
 different copy of the runtime. The library's model description is then completed
 (:mod:`stickslip.fmu.model_description`) and its Linux binary becomes the loader of
-:mod:`stickslip.fmu.loader`, so that the FMU also runs in hosts that are not Python processes.
+:mod:`stickslip.fmu.loader`, so that the FMU also runs in hosts that are not Python processes. Building twice
+from the same sources with the same Python and compiler gives the same bytes (:mod:`stickslip.fmu.archive`).
 """
 
 import importlib
 import os
 import sys
 import tempfile
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import loader, model_description
+from . import archive, loader, model_description
 from .sources import MODEL_NAME, RUNTIME, INTERFACE, SLAVES, is_current, source_tag
 from .python_path import preserved_sys_path
 from .staging import LOADERS, stage_runtime
@@ -81,11 +81,12 @@ def build(dest=None, fmi_version=2, pure=False):
                 instance = getattr(importlib.import_module(staged.module), MODEL_NAME)(instance_name="build")
         finally:  # ... and the modules imported
             _forget_modules(tag, staged.module)
-        _write_completed(
-            built, dest,
-            lambda xml: model_description.complete(xml, instance.variable_units, instance.variable_bounds, fmi_version),
-            finish=lambda partial: _finish_staged(partial, staged, fmi_version),
-        )
+        entries = archive.read_entries(built)
+        entries["modelDescription.xml"] = model_description.complete(
+            entries["modelDescription.xml"], instance.variable_units, instance.variable_bounds, fmi_version,
+            *archive.identity(MODEL_NAME, fmi_version, tag))
+        staged.add_to(entries)
+        _write_with_loader(dest, entries, fmi_version)
     return dest
 
 
@@ -95,21 +96,10 @@ def _forget_modules(tag, module):
         del sys.modules[name]
 
 
-def _finish_staged(partial, staged, fmi_version):
-    """Add the staged files the library's builder leaves out, then make the loader the Linux binary."""
-    with zipfile.ZipFile(partial, "a", zipfile.ZIP_DEFLATED) as fmu:
-        staged.add_to(fmu)
-    loader.install(partial, MODEL_NAME, slave_survives_release=True, fmi_version=fmi_version)
-
-
-def _write_completed(built, dest, complete, finish=None):
-    """Copy the FMU ``built`` to ``dest`` (replaced atomically), its model description passed through ``complete``
-    and the copy then through ``finish(path)`` if given."""
+def _write_with_loader(dest, entries, fmi_version):
+    """Write the FMU's ``entries`` (``{name: bytes}``) to ``dest`` (replaced atomically, reproducibly:
+    :mod:`stickslip.fmu.archive`), with the loader as its Linux binary."""
     partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
-    with zipfile.ZipFile(built) as source, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as target:
-        for item in source.infolist():
-            data = source.read(item)
-            target.writestr(item.filename, complete(data) if item.filename == "modelDescription.xml" else data)
-    if finish is not None:
-        finish(partial)
+    archive.write_entries(partial, entries)
+    loader.install(partial, MODEL_NAME, slave_survives_release=True, fmi_version=fmi_version)
     os.replace(partial, dest)

@@ -51,8 +51,14 @@ def write_stamp(package_dir):
 
 
 def compile_in_place(root, package):
-    """Compile ``root/package`` in place; its compiled files (paths), or CompileError saying why not."""
+    """Compile ``root/package`` in place; its compiled files (paths), or CompileError saying why not.
+
+    The C compiler maps ``root`` to ``.`` in the paths it records (debug information), so that the files do not
+    depend on the folder they were compiled in; mypyc runs with a fixed hash seed (the order of sets).
+    """
     package_dir = Path(root) / package
+    if importlib.util.find_spec("mypyc") is None:
+        raise CompileError("mypyc is not installed (it comes with mypy: the extra 'stickslip[compile]')")
     remove_compiled(root, package_dir)
     script = (
         f"import importlib.util as u; s = u.spec_from_file_location('compile_runtime', {str(Path(__file__).resolve())!r}); "
@@ -61,7 +67,11 @@ def compile_in_place(root, package):
         f"setup(ext_modules=c.extensions({package!r}), script_args=['build_ext', '--inplace', '--quiet'])"
     )
     try:
-        run = subprocess.run([sys.executable, "-c", script], cwd=root, capture_output=True, text=True, timeout=1200)
+        prefix_map = f"-ffile-prefix-map={Path(root).resolve()}=."
+        environment = {**os.environ, "CFLAGS": f"{os.environ.get('CFLAGS', '')} {prefix_map}".strip(),
+                       "PYTHONHASHSEED": "0"}
+        run = subprocess.run([sys.executable, "-c", script], cwd=root, env=environment, capture_output=True,
+                             text=True, timeout=1200)
     except (OSError, subprocess.TimeoutExpired) as exc:
         raise CompileError(f"mypyc did not run: {exc}") from exc
     modules = [path for name in COMPILED_MODULES for path in package_dir.glob(f"{name}.*.so")]

@@ -2,7 +2,8 @@
 
 The libraries write names, causalities and start values. :func:`complete` adds what an importer needs: units
 and declared types, the bounds the slave checks (``min``/``max``), a DefaultExperiment and, for FMI 2, the
-ModelStructure's Outputs and InitialUnknowns.
+ModelStructure's Outputs and InitialUnknowns; and it replaces the libraries' random GUID and the time of the
+build by values that depend on the sources alone (:func:`stickslip.fmu.archive.identity`).
 """
 
 from xml.etree import ElementTree as ET
@@ -27,10 +28,19 @@ class ModelDescriptionError(RuntimeError):
     """The slave declares something the model description cannot state."""
 
 
-def complete(xml, units, bounds, fmi_version):
+#: FMI version: the attribute that names one build of the model (the importer passes it back at instantiation)
+GUID_ATTRIBUTES = {2: "guid", 3: "instantiationToken"}
+
+
+def complete(xml, units, bounds, fmi_version, guid, generated=None):
     """``xml`` (the library's model description, bytes) completed; ``units``/``bounds``: {variable name: unit
-    as the slave states it / (min, max) with None for an open end}."""
+    as the slave states it / (min, max) with None for an open end}; ``guid``: the GUID (FMI 3: instantiation
+    token); ``generated``: generationDateAndTime (ISO 8601 text), or None to leave it out."""
     root = ET.fromstring(xml)
+    root.set(GUID_ATTRIBUTES[fmi_version], guid)
+    root.attrib.pop("generationDateAndTime", None)
+    if generated is not None:
+        root.set("generationDateAndTime", generated)
     variables = root.find("ModelVariables")
     if fmi_version == 2:
         used = _annotate(variables, units, bounds, lambda variable: variable[0])

@@ -22,17 +22,17 @@ In the FMU's ``resources/``:
   slave's own source, imported once per process, stays out of it.
 """
 
-import compileall
 import os
-import py_compile
 import re
 import shutil
+import subprocess
 import sys
 import sysconfig
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .compile_runtime import CompileError, compile_in_place
+from .compile_runtime import COMPILED_MODULES, CompileError, compile_in_place
 
 CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stickslip" / "fmu-runtime"
 #: files of an in-place compiled ``stickslip/core`` (pip install -e) that never go into an FMU's copy
@@ -85,12 +85,10 @@ class StagedRuntime:
         return [self.package_dir, *(path for arcname, path in sorted(self.extra_files.items())
                                     if arcname.count("/") == 1)]
 
-    def add_to(self, fmu_zip):
-        """Write those of :attr:`extra_files` that the open FMU archive ``fmu_zip`` does not have yet."""
-        present = set(fmu_zip.namelist())
-        for arcname, path in sorted(self.extra_files.items()):
-            if arcname not in present:
-                fmu_zip.write(path, arcname)
+    def add_to(self, entries):
+        """Add those of :attr:`extra_files` that the FMU's ``entries`` (``{name: bytes}``) do not have yet."""
+        for arcname, path in self.extra_files.items():
+            entries.setdefault(arcname, path.read_bytes())
 
 
 def stage_runtime(folder, tag, runtime, slave, interface, model_name, compiled=True, loader=FMI2_LOADER):
@@ -127,11 +125,15 @@ def _compiled(folder, package):
     """The compiled modules of ``folder/package`` (from the cache or compiled now): ``{archive name: path}``."""
     cache = CACHE / f"{package}-{sys.implementation.cache_tag}-{sysconfig.get_platform()}"
     if not (cache / "complete").is_file():
+        print(f"stickslip: compiling the FMU's runtime {package} with mypyc ({len(COMPILED_MODULES)} modules; "
+              f"kept in {CACHE}) ...", file=sys.stderr)
+        start = time.monotonic()
         try:
             files = compile_in_place(folder, package)
         except CompileError as exc:
             print(f"stickslip: the FMU's runtime stays pure Python: {exc}", file=sys.stderr)
             return {}
+        print(f"stickslip: ... compiled in {time.monotonic() - start:.0f} s", file=sys.stderr)
         shutil.rmtree(cache, ignore_errors=True)
         for path in files:
             target = cache / path.relative_to(folder)
@@ -148,8 +150,17 @@ def _compiled(folder, package):
 
 
 def _byte_compile(package_dir):
-    """Unchecked-hash ``.pyc`` of every module in ``package_dir``: ``{archive name: path}``."""
-    if not compileall.compile_dir(package_dir, quiet=1, invalidation_mode=py_compile.PycInvalidationMode.UNCHECKED_HASH):
-        raise StagingError(f"byte-compiling {package_dir} failed")
+    """Unchecked-hash ``.pyc`` of every module in ``package_dir``: ``{archive name: path}``.
+
+    They name their sources ``<package>/<module>.py``, not the build folder (importing them names the real path).
+    A new interpreter writes them, without ``site`` and with a fixed hash seed: marshal's bytes depend on the
+    interpreter's state (which objects other modules also hold, the order of sets), so only then do two builds
+    write the same bytes.
+    """
+    command = [sys.executable, "-S", "-s", "-m", "compileall", "-q", "-d", package_dir.name,
+               "--invalidation-mode", "unchecked-hash", str(package_dir)]
+    run = subprocess.run(command, env={**os.environ, "PYTHONHASHSEED": "0"}, capture_output=True, text=True)
+    if run.returncode != 0:
+        raise StagingError(f"byte-compiling {package_dir} failed: {(run.stdout + run.stderr).strip()[-2000:]}")
     return {f"resources/{path.relative_to(package_dir.parent).as_posix()}": path
             for path in package_dir.glob("__pycache__/*.pyc")}

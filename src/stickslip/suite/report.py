@@ -1,5 +1,7 @@
-"""Suite outputs: the FMU result as a CSV file and the summary table (terminal and ``report.md``)."""
+"""Suite outputs: the FMU result as a CSV file, the summary for the terminal (at most 100 columns) and
+``report.md`` (every column, the failures, the figures)."""
 
+import textwrap
 from dataclasses import dataclass
 
 from fmpy.util import write_csv
@@ -32,10 +34,16 @@ class Outcome:
         return self.met_checks
 
     @property
-    def verdict(self):
-        if self.known_miss:
-            return "KNOWN MISS" if self.passed else "FAIL (known miss met its checks)"
+    def result(self):
+        """PASS, FAIL or KNOWN MISS; why a run failed is in :attr:`problems`."""
+        if self.known_miss and self.passed:
+            return "KNOWN MISS"
         return "PASS" if self.passed else "FAIL"
+
+    @property
+    def verdict(self):
+        """:attr:`result`, saying also when a known miss fails because it met its checks."""
+        return "FAIL (known miss met its checks)" if self.known_miss and not self.passed else self.result
 
     @property
     def problems(self):
@@ -57,15 +65,24 @@ def write_result_csv(path, result, columns):
     write_csv(str(path), result, columns=list(columns))
 
 
+def _errors(c):
+    """The key error figures of the comparison ``c`` as printed: largest |dx| (m), |dv| (m/s), event dt (s)."""
+    return f"{c.max_abs_dx:.2e}", f"{c.max_abs_dv:.2e}", f"{c.events.max_time_error:.2e}"
+
+
+def _times(o):
+    """The run times of the outcome ``o`` as printed: FMU, reference (s)."""
+    return f"{o.fmu_seconds:.2f}", f"{o.ref_seconds:.2f}"
+
+
 def _row(o):
     c = o.comparison
     if c is None:
-        return (o.name, "-", "-", "-", "-", "-", o.expected_attractor, "-", f"{o.fmu_seconds:.2f}",
-                f"{o.ref_seconds:.2f}", o.verdict)
+        return (o.name, "-", "-", "-", "-", "-", o.expected_attractor, "-", *_times(o), o.verdict)
+    max_dx, max_dv, event_dt = _errors(c)
     found = c.attractor_fmu if c.attractor_fmu == c.attractor_ref else f"{c.attractor_fmu} (ref: {c.attractor_ref})"
-    return (o.name, f"{c.max_abs_dx:.2e}", f"{c.max_abs_dv:.2e}", f"{c.final_abs_dx:.2e}",
-            f"{c.events.max_time_error:.2e}", f"{c.events.n_matched}/{c.events.n_unmatched}",
-            o.expected_attractor, found, f"{o.fmu_seconds:.2f}", f"{o.ref_seconds:.2f}", o.verdict)
+    return (o.name, max_dx, max_dv, f"{c.final_abs_dx:.2e}", event_dt, f"{c.events.n_matched}/{c.events.n_unmatched}",
+            o.expected_attractor, found, *_times(o), o.verdict)
 
 
 def summary_table(outcomes):
@@ -80,6 +97,35 @@ def summary_table(outcomes):
 def failure_lines(outcomes):
     """One line per failed scenario: its name and what missed."""
     return [f"- {o.name}: {'; '.join(o.problems)}" for o in outcomes if not o.passed]
+
+
+#: the width of the console summary (characters); ``report.md`` has every column
+CONSOLE_WIDTH = 100
+CONSOLE_COLUMNS = ("scenario", "result", "max|dx| m", "max|dv| m/s", "event dt s", "FMU s", "ref s")
+
+
+def _console_row(o):
+    errors = ("-", "-", "-") if o.comparison is None else _errors(o.comparison)
+    return (o.name, o.result, *errors, *_times(o))
+
+
+def _cut(text, width):
+    """``text``, cut to ``width`` characters with ``..`` at the end if longer."""
+    return text if len(text) <= width else text[:width - 2] + ".."
+
+
+def console_summary(outcomes, width=CONSOLE_WIDTH):
+    """The outcomes for the terminal within ``width`` characters a line: a table (scenario, result, the largest
+    position, velocity and event-time errors, the run times; names cut to fit), then the failures, wrapped."""
+    rows = [CONSOLE_COLUMNS] + [_console_row(o) for o in outcomes]
+    widths = [max(len(r[i]) for r in rows) for i in range(len(CONSOLE_COLUMNS))]
+    widths[0] = max(len(CONSOLE_COLUMNS[0]), min(widths[0], width - sum(widths[1:]) - 2 * (len(widths) - 1)))
+    lines = ["  ".join([_cut(r[0], widths[0]).ljust(widths[0]), r[1].ljust(widths[1]),
+                        *(cell.rjust(w) for cell, w in zip(r[2:], widths[2:]))]).rstrip() for r in rows]
+    lines.insert(1, "-" * (sum(widths) + 2 * (len(widths) - 1)))
+    for line in failure_lines(outcomes):
+        lines += textwrap.wrap(line, width, subsequent_indent="  ", break_on_hyphens=False)
+    return "\n".join(lines)
 
 
 def write_report(path, outcomes, seconds):

@@ -23,7 +23,7 @@ from ..hosts.fmpy_host import run_fmu
 from .inputs import held_input_table
 from .plots import plot_scenario
 from ..reference import ReferenceFailure, parameters_from_values, simulate_reference
-from .report import Outcome, failure_lines, summary_table, write_report, write_result_csv
+from .report import Outcome, console_summary, write_report, write_result_csv
 from .scenario import ScenarioError, load_scenarios
 
 #: FMU variables recorded for every scenario (SPEC section 4, the extra counters, and the inputs).
@@ -104,8 +104,8 @@ def run_suite(paths, out_dir, jobs=2, fmu_path=None, interface=None):
     FMI 3 FMU (default ``dist/SpringBlockFriction-fmi3.fmu``, built if missing or stale) through that
     interface; None (default) the FMU at ``fmu_path`` through the interface it has (FMI 2: co-simulation).
 
-    Writes the per-scenario files and ``report.md`` into ``out_dir``, prints the
-    summary table, and returns a :class:`SuiteResult` (``.ok`` is False if any
+    Writes the per-scenario files and ``report.md`` into ``out_dir``, prints a summary
+    within 100 columns (:func:`~stickslip.suite.report.console_summary`), and returns a :class:`SuiteResult` (``.ok`` is False if any
     scenario missed its tolerance or its attractor). A malformed scenario file
     raises :class:`~stickslip.suite.scenario.ScenarioError` before anything runs.
     """
@@ -136,11 +136,9 @@ def run_suite(paths, out_dir, jobs=2, fmu_path=None, interface=None):
     progress.close()
     result = SuiteResult(tuple(outcomes), time.perf_counter() - start)
     write_report(out_dir / "report.md", result.outcomes, result.seconds)
-    print(summary_table(result.outcomes))
-    for line in failure_lines(result.outcomes):
-        print(line)
-    print(f"{sum(o.passed for o in result.outcomes)}/{len(result.outcomes)} passed in {result.seconds:.1f} s;"
-          f" report: {out_dir / 'report.md'}")
+    print(console_summary(result.outcomes))
+    print(f"{sum(o.passed for o in result.outcomes)}/{len(result.outcomes)} passed in {result.seconds:.1f} s")
+    print(f"report: {out_dir / 'report.md'}")
     return result
 
 

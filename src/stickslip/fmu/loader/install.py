@@ -16,8 +16,9 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
-import zipfile
 from pathlib import Path
+
+from ..archive import read_entries, write_entries
 
 HERE = Path(__file__).resolve().parent
 #: FMI version: (the front's source, the FMU's folder of Linux binaries, the library that built the FMU)
@@ -70,6 +71,7 @@ def install(fmu_path, model_identifier, slave_survives_release=False, fmi_versio
     (as ``fmu_src/SpringBlockFriction.py`` does); the loader then reports their failures as fmi2Error, which
     lets the host reset or free the instance, instead of the library's fatal status.
 
+    The FMU is written again as :func:`stickslip.fmu.archive.write_entries` writes it (reproducibly).
     Returns True if the loader was installed; False (after a notice on stderr) if the FMU keeps
     its library's binary because no C compiler works.
     """
@@ -84,13 +86,8 @@ def install(fmu_path, model_identifier, slave_survives_release=False, fmi_versio
             print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads "
                   f"only inside a Python process: {why_not}", file=sys.stderr)
             return False
-        rewritten = Path(tmp) / "fmu.zip"
-        with zipfile.ZipFile(fmu_path) as source, zipfile.ZipFile(rewritten, "w", zipfile.ZIP_DEFLATED) as target:
-            for item in source.infolist():
-                data = source.read(item)
-                if item.filename == binary:
-                    target.writestr(f"{folder}/{inner_name}", data)
-                    data = loader.read_bytes()
-                target.writestr(item, data)
-        shutil.copyfile(rewritten, fmu_path)
+        entries = read_entries(fmu_path)
+        entries[f"{folder}/{inner_name}"] = entries[binary]
+        entries[binary] = loader.read_bytes()
+        write_entries(fmu_path, entries)
     return True
