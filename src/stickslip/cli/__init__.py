@@ -37,7 +37,8 @@ def add_build(subparsers):
     p = subparsers.add_parser("build", aliases=["build-fmu"],
                               help="build SpringBlockFriction.fmu (FMI 2) and SpringBlockFriction-fmi3.fmu (FMI 3) "
                                    "into DIR if missing or stale, and print their paths")
-    p.add_argument("--out", metavar="DIR", default="dist", help="output folder (default: dist)")
+    p.add_argument("--out", metavar="DIR",
+                   help="output folder (default: dist in the current folder, or $STICKSLIP_DIST if set)")
     p.set_defaults(handler=_build)
 
 
@@ -45,7 +46,8 @@ def _build(args):
     from ..fmu import FILE_NAMES, FMI_VERSIONS, ensure_fmu
 
     for version in FMI_VERSIONS:
-        print(ensure_fmu((Path(args.out) / FILE_NAMES[version]).resolve(), version))
+        fmu_path = None if args.out is None else (Path(args.out) / FILE_NAMES[version]).resolve()
+        print(ensure_fmu(fmu_path, version))  # None: stickslip.fmu.default_fmu_path
     return 0
 
 
