@@ -1,6 +1,7 @@
 """The benchmark's peers are correct, and ``stickslip bench --quick`` writes its outputs (no timing asserted)."""
 
 import argparse
+import importlib.util
 import json
 import math
 
@@ -209,3 +210,19 @@ def test_bench_versus_refuses_an_unknown_scene(fmu_path, capsys):
 
     assert main(["bench-versus", str(fmu_path), "--scene", "no-such-scene"]) == 2
     assert "no-such-scene" in capsys.readouterr().err
+
+
+def test_the_floor_fmu_has_every_output_of_ours_with_its_kind_and_the_bench_records_only_outputs():
+    """The floor slave (built into its own FMU, so it cannot import the table) declares the outputs of the
+    variable table with the same kind and variability; the benchmark records outputs both FMUs have."""
+    from stickslip.bench.harness import FMU_OUTPUTS
+    from stickslip.fmu_src.block_interface import VARIABLES
+
+    spec = importlib.util.spec_from_file_location("floor_slave_under_test", fmus.FLOOR_SOURCE)
+    floor = importlib.util.module_from_spec(spec)  # not in sys.modules: building the floor FMU is unaffected
+    spec.loader.exec_module(floor)
+    declared = {(name, "real", "continuous") for name in floor.REALS} | \
+        {(name, "real", "discrete") for name in floor.DISCRETE_REALS} | \
+        {(name, "integer", "discrete") for name in floor.INTEGERS}
+    assert declared == {(v.name, v.kind, v.variability) for v in VARIABLES if v.causality == "output"}
+    assert set(FMU_OUTPUTS) <= {name for name, _, _ in declared}

@@ -8,8 +8,6 @@ ROOT = Path(__file__).resolve().parents[1]
 FOLDERS = (ROOT / "src" / "stickslip", ROOT / "fmu_src")
 RUNTIME = ROOT / "src" / "stickslip" / "core"
 MAX_LINES = 60
-#: functions still longer, each with the work that splits it: ``"path relative to ROOT:name"``
-LONG_FOR_NOW = {"src/stickslip/stress/cosim.py:run_libcosim"}  # split by the hosts work of issue 18
 
 
 def _function_lengths():
@@ -28,7 +26,5 @@ def _function_lengths():
 
 def test_no_function_outside_the_runtime_is_longer_than_60_lines():
     lengths = _function_lengths()
-    long = {name: n for name, n in lengths.items() if n > MAX_LINES and name not in LONG_FOR_NOW}
+    long = {name: n for name, n in lengths.items() if n > MAX_LINES}
     assert not long, f"functions over {MAX_LINES} lines (split them into named helpers): {long}"
-    fixed = sorted(name for name in LONG_FOR_NOW if lengths.get(name, 0) <= MAX_LINES)
-    assert not fixed, f"no longer over {MAX_LINES} lines (or gone): remove {fixed} from LONG_FOR_NOW"

@@ -1,46 +1,24 @@
-"""FMUs under ``fmpy.simulate_fmu``: ours and the trivial floor FMU the benchmark builds.
+"""The benchmark's FMUs: ours and the trivial floor FMU it builds, each an
+:class:`~stickslip.hosts.fmpy_host.ExtractedFMU` of the FMPy host.
 
 An FMU is extracted once (outside the timing); each timed call is one
-``fmpy.simulate_fmu`` on the extracted folder: instantiate, initialize, every
-communication step, record, free.
+``ExtractedFMU.simulate``, one ``fmpy.simulate_fmu`` on the extracted folder:
+instantiate, initialize, every communication step, record, free.
 """
 
 import os
-import shutil
 import sys
 from pathlib import Path
 
-import fmpy
-
 from ..fmu import loader
 from ..fmu.python_path import preserved_sys_path
+from ..hosts.fmpy_host import ExtractedFMU
 
 FLOOR_SOURCE = Path(__file__).resolve().parent / "floor_fmu" / "TrivialFloorSlave_sbfbench.py"
 #: where the benchmark builds its FMUs and C hosts (relative to the current folder)
 BUILD_DIR = Path("build") / "bench"
 
-
-class ExtractedFMU:
-    """An FMU extracted to a temporary folder; use as a context manager."""
-
-    def __init__(self, fmu_path):
-        self.model_description = fmpy.read_model_description(str(fmu_path))
-        self.folder = fmpy.extract(str(fmu_path))
-
-    def simulate(self, start_values, stop_time, output_interval, outputs, **options):
-        """FMPy's result array from t = 0 to ``stop_time`` s with communication step (model exchange: output
-        interval) ``output_interval`` s; ``options``: more arguments of ``fmpy.simulate_fmu``."""
-        with preserved_sys_path():  # PythonFMU puts the FMU's resources on sys.path
-            return fmpy.simulate_fmu(
-                self.folder, model_description=self.model_description, start_time=0.0, stop_time=stop_time,
-                output_interval=output_interval, start_values=start_values, output=list(outputs), **options,
-            )
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        shutil.rmtree(self.folder, ignore_errors=True)
+__all__ = ["BUILD_DIR", "ExtractedFMU", "FLOOR_SOURCE", "ensure_floor_fmu"]
 
 
 def ensure_floor_fmu(build_dir=None):

@@ -14,6 +14,7 @@ import subprocess
 import sys
 import time
 
+from ..fmu.variables import START_VALUES
 from .fmus import ExtractedFMU
 from .scenes import select_scenes
 
@@ -23,7 +24,8 @@ def add_versus_parser(subparsers):
     p.add_argument("fmus", nargs="+", metavar="FMU", help="FMU files; ratios are to the first")
     p.add_argument("--scene", default="elmer-fig3-v1.0-long", help="benchmark scene (default: elmer-fig3-v1.0-long)")
     p.add_argument("--comm-step", type=float, default=1.0, help="communication step in s (default: 1)")
-    p.add_argument("--rtol", type=float, default=1e-10, help="the FMUs' solver.rtol (default: 1e-10)")
+    p.add_argument("--rtol", type=float, default=START_VALUES["solver.rtol"],
+                   help=f"the FMUs' solver.rtol (default: the FMU's, {START_VALUES['solver.rtol']:g})")
     p.add_argument("--rounds", type=int, default=3, help="alternating rounds (default: 3)")
     p.add_argument("--repeats", type=int, default=5, help="timed calls per FMU and round (default: 5)")
     p.set_defaults(handler=run_versus)
@@ -33,8 +35,7 @@ def time_fmu(fmu_path, scene_name, comm_step, rtol, repeats):
     """``{"wall": [s...], "cpu": [s...], "x_end": m}`` of ``repeats`` calls after a warm-up, in this process."""
     scene = select_scenes([scene_name])[0]
     with ExtractedFMU(fmu_path) as fmu:
-        names = {v.name for v in fmu.model_description.modelVariables}
-        start = {name: value for name, value in scene.start_values(rtol).items() if name in names}
+        start = {name: value for name, value in scene.start_values(rtol).items() if name in fmu.variables}
         result = fmu.simulate(start, scene.stop_time, comm_step, ("x", "v"))
         wall, cpu = [], []
         gc.collect()

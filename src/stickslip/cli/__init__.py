@@ -37,7 +37,7 @@ def add_build(subparsers):
     p = subparsers.add_parser("build", aliases=["build-fmu"],
                               help="build SpringBlockFriction.fmu (FMI 2) and SpringBlockFriction-fmi3.fmu (FMI 3) "
                                    "into DIR if missing or stale, and print their paths")
-    p.add_argument("--out", metavar="DIR", help="output folder (default: dist, or $STICKSLIP_DIST if set)")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: dist in the current folder, or $STICKSLIP_DIST if set)")
     p.set_defaults(handler=_build)
 
 

@@ -1,11 +1,19 @@
 """Host the SpringBlockFriction FMUs under FMPy: FMI 2.0 co-simulation, FMI 3.0 co-simulation and model exchange,
 with one error type (:class:`FMUError`) and one log.
 
-- :func:`instantiate` makes an instance of an extracted FMU that logs into the process log; :func:`run_fmu`
-  simulates an FMU file with ``fmpy.simulate_fmu`` and turns every FMI failure into :class:`FMUError` carrying
-  the FMU's own log text (for a bad parameter: its name, value and allowed range). The FMUs' loader passes
-  errors at every logging setting; logging is on so that an FMU built without the loader (no C compiler)
-  passes them too.
+- :class:`ExtractedFMU`: an FMU file read and extracted once: its model description, its variables by name and
+  the start values of its parameters and inputs. :meth:`~ExtractedFMU.new_instance` makes an :class:`Instance`
+  that logs into the process log; :meth:`~ExtractedFMU.simulate` runs ``fmpy.simulate_fmu`` on the extracted
+  folder. The suite (:func:`run_fmu`), the stress tests (:mod:`stickslip.stress.session`) and the benchmark
+  build on it.
+- :class:`Instance`: :meth:`~Instance.call` turns a failed FMI call into :class:`FmuCallError` (an FMUError)
+  carrying the function, the status and the instance's own log text (for a bad parameter: its name, value and
+  allowed range). The FMUs' loader passes errors at every logging setting; logging is on by default so that an
+  FMU built without the loader (no C compiler) passes them too.
+- The Fatal rule: PythonFMU and pythonfmu3 release the slave themselves when they report ``Fatal``, and FMI
+  allows no call after it: an instance that reported ``Fatal`` is never terminated or freed
+  (:meth:`Instance.free`); its slave stays allocated until the process ends.
+- :func:`run_fmu` simulates an FMU file from t = 0 and raises FMUError on any failure.
 - The log: FMPy's native logging proxy forwards the messages of every FMI 2 instance in the process to ONE
   logger, the one registered last, and a logger that is later garbage collected makes the next message crash
   the process. So every instance logs through callbacks that live as long as the process, into one list;
@@ -15,10 +23,9 @@ with one error type (:class:`FMUError`) and one log.
   (``F_S(0)/kappa`` for ``x``, ``F_S(0)/sqrt(kappa M)`` for ``v``); FMPy caps CVode's step at 1/50 of the run.
   Inputs for model exchange are best given as steps (:func:`stickslip.suite.inputs.held_input_table`): the
   FMU treats an input change as a jump at the next event update, as a co-simulation step holds its inputs.
-- PythonFMU and pythonfmu3 release the slave themselves when they report ``Fatal``: such an instance is never
-  freed again.
 """
 
+import functools
 import itertools
 import shutil
 from ctypes import byref
@@ -35,7 +42,10 @@ from ..fmu.python_path import preserved_sys_path
 #: interface: (FMPy's fmi_type, the model description's attribute, FMI 2 class, FMI 3 class)
 INTERFACES = {"cs": ("CoSimulation", "coSimulation", FMU2Slave, FMU3Slave),
               "me": ("ModelExchange", "modelExchange", None, FMU3Model)}
+#: FMI version: the status ``Fatal``
 FATAL = {2: fmi2Fatal, 3: fmi3Fatal}
+#: FMI status code: its name
+STATUS_NAMES = ("ok", "warning", "discard", "error", "fatal", "pending")
 
 _MESSAGES = []  # (instance name, status, message) of every message with status >= warning, in order
 _KEEP_ALIVE = []  # callbacks handed to FMUs: an instance may call them as long as it lives
@@ -44,6 +54,17 @@ _INSTANCE_NUMBERS = itertools.count(1)  # instance names, so each run reads only
 
 class FMUError(StickSlipError):
     """An FMI call of the FMU failed; the message contains the FMU's log."""
+
+
+class FmuCallError(FMUError):
+    """An FMI call failed: ``function``, ``status`` (2 discard, 3 error, 4 fatal) and the FMU's log ``messages``."""
+
+    def __init__(self, function, status, messages):
+        self.function = function
+        self.status = status
+        self.messages = tuple(messages)
+        label = STATUS_NAMES[status] if 0 <= status < len(STATUS_NAMES) else "illegal"
+        super().__init__("\n".join([f"{function} failed with status {status} ({label})", *self.messages]))
 
 
 def _record(instance_name, status, message):
@@ -84,29 +105,125 @@ def messages_since(mark, instance_name):
     return [message for name, _, message in _MESSAGES[mark:] if name == instance_name]
 
 
-def fmi_version(model_description):
-    """2 or 3, the FMI version of a model description read by FMPy."""
-    return int(model_description.fmiVersion[0])
+class Instance:
+    """One instance of an :class:`ExtractedFMU` (``extracted``): FMPy's object ``fmu`` (FMU2Slave, FMU3Slave or
+    FMU3Model), logging into the process log under ``name``.
+
+    ``fatal`` is set once a call reported ``Fatal``; :meth:`free` then leaves the instance alone (see the module
+    text). Use as a context manager to free it at the end.
+    """
+
+    def __init__(self, extracted, fmu, name):
+        self.extracted = extracted
+        self.fmu = fmu
+        self.name = name
+        self.fatal = False
+        self.freed = False
+
+    def call(self, method, *args, **kwargs):
+        """``method(*args, **kwargs)``, a method of :attr:`fmu` (or anything that makes FMI calls on it);
+        :class:`FmuCallError` with this instance's new log messages if an FMI call fails."""
+        first = log_mark()
+        try:
+            return method(*args, **kwargs)
+        except FMICallException as error:
+            if error.status == FATAL[self.extracted.fmi_version]:  # the library released the slave
+                self.fatal = True
+            raise FmuCallError(error.function, error.status, self.messages(first)) from None
+
+    def messages(self, first=0):
+        """Log messages (status >= warning) of this instance since ``first`` (a :func:`log_mark`)."""
+        return messages_since(first, self.name)
+
+    def free(self, terminate=True):
+        """Terminate (if ``terminate``) and free the instance, once; never after ``Fatal``."""
+        if self.freed:
+            return
+        self.freed = True
+        if self.fatal:
+            return
+        if terminate:
+            try:
+                self.fmu.terminate()
+            except FMICallException as error:
+                if error.status == FATAL[self.extracted.fmi_version]:
+                    return
+        self.fmu.freeInstance()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.free()
 
 
-def instantiate(model_description, unzipdir, interface="cs", name=None, logging_on=True, fmi_call_logger=None):
-    """An instantiated FMPy instance of the FMU extracted to ``unzipdir`` (``interface`` "cs" or "me"), logging
-    into the process log under ``name`` (default: a new name); FMUError if the FMU has no such interface."""
-    _, attribute, *classes = INTERFACES[interface]
-    version = fmi_version(model_description)
-    cls = classes[version - 2]
-    if cls is None or getattr(model_description, attribute) is None:
-        raise FMUError(f"the FMI {version} FMU {model_description.modelName} has no "
-                       f"{'model exchange' if interface == 'me' else 'co-simulation'}")
-    name = name or f"run{next(_INSTANCE_NUMBERS)}"
-    fmu = cls(guid=model_description.guid, unzipDirectory=unzipdir, instanceName=name,
-              modelIdentifier=getattr(model_description, attribute).modelIdentifier, fmiCallLogger=fmi_call_logger)
-    with preserved_sys_path():  # PythonFMU and pythonfmu3 put the FMU's resources on sys.path
-        if version == 2:
-            fmu.instantiate(callbacks=fmi2_callbacks(), loggingOn=logging_on)
-        else:
-            fmu.instantiate(loggingOn=logging_on, logMessage=fmi3_logger(name))
-    return fmu
+class ExtractedFMU:
+    """The FMU at ``fmu_path`` read (``model_description``, FMPy's) and extracted to a temporary ``folder`` once;
+    ``variables``: its model variables by name. Use as a context manager (the folder is removed at the end)."""
+
+    #: the class :meth:`new_instance` makes
+    instance_type = Instance
+
+    def __init__(self, fmu_path):
+        self.path = str(fmu_path)
+        self.model_description = fmpy.read_model_description(self.path)
+        self.folder = fmpy.extract(self.path)
+        self.variables = {v.name: v for v in self.model_description.modelVariables}
+        self.fmi_version = int(self.model_description.fmiVersion[0])
+
+    @functools.cached_property
+    def defaults(self):
+        """{parameter or input: its start value in the model description}, an int for an integer variable."""
+        return {name: (int(v.start) if v.type.startswith(("Int", "UInt")) else float(v.start))
+                for name, v in self.variables.items() if v.causality in ("parameter", "input")}
+
+    def start_values(self, overrides):
+        """Every parameter and input with its start value, ``overrides`` (FMU names) applied."""
+        unknown = set(overrides) - set(self.defaults)
+        if unknown:
+            raise KeyError(f"not parameters or inputs of the FMU: {sorted(unknown)}")
+        return {**self.defaults, **overrides}
+
+    def new_instance(self, name=None, interface="cs", logging_on=True, fmi_call_logger=None):
+        """A new instance (``fmi2Instantiate``, ``fmi3InstantiateCoSimulation`` or
+        ``fmi3InstantiateModelExchange`` for ``interface`` "cs" or "me") named ``name`` (default: a new name),
+        logging into the process log; FMUError if the FMU has no such interface."""
+        _, attribute, *classes = INTERFACES[interface]
+        cls = classes[self.fmi_version - 2]
+        if cls is None or getattr(self.model_description, attribute) is None:
+            raise FMUError(f"the FMI {self.fmi_version} FMU {self.model_description.modelName} has no "
+                           f"{'model exchange' if interface == 'me' else 'co-simulation'}")
+        name = name or f"run{next(_INSTANCE_NUMBERS)}"
+        fmu = cls(guid=self.model_description.guid, unzipDirectory=self.folder, instanceName=name,
+                  modelIdentifier=getattr(self.model_description, attribute).modelIdentifier,
+                  fmiCallLogger=fmi_call_logger)
+        with preserved_sys_path():  # PythonFMU and pythonfmu3 put the FMU's resources on sys.path
+            if self.fmi_version == 2:
+                fmu.instantiate(callbacks=fmi2_callbacks(), loggingOn=logging_on)
+            else:
+                fmu.instantiate(loggingOn=logging_on, logMessage=fmi3_logger(name))
+        return self.instance_type(self, fmu, name)
+
+    def simulate(self, start_values, stop_time, output_interval, outputs=None, **options):
+        """FMPy's result array (field ``time`` plus ``outputs``, default: every output) from t = 0 to ``stop_time``
+        s with communication step (model exchange: output interval) ``output_interval`` s; ``options``: more
+        arguments of ``fmpy.simulate_fmu`` (without ``fmu_instance``, FMPy makes its own instance)."""
+        with preserved_sys_path():  # PythonFMU and pythonfmu3 put the FMU's resources on sys.path
+            return fmpy.simulate_fmu(
+                self.folder, model_description=self.model_description, start_time=0.0, stop_time=stop_time,
+                output_interval=output_interval, start_values=start_values,
+                output=None if outputs is None else list(outputs), **options,
+            )
+
+    def close(self):
+        """Remove the extracted folder."""
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
 
 
 def run_fmu(fmu_path, start_values, stop_time, output_interval, interface=None, input_signal=None, outputs=None,
@@ -118,29 +235,18 @@ def run_fmu(fmu_path, start_values, stop_time, output_interval, interface=None, 
     the grid points only). ``start_values``: {FMU variable name: value}. ``input_signal``: a numpy structured
     array with fields ``time`` and any of ``v_drive``, ``F_ext`` (interpolated linearly, applied at the start
     of each step and held during it). ``outputs``: names to record (default: all outputs).
-    Returns FMPy's structured result array (field ``time`` plus the outputs); FMUError on any FMI failure.
+    Returns FMPy's structured result array (field ``time`` plus the outputs); FMUError (a failed FMI call:
+    :class:`FmuCallError`) on any failure.
     """
     interface = interface or "cs"
-    model_description = fmpy.read_model_description(str(fmu_path))
-    unzipdir = fmpy.extract(str(fmu_path))
-    mark, name = log_mark(), f"run{next(_INSTANCE_NUMBERS)}"
-    fmu = None
-    try:
-        fmu = instantiate(model_description, unzipdir, interface, name, fmi_call_logger=fmi_call_logger)
-        options = {"relative_tolerance": rtol, "record_events": False} if interface == "me" else {}
-        with preserved_sys_path():
-            return fmpy.simulate_fmu(
-                unzipdir, model_description=model_description, fmu_instance=fmu, fmi_type=INTERFACES[interface][0],
-                start_time=0.0, stop_time=stop_time, output_interval=output_interval, start_values=start_values,
-                input=input_signal, output=outputs, **options,
-            )
-    except FMICallException as error:
-        if error.status == FATAL[fmi_version(model_description)]:  # the library released the slave: never free it
-            fmu = None
-        raise FMUError("\n".join([str(error), *messages_since(mark, name)])) from None
-    except RuntimeError as error:  # FMPy's CVode failed
-        raise FMUError(f"model exchange: {error}") from None
-    finally:
-        if fmu is not None:
-            fmu.freeInstance()
-        shutil.rmtree(unzipdir, ignore_errors=True)
+    options = {"relative_tolerance": rtol, "record_events": False} if interface == "me" else {}
+    with ExtractedFMU(fmu_path) as fmu:
+        instance = fmu.new_instance(interface=interface, fmi_call_logger=fmi_call_logger)
+        try:
+            return instance.call(fmu.simulate, start_values, stop_time, output_interval, outputs,
+                                 fmu_instance=instance.fmu, fmi_type=INTERFACES[interface][0], input=input_signal,
+                                 **options)
+        except RuntimeError as error:  # FMPy's CVode failed
+            raise FMUError(f"model exchange: {error}") from None
+        finally:
+            instance.free(terminate=False)  # fmpy.simulate_fmu terminates the instance it is given

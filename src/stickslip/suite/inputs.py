@@ -14,7 +14,7 @@ from math import isclose
 
 import numpy as np
 
-INPUT_NAMES = ("v_drive", "F_ext")
+from ..fmu.variables import INPUTS as INPUT_NAMES  # ("v_drive", "F_ext"), from the variable table
 
 
 class Signal:

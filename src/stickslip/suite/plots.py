@@ -7,6 +7,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from ..fmu.variables import UNITS, axis_label
+
 
 def initial_stick(mode):
     """Boolean mask of the samples of the stick the run starts in (the initial condition), before any slip."""
@@ -44,16 +46,16 @@ def plot_scenario(png_path, title, fmu, ref, max_abs_dx=None):
     ax_t.plot(ref.t, ref.x, "--", lw=1.0, color="C1", label="reference")
     ax_t.plot(t[stuck], fmu["x"][stuck], ".", ms=2, color="C3", label="stuck (FMU)")
     ax_t.plot(t[start], fmu["x"][start], ".", ms=2, color="0.6", label="initial stick (the initial condition)")
-    ax_t.set(ylabel="x (m)", title=title)
+    ax_t.set(ylabel=axis_label("x"), title=title)
     ax_t.tick_params(labelbottom=False)
 
     dx = np.abs(fmu["x"] - ref.x)
     shown = dx > 0.0
     ax_dx.semilogy(t[shown], dx[shown], lw=0.8, color="C4", label="|x_FMU - x_ref| (exact zeros not drawn)")
     if max_abs_dx is not None:
-        ax_dx.axhline(max_abs_dx, color="C3", ls="--", lw=1.0, label=f"tolerance max_abs_dx = {max_abs_dx:g} m")
+        ax_dx.axhline(max_abs_dx, color="C3", ls="--", lw=1.0, label=f"tolerance max_abs_dx = {max_abs_dx:g} {UNITS['x']}")
     ax_dx.sharex(ax_t)
-    ax_dx.set(xlabel="t (s)", ylabel="|x_FMU - x_ref| (m)")
+    ax_dx.set(xlabel="t (s)", ylabel=f"|x_FMU - x_ref| ({UNITS['x']})")
     ax_dx.grid(True, which="major", alpha=0.3)
 
     ax_phase.plot(fmu["x"], fmu["v"], lw=0.8, color="C0")
@@ -62,7 +64,7 @@ def plot_scenario(png_path, title, fmu, ref, max_abs_dx=None):
         ax_phase.axhline(level, ls=":", lw=0.9, color="grey", label=None if n else "v_drive (its held values)")
     ax_phase.plot(fmu["x"][start], fmu["v"][start], ".", ms=3, color="0.6")
     ax_phase.plot(fmu["x"][stuck], fmu["v"][stuck], ".", ms=3, color="C3")  # later sticks on top
-    ax_phase.set(xlabel="x (m)", ylabel="v (m/s)", title="phase portrait")
+    ax_phase.set(xlabel=axis_label("x"), ylabel=axis_label("v"), title="phase portrait")
 
     fig.legend(loc="outside lower center", ncols=4, fontsize="small")
     fig.savefig(png_path, dpi=110)

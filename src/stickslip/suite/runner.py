@@ -18,7 +18,7 @@ from tqdm import tqdm
 
 from .compare import compare
 from ..core.errors import StickSlipError
-from ..fmu import ensure_fmu
+from ..fmu import ensure_fmu, variables
 from ..hosts.fmpy_host import run_fmu
 from .inputs import held_input_table
 from .plots import plot_scenario
@@ -26,9 +26,8 @@ from ..reference import ReferenceFailure, parameters_from_values, simulate_refer
 from .report import Outcome, console_summary, write_report, write_result_csv
 from .scenario import ScenarioError, load_scenarios
 
-#: FMU variables recorded for every scenario (SPEC section 4, the extra counters, and the inputs).
-OUTPUTS = ("x", "v", "v_rel", "F_friction", "F_spring", "mode", "t_stick", "z_slip", "z_stick", "n_events",
-           "n_stick_events", "n_slip_events", "n_overshoots", "t_last_event", "n_steps", "v_drive", "F_ext")
+#: FMU variables recorded for every scenario: every output (SPEC section 4 and the extra counters), then the inputs
+OUTPUTS = variables.OUTPUTS + variables.INPUTS
 
 
 @dataclass(frozen=True)

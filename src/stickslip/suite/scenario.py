@@ -12,6 +12,7 @@ from pathlib import Path
 from ..core import KINETIC_LAWS, RTOL_RANGE, STATIC_LAWS, Parameters
 from ..core.errors import ParameterError, StickSlipError
 from ..core.ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, Range
+from ..fmu.variables import START_VALUES
 from .inputs import INPUT_NAMES, Signal, input_table, zoh_breakpoints
 
 ATTRACTORS = ("continuous-sliding", "oscillatory-sliding", "stick-slip", "rest")
@@ -26,7 +27,6 @@ PRESETS = {
 }
 
 START_TIME = 0.0
-DEFAULT_RTOL = 1e-10
 
 _TOP_KEYS = {"name", "description", "expected_attractor", "preset", "model", "initial", "kinetic",
              "static", "inputs", "simulation", "tolerance", "model_exchange"}
@@ -173,7 +173,7 @@ def load_scenario(path):
         stop_time=stop_time,
         output_interval=f.number(simulation, "simulation.output_interval", up_to_stop),
         rtol=f.number(simulation, "simulation.rtol", RTOL_RANGE,
-                      default=DEFAULT_RTOL),
+                      default=START_VALUES["solver.rtol"]),
         tail=f.number(simulation, "simulation.tail", up_to_stop, default=stop_time / 3.0),
         tolerance=_tolerance(f, data),
         model_exchange=_model_exchange(f, data),
@@ -232,9 +232,9 @@ def _law(f, section, kind, laws):
 
 
 def _signals(f, data):
-    """Input signals from [inputs.v_drive] (required) and [inputs.F_ext] (default 0 N)."""
+    """Input signals from [inputs.v_drive] (required) and [inputs.F_ext] (default: the FMU's start value, 0 N)."""
     inputs = f.table(data, "inputs", set(INPUT_NAMES))
-    signals = {"F_ext": Signal.constant(0.0)}
+    signals = {"F_ext": Signal.constant(START_VALUES["F_ext"])}
     for name in INPUT_NAMES:
         key = f"inputs.{name}"
         section = f.table(inputs, key, {"constant", "points"}, required=name == "v_drive")
