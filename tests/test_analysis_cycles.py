@@ -1,4 +1,4 @@
-"""Sliding limit cycles: shooting against the Hopf normal form, folds, grazing (stickslip.analysis.cycles)."""
+"""Sliding limit cycles: shooting against the Hopf normal form, folds, grazing (stickslip.analysis.sliding_limit_cycles)."""
 
 import math
 
@@ -6,18 +6,18 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from stickslip.core import CallableKinetic, Constant, Lubricated, Parameters, Stribeck
-from stickslip.analysis import boundary, cycles, sliding
+from stickslip.analysis import boundary, sliding_limit_cycles, steady_sliding
 
 
 def test_subcritical_hopf_cycle_matches_the_normal_form():
     p = Parameters(2.0, 1.5, Stribeck(F0=0.4, F_stribeck=0.3, v_stribeck=0.1, delta=1.0, gamma=0.5),
                    Constant(F0=1.0))
-    (h,) = sliding.hopf_points(p, 0.0, 5.0)
-    rmap = cycles.ReturnMap(p)
+    (h,) = steady_sliding.hopf_points(p, 0.0, 5.0)
+    rmap = sliding_limit_cycles.ReturnMap(p)
     for dv in (2e-3, 1e-3):
         v = h.v_drive + dv  # side +1: the unstable cycles live above the minimum
         predicted = h.amplitude(v, slope=p.kinetic.slope(v)) * h.omega
-        c = cycles.cycle_at(rmap, predicted, v)
+        c = sliding_limit_cycles.cycle_at(rmap, predicted, v)
         assert c is not None and not c.stable and c.multiplier > 1.0
         assert c.sigma == pytest.approx(predicted, rel=15 * dv / h.v_drive)
         # the period shifts from the Hopf one by O(v - v_H) (measured 0.28 dv); and it is a cycle indeed
@@ -35,10 +35,10 @@ def test_supercritical_hopf_cycle_is_stable():
     d = 0.04
     law = CallableKinetic(lambda u: 1 + (u - 1) ** 3 / 3 - d * (u - 1), lambda u: (u - 1) ** 2 - d)
     p = Parameters(1.0, 1.0, law, Constant(F0=2.0))
-    lo, _ = sliding.hopf_points(p, 0.0, 3.0)
+    lo, _ = steady_sliding.hopf_points(p, 0.0, 3.0)
     v = lo.v_drive + 2e-3
     predicted = lo.amplitude(v, slope=law.slope(v)) * lo.omega
-    c = cycles.cycle_at(cycles.ReturnMap(p), predicted, v)
+    c = sliding_limit_cycles.cycle_at(sliding_limit_cycles.ReturnMap(p), predicted, v)
     assert c is not None and c.stable and 0.0 < c.multiplier < 1.0
     assert c.sigma == pytest.approx(predicted, rel=0.02)  # the normal form's error is O(v - v_H): ~1 %
     period, x_back = revolution(lambda u: 1 + (u - 1) ** 3 / 3 - d * (u - 1), 1.0, 1.0, v, c.x_max, lo.period)
@@ -69,22 +69,22 @@ def test_fold_of_the_large_elmer_cycles():
     what is checked independently of it: multiplier 1 there, two cycles of opposite stability just below,
     none just above."""
     p = elmer()
-    rmap = cycles.ReturnMap(p)
-    (f,) = cycles.refine_folds(rmap, [(1.05, 1.15)])
+    rmap = sliding_limit_cycles.ReturnMap(p)
+    (f,) = sliding_limit_cycles.refine_folds(rmap, [(1.05, 1.15)])
     assert f.v_drive == pytest.approx(1.1572381, abs=2e-6)
     assert f.multiplier == pytest.approx(1.0, abs=1e-3)
     # two cycles just below the fold (one stable, one not), none just above
-    below = [cycles.cycle_at(rmap, f.sigma + s, f.v_drive - 2e-4) for s in (-0.03, 0.03)]
+    below = [sliding_limit_cycles.cycle_at(rmap, f.sigma + s, f.v_drive - 2e-4) for s in (-0.03, 0.03)]
     assert all(c is not None for c in below)
     assert {c.stable for c in below} == {True, False}
     assert abs(below[0].sigma - below[1].sigma) > 1e-3
-    assert cycles.cycle_at(rmap, f.sigma, f.v_drive + 2e-4) is None
+    assert sliding_limit_cycles.cycle_at(rmap, f.sigma, f.v_drive + 2e-4) is None
 
 
 def test_grazing_cycle_is_where_the_special_boundary_switches():
     """Two independent computations: forward shooting of the cycle, backward orbit from the graze point."""
     p = elmer()
-    (g,) = cycles.refine_grazings(cycles.ReturnMap(p), [(0.79, 0.78)])
+    (g,) = sliding_limit_cycles.refine_grazings(sliding_limit_cycles.ReturnMap(p), [(0.79, 0.78)])
     assert g.v_max == pytest.approx(g.v_drive, abs=1e-10) and g.stable
     (switch,) = boundary.boundary_switches(p, [0.78, 0.79], tol=1e-9)
     assert switch[0] == pytest.approx(g.v_drive, abs=1e-8)

@@ -1,11 +1,11 @@
-"""Continuous sliding and Hopf points against closed forms (stickslip.analysis.sliding)."""
+"""Continuous sliding and Hopf points against closed forms (stickslip.analysis.steady_sliding)."""
 
 import math
 
 import pytest
 
 from stickslip.core import CallableKinetic, Constant, Lubricated, Parameters, Stribeck
-from stickslip.analysis import kinetic, sliding
+from stickslip.analysis import kinetic, steady_sliding
 
 
 def stribeck_params():
@@ -17,7 +17,7 @@ def stribeck_params():
 def test_hopf_point_at_the_stribeck_minimum_with_closed_form_derivatives():
     p = stribeck_params()
     u = 0.1 * math.log(0.3 / (0.5 * 0.1))
-    (h,) = sliding.hopf_points(p, 0.0, 5.0)
+    (h,) = steady_sliding.hopf_points(p, 0.0, 5.0)
     assert h.v_drive == pytest.approx(u, abs=1e-12)
     assert h.extremum == "min"
     decay = 0.3 * math.exp(-u / 0.1)
@@ -35,7 +35,7 @@ def test_supercritical_hopf_of_a_cubic_law():
     d = 0.04
     law = CallableKinetic(lambda u: 1 + (u - 1) ** 3 / 3 - d * (u - 1), lambda u: (u - 1) ** 2 - d)
     p = Parameters(1.0, 1.0, law, Constant(F0=2.0))
-    lo, hi = sliding.hopf_points(p, 0.0, 3.0)
+    lo, hi = steady_sliding.hopf_points(p, 0.0, 3.0)
     assert lo.v_drive == pytest.approx(0.8, abs=1e-12) and hi.v_drive == pytest.approx(1.2, abs=1e-12)
     assert (lo.extremum, hi.extremum) == ("max", "min")
     for h in (lo, hi):
@@ -55,10 +55,10 @@ def test_supercritical_hopf_of_a_cubic_law():
 
 def test_continuous_sliding_stability_follows_the_slope():
     p = Parameters(40.0, 1.0, Lubricated(gamma1=3.0, gamma2=0.1, v_tilde=0.2, dv=0.05), Constant(F0=1.0))
-    (top, bottom) = sliding.hopf_points(p, 0.0, 1.2)
+    (top, bottom) = steady_sliding.hopf_points(p, 0.0, 1.2)
     assert top.extremum == "max" and bottom.extremum == "min"
     for v in (0.05, 0.1, 0.3, 0.5, 1.0):
-        cs = sliding.continuous_sliding(p, v)
+        cs = steady_sliding.continuous_sliding(p, v)
         assert cs.x == pytest.approx(p.kinetic.force(v))
         assert cs.stable == (not top.v_drive < v < bottom.v_drive)
         assert all((e.real < 0) == cs.stable for e in cs.eigenvalues)

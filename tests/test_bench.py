@@ -118,7 +118,7 @@ def _sweep(family, scene, cost, start, wobble=()):
 
 
 def test_per_step_cost_recovers_a_linear_cost(scene):
-    from stickslip.bench.report import per_step_cost
+    from stickslip.bench.results import per_step_cost
 
     cost, per_call, note = per_step_cost(_sweep("fmu", scene, 12e-6, 3e-3), "fmu", scene)
     assert cost == pytest.approx(12e-6, rel=1e-9) and per_call == pytest.approx(3e-3, rel=1e-9)
@@ -127,7 +127,7 @@ def test_per_step_cost_recovers_a_linear_cost(scene):
 
 def test_per_step_cost_is_never_negative(scene):
     """Times that fall as the step count grows (noise on a quick run) give 0, never a negative cost."""
-    from stickslip.bench.report import per_step_cost
+    from stickslip.bench.results import per_step_cost
 
     records = _sweep("fmu", scene, 0.0, 5e-3, wobble=[-2e-3, -1e-3, 0.0, 1e-3, 2e-3])  # fewest steps slowest
     cost, _, _ = per_step_cost(records, "fmu", scene)
@@ -136,14 +136,14 @@ def test_per_step_cost_is_never_negative(scene):
 
 
 def test_per_step_cost_from_two_points_is_not_estimated(scene):
-    from stickslip.bench.report import per_step_cost
+    from stickslip.bench.results import per_step_cost
 
     cost, per_call, note = per_step_cost(_sweep("fmu", scene, 12e-6, 3e-3)[:2], "fmu", scene)
     assert cost is None and per_call is None and "cannot be estimated from 2 communication steps" in note
 
 
 def test_report_stamps_quick_runs_names_failures_and_compares_coarse_like_with_like(scene):
-    from stickslip.bench.report import markdown
+    from stickslip.bench.results import markdown
 
     records = [
         *_sweep("fmu", scene, 12e-6, 3e-3), *_sweep("floor", scene, 9e-6, 2e-3),
@@ -167,7 +167,7 @@ def test_report_stamps_quick_runs_names_failures_and_compares_coarse_like_with_l
 
 
 def test_model_exchange_table_sets_bare_cvode_beside_the_fmu_at_each_rtol(scene):
-    from stickslip.bench.report import model_exchange_section
+    from stickslip.bench.results import model_exchange_section
 
     records = [_record("fmi3-me", "FMI 3 ME, CVode rtol=1e-08", 0.100, rel_dx=3.5e-5, rtol=1e-8),
                _record("fmi3-me", "FMI 3 ME, CVode rtol=1e-06", 0.080, rel_dx=1e-4, rtol=1e-6),

@@ -35,7 +35,7 @@ from hypothesis import strategies as st
 
 from stickslip.core import Trajectory
 from stickslip.stress import checks
-from stickslip.stress.runner import simulate
+from stickslip.stress.case_runs import simulate
 from stickslip.stress.session import FmuSession
 
 EXPLORE = float(os.environ.get("STICKSLIP_EXPLORE", "0") or 0)

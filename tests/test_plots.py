@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from stickslip.suite.plots import held_levels, initial_stick
+from stickslip.suite.scenario_plots import held_levels, initial_stick
 
 
 def test_initial_stick_is_the_stick_before_the_first_slip():

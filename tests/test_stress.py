@@ -16,7 +16,7 @@ from stickslip.cli import main
 from stickslip.core import Constant, Coulomb, Parameters, Saturating, Sigmoid, SolverError, Trajectory
 from stickslip.stress.cases import GROUPS, stress_cases
 from stickslip.stress.checks import coulomb_cycle
-from stickslip.stress.runner import run_case, summary_table
+from stickslip.stress.case_runs import run_case, summary_table
 from stickslip.stress.session import FmuSession
 
 QUICK = stress_cases(quick=True)

@@ -3,7 +3,7 @@
 Branches (amplitude = largest ``x`` of the state, as in Elmer 1997, fig. 3):
 
 - ``continuous-sliding``: ``x_c = (F_K(v) + F_ext)/kappa``, stable iff ``F_K'(v) > 0``;
-- ``oscillatory-sliding``: sliding limit cycles (:mod:`.cycles`), stable and unstable;
+- ``oscillatory-sliding``: sliding limit cycles (:mod:`.sliding_limit_cycles`), stable and unstable;
 - ``stick-slip``: the stick-slip cycle where it exists (:mod:`.stickslip_cycle`; stable:
   its slips all end on the same stick); with an aging static law, the fixed points of
   the stick-slip map (:mod:`.aging_map`), stable and unstable;
@@ -13,7 +13,7 @@ Branches (amplitude = largest ``x`` of the state, as in Elmer 1997, fig. 3):
 
 Bifurcation points (each refined to ``tol`` in ``v_drive``):
 
-- ``hopf``: extrema of ``F_K`` (criticality from ``F_K'''``, :mod:`.sliding`);
+- ``hopf``: extrema of ``F_K`` (criticality from ``F_K'''``, :mod:`.steady_sliding`);
 - ``fold``: saddle-nodes of sliding cycles (``G = 0 = dG/dsigma``);
 - ``grazing``: a sliding cycle's largest velocity reaches ``v_drive``;
 - ``stick-slip-boundary``: stick-slip appears or disappears: a root of the existence
@@ -27,7 +27,7 @@ Bifurcation points (each refined to ``tol`` in ``v_drive``):
 
 The work is cut into independent tasks (chunks of the ``v_drive`` grid for the
 stick-slip cycles and the boundary, the continuation of the sliding cycles)
-that run on an :class:`~.scan.Executor`: a local process pool or a Dask cluster.
+that run on an :class:`~.parallel_scan.Executor`: a local process pool or a Dask cluster.
 """
 
 import math
@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .scan import CHUNK, Executor
+from .parallel_scan import CHUNK, Executor
 
 
 @dataclass
@@ -46,7 +46,7 @@ class Diagram:
     F_ext: float
     v_grid: np.ndarray
     hopf: list
-    sliding: list  # cycles.Branch
+    sliding: list  # sliding_limit_cycles.Branch
     stick_slip: list  # StickSlipCycle per grid point
     overshoot: list  # OvershootCycle or None per grid point
     boundary: list  # BoundaryOrbit per grid point
@@ -96,7 +96,7 @@ class Diagram:
 
 
 def _task(kind, params, arg, F_ext):
-    from . import boundary, cycles, stickslip_cycle
+    from . import boundary, sliding_limit_cycles, stickslip_cycle
 
     if kind == "stick-slip":
         cyc = stickslip_cycle.stick_slip_cycles(params, arg, F_ext)
@@ -118,7 +118,7 @@ def _task(kind, params, arg, F_ext):
         return saddles, existence_changes(params, grid, fps, F_ext, tol, saddles=saddles)
     if kind == "cycles":
         v_min, v_max = arg
-        return cycles.sliding_cycles(params, v_min, v_max, F_ext)
+        return sliding_limit_cycles.sliding_cycles(params, v_min, v_max, F_ext)
     if kind == "ss-changes":
         grid, margin, tol = arg
         return stickslip_cycle.changes_from_samples(params, grid, margin, F_ext, tol)
@@ -132,7 +132,7 @@ def bifurcation_diagram(params, v_min, v_max, n=400, F_ext=0.0, tol=1e-7, execut
     """Compute the full diagram on ``n`` drive velocities in ``[v_min, v_max]`` (any static law)."""
     import time
 
-    from .sliding import hopf_points
+    from .steady_sliding import hopf_points
 
     start = time.perf_counter()
     ex = executor or Executor(jobs=1)
@@ -232,7 +232,7 @@ def write_outputs(d, out_dir):
     from pathlib import Path
 
     from .json_output import write_json
-    from .plots import plot_bifurcation
+    from .figures import plot_bifurcation
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -76,7 +76,7 @@ def critical_velocities(params, v_min=None, v_max=None, n=200, F_ext=0.0, tol=1e
     """Scan ``[v_min, v_max]`` on ``n`` points and return the stick-slip windows and critical velocities.
 
     Ends not given come from :func:`default_scan_range`. ``scan``: an optional
-    function ``(params, grid) -> margins`` (a parallel scan, :mod:`.scan`); by
+    function ``(params, grid) -> margins`` (a parallel scan, :mod:`.parallel_scan`); by
     default the margins are computed here in one batch.
     """
     default = default_scan_range(params, F_ext)

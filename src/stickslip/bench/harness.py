@@ -21,10 +21,10 @@ from tqdm import tqdm
 
 from .. import core as compiled_core
 from ..suite.compare import Event, fmu_events, match_events, reference_events, transition_kind
-from . import c_host
+from . import c_host_family
 from .bare_cvode import simulate_bare_cvode
 from .peers import Run, hybrid_solve_ivp, regularized_solve_ivp
-from .report import coarse_step
+from .results import coarse_step
 from .runtimes import PURE_CORE, in_core
 
 FMU_OUTPUTS = ("x", "v", "n_stick_events", "n_slip_events", "n_overshoots", "t_last_event")  # the floor has them too
@@ -77,7 +77,7 @@ def configs(scene, fmu, floor, host=None, fmu3=None, pure_fmu=None):
             + [Config("floor", f"floor h={h:g}", {"comm_step": h},
                       lambda h=h: floor.simulate({}, scene.stop_time, h, FMU_OUTPUTS), None)
                for h in sorted(set(scene.comm_steps()) | {scene.grid_step})]
-            + c_host.configs(scene, fmu, floor, host, Config))
+            + c_host_family.configs(scene, fmu, floor, host, Config))
 
 
 def _fmu_configs(scene, fmu, fmu3, pure_fmu):

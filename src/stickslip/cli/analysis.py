@@ -175,7 +175,7 @@ def add_scan_arguments(p, v_min=0.01, v_max=1.2, n=400):
 
 
 def _executor(args):
-    from ..analysis.scan import Executor
+    from ..analysis.parallel_scan import Executor
 
     return Executor(jobs=args.jobs, scheduler=args.scheduler)
 
@@ -237,7 +237,7 @@ def _vc(args):
                                  "changes": [{"v_drive": v, "change": w, "kind": k} for v, w, k in result.changes]})
     written = [out / "vc.json"]
     if params.static.is_constant():
-        from ..analysis.plots import plot_margin
+        from ..analysis.figures import plot_margin
 
         plot_margin(out / "margin.png", params, result, F_ext)
         written.append(out / "margin.png")
@@ -316,7 +316,7 @@ def _map(args):
     import numpy as np
 
     from ..analysis import aging_map as am
-    from ..analysis.plots import plot_fixed_points, plot_map, plot_orbit_diagram
+    from ..analysis.figures import plot_fixed_points, plot_map, plot_orbit_diagram
 
     params, F_ext = model_from_args(args)
     natural = (params.static.force(0.0) + abs(F_ext)) / math.sqrt(params.kappa * params.M)
@@ -394,7 +394,7 @@ def _slow_manifold(args):
     import numpy as np
 
     from ..analysis.overdamped import relaxation_run, slow_manifold
-    from ..analysis.plots import plot_slow_manifold
+    from ..analysis.figures import plot_slow_manifold
 
     params, F_ext = model_from_args(args)
     v_drive = _v_drive(args)
@@ -434,8 +434,8 @@ def _chart(args):
 
     import numpy as np
 
-    from ..analysis.plots import plot_chart
-    from ..analysis.scan import stability_chart
+    from ..analysis.figures import plot_chart
+    from ..analysis.parallel_scan import stability_chart
 
     params, F_ext = model_from_args(args)
     try:

@@ -27,11 +27,11 @@ def run_bench(args):
     import numpy
     import scipy
 
-    from ..bench.c_host import ensure_host
+    from ..bench.c_host_family import ensure_host
     from ..bench.fmus import BUILD_DIR, ExtractedFMU, ensure_floor_fmu
     from ..bench.harness import run_scenes
     from ..bench.implementations import compiled_vs_pure
-    from ..bench.report import markdown, plot, write_json
+    from ..bench.results import markdown, plot, write_json
     from ..bench.runtimes import ensure_pure_fmu
     from ..bench.scenes import select_scenes
     from ..fmu import ensure_fmu

@@ -23,7 +23,7 @@ def add_stress_parser(subparsers):
 def run_stress(args):
     """Handler of ``stickslip stress``; returns 0 unless a case failed unexpectedly (known bugs are listed)."""
     from ..fmu import ensure_fmu
-    from ..stress import runner
+    from ..stress import case_runs
     from ..stress.cases import stress_cases
 
     cases = stress_cases(quick=args.quick, groups=args.group)
@@ -34,9 +34,9 @@ def run_stress(args):
             print(f"{c.group:12s} {c.name:45s} {'quick' if c.quick else '':5s} {c.note}")
         return 0
     fmu_path = ensure_fmu() if args.fmu is None else Path(args.fmu)
-    outcomes = runner.run_stress(fmu_path, cases, progress=not args.no_progress)
-    table = runner.summary_table(outcomes)
-    failures = runner.failure_lines(outcomes)
+    outcomes = case_runs.run_stress(fmu_path, cases, progress=not args.no_progress)
+    table = case_runs.summary_table(outcomes)
+    failures = case_runs.failure_lines(outcomes)
     n_passed = sum(o.passed for o in outcomes)
     n_known = sum(bool(o.known_bug) and not o.passed for o in outcomes)
     n_unexpected = sum(o.unexpected for o in outcomes)
@@ -49,7 +49,7 @@ def run_stress(args):
         text = ["# Stress matrix", "", "Errors are normalized: state error vs the reference (|dx|/x_scale, "
                 "|dv|/v_scale), difference to a refined communication grid, and the largest energy-balance residual "
                 "of a smooth piece relative to the run's energy scale. Time per step is the wall time of one "
-                "fmi2DoStep.", "", table, "", "## Cases", "", runner.case_table(outcomes), ""]
+                "fmi2DoStep.", "", table, "", "## Cases", "", case_runs.case_table(outcomes), ""]
         if failures:
             text += ["## Failures", "", *failures, ""]
         text += ["## Details", ""]

@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from .rules import departure
-from .scan import first_zero
+from .zero_crossing import first_zero
 
 
 class AffineSlip:

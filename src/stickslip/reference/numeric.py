@@ -5,7 +5,7 @@ from scipy.integrate import solve_ivp
 
 from .errors import ReferenceSolverError
 from .rules import acceleration, departure, period
-from .scan import first_zero
+from .zero_crossing import first_zero
 
 SUBSTEPS = 20  # dense-output samples per solver step in the graze scan
 STEPS_PER_PERIOD = 20  # max_step = period / STEPS_PER_PERIOD

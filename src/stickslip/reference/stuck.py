@@ -5,7 +5,7 @@ import math
 import numpy as np
 
 from .rules import STUCK, z_slip
-from .scan import first_zero
+from .zero_crossing import first_zero
 
 GRID = 400  # scan points per stuck phase (besides convexity breaks and the kink)
 

@@ -21,7 +21,7 @@ from ..core.errors import StickSlipError
 from ..fmu import ensure_fmu, variables
 from ..hosts.fmpy_host import run_fmu
 from .inputs import held_input_table
-from .plots import plot_scenario
+from .scenario_plots import plot_scenario
 from ..reference import ReferenceFailure, parameters_from_values, simulate_reference
 from .report import Outcome, console_summary, write_report, write_result_csv
 from .scenario import ScenarioError, load_scenarios

@@ -91,7 +91,7 @@ def _draw_continuous_sliding(ax, d):
 
 def _draw_sliding_cycles(ax, d):
     """Each branch of sliding cycles along its arc, from its Hopf point (if any) to its grazings."""
-    from .cycles import CyclePoint
+    from .sliding_limit_cycles import CyclePoint
 
     color, label = _BRANCH_STYLE["oscillatory-sliding"]
     for b in d.sliding:
@@ -256,7 +256,7 @@ def plot_chart(png_path, chart):
     """A 2-D stability chart: continuous-sliding stability and stick-slip existence."""
     from matplotlib.colors import ListedColormap
 
-    from .scan import CHART_LABELS, parameter_unit
+    from .parallel_scan import CHART_LABELS, parameter_unit
 
     fig = _figure((9, 5.5))
     ax = fig.subplots()

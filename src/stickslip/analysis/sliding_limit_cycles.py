@@ -378,11 +378,11 @@ def scan_cycles(rmap, v_grid, n_sigma=28, sigma_max=1.2):
 def sliding_cycles(params, v_min, v_max, F_ext=0.0, hopf=None, n_scan=40, rtol=1e-11, max_steps=300):
     """Every branch of sliding cycles met in ``[v_min, v_max]``: a list of :class:`Branch`.
 
-    Branches start at the Hopf points (``hopf``: from :func:`.sliding.hopf_points`
+    Branches start at the Hopf points (``hopf``: from :func:`.steady_sliding.hopf_points`
     by default; the first point from the normal form's amplitude) and at cycles
     of a coarse scan that no branch has covered. Affine laws have none.
     """
-    from .sliding import hopf_points
+    from .steady_sliding import hopf_points
 
     if params.kinetic.affine() is not None:
         return []  # a linear slip flow (damped, undamped or anti-damped) has no isolated limit cycles
