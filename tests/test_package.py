@@ -6,7 +6,8 @@ checkout and less with ``build/`` from an earlier one; a new virtual environment
 compile cache), the test of two builds about 25 s (mypyc compiles both FMUs' runtimes again). The wheel is
 built without build isolation, with this environment's setuptools (the "test" extra asks for one that builds
 wheels) and mypy, and installed without its dependencies: the new environment reads them from this
-environment's site-packages through a path file, which adds no path file of its own (so not this
+environment's site-packages through a path file (pip and setuptools too: the new environment has none of
+its own, so the FMU's runtime compiles with this environment's toolchain), which adds no path file of its own (so not this
 environment's editable install of the checkout); the test checks that the package it imports is the wheel's.
 """
 
@@ -53,7 +54,7 @@ def installed(tmp_path_factory):
          cwd=folder)
     (wheel,) = wheels.glob("stickslip-*.whl")
     venv = folder / "venv"
-    _run([sys.executable, "-m", "venv", venv], cwd=folder)
+    _run([sys.executable, "-m", "venv", "--without-pip", venv], cwd=folder)
     python = venv / "bin" / "python"
     site = Path(_run([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], cwd=folder).strip())
     dependencies = {sysconfig.get_paths()[key] for key in ("purelib", "platlib")}

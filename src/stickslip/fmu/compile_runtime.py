@@ -9,10 +9,13 @@ those of ``core/_implementation.py``, which picks the compiled or the pure modul
 Extensions are optional: without a working C compiler the build goes on, pure Python.
 """
 
+import hashlib
+import importlib.metadata
 import importlib.util
 import os
 import subprocess
 import sys
+import sysconfig
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -48,6 +51,24 @@ def remove_compiled(root, package_dir):
 def write_stamp(package_dir):
     """Record the digest of the sources the compiled modules are built from."""
     (Path(package_dir) / implementation.STAMP).write_text(implementation.sources_digest(package_dir) + "\n")
+
+
+def toolchain_tag():
+    """A short hash of what decides the compiled bytes besides the sources: the versions of mypy and setuptools
+    (setuptools decides how ``$CFLAGS`` combines with Python's own flags), Python's compiler and flags, and the
+    compiler variables of the environment. The compile cache keys on it, so a build never reuses files
+    another toolchain compiled."""
+    parts = [_version("mypy"), _version("setuptools")]
+    parts += [str(sysconfig.get_config_var(name)) for name in ("CC", "CFLAGS", "LDSHARED")]
+    parts += [os.environ.get(name, "") for name in ("CC", "CFLAGS", "LDFLAGS", "LDSHARED")]
+    return hashlib.sha256("\0".join(parts).encode()).hexdigest()[:10]
+
+
+def _version(distribution):
+    try:
+        return importlib.metadata.version(distribution)
+    except importlib.metadata.PackageNotFoundError:
+        return "none"
 
 
 def compile_in_place(root, package):

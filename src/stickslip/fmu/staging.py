@@ -14,7 +14,8 @@ In the FMU's ``resources/``:
   pure Python, and the build says so on stderr). A host that cannot load them (another Python
   version or platform) runs the sources (``core/_implementation.py``). Compiled files are cached
   in the user's cache folder (``$XDG_CACHE_HOME/stickslip/fmu-runtime``, default
-  ``~/.cache/...``) by package name (the source tag) and Python;
+  ``~/.cache/...``) by package name (the source tag), Python and toolchain (mypy, setuptools, compiler
+  and flags);
 - ``springblockfriction_<tag>.py`` (FMI 3: ``springblockfriction3_<tag>.py``): the module PythonFMU
   (pythonfmu3) loads, a few lines (:data:`FMI2_LOADER`, :data:`FMI3_LOADER`). PythonFMU 0.7.0 compiles
   and runs that module's source at every ``fmi2Instantiate`` (to find the slave class by its MRO; with
@@ -32,7 +33,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .compile_runtime import COMPILED_MODULES, CompileError, compile_in_place
+from .compile_runtime import COMPILED_MODULES, CompileError, compile_in_place, toolchain_tag
 
 CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stickslip" / "fmu-runtime"
 #: files of an in-place compiled ``stickslip/core`` (pip install -e) that never go into an FMU's copy
@@ -123,7 +124,7 @@ def rewrite_once(path, pattern, replacement, what, code=None):
 
 def _compiled(folder, package):
     """The compiled modules of ``folder/package`` (from the cache or compiled now): ``{archive name: path}``."""
-    cache = CACHE / f"{package}-{sys.implementation.cache_tag}-{sysconfig.get_platform()}"
+    cache = CACHE / f"{package}-{sys.implementation.cache_tag}-{sysconfig.get_platform()}-{toolchain_tag()}"
     if not (cache / "complete").is_file():
         print(f"stickslip: compiling the FMU's runtime {package} with mypyc ({len(COMPILED_MODULES)} modules; "
               f"kept in {CACHE}) ...", file=sys.stderr)
