@@ -54,11 +54,11 @@ def write_stamp(package_dir):
 
 
 def toolchain_tag():
-    """A short hash of what decides the compiled bytes besides the sources: the versions of mypy and setuptools
-    (setuptools decides how ``$CFLAGS`` combines with Python's own flags), Python's compiler and flags, and the
-    compiler variables of the environment. The compile cache keys on it, so a build never reuses files
+    """A short hash of what decides the compiled bytes besides the sources: this file (how it compiles), the
+    versions of mypy and setuptools (setuptools decides how ``$CFLAGS`` combines with Python's own flags),
+    Python's compiler and flags, and the compiler variables of the environment. The compile cache keys on it, so a build never reuses files
     another toolchain compiled."""
-    parts = [_version("mypy"), _version("setuptools")]
+    parts = [Path(__file__).read_text(), _version("mypy"), _version("setuptools")]
     parts += [str(sysconfig.get_config_var(name)) for name in ("CC", "CFLAGS", "LDSHARED")]
     parts += [os.environ.get(name, "") for name in ("CC", "CFLAGS", "LDFLAGS", "LDSHARED")]
     return hashlib.sha256("\0".join(parts).encode()).hexdigest()[:10]
@@ -74,8 +74,9 @@ def _version(distribution):
 def compile_in_place(root, package):
     """Compile ``root/package`` in place; its compiled files (paths), or CompileError saying why not.
 
-    The C compiler maps ``root`` to ``.`` in the paths it records (debug information), so that the files do not
-    depend on the folder they were compiled in; mypyc runs with a fixed hash seed (the order of sets).
+    The C compiler maps ``root`` to ``.`` and mypyc's C runtime (in the environment's site-packages) to
+    ``mypyc/lib-rt`` in the paths it records (debug information), so that the files do not depend on the folder
+    they were compiled in nor on the environment; mypyc runs with a fixed hash seed (the order of sets).
     """
     package_dir = Path(root) / package
     if importlib.util.find_spec("mypyc") is None:
@@ -88,8 +89,9 @@ def compile_in_place(root, package):
         f"setup(ext_modules=c.extensions({package!r}), script_args=['build_ext', '--inplace', '--quiet'])"
     )
     try:
-        prefix_map = f"-ffile-prefix-map={Path(root).resolve()}=."
-        environment = {**os.environ, "CFLAGS": f"{os.environ.get('CFLAGS', '')} {prefix_map}".strip(),
+        lib_rt = Path(importlib.util.find_spec("mypyc").submodule_search_locations[0]) / "lib-rt"
+        prefix_maps = f"-ffile-prefix-map={Path(root).resolve()}=. -ffile-prefix-map={lib_rt.resolve()}=mypyc/lib-rt"
+        environment = {**os.environ, "CFLAGS": f"{os.environ.get('CFLAGS', '')} {prefix_maps}".strip(),
                        "PYTHONHASHSEED": "0"}
         run = subprocess.run([sys.executable, "-c", script], cwd=root, env=environment, capture_output=True,
                              text=True, timeout=1200)
