@@ -1,5 +1,6 @@
-"""Shared fixtures: the FMUs (FMI 2 and FMI 3) built once per test session from the current sources, and a
-folder of the session's own for the FMUs built at the default path (the main job's ``dist/`` stays as it is)."""
+"""Shared fixtures: the FMUs (FMI 2 and FMI 3) built once per test session from the current sources, a folder
+of the session's own for the FMUs built at the default path (the main job's ``dist/`` stays as it is), and
+the FMI 3 C host."""
 
 import shutil
 from pathlib import Path
@@ -8,6 +9,7 @@ import fmpy
 import pytest
 
 from stickslip.fmu import build
+from stickslip.hosts.c_host import HostBuildError, compile_host
 
 #: the main job's FMUs (``scripts/setup.sh`` builds them there), which no test may replace
 MAIN_DIST = Path(__file__).resolve().parents[1] / "dist"
@@ -62,3 +64,13 @@ def unzipped(fmu_path):
 def unzipped3(fmu3_path):
     """The same for the session's FMI 3 FMU."""
     yield from _extracted(fmu3_path)
+
+
+@pytest.fixture(scope="session")
+def host3(tmp_path_factory):
+    """The FMI 3 C host (``src/stickslip/hosts/c_host/host3.c``) compiled for the session; the tests that use it
+    are skipped, with the compiler's complaint, where it cannot be compiled."""
+    try:
+        return compile_host(tmp_path_factory.mktemp("c_host3"), fmi_version=3)
+    except HostBuildError as exc:
+        pytest.skip(f"the FMI 3 C host cannot be compiled here: {exc}")

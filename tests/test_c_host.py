@@ -224,14 +224,6 @@ PYTHONFMU3_BINARY = (Path(pythonfmu3.__file__).parent / "resources" / "binaries"
 
 
 @pytest.fixture(scope="module")
-def host3(tmp_path_factory):
-    try:
-        return compile_host(tmp_path_factory.mktemp("c_host3"), fmi_version=3)
-    except HostBuildError as exc:
-        pytest.fail(f"the C host must build on CI machines: {exc}")
-
-
-@pytest.fixture(scope="module")
 def fmpy3_x(fmu3_path):
     """FMPy's (times, x) of the scene through the FMI 3 FMU's co-simulation up to ``stop`` s, memoized."""
     runs = {}

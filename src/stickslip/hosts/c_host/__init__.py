@@ -1,5 +1,5 @@
-"""Plain C importers, FMI 2.0 (``host.c``) and FMI 3.0 co-simulation (``host3.c``), that run an FMU outside
-any Python process.
+"""Plain C importers, FMI 2.0 (``host.c``) and FMI 3.0 co-simulation and model exchange (``host3.c``, with an
+RK4 integrator and event locator of its own), that run an FMU outside any Python process.
 
 They stand for the C/C++ system simulators: they open the FMU's binary with
 ``dlopen(RTLD_NOW | RTLD_LOCAL)`` and nothing preloaded. :func:`compile_host`

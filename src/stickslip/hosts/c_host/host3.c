@@ -1,14 +1,20 @@
-/* A plain C FMI 3.0 co-simulation importer: as host.c (FMI 2), it opens an FMU's binary with
- * dlopen(RTLD_NOW | RTLD_LOCAL), nothing preloaded, no Python of its own, and drives it the way FMPy's
- * simulate_fmu does (same communication points, so results compare bit for bit).
+/* A plain C FMI 3.0 importer: as host.c (FMI 2), it opens an FMU's binary with dlopen(RTLD_NOW | RTLD_LOCAL),
+ * nothing preloaded, no Python of its own. Co-simulation is driven the way FMPy's simulate_fmu does (same
+ * communication points, so results compare bit for bit); model exchange with an integrator and an event
+ * locator of its own, as a C simulator would (see run_me).
  *
  *   host3 BINARY RESOURCE_PATH TOKEN MODE STOP STEP OUTPUT_VR [rVR=VALUE | iVR=VALUE ...]
  *
  * RESOURCE_PATH is the FMU's resources folder with a trailing slash (FMI 3 passes a path, not a URI).
- * MODE   what it does (every logged message is printed as "log STATUS INSTANCE TEXT")
- * run    one co-simulation instance, logging off; prints "x T X" at every communication point
- * bad    one instance with all settings, the last one invalid, logging off: prints "status exit CODE" of
- *        fmi3ExitInitializationMode, frees it, then runs a new instance without the last setting ("x" lines)
+ * MODE    what it does (every logged message is printed as "log STATUS INSTANCE TEXT")
+ * run     one co-simulation instance, logging off; prints "x T X" at every communication point
+ * bad     one instance with all settings, the last one invalid, logging off: prints "status exit CODE" of
+ *         fmi3ExitInitializationMode, frees it, then runs a new instance without the last setting ("x" lines)
+ * me-run  as run, with a model-exchange instance: classical RK4, steps of at most $HOST_ME_STEP s (default
+ *         STEP) ending on the output points, state events located on each step's interpolant. Prints "x T X"
+ *         at the output points (after any event there) and, with $HOST_ME_COUNTER (the value reference of an
+ *         Int32 output), "e T N" after each state event: its time and that output.
+ * me-bad  as bad, with model-exchange instances
  * Every line is flushed. The exit code is 0 when the mode ran to its end (a failing FMI call ends the
  * program with "failed FUNCTION STATUS" and code 1). */
 #define _GNU_SOURCE
@@ -35,7 +41,22 @@ static struct {
     Status (*get_float64)(Instance, const VR *, size_t, double *, size_t);
     Status (*set_float64)(Instance, const VR *, size_t, const double *, size_t);
     Status (*set_int32)(Instance, const VR *, size_t, const int32_t *, size_t);
+    /* model exchange */
+    Instance (*instantiate_me)(const char *, const char *, const char *, bool, bool, void *, LogMessage);
+    Status (*get_int32)(Instance, const VR *, size_t, int32_t *, size_t);
+    Status (*n_states)(Instance, size_t *);
+    Status (*n_indicators)(Instance, size_t *);
+    Status (*update)(Instance, bool *, bool *, bool *, bool *, bool *, double *);
+    Status (*enter_event_mode)(Instance);
+    Status (*enter_continuous_time_mode)(Instance);
+    Status (*set_time)(Instance, double);
+    Status (*get_states)(Instance, double *, size_t);
+    Status (*set_states)(Instance, const double *, size_t);
+    Status (*get_derivatives)(Instance, double *, size_t);
+    Status (*get_indicators)(Instance, double *, size_t);
 } fmi;
+
+static bool model_exchange; /* the mode's instances are model-exchange ones */
 
 
 /* the instance environment is the instance's name */
@@ -51,10 +72,12 @@ static void log_message(void *environment, Status status, const char *category, 
 
 static Instance instantiate(const char *name)
 {
-    Instance c = fmi.instantiate(name, token, resources, false, false, false, false, NULL, 0, (void *)name,
-                                 log_message, NULL);
+    Instance c = model_exchange
+        ? fmi.instantiate_me(name, token, resources, false, false, (void *)name, log_message)
+        : fmi.instantiate(name, token, resources, false, false, false, false, NULL, 0, (void *)name, log_message,
+                          NULL);
     if (!c) {
-        say("failed fmi3InstantiateCoSimulation NULL\n");
+        say("failed %s NULL\n", model_exchange ? "fmi3InstantiateModelExchange" : "fmi3InstantiateCoSimulation");
         exit(1);
     }
     return c;
@@ -85,10 +108,8 @@ static double read_output(Instance c)
     return x;
 }
 
-static void run_one(const char *name)
+static void run_cs(Instance c)
 {
-    Instance c = instantiate(name);
-    check("fmi3ExitInitializationMode", initialize(c, n_settings));
     double t = 0.0;
     say("x %.17g %.17g\n", t, read_output(c));
     for (long n = 0; !done(t, stop_time); ++n) {
@@ -99,6 +120,198 @@ static void run_one(const char *name)
         t = next;
         say("x %.17g %.17g\n", t, read_output(c));
     }
+}
+
+/* ---- model exchange: classical RK4, state events located by bisection on the step's Hermite interpolant ---- */
+
+enum { MAX_STATES = 8, MAX_INDICATORS = 8 };
+/* a located event lies at most this far past the crossing on the interpolant: 1e-14 s, relative beyond t = 1 s
+ * (about 50 ulp of t) */
+#define EVENT_TIME_TOLERANCE 1e-14
+
+static size_t nx, nz; /* numbers of continuous states and of event indicators */
+
+/* A point of the solution: time (s), the continuous states and their derivatives */
+typedef struct {
+    double t, x[MAX_STATES], dx[MAX_STATES];
+} Point;
+
+static void put(Instance c, double t, const double *x)
+{
+    check("fmi3SetTime", fmi.set_time(c, t));
+    check("fmi3SetContinuousStates", fmi.set_states(c, x, nx));
+}
+
+static void derivatives(Instance c, double t, const double *x, double *dx)
+{
+    put(c, t, x);
+    check("fmi3GetContinuousStateDerivatives", fmi.get_derivatives(c, dx, nx));
+}
+
+static void indicators(Instance c, double t, const double *x, double *z)
+{
+    put(c, t, x);
+    check("fmi3GetEventIndicators", fmi.get_indicators(c, z, nz));
+}
+
+/* b: a advanced to t_end by one classical RK4 step, with the derivatives there */
+static void rk4(Instance c, const Point *a, double t_end, Point *b)
+{
+    static const double stage[3] = {0.5, 0.5, 1.0}; /* where stages 2-4 sit in the step */
+    double h = t_end - a->t, k[3][MAX_STATES], y[MAX_STATES];
+    const double *slope = a->dx;
+    for (int s = 0; s < 3; ++s) {
+        for (size_t i = 0; i < nx; ++i) y[i] = a->x[i] + stage[s] * h * slope[i];
+        derivatives(c, a->t + stage[s] * h, y, k[s]);
+        slope = k[s];
+    }
+    b->t = t_end;
+    for (size_t i = 0; i < nx; ++i)
+        b->x[i] = a->x[i] + h / 6.0 * (a->dx[i] + 2.0 * k[0][i] + 2.0 * k[1][i] + k[2][i]);
+    derivatives(c, b->t, b->x, b->dx);
+}
+
+/* x at t in [a.t, b.t] on the cubic Hermite interpolant of the step a -> b (error O(h^4), as RK4's own) */
+static void interpolate(const Point *a, const Point *b, double t, double *x)
+{
+    double h = b->t - a->t, s = (t - a->t) / h, r = 1.0 - s;
+    for (size_t i = 0; i < nx; ++i)
+        x[i] = r * r * ((1.0 + 2.0 * s) * a->x[i] + s * h * a->dx[i])
+             + s * s * ((3.0 - 2.0 * s) * b->x[i] - r * h * b->dx[i]);
+}
+
+/* FMI 3: a state event is an indicator changing between the domains z > 0 (1) and z <= 0 (-1) */
+static int domain(double z) { return z > 0.0 ? 1 : -1; }
+
+/* Some indicator left its domain (0: none yet) */
+static bool crossed(const int *domains, const double *z)
+{
+    for (size_t j = 0; j < nz; ++j)
+        if (domains[j] && domain(z[j]) != domains[j]) return true;
+    return false;
+}
+
+/* The domains at an accepted point. An indicator that restarted on exactly 0 (this FMU's m v_rel after a
+ * breakaway or an overshoot) has none until it leaves 0, as CVode's root finder does: that is no event. */
+static void track_domains(int *domains, const double *z)
+{
+    for (size_t j = 0; j < nz; ++j)
+        if (z[j] != 0.0 || domains[j]) domains[j] = domain(z[j]);
+}
+
+/* The first state event in (a.t, b.t]: bisection on the interpolant until the crossing is bracketed within
+ * the tolerance; returns the bracket's end past the crossing (s), with the states there in x */
+static double locate(Instance c, const Point *a, const Point *b, const int *domains, double *x)
+{
+    double lo = a->t, hi = b->t, y[MAX_STATES], z[MAX_INDICATORS];
+    memcpy(x, b->x, nx * sizeof *x);
+    while (hi - lo > EVENT_TIME_TOLERANCE * fmax(1.0, fabs(hi))) {
+        double mid = 0.5 * (lo + hi);
+        interpolate(a, b, mid, y);
+        indicators(c, mid, y, z);
+        if (crossed(domains, z)) {
+            hi = mid;
+            memcpy(x, y, nx * sizeof *x);
+        } else {
+            lo = mid;
+        }
+    }
+    return hi;
+}
+
+/* In Event Mode: fmi3UpdateDiscreteStates until no more updates are needed; false if the FMU asks to stop.
+ * Time events are not handled (this FMU defines none): one fails the run. */
+static bool event_iteration(Instance c)
+{
+    bool need_update = true, terminate = false, nominals_changed, values_changed, time_event;
+    double next_time;
+    while (need_update && !terminate) {
+        check("fmi3UpdateDiscreteStates", fmi.update(c, &need_update, &terminate, &nominals_changed,
+                                                     &values_changed, &time_event, &next_time));
+        if (time_event) {
+            say("failed fmi3UpdateDiscreteStates time event at %.17g\n", next_time);
+            exit(1);
+        }
+    }
+    check("fmi3EnterContinuousTimeMode", fmi.enter_continuous_time_mode(c));
+    return !terminate;
+}
+
+/* Start (again) at a->t: the FMU's states (an event update may change them), their derivatives, new domains */
+static void restart(Instance c, Point *a, int *domains)
+{
+    double z[MAX_INDICATORS];
+    check("fmi3GetContinuousStates", fmi.get_states(c, a->x, nx));
+    derivatives(c, a->t, a->x, a->dx);
+    indicators(c, a->t, a->x, z);
+    memset(domains, 0, nz * sizeof *domains);
+    track_domains(domains, z);
+}
+
+/* The end of the next step from t: the steps to the output point `next` evenly spaced, none longer than h */
+static double step_end(double t, double next, double h)
+{
+    double n = ceil((next - t) / h * (1.0 - 1e-12));
+    return n <= 1.0 ? next : t + (next - t) / n;
+}
+
+/* After fmi3ExitInitializationMode (the instance is in Event Mode): the event iteration, then RK4 steps of
+ * $HOST_ME_STEP s to each output point; a step across a state event is cut back to the event, where the
+ * instance goes through Event Mode and the integrator restarts. The FMU holds the last point set, so the
+ * outputs read at an output point are those of the accepted point (or of the event update) there. */
+static void run_me(Instance c)
+{
+    const char *h_text = getenv("HOST_ME_STEP"), *counter_text = getenv("HOST_ME_COUNTER");
+    const double h = h_text ? strtod(h_text, NULL) : step;
+    VR counter = counter_text ? (VR)strtoul(counter_text, NULL, 10) : 0;
+    check("fmi3GetNumberOfContinuousStates", fmi.n_states(c, &nx));
+    check("fmi3GetNumberOfEventIndicators", fmi.n_indicators(c, &nz));
+    if (nx > MAX_STATES || nz > MAX_INDICATORS) {
+        say("failed sizes %zu states %zu indicators\n", nx, nz);
+        exit(1);
+    }
+    Point a = {.t = 0.0}, b;
+    int domains[MAX_INDICATORS];
+    double z[MAX_INDICATORS];
+    if (!event_iteration(c)) return;
+    restart(c, &a, domains);
+    say("x %.17g %.17g\n", a.t, read_output(c));
+    for (long n = 0; !done(a.t, stop_time);) {
+        double next = next_point(n, stop_time);
+        rk4(c, &a, step_end(a.t, next, h), &b);
+        indicators(c, b.t, b.x, z);
+        if (crossed(domains, z)) {
+            double x[MAX_STATES];
+            a.t = locate(c, &a, &b, domains, x);
+            put(c, a.t, x);
+            check("fmi3EnterEventMode", fmi.enter_event_mode(c));
+            bool go_on = event_iteration(c);
+            if (counter_text) {
+                int32_t count;
+                check("fmi3GetInt32", fmi.get_int32(c, &counter, 1, &count, 1));
+                say("e %.17g %d\n", a.t, (int)count);
+            }
+            if (!go_on) break;
+            restart(c, &a, domains);
+        } else {
+            a = b;
+            track_domains(domains, z);
+        }
+        if (a.t == next) {
+            say("x %.17g %.17g\n", a.t, read_output(c));
+            ++n;
+        }
+    }
+}
+
+static void run_one(const char *name)
+{
+    Instance c = instantiate(name);
+    check("fmi3ExitInitializationMode", initialize(c, n_settings));
+    if (model_exchange)
+        run_me(c);
+    else
+        run_cs(c);
     check("fmi3Terminate", fmi.terminate(c));
     fmi.free_instance(c);
 }
@@ -116,10 +329,16 @@ int main(int argc, char **argv)
 {
     static const char *const names[] = {
         "fmi3InstantiateCoSimulation", "fmi3FreeInstance", "fmi3EnterInitializationMode", "fmi3ExitInitializationMode",
-        "fmi3Terminate", "fmi3DoStep", "fmi3GetFloat64", "fmi3SetFloat64", "fmi3SetInt32"};
+        "fmi3Terminate", "fmi3DoStep", "fmi3GetFloat64", "fmi3SetFloat64", "fmi3SetInt32",
+        "fmi3InstantiateModelExchange", "fmi3GetInt32", "fmi3GetNumberOfContinuousStates",
+        "fmi3GetNumberOfEventIndicators", "fmi3UpdateDiscreteStates", "fmi3EnterEventMode",
+        "fmi3EnterContinuousTimeMode", "fmi3SetTime", "fmi3GetContinuousStates", "fmi3SetContinuousStates",
+        "fmi3GetContinuousStateDerivatives", "fmi3GetEventIndicators"};
     if (!start_host(argc, argv, names, sizeof names / sizeof *names, (void **)&fmi)) return argc < 8 ? 2 : 1;
-    if (!strcmp(mode, "run")) run_one("run");
-    else if (!strcmp(mode, "bad")) mode_bad();
+    model_exchange = !strncmp(mode, "me-", 3);
+    const char *what = model_exchange ? mode + 3 : mode;
+    if (!strcmp(what, "run")) run_one("run");
+    else if (!strcmp(what, "bad")) mode_bad();
     else {
         fprintf(stderr, "unknown mode %s\n", mode);
         return 2;
