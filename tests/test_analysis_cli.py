@@ -12,13 +12,14 @@ from stickslip.cli import main
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 
-#: elmer-fig3 bifurcation points (kind, v_drive), refined to 1e-7 (the grid does not matter).
-#: REGRESSION VALUES: printed by this code (bifurcation analysis on the exact stepper) when they were
-#: checked by hand against the phase portraits. Only the two Hopf points are derived independently
-#: (test_elmer_hopf_points_are_the_extrema_of_the_spec_law: brentq on F_K' of SPEC's formula). The paper
-#: (Elmer 1997, fig. 3) shows this diagram as a plot; its printed numbers could not be found in the
-#: sources available to this project (searched: the web pages and documentation corpora), so no point here
-#: is compared with the paper's values: that comparison is left open rather than invented.
+#: elmer-fig3 bifurcation points (kind, v_drive), refined to 1e-7 (the grid does not matter), printed to 7
+#: decimals. Every one is confirmed independently of stickslip.analysis: the two Hopf points here
+#: (test_elmer_hopf_points_are_the_extrema_of_the_spec_law: brentq on F_K' of SPEC's formula), the others in
+#: test_bifurcation_independent.py (stick-slip boundaries by the reference integrator, grazings, boundary
+#: switches and folds by solve_ivp on SPEC's slip flow), each within 1e-7 m/s. The paper (Elmer 1997,
+#: fig. 3) shows this diagram as a plot; its printed numbers could not be found in the sources available to
+#: this project (searched: the web pages and documentation corpora), so no point here is compared with the
+#: paper's values: that comparison is left open rather than invented.
 ELMER_POINTS = [
     ("stick-slip-boundary", 0.0585126), ("stick-slip-boundary", 0.0821024), ("fold", 0.1492599),
     ("boundary-switch", 0.1620558), ("grazing", 0.1620558), ("hopf", 0.1625725),
@@ -26,6 +27,9 @@ ELMER_POINTS = [
     ("grazing", 0.7850776), ("boundary-switch", 0.7850776), ("stick-slip-boundary", 0.9600452),
     ("fold", 1.1572381),
 ]
+#: Saddle-nodes of the stick-slip map (m/s) for Coulomb F_K = 0.5 N, sigmoid F_S (0.8 N to 1.5 N, tau 5 s, n 4),
+#: M = kappa = 1: confirmed by SPEC section 3's map in closed form in test_bifurcation_independent.py.
+AGING_SADDLE_NODES = [0.2488727, 0.2606055]
 
 
 def test_elmer_hopf_points_are_the_extrema_of_the_spec_law():
@@ -164,7 +168,7 @@ def test_bifurcation_with_aging_reports_the_map_saddle_nodes(tmp_path):
                  "static.n=4", "--v-min", "0.2", "--v-max", "0.3", "-n", "21", "--jobs", "1", "--out", str(out)]) == 0
     points = json.loads((out / "bifurcation_points.json").read_text())
     assert [(p["kind"], p["cycles"]) for p in points] == [("fold", "stick-slip")] * 2
-    assert [p["v_drive"] for p in points] == pytest.approx([0.2488727, 0.2606055], abs=1e-6)
+    assert [p["v_drive"] for p in points] == pytest.approx(AGING_SADDLE_NODES, abs=1e-6)
     with open(out / "branches.csv") as f:
         rows = [r for r in csv.DictReader(f) if r["branch"] == "stick-slip"]
     assert {r["stable"] for r in rows} == {"True", "False"}

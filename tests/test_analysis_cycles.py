@@ -65,9 +65,9 @@ def elmer():
 
 
 def test_fold_of_the_large_elmer_cycles():
-    """The fold's velocity 1.1572381 m/s is a REGRESSION VALUE (this code's output, not derived elsewhere);
-    what is checked independently of it: multiplier 1 there, two cycles of opposite stability just below,
-    none just above."""
+    """The fold's velocity 1.1572381 m/s (ELMER_POINTS' last) is confirmed independently, by a return map of
+    scipy's solve_ivp, in test_bifurcation_independent.py; here: multiplier 1 there, two cycles of opposite
+    stability just below, none just above."""
     p = elmer()
     rmap = sliding_limit_cycles.ReturnMap(p)
     (f,) = sliding_limit_cycles.refine_folds(rmap, [(1.05, 1.15)])
