@@ -56,7 +56,7 @@ def test_bifurcation_command(tmp_path, capsys):
     got = sorted((round(p["v_drive"], 5), p["kind"], p["v_drive"]) for p in points)
     want = sorted((round(v, 5), k, v) for k, v in ELMER_POINTS)
     assert [k for _, k, _ in got] == [k for _, k, _ in want]
-    assert [v for _, _, v in got] == pytest.approx([v for _, _, v in want], abs=1e-6)
+    assert [v for _, _, v in got] == pytest.approx([v for _, _, v in want], abs=1.5e-7)  # reached 4.3e-8: the points are claimed to 1e-7 (printed to 7 digits)
     hopf = [p for p in points if p["kind"] == "hopf"]
     assert [p["criticality"] for p in hopf] == ["subcritical", "subcritical"]
     with open(out / "branches.csv") as f:
