@@ -73,8 +73,6 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
     X(fmi3EnterEventMode, KEPT, (fmi3Instance c), ())                                                             \
     X(fmi3Terminate, RECOVERABLE, (fmi3Instance c), ())                                                           \
     X(fmi3Reset, KEPT, (fmi3Instance c), ())                                                                      \
-    X(fmi3EnterConfigurationMode, KEPT, (fmi3Instance c), ())                                                     \
-    X(fmi3ExitConfigurationMode, KEPT, (fmi3Instance c), ())                                                      \
     GET_AND_SET(X, Float64, fmi3Float64)                                                                          \
     GET_AND_SET(X, Int32, fmi3Int32)                                                                              \
     GET_AND_SET(X, Int64, fmi3Int64)                                                                              \
@@ -83,7 +81,6 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
     GET_AND_SET(X, String, fmi3String)                                                                            \
     X(fmi3GetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState *s), (s))                                       \
     X(fmi3SetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState s), (s))                                        \
-    X(fmi3FreeFMUState, KEPT, (fmi3Instance c, fmi3FMUState *s), (s))                                             \
     X(fmi3SerializedFMUStateSize, KEPT, (fmi3Instance c, fmi3FMUState s, size_t *size), (s, size))                \
     X(fmi3SerializeFMUState, KEPT, (fmi3Instance c, fmi3FMUState s, fmi3Byte *bytes, size_t size), (s, bytes, size)) \
     X(fmi3DeserializeFMUState, KEPT, (fmi3Instance c, const fmi3Byte *bytes, size_t size, fmi3FMUState *s),       \
@@ -114,17 +111,14 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
        fmi3Boolean *nominalsChanged, fmi3Boolean *valuesChanged, fmi3Boolean *nextEventTimeDefined,               \
        fmi3Float64 *nextEventTime),                                                                               \
       (discreteStatesNeedUpdate, terminateSimulation, nominalsChanged, valuesChanged, nextEventTimeDefined,       \
-       nextEventTime))                                                                                            \
-    X(fmi3EnterStepMode, KEPT, (fmi3Instance c), ())                                                              \
-    X(fmi3DoStep, RECOVERABLE,                                                                                    \
-      (fmi3Instance c, fmi3Float64 currentCommunicationPoint, fmi3Float64 communicationStepSize,                  \
-       fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *eventHandlingNeeded,                            \
-       fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime),             \
-      (currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded,  \
-       terminateSimulation, earlyReturn, lastSuccessfulTime))
+       nextEventTime))
 
-/* ---- the functions pythonfmu3 does not implement: X(name, parameters) ---- */
+/* ---- the functions pythonfmu3 does not implement, and the mode changes this FMU never allows (pythonfmu3
+ * answers them with fmi3OK): configuration mode (the model has no structural parameter) and step mode (no event
+ * mode in co-simulation, the model description has no hasEventMode; none in model exchange). X(name, parameters) */
 #define UNSUPPORTED(X)                                                                                             \
+    X(fmi3EnterConfigurationMode, (fmi3Instance c)) X(fmi3ExitConfigurationMode, (fmi3Instance c))               \
+    X(fmi3EnterStepMode, (fmi3Instance c))                                                                        \
     X(fmi3GetFloat32, GETTER(fmi3Float32)) X(fmi3SetFloat32, SETTER(fmi3Float32))                                 \
     X(fmi3GetInt8, GETTER(fmi3Int8)) X(fmi3SetInt8, SETTER(fmi3Int8))                                             \
     X(fmi3GetUInt8, GETTER(fmi3UInt8)) X(fmi3SetUInt8, SETTER(fmi3UInt8))                                         \
@@ -174,6 +168,9 @@ static struct {
                                                  fmi3InstanceEnvironment, fmi3LogMessageCallback);
     void (*fmi3FreeInstance)(fmi3Instance);
     fmi3Status (*fmi3GetContinuousStateDerivatives)(fmi3Instance, fmi3Float64 *, size_t); /* see below */
+    fmi3Status (*fmi3FreeFMUState)(fmi3Instance, fmi3FMUState *);                         /* see below */
+    fmi3Status (*fmi3DoStep)(fmi3Instance, fmi3Float64, fmi3Float64, fmi3Boolean, fmi3Boolean *, fmi3Boolean *,
+                             fmi3Boolean *, fmi3Float64 *); /* see below */
 } inner;
 
 /* ---- one instance ---- */
@@ -214,7 +211,8 @@ static int resolve_inner(void *lib, const char *path)
 {
 #define LOAD(name, failure, params, args) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
     if (1 FORWARDED(LOAD) LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
-            LOAD(fmi3FreeInstance, , , ) LOAD(fmi3GetContinuousStateDerivatives, , , ))
+            LOAD(fmi3FreeInstance, , , ) LOAD(fmi3GetContinuousStateDerivatives, , , )
+            LOAD(fmi3FreeFMUState, , , ) LOAD(fmi3DoStep, , , ))
         return 1;
 #undef LOAD
     sbf_fail("%s lacks an FMI 3 function: %s", path, dlerror());
@@ -300,7 +298,9 @@ EXPORT fmi3Instance fmi3InstantiateScheduledExecution(
     (void)instanceName, (void)instantiationToken, (void)resourcePath, (void)visible, (void)loggingOn;
     (void)clockUpdate, (void)lockPreemption, (void)unlockPreemption;
     Instance host = {.environment = instanceEnvironment, .log_message = logMessage};
-    host_log(&host, fmi3Error, "scheduled execution is not supported: this FMU offers co-simulation and model exchange");
+    host_log(&host, fmi3Error,
+             "fmi3InstantiateScheduledExecution: scheduled execution is not supported: this FMU offers co-simulation "
+             "and model exchange");
     return NULL;
 }
 
@@ -313,9 +313,15 @@ EXPORT void fmi3FreeInstance(fmi3Instance c)
     free_instance(inst);
 }
 
+/* Categories the model description does not list are refused (fmi3Error, a message), the filter kept. */
 EXPORT fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, size_t n, const fmi3String *categories)
 {
+    char why[1024];
     if (!c) return fmi3Error;
+    if (!sbf_known_categories("fmi3SetDebugLogging", n, categories, why, sizeof why)) {
+        host_log(c, fmi3Error, why);
+        return fmi3Error;
+    }
     sbf_set_log_filter(&((Instance *)c)->logging, loggingOn, n, categories);
     return fmi3OK;
 }
@@ -338,6 +344,26 @@ EXPORT fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 
     for (size_t i = 0; i < n && status <= fmi3Warning; i++)
         if (!isfinite(dx[i])) status = fmi3Error;
     return status;
+}
+
+SBF_FREE_STATE(fmi3Status, fmi3Error, fmi3Fatal, fmi3FreeFMUState, fmi3FMUState)
+
+/* Forwarded as RECOVERABLE, with its outputs set first: pythonfmu3 writes only terminateSimulation, and only if
+ * the slave's do_step returns one; this FMU needs no event handling and never returns early or terminates. */
+SBF_FORWARD_AS(static, forward_do_step, fmi3Status, fmi3Error, fmi3Fatal, fmi3DoStep, RECOVERABLE,
+               (fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+                fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn,
+                fmi3Float64 *lastSuccessfulTime),
+               (t, h, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded, terminateSimulation, earlyReturn,
+                lastSuccessfulTime))
+
+EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+                             fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation,
+                             fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime)
+{
+    *eventHandlingNeeded = *terminateSimulation = *earlyReturn = false;
+    return forward_do_step(c, t, h, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded, terminateSimulation,
+                           earlyReturn, lastSuccessfulTime);
 }
 
 #define REFUSE(name, params)                                                 \

@@ -314,6 +314,35 @@ void sbf_set_log_filter(sbf_log_filter *filter, int on, size_t n, const char *co
         if (categories[i]) filter->categories[filter->n_categories++] = strdup(categories[i]);
 }
 
+/* The <LogCategories> of the model description: PythonFMU's Fmi2Slave.log_categories, pythonfmu3's
+ * Fmi3SlaveBase.log_categories (the same names). */
+static const char *const log_categories[] = {"logStatusWarning", "logStatusDiscard", "logStatusError",
+                                             "logStatusFatal", "logAll"};
+#define N_LOG_CATEGORIES (sizeof log_categories / sizeof *log_categories)
+
+static int listed_category(const char *name)
+{
+    for (size_t k = 0; name && k < N_LOG_CATEGORIES; ++k)
+        if (strcmp(name, log_categories[k]) == 0) return 1;
+    return 0;
+}
+
+int sbf_known_categories(const char *function, size_t n, const char *const *categories, char *why, size_t size)
+{
+    for (size_t i = 0; i < n; ++i) {
+        const char *name = categories ? categories[i] : NULL;
+        if (listed_category(name)) continue;
+        char shown[256];
+        snprintf(shown, sizeof shown, name ? "\"%s\"" : "NULL", name);
+        int used = snprintf(why, size, "%s: categories[%zu] = %s is not a log category of this FMU; the model "
+                            "description lists", function, i, shown);
+        for (size_t k = 0; k < N_LOG_CATEGORIES && used >= 0 && (size_t)used < size; ++k)
+            used += snprintf(why + used, size - used, "%s %s", k ? "," : "", log_categories[k]);
+        return 0;
+    }
+    return 1;
+}
+
 int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *category)
 {
     if (status >= 1 && status <= 4) return 1; /* warning, discard, error, fatal: always */

@@ -31,6 +31,9 @@ typedef struct {
 } sbf_log_filter;
 
 void sbf_set_log_filter(sbf_log_filter *filter, int on, size_t n, const char *const *categories);
+/* 1 if each of categories[0..n) is a log category of the model description; else 0, with the message for the
+ * host in `why` (naming `function` and the category). */
+int sbf_known_categories(const char *function, size_t n, const char *const *categories, char *why, size_t size);
 /* Warnings, discards, errors and fatals always; other messages only as the host asked. */
 int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *category);
 
@@ -60,6 +63,18 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
         Status status = inner.name(inst->inner SBF_FORWARD_ARGS args);                    \
         inst->fatal_is_error = 0;                                                         \
         return failure && status == fatal ? error : status;                               \
+    }
+/* The exported fmi2FreeFMUstate / fmi3FreeFMUState `name`, forwarded to the inner library's, and as the standard
+ * asks: a null pointer is ignored and the freed state comes back as NULL (PythonFMU and pythonfmu3 dereference
+ * the one and leave the other). Status 0 is OK and 1 warning in both. */
+#define SBF_FREE_STATE(Status, error, fatal, name, State)                                                      \
+    SBF_FORWARD_AS(static, forward_free_state, Status, error, fatal, name, KEPT, (void *c, State *s), (s))    \
+    __attribute__((visibility("default"))) Status name(void *c, State *s)                                     \
+    {                                                                                                          \
+        if (!s || !*s) return c ? 0 : error;                                                                   \
+        Status status = forward_free_state(c, s);                                                              \
+        if (status <= 1) *s = NULL;                                                                            \
+        return status;                                                                                         \
     }
 /* The exported FMI function `name`, forwarded as is. */
 #define SBF_FORWARD(Status, error, fatal, name, failure, params, args) \
