@@ -23,6 +23,7 @@ from stickslip.suite.inputs import zoh_breakpoints
 from stickslip.reference import parameters_from_values, simulate_reference
 from stickslip.stress import cosim
 
+import machine_needs
 from fmu_instances import instantiate
 
 try:
@@ -173,6 +174,7 @@ def test_fmpy_with_fmi_call_logger(fmu_path):
 
 
 def test_fmpy_call_logger_sees_the_error_status_of_a_bad_parameter(fmu_path):
+    machine_needs.c_compiler("the FMU's Linux loader")
     calls = []
     with pytest.raises(Exception, match="kappa = -2.0"):
         run_fmu(fmu_path, {"kappa": -2.0}, 1.0, 0.5, fmi_call_logger=calls.append)
