@@ -73,7 +73,7 @@ def _case_results(report):
 def test_the_whole_matrix_passes_through_the_command_line(fmu_path, tmp_path):
     """``stickslip stress`` in run mode: every case of the matrix, the three long runs (1e6 s, 1e6 events,
     numeric slips over 1e5 s) included, in a child process with a time limit (a crash or a hang of the FMU
-    fails this test, not pytest). Measured: 42 s, 78 of 78 cases passed."""
+    fails this test, not pytest). Measured: 78 of 78 cases passed in 42 s alone, 54-56 s in the whole test run."""
     report = tmp_path / "stress.md"
     code = "import sys; from stickslip.cli import main; sys.exit(main(sys.argv[1:]))"
     run = subprocess.run([sys.executable, "-c", code, "stress", "--fmu", str(fmu_path), "--no-progress",
