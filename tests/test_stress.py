@@ -65,7 +65,8 @@ def test_full_matrix_spans_the_regimes_of_the_issue():
 def _case_results(report):
     """``{case: result}`` from the "Cases" table of a ``stickslip stress --report`` file."""
     cases = report.split("\n## Cases\n", 1)[1].split("\n## ", 1)[0]
-    rows = [[cell.strip() for cell in line.strip("|").split("|")] for line in cases.splitlines() if line.startswith("|")]
+    lines = [line for line in cases.splitlines() if line.startswith("|")]
+    rows = [[cell.strip() for cell in line.strip("|").split("|")] for line in lines]
     assert rows[0][:2] == ["case", "result"] and set(rows[1][0]) == {"-"}
     return {row[0]: row[1] for row in rows[2:]}
 
