@@ -11,6 +11,8 @@ import pytest
 from stickslip.fmu import build
 from stickslip.hosts.c_host import HostBuildError, compile_host
 
+import machine_needs
+
 #: the main job's FMUs (``scripts/setup.sh`` builds them there), which no test may replace
 MAIN_DIST = Path(__file__).resolve().parents[1] / "dist"
 
@@ -66,11 +68,24 @@ def unzipped3(fmu3_path):
     yield from _extracted(fmu3_path)
 
 
+def _c_host(tmp_path_factory, fmi_version):
+    """The C host of ``fmi_version`` (``src/stickslip/hosts/c_host/``), compiled; the tests that use it are skipped
+    where the machine cannot build it or start the FMU's Python in it. With a compiler, a host that does not
+    compile fails them."""
+    what = f"the FMI {fmi_version} C host"
+    machine_needs.c_compiler(what)
+    machine_needs.libpython(what)
+    try:
+        return compile_host(tmp_path_factory.mktemp(f"c_host{fmi_version}"), fmi_version=fmi_version)
+    except HostBuildError as exc:
+        pytest.fail(f"the C host must build where there is a C compiler: {exc}")
+
+
+@pytest.fixture(scope="session")
+def host(tmp_path_factory):
+    return _c_host(tmp_path_factory, 2)
+
+
 @pytest.fixture(scope="session")
 def host3(tmp_path_factory):
-    """The FMI 3 C host (``src/stickslip/hosts/c_host/host3.c``) compiled for the session; the tests that use it
-    are skipped, with the compiler's complaint, where it cannot be compiled."""
-    try:
-        return compile_host(tmp_path_factory.mktemp("c_host3"), fmi_version=3)
-    except HostBuildError as exc:
-        pytest.skip(f"the FMI 3 C host cannot be compiled here: {exc}")
+    return _c_host(tmp_path_factory, 3)

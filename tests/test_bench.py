@@ -13,6 +13,8 @@ from stickslip.cli.bench import add_bench_parser
 from stickslip.bench.peers import hybrid_solve_ivp, regularized_solve_ivp
 from stickslip.core import Constant, Coulomb, Parameters
 
+import machine_needs
+
 F_K, F_S, V_DRIVE = 0.5, 1.0, 0.1  # N, N, m/s; M = kappa = 1
 
 
@@ -54,6 +56,8 @@ def test_regularized_error_grows_with_v_eps(coulomb):
 
 
 def test_quick_bench_writes_json_markdown_and_plots(tmp_path, fmu_path, fmu3_path, monkeypatch):
+    machine_needs.c_compiler("the bench's C-host families")
+    machine_needs.libpython("the bench's C-host families")
     monkeypatch.setattr(fmus, "BUILD_DIR", tmp_path / "build")
     parser = argparse.ArgumentParser()
     add_bench_parser(parser.add_subparsers())

@@ -21,26 +21,20 @@ import pytest
 
 import pythonfmu
 import pythonfmu3
-from stickslip.hosts.c_host import HostBuildError, compile_host, run_host
+from stickslip.hosts.c_host import compile_host, run_host
 from stickslip.hosts.fmpy_host import run_fmu
 from stickslip.fmu import build
 from stickslip.fmu.loader import LIBPYTHON_VARIABLE
 from stickslip.suite.scenario import load_scenario
 from stickslip.stress.session import FmuCallError, FmuSession, fmi2Error
 
+import machine_needs
+
 SCENE = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "elmer-fig3-v0.1.toml")
 START = SCENE.start_values()
 SHORT = 20.0  # s: stop time of the runs that check behaviour rather than the whole scene
 BAD_MASS = "M = -1.0 kg is out of range: allowed is a finite value in (0, inf)"
 PYTHONFMU_BINARY = Path(pythonfmu.__file__).parent / "resources" / "binaries" / "linux64" / "libpythonfmu-export.so"
-
-
-@pytest.fixture(scope="module")
-def host(tmp_path_factory):
-    try:
-        return compile_host(tmp_path_factory.mktemp("c_host"))
-    except HostBuildError as exc:
-        pytest.fail(f"the C host must build on CI machines: {exc}")
 
 
 @pytest.fixture(scope="module")
@@ -68,6 +62,7 @@ def completed(run):
 
 
 def test_the_linux_binary_is_the_loader_with_pythonfmus_binary_beside_it(fmu_path):
+    machine_needs.c_compiler("the FMU's Linux loader")
     pythonfmu_binary = PYTHONFMU_BINARY.read_bytes()
     with zipfile.ZipFile(fmu_path) as fmu:
         assert fmu.read("binaries/linux64/SpringBlockFriction_pythonfmu.so") == pythonfmu_binary
@@ -173,6 +168,7 @@ def test_other_cpythons_through_the_override(host, folder, fmpy_x, libpython):
 def test_with_logging_off_fmpy_gets_the_error_and_its_message(fmu_path, name, value, expected):
     """FMPy's FMU2Slave with loggingOn = false: a bad parameter (at fmi2ExitInitializationMode) or input (at
     fmi2DoStep) is fmi2Error, and the logger received the message naming the variable and its range."""
+    machine_needs.c_compiler("the FMU's Linux loader")
     stick_slip = {"kinetic.F0": 0.5, "static.F0": 1.0, "v_start": 0.1}
     parameter = {name: value} if name == "M" else {}
     with FmuSession(fmu_path) as session:
@@ -194,6 +190,7 @@ def test_with_logging_off_fmpy_gets_the_error_and_its_message(fmu_path, name, va
 
 def test_fmpy_default_settings_show_the_message_naming_the_parameter(fmu_path):
     """``fmpy.simulate_fmu`` with no logger and logging off prints the FMU's error before raising."""
+    machine_needs.c_compiler("the FMU's Linux loader")
     code = ("import fmpy, sys\n"
             "try:\n"
             f"    fmpy.simulate_fmu({str(fmu_path)!r}, stop_time=1.0, start_values={{'M': -1.0}})\n"
@@ -238,6 +235,7 @@ def fmpy3_x(fmu3_path):
 
 
 def test_the_fmi3_linux_binary_is_the_loader_with_pythonfmu3s_binary_beside_it(fmu3_path):
+    machine_needs.c_compiler("the FMU's Linux loader")
     with zipfile.ZipFile(fmu3_path) as fmu:
         assert fmu.read("binaries/x86_64-linux/SpringBlockFriction_pythonfmu.so") == PYTHONFMU3_BINARY.read_bytes()
         assert fmu.read("binaries/x86_64-linux/SpringBlockFriction.so") != PYTHONFMU3_BINARY.read_bytes()
@@ -280,6 +278,8 @@ def test_no_invalid_memory_access_up_to_the_process_exit(tmp_path, unzipped, unz
     """PythonFMU's and pythonfmu3's binaries destroy their Python start-up object twice at exit (a write into
     freed memory after which glibc aborted 2 of 14 test runs); the loader resets it once before. memcheck
     reports that write in the C host unless the loader does (checked by removing its exit handler)."""
+    machine_needs.c_compiler("the C host under valgrind")
+    machine_needs.libpython("the C host under valgrind")
     host = compile_host(tmp_path, fmi_version=fmi_version)
     folder = (unzipped if fmi_version == 2 else unzipped3)[0]
     run = run_host(host, folder, "run", 1.0, 0.5, START, wrapper=[VALGRIND, "--error-exitcode=99"])

@@ -9,6 +9,7 @@ driving the same system in libcosim's order.
 
 import json
 import math
+import signal
 import subprocess
 import sys
 
@@ -22,6 +23,7 @@ from stickslip.suite.inputs import zoh_breakpoints
 from stickslip.reference import parameters_from_values, simulate_reference
 from stickslip.stress import cosim
 
+import machine_needs
 from fmu_instances import instantiate
 
 try:
@@ -75,9 +77,11 @@ def test_libcosim_agrees_with_fmpy(cosim_runs, name):
     libcosim, fmpy_run = cosim_runs[name]
     assert libcosim["ok"], libcosim["error"]
     assert fmpy_run["ok"], fmpy_run["error"]
-    assert libcosim["time"] == pytest.approx(fmpy_run["time"], rel=0, abs=1e-12)
+    # measured: times within 7.1e-15 s (libcosim sums its steps), states equal bit for bit except 3.8e-15 in
+    # "fine-steps" (the FMU reached those slightly different times)
+    assert libcosim["time"] == pytest.approx(fmpy_run["time"], rel=0, abs=5e-13)
     difference = cosim.compare(libcosim, fmpy_run, variables=("x", "v", "v_rel", "F_friction"))
-    assert difference <= 1e-9, difference  # solver tolerance; in practice they agree bit for bit
+    assert difference <= 2e-13, difference
     for instance in libcosim["series"]:
         assert libcosim["series"][instance]["n_events"] == fmpy_run["series"][instance]["n_events"]
         assert libcosim["series"][instance]["mode"] == fmpy_run["series"][instance]["mode"]
@@ -137,15 +141,18 @@ def test_libcosim_bad_parameter_is_an_error_not_a_crash(fmu_path):
     assert after["ok"]
 
 
+@needs_libcosim
 def test_libcosim_bad_parameter_crash_is_contained_in_the_child(fmu_path):
-    """Whatever libcosim does with a bad parameter, the host (this process) lives on."""
-    if LIBCOSIM is not None:
-        pytest.skip(LIBCOSIM)
+    """libcosim aborts on a bad parameter (the known limit the strict xfail above tracks): the child dies with
+    SIGABRT before it reports the system, the FMU's message reached libcosim's error text, and the host (this
+    process) runs the next simulation. Once libcosim reports the error instead, this test and the xfail fail."""
     child = cosim.run_in_child([system(fmu_path, {"a": dict(STICK_SLIP, M=-1.0)}, steps=4)])
-    if child["returncode"] != 0:
-        assert "M = -1.0 kg is out of range" in child["stderr"]  # the FMU's message reached libcosim's log
-    result = run_fmu(fmu_path, {k: v for k, v in STICK_SLIP.items()}, 5.0, 0.5)
-    assert np.all(np.isfinite(result["x"]))
+    assert child["returncode"] == -signal.SIGABRT, child
+    assert child["results"] == [] and "M = -1.0 kg is out of range" in child["stderr"]
+    # Coulomb: breakaway at kappa x = F_S (t = 10 s), then x = F_K + (F_S - F_K) cos s + v_drive sin s
+    result = run_fmu(fmu_path, STICK_SLIP, 10.5, 0.5)
+    expected = 0.5 + 0.5 * math.cos(0.5) + 0.1 * math.sin(0.5)
+    assert result["n_events"][-1] == 1 and result["x"][-1] == pytest.approx(expected, rel=1e-14)
 
 
 # ---------------------------------------------------------------------------
@@ -167,6 +174,7 @@ def test_fmpy_with_fmi_call_logger(fmu_path):
 
 
 def test_fmpy_call_logger_sees_the_error_status_of_a_bad_parameter(fmu_path):
+    machine_needs.c_compiler("the FMU's Linux loader")
     calls = []
     with pytest.raises(Exception, match="kappa = -2.0"):
         run_fmu(fmu_path, {"kappa": -2.0}, 1.0, 0.5, fmi_call_logger=calls.append)
@@ -203,7 +211,7 @@ def test_fmpy_simulate_fmu_with_an_input_table_matches_the_reference(fmu_path):
     breakpoints = zoh_breakpoints(signal, 0.0, 50.0, 0.5)
     ref = simulate_reference(parameters_from_values({**start, "kinetic.law": 1, "static.law": 1}), 0.0, 0.4,
                              breakpoints, result["time"])
-    assert np.abs(result["x"] - ref.x).max() <= 1e-9
+    assert np.abs(result["x"] - ref.x).max() <= 1e-14  # measured: 1.1e-16 m (|x| < 1.3 m: 1e-14 is 45 ulps)
     assert result["n_events"][-1] == sum(1 for e in ref.events if e.mode_before != e.mode_after) >= 4
     assert result["v_drive"].min() < 0 < result["v_drive"].max()
 

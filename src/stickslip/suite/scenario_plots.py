@@ -33,7 +33,8 @@ def held_levels(v_drive, samples=5):
 
 def plot_scenario(png_path, title, fmu, ref, max_abs_dx=None):
     """Write ``png_path``: x(t) of the FMU (structured array) and the reference, ``|x_FMU - x_ref|`` on a log
-    scale with the tolerance ``max_abs_dx`` (m), and the phase portrait with the stuck phases marked."""
+    scale with the tolerance ``max_abs_dx`` (m), and the phase portrait with the stuck phases marked.
+    Returns the figure (its lines hold the plotted arrays)."""
     fig = Figure(figsize=(13, 6.5), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplot_mosaic([["x", "phase"], ["dx", "phase"]], width_ratios=(3, 2), height_ratios=(3, 2))
@@ -68,3 +69,4 @@ def plot_scenario(png_path, title, fmu, ref, max_abs_dx=None):
 
     fig.legend(loc="outside lower center", ncols=4, fontsize="small")
     fig.savefig(png_path, dpi=110)
+    return fig
