@@ -10,7 +10,8 @@ at once, so a case that crashes or hangs still shows how far it got; every messa
   ``path`` (FMI 3: the resources folder as a path with a trailing slash), ``vr`` ({variable name: value
   reference}), ``folder``;
 - ``call(function, *arguments)``: the FMI function ``function`` of the binary (arguments converted by the
-  types below), its return value;
+  types below), its return value; ``STATE``: the names of the FMU state functions by role ("get", "set",
+  "free", "size", "serialize", "deserialize");
 - ``instantiate(resources=uri or path, token=guid, name=b"probe", interface="cs", logging=False)``: the
   instance (interface "cs", "me" or an FMI 2 fmuType number), or None;
 - ``start(c, **values)``: set up (start time 0) and enter initialization mode, set the Real ``values``;
@@ -61,12 +62,6 @@ if fmi == 2:
         "fmi2SetupExperiment": (c_int, (c_void_p, c_int, c_double, c_double, c_int, c_double)),
         "fmi2DoStep": (c_int, (c_void_p, c_double, c_double, c_int)),
         "fmi2GetReal": (c_int, _REALS), "fmi2SetReal": (c_int, _REALS),
-        "fmi2GetFMUstate": (c_int, (c_void_p, POINTER(c_void_p))),
-        "fmi2SetFMUstate": (c_int, (c_void_p, c_void_p)),
-        "fmi2FreeFMUstate": (c_int, (c_void_p, POINTER(c_void_p))),
-        "fmi2SerializedFMUstateSize": (c_int, (c_void_p, c_void_p, POINTER(c_size_t))),
-        "fmi2SerializeFMUstate": (c_int, (c_void_p, c_void_p, c_char_p, c_size_t)),
-        "fmi2DeSerializeFMUstate": (c_int, (c_void_p, c_char_p, c_size_t, POINTER(c_void_p))),
         "fmi2FreeInstance": (None, (c_void_p,)),
     }
 else:
@@ -83,14 +78,21 @@ else:
         "fmi3DoStep": (c_int, (c_void_p, c_double, c_double, c_bool, POINTER(c_bool), POINTER(c_bool),
                                POINTER(c_bool), POINTER(c_double))),
         "fmi3GetFloat64": (c_int, _REALS), "fmi3SetFloat64": (c_int, _REALS),
-        "fmi3GetFMUState": (c_int, (c_void_p, POINTER(c_void_p))),
-        "fmi3SetFMUState": (c_int, (c_void_p, c_void_p)),
-        "fmi3FreeFMUState": (c_int, (c_void_p, POINTER(c_void_p))),
-        "fmi3SerializedFMUStateSize": (c_int, (c_void_p, c_void_p, POINTER(c_size_t))),
-        "fmi3SerializeFMUState": (c_int, (c_void_p, c_void_p, c_char_p, c_size_t)),
-        "fmi3DeserializeFMUState": (c_int, (c_void_p, c_char_p, c_size_t, POINTER(c_void_p))),
         "fmi3FreeInstance": (None, (c_void_p,)),
     }
+
+
+_STATE_NAMES = {2: ("GetFMUstate", "SetFMUstate", "FreeFMUstate", "SerializedFMUstateSize", "SerializeFMUstate",
+                    "DeSerializeFMUstate"),
+                3: ("GetFMUState", "SetFMUState", "FreeFMUState", "SerializedFMUStateSize", "SerializeFMUState",
+                    "DeserializeFMUState")}
+#: The FMU state functions of this FMI version, by their role
+STATE = {role: f"fmi{fmi}{name}"
+         for role, name in zip(("get", "set", "free", "size", "serialize", "deserialize"), _STATE_NAMES[fmi])}
+_TYPES.update(zip(STATE.values(), (
+    (c_int, (c_void_p, POINTER(c_void_p))), (c_int, (c_void_p, c_void_p)), (c_int, (c_void_p, POINTER(c_void_p))),
+    (c_int, (c_void_p, c_void_p, POINTER(c_size_t))), (c_int, (c_void_p, c_void_p, c_char_p, c_size_t)),
+    (c_int, (c_void_p, c_char_p, c_size_t, POINTER(c_void_p))))))
 
 
 def call(function, *arguments):
@@ -148,14 +150,12 @@ def step(c, t, h):
 
 
 def serialized(c):
-    names = ("fmi2GetFMUstate", "fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2FreeFMUstate") \
-        if fmi == 2 else ("fmi3GetFMUState", "fmi3SerializedFMUStateSize", "fmi3SerializeFMUState", "fmi3FreeFMUState")
     state, size = c_void_p(), c_size_t()
-    assert call(names[0], c, byref(state)) == 0
-    assert call(names[1], c, state, byref(size)) == 0
+    assert call(STATE["get"], c, byref(state)) == 0
+    assert call(STATE["size"], c, state, byref(size)) == 0
     data = ctypes.create_string_buffer(size.value)
-    assert call(names[2], c, state, data, size) == 0
-    call(names[3], c, byref(state))
+    assert call(STATE["serialize"], c, state, data, size) == 0
+    call(STATE["free"], c, byref(state))
     return data.raw
 
 

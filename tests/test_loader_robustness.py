@@ -216,17 +216,16 @@ def test_deserializing_bad_bytes_is_an_error_and_the_instance_goes_on(extracted,
     """Item 4: the error (FMI 2 returned fatal, and its next call crashed; FMI 3 crashed at the second try), then
     the instance reads, steps, deserializes a good state and terminates normally."""
     fmi, folder = extracted
-    deserialize = "fmi2DeSerializeFMUstate" if fmi == 2 else "fmi3DeserializeFMUState"
     run = probe(folder, f"""
         c = instantiate()
         initialized(c, v_start=0.1)
         good = serialized(c)
         for t in (0.0, 1.0):
             data, state = {data}, c_void_p()
-            say("deserialize", call("{deserialize}", c, data, len(data), byref(state)), state.value)
+            say("deserialize", call(STATE["deserialize"], c, data, len(data), byref(state)), state.value)
             say("then", get(c, "x")[0], step(c, t, 1.0))
         state = c_void_p()
-        say("good", call("{deserialize}", c, good, len(good), byref(state)), state.value is not None)
+        say("good", call(STATE["deserialize"], c, good, len(good), byref(state)), state.value is not None)
         say("terminate", call("{PREFIX[fmi]}Terminate", c))
     """)
     assert run.all("deserialize") == [[ERROR, None]] * 2
@@ -239,16 +238,13 @@ def test_deserializing_bad_bytes_is_an_error_and_the_instance_goes_on(extracted,
 def test_a_state_saved_during_initialization_is_refused_after_it(extracted):
     """Item 10: restoring it froze the FMI 2 instance (steps OK, x still); now an error naming the cause, and the
     instance steps on from where it was."""
-    fmi, folder = extracted
-    get_state, set_state = ("fmi2GetFMUstate", "fmi2SetFMUstate") if fmi == 2 else ("fmi3GetFMUState",
-                                                                                    "fmi3SetFMUState")
-    run = probe(folder, f"""
+    run = probe(extracted[1], """
         c, state = instantiate(), c_void_p()
         start(c, v_start=0.1)
-        say("save", call("{get_state}", c, byref(state)))
-        call("{PREFIX[fmi]}ExitInitializationMode", c)
+        say("save", call(STATE["get"], c, byref(state)))
+        call(f"fmi{fmi}ExitInitializationMode", c)
         step(c, 0.0, 1.0)
-        say("restore", call("{set_state}", c, state))
+        say("restore", call(STATE["set"], c, state))
         say("step", step(c, 1.0, 1.0), get(c, "x"))
     """)
     assert run["save"] == [0] and run["restore"] == [ERROR]

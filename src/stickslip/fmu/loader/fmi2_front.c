@@ -257,12 +257,9 @@ EXPORT fmi2Status fmi2Reset(fmi2Component c) { return moved(c, forward_fmi2Reset
 
 EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
-    Instance *inst = c;
-    const char *refusal = inst ? sbf_step_refusal(inst->mode) : NULL;
-    if (refusal) {
-        char why[256];
-        snprintf(why, sizeof why, "fmi2DoStep at t = %g s is not allowed %s", t, refusal);
-        host_log(inst, fmi2Error, why);
+    char why[256];
+    if (c && sbf_step_refused(((Instance *)c)->mode, "fmi2DoStep", t, why, sizeof why)) {
+        host_log(c, fmi2Error, why);
         return fmi2Error;
     }
     return forward_fmi2DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint);

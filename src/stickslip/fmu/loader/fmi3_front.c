@@ -377,12 +377,9 @@ EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3B
                              fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation,
                              fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime)
 {
-    Instance *inst = c;
-    const char *refusal = inst ? sbf_step_refusal(inst->mode) : NULL;
-    if (refusal) {
-        char why[256];
-        snprintf(why, sizeof why, "fmi3DoStep at t = %g s is not allowed %s", t, refusal);
-        host_log(inst, fmi3Error, why);
+    char why[256];
+    if (c && sbf_step_refused(((Instance *)c)->mode, "fmi3DoStep", t, why, sizeof why)) {
+        host_log(c, fmi3Error, why);
         return fmi3Error;
     }
     return forward_fmi3DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded, terminateSimulation,

@@ -470,15 +470,17 @@ int sbf_check_instance(const char *function, const char *name, const char *token
     return 0;
 }
 
-const char *sbf_step_refusal(sbf_mode mode)
+int sbf_step_refused(sbf_mode mode, const char *function, double t, char *why, size_t why_size)
 {
-    static const char *const why[] = {
+    static const char *const refusal[] = {
         [SBF_INSTANTIATED] = "before initialization (enter and exit initialization mode first)",
         [SBF_INITIALIZING] = "during initialization (exiting initialization mode has not succeeded)",
         [SBF_STEPPING] = NULL,
         [SBF_TERMINATED] = "after termination (reset the instance to start again)",
         [SBF_EXCHANGING] = "for a model-exchange instance"};
-    return why[mode];
+    if (!refusal[mode]) return 0;
+    snprintf(why, why_size, "%s at t = %g s is not allowed %s", function, t, refusal[mode]);
+    return 1;
 }
 
 const char *sbf_category(int status, const char *category)

@@ -34,9 +34,9 @@ int sbf_check_instance(const char *function, const char *name, const char *token
 /* The states of FMI's co-simulation state machine that the fronts tell apart (FMI 2.0 section 4.2.4, FMI 3.0
  * section 4.2); a model-exchange instance is SBF_EXCHANGING throughout. */
 typedef enum { SBF_INSTANTIATED, SBF_INITIALIZING, SBF_STEPPING, SBF_TERMINATED, SBF_EXCHANGING } sbf_mode;
-/* NULL if a communication step is allowed in `mode` (only in SBF_STEPPING), else why not ("before initialization
- * (...)"). */
-const char *sbf_step_refusal(sbf_mode mode);
+/* 0 if a communication step (`function` at `t` s) is allowed in `mode` (only in SBF_STEPPING), else 1 with the
+ * message saying why not in `why`. */
+int sbf_step_refused(sbf_mode mode, const char *function, double t, char *why, size_t why_size);
 
 /* The log category of a message: `category` unless it is NULL or empty, else its status's ("logStatusError"). */
 const char *sbf_category(int status, const char *category);

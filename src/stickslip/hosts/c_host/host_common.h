@@ -112,20 +112,21 @@ typedef struct {
     double t, h;
 } StepCall;
 
-/* Mode "thread_steps": the communication steps of `instance` from `*t` to the stop time, each made by
- * `do_step(StepCall *)` on a new thread; prints "rss_kb_warm K" after 100 steps, "rss_kb_end K" and "steps N" at
- * the end. */
-static void steps_from_new_threads(void *instance, double *t, void *(*do_step)(void *))
+/* Mode "thread_steps": the communication steps of `instance` from t = 0 to the stop time, each made by
+ * `do_step(StepCall *)` on a new thread; prints "rss_kb_warm K" after 100 steps, "rss_kb_end K", "steps N" and
+ * "x T X" (X = read(instance)) at the end. */
+static void steps_from_new_threads(void *instance, void *(*do_step)(void *), double (*read)(void *))
 {
+    double t = 0.0;
     long n = 0;
-    for (; !done(*t, stop_time); ++n) {
+    for (; !done(t, stop_time); ++n) {
         if (n == 100) say("rss_kb_warm %ld\n", resident_kb());
         double next = next_point(n, stop_time);
-        StepCall call = {instance, *t, next - *t};
+        StepCall call = {instance, t, next - t};
         on_new_thread(do_step, &call);
-        *t = next;
+        t = next;
     }
-    say("rss_kb_end %ld\nsteps %ld\n", resident_kb(), n);
+    say("rss_kb_end %ld\nsteps %ld\nx %.17g %.17g\n", resident_kb(), n, t, read(instance));
 }
 
 #endif
