@@ -1,5 +1,7 @@
 /* What both FMI fronts of the loader share: finding and starting CPython, loading the library they
- * forward to, Python thread states of host threads, and the filter of the host's log categories.
+ * forward to, Python thread states of host threads, the checks of an instantiation's arguments (resource
+ * location, token, name), the co-simulation states that allow a step, the filter and the names of the host's
+ * log categories, and the refusal of bad serialized FMU states.
  * See runtime.c; the fronts are fmi2_front.c (PythonFMU) and fmi3_front.c (pythonfmu3). */
 #ifndef SBF_RUNTIME_H
 #define SBF_RUNTIME_H
