@@ -27,7 +27,7 @@ import operator
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
-from block_interface import VARIABLES, BlockInterface, balance_release
+from block_interface import VARIABLES, BlockInterface, balance_release, check_state, serialized_states
 from stickslip.core import OUTPUT_NAMES
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input, "output": Fmi2Causality.output}
@@ -143,6 +143,7 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         return self.block_state()
 
     def _set_fmu_state(self, state):
+        check_state(state)
         self.restore_block_state(state)
         self._by_reference[:OUTPUTS_AT] = [self.values[v.name] for v in VARIABLES[:OUTPUTS_AT]]
 
@@ -172,3 +173,4 @@ ENTRY_POINTS = (
     "_get_fmu_state", "_set_fmu_state",
 )
 balance_release(SpringBlockFriction, ENTRY_POINTS)
+serialized_states(SpringBlockFriction, ("values", "start_time", "trajectory"))  # the keys of block_state()

@@ -21,7 +21,7 @@ from collections import namedtuple
 from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, Fmi3Variability, Float64, Int32,
                         ModelExchange)
 
-from block_interface import BlockInterface, balance_release
+from block_interface import BlockInterface, balance_release, check_state, serialized_states
 from stickslip.core.exchange import INDICATORS, ExchangeBlock
 
 _CAUSALITY = {"parameter": Fmi3Causality.parameter, "input": Fmi3Causality.input, "output": Fmi3Causality.output}
@@ -101,6 +101,7 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
                 "stepped": self._stepped}
 
     def _set_fmu_state(self, state):
+        check_state(state)
         self.restore_block_state(state["block"])
         self.time, self.exchange, self._stepped = state["time"], state["interface"], state["stepped"]
         saved = state["exchange"]
@@ -170,3 +171,4 @@ ENTRY_POINTS = (
     "get_event_indicators", "set_time", "update_discrete_states", "_get_fmu_state", "_set_fmu_state",
 )
 balance_release(SpringBlockFriction, ENTRY_POINTS)
+serialized_states(SpringBlockFriction, ("block", "exchange", "time", "interface", "stepped"))  # see _get_fmu_state

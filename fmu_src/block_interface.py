@@ -12,6 +12,7 @@ their FMU uses (they rewrite the import below).
 import copy
 import ctypes
 import functools
+import json
 from collections import namedtuple
 
 from stickslip.core import (
@@ -223,7 +224,14 @@ class BlockInterface:
         return {"values": dict(self.values), "start_time": self.start_time, "trajectory": snapshot}
 
     def restore_block_state(self, state):
-        """Undo to a state from :meth:`block_state` (which stays usable for another restore)."""
+        """Undo to a state from :meth:`block_state` (which stays usable for another restore).
+
+        A state saved during initialization (no trajectory yet) is refused once initialization has ended: the
+        instance would go on without a trajectory, every step discarded (FMI does not say what it means)."""
+        if state["trajectory"] is None and self.trajectory is not None:
+            raise StateError("this FMU state was saved during initialization mode and cannot be restored after "
+                             "initialization ended: reset the instance first, or restore a state saved after "
+                             "initialization")
         state = copy.deepcopy(state)
         self.values.update(state["values"])
         self.start_time = state["start_time"]
@@ -231,6 +239,55 @@ class BlockInterface:
         self.trajectory = None if snapshot is None else Trajectory.from_snapshot(self.parameters(), snapshot)
         self._inputs_changed = False  # the restored trajectory holds the restored inputs
         self.outputs_changed()
+
+
+# ---- serialized FMU states ----------------------------------------------------------
+
+#: How a refused state (:func:`state_from_bytes`) serializes: this prefix, then the reason as UTF-8. The FMUs' loader
+#: (``fmi2DeSerializeFMUstate``/``fmi3DeserializeFMUState`` in ``src/stickslip/fmu/loader``) looks for it.
+REFUSED_STATE = b"refused FMU state: "
+
+
+class StateError(ValueError):
+    """An FMU state that this instance cannot take now, or bytes that are no FMU state of this FMU."""
+
+
+def serialized_states(cls, keys):
+    """Give the slave class ``cls`` (whose states are dicts with the keys ``keys``) the library's (de)serializers
+    of FMU states, :func:`state_from_bytes` and :func:`state_to_bytes`."""
+    cls._fmu_state_from_bytes = staticmethod(functools.partial(state_from_bytes, keys=frozenset(keys)))
+    cls._fmu_state_to_bytes = staticmethod(state_to_bytes)
+
+
+def state_from_bytes(data, keys):
+    """The FMU state serialized in ``data`` (JSON of a dict with the keys ``keys``), or, for bytes that are none, a
+    refused state ``{"refused": why}``: never an exception. PythonFMU and pythonfmu3 call this on the slave's
+    class, and an exception would release the calling instance's slave unbalanced (:func:`balance_release`),
+    which crashed the host at its next call; the loader refuses the bytes instead, with the reason, and
+    :func:`check_state` refuses the state in hosts without the loader."""
+    try:
+        state = json.loads(bytes(data).decode("utf-8"))
+    except Exception as error:  # noqa: BLE001 - any failure is a refusal, see the docstring
+        return {"refused": f"the {len(data)} bytes are not a serialized FMU state of this FMU: {error!r}"}
+    if not isinstance(state, dict) or set(state) != keys:
+        found = sorted(state) if isinstance(state, dict) else type(state).__name__
+        return {"refused": f"the {len(data)} bytes are not a serialized FMU state of this FMU: they hold {found}, "
+                           f"not a dict with the keys {sorted(keys)}"}
+    return state
+
+
+def state_to_bytes(state):
+    """The bytes of an FMU state (JSON, as the libraries write it); for a refused state, :data:`REFUSED_STATE`
+    and the reason."""
+    if "refused" in state:
+        return REFUSED_STATE + state["refused"].encode("utf-8")
+    return json.dumps(state).encode("utf-8")
+
+
+def check_state(state):
+    """Raise :class:`StateError` with the reason for a refused state (from :func:`state_from_bytes`)."""
+    if "refused" in state:
+        raise StateError(state["refused"])
 
 
 # ---- PythonFMU's release of the slave on an exception -----------------------------

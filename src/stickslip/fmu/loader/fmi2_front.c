@@ -48,10 +48,6 @@ typedef struct {
 #define FORWARDED(X)                                                                                               \
     X(fmi2SetupExperiment, RECOVERABLE, (fmi2Component c, fmi2Boolean a, fmi2Real b, fmi2Real d, fmi2Boolean e, fmi2Real f), \
       (a, b, d, e, f))                                                                                             \
-    X(fmi2EnterInitializationMode, RECOVERABLE, (fmi2Component c), ())                                             \
-    X(fmi2ExitInitializationMode, RECOVERABLE, (fmi2Component c), ())                                              \
-    X(fmi2Terminate, RECOVERABLE, (fmi2Component c), ())                                                           \
-    X(fmi2Reset, KEPT, (fmi2Component c), ())                                                                      \
     X(fmi2GetReal, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Real *x), (v, n, x))  \
     X(fmi2GetInteger, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Integer *x), (v, n, x)) \
     X(fmi2GetBoolean, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Boolean *x), (v, n, x)) \
@@ -64,7 +60,6 @@ typedef struct {
     X(fmi2SetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate s), (s))                                        \
     X(fmi2SerializedFMUstateSize, KEPT, (fmi2Component c, fmi2FMUstate s, size_t *n), (s, n))                      \
     X(fmi2SerializeFMUstate, KEPT, (fmi2Component c, fmi2FMUstate s, fmi2Byte *b, size_t n), (s, b, n))            \
-    X(fmi2DeSerializeFMUstate, KEPT, (fmi2Component c, const fmi2Byte *b, size_t n, fmi2FMUstate *s), (b, n, s))   \
     X(fmi2GetDirectionalDerivative, KEPT,                                                                          \
       (fmi2Component c, const fmi2ValueReference *u, size_t nu, const fmi2ValueReference *k, size_t nk,            \
        const fmi2Real *dk, fmi2Real *du),                                                                          \
@@ -74,17 +69,27 @@ typedef struct {
       (v, n, o, x))                                                                                                \
     X(fmi2GetRealOutputDerivatives, KEPT,                                                                          \
       (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *o, fmi2Real *x), (v, n, o, x))   \
-    X(fmi2DoStep, RECOVERABLE, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean k), (t, h, k))                \
     X(fmi2CancelStep, KEPT, (fmi2Component c), ())                                                                 \
     X(fmi2GetRealStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Real *x), (k, x))                     \
     X(fmi2GetIntegerStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Integer *x), (k, x))               \
     X(fmi2GetBooleanStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Boolean *x), (k, x))               \
     X(fmi2GetStringStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2String *x), (k, x))
 
+/* The functions forwarded that move the instance between FMI 2's states (sbf_mode) or need one, and the
+ * deserialization of states: forwarded by forward_<name>, exported below. */
+#define TRACKED(X)                                                                                                 \
+    X(fmi2EnterInitializationMode, RECOVERABLE, (fmi2Component c), ())                                             \
+    X(fmi2ExitInitializationMode, RECOVERABLE, (fmi2Component c), ())                                              \
+    X(fmi2Terminate, RECOVERABLE, (fmi2Component c), ())                                                           \
+    X(fmi2Reset, KEPT, (fmi2Component c), ())                                                                      \
+    X(fmi2DoStep, RECOVERABLE, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean k), (t, h, k))                \
+    X(fmi2DeSerializeFMUstate, KEPT, (fmi2Component c, const fmi2Byte *b, size_t n, fmi2FMUstate *s), (b, n, s))
+
 /* PythonFMU's entry points */
 static struct {
 #define POINTER(name, failure, params, args) fmi2Status(*name) params;
     FORWARDED(POINTER)
+    TRACKED(POINTER)
 #undef POINTER
     fmi2Component (*fmi2Instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
                                      fmi2Boolean, fmi2Boolean);
@@ -96,6 +101,7 @@ static struct {
 /* ---- one instance ---- */
 typedef struct {
     fmi2Component inner;
+    sbf_mode mode; /* where FMI 2.0's co-simulation state machine is */
     fmi2CallbackFunctions host;   /* the importer's callbacks */
     fmi2CallbackFunctions relay;  /* handed to PythonFMU: logs through relay_log */
     char *name;
@@ -105,12 +111,11 @@ typedef struct {
 
 static void host_log(const Instance *inst, fmi2Status status, const char *text)
 {
-    static const char *const categories[] = {"logStatusOK", "logStatusWarning", "logStatusDiscard",
-                                             "logStatusError", "logStatusFatal", "logStatusPending"};
+    const char *category = sbf_category(status, NULL);
     if (inst->host.logger)
-        inst->host.logger(inst->host.componentEnvironment, inst->name, status, categories[status], "%s", text);
+        inst->host.logger(inst->host.componentEnvironment, inst->name, status, category, "%s", text);
     else
-        fprintf(stderr, "[%s] %s: %s\n", categories[status], inst->name, text);
+        fprintf(stderr, "[%s] %s: %s\n", category, inst->name, text);
 }
 
 /* PythonFMU's logger: its message is plain text (it passes no format arguments) */
@@ -125,6 +130,7 @@ static void relay_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Status 
         status = fmi2Error;
         message = sbf_exception_text(message, tidy, sizeof tidy);
     }
+    category = sbf_category(status, category); /* PythonFMU passes NULL for none */
     if (inst->host.logger && sbf_log_wanted(&inst->logging, status, category))
         inst->host.logger(inst->host.componentEnvironment, inst->name, status, category, "%s", message);
 }
@@ -133,7 +139,7 @@ static void relay_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Status 
 static int resolve_inner(void *lib, const char *path)
 {
 #define LOAD(name, failure, params, args) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
-    if (1 FORWARDED(LOAD) LOAD(fmi2Instantiate, , , ) LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , )
+    if (1 FORWARDED(LOAD) TRACKED(LOAD) LOAD(fmi2Instantiate, , , ) LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , )
             LOAD(fmi2FreeFMUstate, , , ))
         return 1;
 #undef LOAD
@@ -153,10 +159,30 @@ static void free_instance(Instance *inst)
     free(inst);
 }
 
+/* Why the instance asked for cannot be made (0 after a message to the host), else 1 with the resources folder's
+ * path for PythonFMU in `path`. */
+static int instantiable(const Instance *inst, fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
+                        char *path, size_t size)
+{
+    char why[8192];
+    if (!sbf_check_instance("fmi2Instantiate", name, "GUID", guid, resources, path, size, why, sizeof why)) {
+        host_log(inst, fmi2Error, why);
+        return 0;
+    }
+    if (type != fmi2CoSimulation) {
+        snprintf(why, sizeof why, "fmi2Instantiate: this FMU offers co-simulation only (fmuType = fmi2CoSimulation, "
+                 "1), not fmuType = %d%s", (int)type, type == fmi2ModelExchange ? " (fmi2ModelExchange)" : "");
+        host_log(inst, fmi2Error, why);
+        return 0;
+    }
+    return 1;
+}
+
 EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
                                      const fmi2CallbackFunctions *functions, fmi2Boolean visible,
                                      fmi2Boolean loggingOn)
 {
+    char path[4096];
     Instance *inst = calloc(1, sizeof *inst);
     if (!inst) return NULL;
     inst->name = strdup(name ? name : "");
@@ -165,13 +191,17 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
     inst->relay.logger = relay_log;
     inst->relay.componentEnvironment = inst;
     inst->logging.on = loggingOn;
+    if (!instantiable(inst, name, type, guid, resources, path, sizeof path)) {
+        free_instance(inst);
+        return NULL;
+    }
     if (!sbf_start(resolve_inner)) {
         host_log(inst, fmi2Fatal, sbf_start_error());
         free_instance(inst);
         return NULL;
     }
     sbf_keep_thread_state();
-    inst->inner = inner.fmi2Instantiate(name, type, guid, resources, &inst->relay, visible, 1);
+    inst->inner = inner.fmi2Instantiate(name, type, guid, path, &inst->relay, visible, 1);
     if (!inst->inner) {
         free_instance(inst);
         return NULL;
@@ -217,3 +247,41 @@ FORWARDED(FORWARD)
 #undef FORWARD
 
 SBF_FREE_STATE(fmi2Status, fmi2Error, fmi2Fatal, fmi2FreeFMUstate, fmi2FMUstate)
+#define FORWARD(name, failure, params, args) \
+    SBF_FORWARD_AS(static, forward_##name, fmi2Status, fmi2Error, fmi2Fatal, name, failure, params, args)
+TRACKED(FORWARD)
+#undef FORWARD
+
+/* `status` of a call that moves the instance `c` to `mode` when it succeeds */
+static fmi2Status moved(fmi2Component c, fmi2Status status, sbf_mode mode)
+{
+    if (c && status <= fmi2Warning) ((Instance *)c)->mode = mode;
+    return status;
+}
+
+EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c)
+{
+    return moved(c, forward_fmi2EnterInitializationMode(c), SBF_INITIALIZING);
+}
+
+EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c)
+{
+    return moved(c, forward_fmi2ExitInitializationMode(c), SBF_STEPPING);
+}
+
+EXPORT fmi2Status fmi2Terminate(fmi2Component c) { return moved(c, forward_fmi2Terminate(c), SBF_TERMINATED); }
+
+EXPORT fmi2Status fmi2Reset(fmi2Component c) { return moved(c, forward_fmi2Reset(c), SBF_INSTANTIATED); }
+
+EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
+{
+    char why[256];
+    if (c && sbf_step_refused(((Instance *)c)->mode, "fmi2DoStep", t, why, sizeof why)) {
+        host_log(c, fmi2Error, why);
+        return fmi2Error;
+    }
+    return forward_fmi2DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint);
+}
+
+SBF_DESERIALIZE(fmi2Status, fmi2Error, fmi2Warning, fmi2Byte, fmi2DeSerializeFMUstate, forward_fmi2DeSerializeFMUstate,
+                fmi2SerializedFMUstateSize, fmi2SerializeFMUstate, fmi2FreeFMUstate)

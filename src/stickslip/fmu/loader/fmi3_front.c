@@ -65,14 +65,7 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
  * SpringBlockFriction_fmi3's do) the instance stays valid for fmi3Reset, fmi3SetFMUState and fmi3FreeInstance,
  * which is what fmi3Error means, so fmi3Fatal is returned and logged as fmi3Error. KEPT: the status as is. */
 #define FORWARDED(X)                                                                                               \
-    X(fmi3EnterInitializationMode, RECOVERABLE,                                                                   \
-      (fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance, fmi3Float64 startTime,                \
-       fmi3Boolean stopTimeDefined, fmi3Float64 stopTime),                                                        \
-      (toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime))                                        \
-    X(fmi3ExitInitializationMode, RECOVERABLE, (fmi3Instance c), ())                                              \
     X(fmi3EnterEventMode, KEPT, (fmi3Instance c), ())                                                             \
-    X(fmi3Terminate, RECOVERABLE, (fmi3Instance c), ())                                                           \
-    X(fmi3Reset, KEPT, (fmi3Instance c), ())                                                                      \
     GET_AND_SET(X, Float64, fmi3Float64)                                                                          \
     GET_AND_SET(X, Int32, fmi3Int32)                                                                              \
     GET_AND_SET(X, Int64, fmi3Int64)                                                                              \
@@ -83,8 +76,6 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
     X(fmi3SetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState s), (s))                                        \
     X(fmi3SerializedFMUStateSize, KEPT, (fmi3Instance c, fmi3FMUState s, size_t *size), (s, size))                \
     X(fmi3SerializeFMUState, KEPT, (fmi3Instance c, fmi3FMUState s, fmi3Byte *bytes, size_t size), (s, bytes, size)) \
-    X(fmi3DeserializeFMUState, KEPT, (fmi3Instance c, const fmi3Byte *bytes, size_t size, fmi3FMUState *s),       \
-      (bytes, size, s))                                                                                           \
     X(fmi3GetDirectionalDerivative, KEPT,                                                                         \
       (fmi3Instance c, const fmi3ValueReference *unknowns, size_t nUnknowns, const fmi3ValueReference *knowns,    \
        size_t nKnowns, const fmi3Float64 *seed, size_t nSeed, fmi3Float64 *sensitivity, size_t nSensitivity),    \
@@ -112,6 +103,25 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
        fmi3Float64 *nextEventTime),                                                                               \
       (discreteStatesNeedUpdate, terminateSimulation, nominalsChanged, valuesChanged, nextEventTimeDefined,       \
        nextEventTime))
+
+/* The functions forwarded that move the instance between FMI 3's states (sbf_mode) or need one, and the
+ * deserialization of states: forwarded by forward_<name>, exported below. */
+#define TRACKED(X)                                                                                                 \
+    X(fmi3EnterInitializationMode, RECOVERABLE,                                                                   \
+      (fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance, fmi3Float64 startTime,                \
+       fmi3Boolean stopTimeDefined, fmi3Float64 stopTime),                                                        \
+      (toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime))                                        \
+    X(fmi3ExitInitializationMode, RECOVERABLE, (fmi3Instance c), ())                                              \
+    X(fmi3Terminate, RECOVERABLE, (fmi3Instance c), ())                                                           \
+    X(fmi3Reset, KEPT, (fmi3Instance c), ())                                                                      \
+    X(fmi3DoStep, RECOVERABLE,                                                                                    \
+      (fmi3Instance c, fmi3Float64 currentCommunicationPoint, fmi3Float64 communicationStepSize,                  \
+       fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *eventHandlingNeeded,                            \
+       fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime),             \
+      (currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded,  \
+       terminateSimulation, earlyReturn, lastSuccessfulTime))                                                     \
+    X(fmi3DeserializeFMUState, KEPT, (fmi3Instance c, const fmi3Byte *bytes, size_t size, fmi3FMUState *s),       \
+      (bytes, size, s))
 
 /* ---- the functions pythonfmu3 does not implement, and the mode changes this FMU never allows (pythonfmu3
  * answers them with fmi3OK): configuration mode (the model has no structural parameter) and step mode (no event
@@ -159,6 +169,7 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
 static struct {
 #define POINTER(name, failure, params, args) fmi3Status(*name) params;
     FORWARDED(POINTER)
+    TRACKED(POINTER)
 #undef POINTER
     fmi3Instance (*fmi3InstantiateCoSimulation)(fmi3String, fmi3String, fmi3String, fmi3Boolean, fmi3Boolean,
                                                 fmi3Boolean, fmi3Boolean, const fmi3ValueReference *, size_t,
@@ -169,13 +180,12 @@ static struct {
     void (*fmi3FreeInstance)(fmi3Instance);
     fmi3Status (*fmi3GetContinuousStateDerivatives)(fmi3Instance, fmi3Float64 *, size_t); /* see below */
     fmi3Status (*fmi3FreeFMUState)(fmi3Instance, fmi3FMUState *);                         /* see below */
-    fmi3Status (*fmi3DoStep)(fmi3Instance, fmi3Float64, fmi3Float64, fmi3Boolean, fmi3Boolean *, fmi3Boolean *,
-                             fmi3Boolean *, fmi3Float64 *); /* see below */
 } inner;
 
 /* ---- one instance ---- */
 typedef struct {
     fmi3Instance inner;
+    sbf_mode mode; /* where FMI 3.0's state machine is (co-simulation), or SBF_EXCHANGING */
     fmi3InstanceEnvironment environment; /* the host's */
     fmi3LogMessageCallback log_message;   /* the host's */
     sbf_log_filter logging;
@@ -184,10 +194,8 @@ typedef struct {
 
 static void host_log(const Instance *inst, fmi3Status status, const char *text)
 {
-    static const char *const categories[] = {"logStatusOK", "logStatusWarning", "logStatusDiscard",
-                                             "logStatusError", "logStatusFatal"};
     if (inst->log_message)
-        inst->log_message(inst->environment, status, categories[status], text);
+        inst->log_message(inst->environment, status, sbf_category(status, NULL), text);
     else
         fprintf(stderr, "[FMI 3 status %d] %s\n", (int)status, text);
 }
@@ -202,6 +210,7 @@ static void relay_log(fmi3InstanceEnvironment env, fmi3Status status, fmi3String
         status = fmi3Error;
         message = sbf_exception_text(message, tidy, sizeof tidy);
     }
+    category = sbf_category(status, category); /* pythonfmu3 passes "" for none */
     if (inst->log_message && sbf_log_wanted(&inst->logging, status, category))
         inst->log_message(inst->environment, status, category, message);
 }
@@ -210,9 +219,9 @@ static void relay_log(fmi3InstanceEnvironment env, fmi3Status status, fmi3String
 static int resolve_inner(void *lib, const char *path)
 {
 #define LOAD(name, failure, params, args) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
-    if (1 FORWARDED(LOAD) LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
+    if (1 FORWARDED(LOAD) TRACKED(LOAD) LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
             LOAD(fmi3FreeInstance, , , ) LOAD(fmi3GetContinuousStateDerivatives, , , )
-            LOAD(fmi3FreeFMUState, , , ) LOAD(fmi3DoStep, , , ))
+            LOAD(fmi3FreeFMUState, , , ))
         return 1;
 #undef LOAD
     sbf_fail("%s lacks an FMI 3 function: %s", path, dlerror());
@@ -229,15 +238,23 @@ static void free_instance(Instance *inst)
     free(inst);
 }
 
-/* A new Instance with Python and pythonfmu3 ready, or NULL after a message to the host's logger. */
-static Instance *new_instance(fmi3Boolean loggingOn, fmi3InstanceEnvironment environment,
+/* A new Instance with Python and pythonfmu3 ready and the resources folder's path for it in `path`, or NULL after
+ * a message to the host's logger (`function` cannot instantiate). */
+static Instance *new_instance(const char *function, fmi3String name, fmi3String token, fmi3String resourcePath,
+                              char *path, size_t size, fmi3Boolean loggingOn, fmi3InstanceEnvironment environment,
                               fmi3LogMessageCallback logMessage)
 {
+    char why[8192];
     Instance *inst = calloc(1, sizeof *inst);
     if (!inst) return NULL;
     inst->environment = environment;
     inst->log_message = logMessage;
     inst->logging.on = loggingOn;
+    if (!sbf_check_instance(function, name, "instantiation token", token, resourcePath, path, size, why, sizeof why)) {
+        host_log(inst, fmi3Error, why);
+        free_instance(inst);
+        return NULL;
+    }
     if (!sbf_start(resolve_inner)) {
         host_log(inst, fmi3Fatal, sbf_start_error());
         free_instance(inst);
@@ -267,10 +284,12 @@ EXPORT fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3Str
                                                 fmi3LogMessageCallback logMessage,
                                                 fmi3IntermediateUpdateCallback intermediateUpdate)
 {
+    char path[4096];
     (void)intermediateUpdate;
-    Instance *inst = new_instance(loggingOn, instanceEnvironment, logMessage);
+    Instance *inst = new_instance("fmi3InstantiateCoSimulation", instanceName, instantiationToken, resourcePath, path,
+                                  sizeof path, loggingOn, instanceEnvironment, logMessage);
     if (inst)
-        inst->inner = inner.fmi3InstantiateCoSimulation(instanceName, instantiationToken, resourcePath, visible, true,
+        inst->inner = inner.fmi3InstantiateCoSimulation(instanceName, instantiationToken, path, visible, true,
                                                         eventModeUsed, earlyReturnAllowed,
                                                         requiredIntermediateVariables, nRequiredIntermediateVariables,
                                                         inst, relay_log, NULL);
@@ -282,10 +301,14 @@ EXPORT fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3St
                                                  fmi3InstanceEnvironment instanceEnvironment,
                                                  fmi3LogMessageCallback logMessage)
 {
-    Instance *inst = new_instance(loggingOn, instanceEnvironment, logMessage);
-    if (inst)
-        inst->inner = inner.fmi3InstantiateModelExchange(instanceName, instantiationToken, resourcePath, visible, true,
+    char path[4096];
+    Instance *inst = new_instance("fmi3InstantiateModelExchange", instanceName, instantiationToken, resourcePath,
+                                  path, sizeof path, loggingOn, instanceEnvironment, logMessage);
+    if (inst) {
+        inst->mode = SBF_EXCHANGING;
+        inst->inner = inner.fmi3InstantiateModelExchange(instanceName, instantiationToken, path, visible, true,
                                                          inst, relay_log);
+    }
     return instantiated(inst);
 }
 
@@ -330,6 +353,54 @@ EXPORT fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, siz
     SBF_FORWARD(fmi3Status, fmi3Error, fmi3Fatal, name, failure, params, args)
 FORWARDED(FORWARD)
 #undef FORWARD
+#define FORWARD(name, failure, params, args) \
+    SBF_FORWARD_AS(static, forward_##name, fmi3Status, fmi3Error, fmi3Fatal, name, failure, params, args)
+TRACKED(FORWARD)
+#undef FORWARD
+
+/* `status` of a call that moves the co-simulation instance `c` to `mode` when it succeeds */
+static fmi3Status moved(fmi3Instance c, fmi3Status status, sbf_mode mode)
+{
+    Instance *inst = c;
+    if (inst && inst->mode != SBF_EXCHANGING && status <= fmi3Warning) inst->mode = mode;
+    return status;
+}
+
+EXPORT fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
+                                              fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)
+{
+    fmi3Status status = forward_fmi3EnterInitializationMode(c, toleranceDefined, tolerance, startTime,
+                                                            stopTimeDefined, stopTime);
+    return moved(c, status, SBF_INITIALIZING);
+}
+
+EXPORT fmi3Status fmi3ExitInitializationMode(fmi3Instance c)
+{
+    return moved(c, forward_fmi3ExitInitializationMode(c), SBF_STEPPING);
+}
+
+EXPORT fmi3Status fmi3Terminate(fmi3Instance c) { return moved(c, forward_fmi3Terminate(c), SBF_TERMINATED); }
+
+EXPORT fmi3Status fmi3Reset(fmi3Instance c) { return moved(c, forward_fmi3Reset(c), SBF_INSTANTIATED); }
+
+EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+                             fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation,
+                             fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime)
+{
+    char why[256];
+    /* pythonfmu3 writes only terminateSimulation, and only if the slave's do_step returns one; this FMU needs no
+     * event handling and never returns early or terminates */
+    *eventHandlingNeeded = *terminateSimulation = *earlyReturn = false;
+    if (c && sbf_step_refused(((Instance *)c)->mode, "fmi3DoStep", t, why, sizeof why)) {
+        host_log(c, fmi3Error, why);
+        return fmi3Error;
+    }
+    return forward_fmi3DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded, terminateSimulation,
+                              earlyReturn, lastSuccessfulTime);
+}
+
+SBF_DESERIALIZE(fmi3Status, fmi3Error, fmi3Warning, fmi3Byte, fmi3DeserializeFMUState, forward_fmi3DeserializeFMUState,
+                fmi3SerializedFMUStateSize, fmi3SerializeFMUState, fmi3FreeFMUState)
 
 /* Forwarded as RECOVERABLE, and more: pythonfmu3 0.3.4 crashes the process when the slave raises in
  * get_continuous_state_derivatives (in every other call it reports the exception). The slave therefore logs
@@ -347,24 +418,6 @@ EXPORT fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 
 }
 
 SBF_FREE_STATE(fmi3Status, fmi3Error, fmi3Fatal, fmi3FreeFMUState, fmi3FMUState)
-
-/* Forwarded as RECOVERABLE, with its outputs set first: pythonfmu3 writes only terminateSimulation, and only if
- * the slave's do_step returns one; this FMU needs no event handling and never returns early or terminates. */
-SBF_FORWARD_AS(static, forward_do_step, fmi3Status, fmi3Error, fmi3Fatal, fmi3DoStep, RECOVERABLE,
-               (fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
-                fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn,
-                fmi3Float64 *lastSuccessfulTime),
-               (t, h, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded, terminateSimulation, earlyReturn,
-                lastSuccessfulTime))
-
-EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
-                             fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation,
-                             fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime)
-{
-    *eventHandlingNeeded = *terminateSimulation = *earlyReturn = false;
-    return forward_do_step(c, t, h, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded, terminateSimulation,
-                           earlyReturn, lastSuccessfulTime);
-}
 
 #define REFUSE(name, params)                                                 \
     EXPORT fmi3Status name params                                            \

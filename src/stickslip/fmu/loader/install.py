@@ -17,6 +17,7 @@ import sys
 import sysconfig
 import tempfile
 from pathlib import Path
+from xml.etree import ElementTree
 
 from ..archive import read_entries, write_entries
 
@@ -45,9 +46,14 @@ def _c_string(text):
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2):
-    """Compile the loader of ``fmi_version`` to ``dest``, forwarding to ``inner_name`` beside it; None on
-    success, else why not."""
+def model_token(model_description, fmi_version):
+    """The GUID (FMI 2) or instantiation token (FMI 3) in the bytes of a ``modelDescription.xml``."""
+    return ElementTree.fromstring(model_description).get("guid" if fmi_version == 2 else "instantiationToken")
+
+
+def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, token=""):
+    """Compile the loader of ``fmi_version`` to ``dest``, forwarding to ``inner_name`` beside it and accepting
+    the GUID or instantiation token ``token`` only; None on success, else why not."""
     compiler = os.environ.get("CC") or "cc"
     if shutil.which(compiler) is None:
         return f"no C compiler ({compiler!r} not found; set CC)"
@@ -55,7 +61,8 @@ def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2):
     command = [
         compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o", str(dest),
         str(FRONTS[fmi_version][0]), str(RUNTIME[0]),
-        f"-DSBF_INNER_LIBRARY={_c_string(inner_name)}", f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
+        f"-DSBF_INNER_LIBRARY={_c_string(inner_name)}", f"-DSBF_TOKEN={_c_string(token)}",
+        f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
         f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}", "-ldl", "-lpthread",
     ] + (["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else [])
     result = subprocess.run(command, capture_output=True, text=True)
@@ -79,14 +86,15 @@ def install(fmu_path, model_identifier, slave_survives_release=False, fmi_versio
     _, folder, library = FRONTS[fmi_version]
     binary = f"{folder}/{model_identifier}.so"
     inner_name = f"{model_identifier}_pythonfmu.so"
+    entries = read_entries(fmu_path)
+    token = model_token(entries["modelDescription.xml"], fmi_version)
     with tempfile.TemporaryDirectory(prefix="sbf_loader_") as tmp:
         loader = Path(tmp) / binary.rsplit("/", 1)[1]
-        why_not = compile_loader(loader, inner_name, slave_survives_release, fmi_version)
+        why_not = compile_loader(loader, inner_name, slave_survives_release, fmi_version, token)
         if why_not is not None:
             print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads "
                   f"only inside a Python process: {why_not}", file=sys.stderr)
             return False
-        entries = read_entries(fmu_path)
         entries[f"{folder}/{inner_name}"] = entries[binary]
         entries[binary] = loader.read_bytes()
         write_entries(fmu_path, entries)

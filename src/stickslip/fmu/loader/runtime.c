@@ -11,14 +11,17 @@
  *   3. loads the inner library (PythonFMU's or pythonfmu3's binary, SBF_INNER_LIBRARY beside this one)
  *      and lets the front resolve its entry points.
  * Each host thread gets one Python thread state, kept for the thread's life (sbf_keep_thread_state).
+ * The resource location a host passes is decoded and checked here for both fronts (sbf_resource_folder).
  * At process exit the inner library's Python start-up object is reset once before its own destructors run
  * (see reset_inner_python_state).
  */
 #define _GNU_SOURCE
 #include "runtime.h"
 
+#include <ctype.h>
 #include <dlfcn.h>
 #include <elf.h>
+#include <errno.h>
 #include <fcntl.h>
 #include <link.h>
 #include <pthread.h>
@@ -27,12 +30,16 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #ifndef SBF_INNER_LIBRARY
 #error "define SBF_INNER_LIBRARY: the file name of the inner FMU binary beside this library"
+#endif
+#ifndef SBF_TOKEN
+#error "define SBF_TOKEN: the FMU's GUID (FMI 2) or instantiation token (FMI 3)"
 #endif
 #ifndef SBF_BUILD_LIBPYTHON
 #define SBF_BUILD_LIBPYTHON ""
@@ -48,7 +55,12 @@ static struct {
     int (*Py_IsInitialized)(void);
     int (*PyGILState_Ensure)(void);
     void (*PyGILState_Release)(int);
+    void *(*PyGILState_GetThisThreadState)(void);
     void *(*PyEval_SaveThread)(void);
+    void (*PyEval_RestoreThread)(void *);
+    void (*PyThreadState_Clear)(void *);
+    void (*PyThreadState_DeleteCurrent)(void);
+    int (*Py_IsFinalizing)(void); /* _Py_IsFinalizing before CPython 3.13; NULL before 3.7 */
     void (*PyConfig_InitPythonConfig)(void *);
     PyStatus (*PyConfig_SetBytesArgv)(void *, long, char *const *);
     PyStatus (*Py_InitializeFromConfig)(const void *);
@@ -79,8 +91,11 @@ void sbf_fail(const char *format, ...)
 static int resolve_python(void *lib)
 {
 #define RESOLVE(symbol) (*(void **)&py.symbol = dlsym(lib, #symbol)) != NULL
+    *(void **)&py.Py_IsFinalizing = dlsym(lib, "Py_IsFinalizing");
+    if (!py.Py_IsFinalizing) *(void **)&py.Py_IsFinalizing = dlsym(lib, "_Py_IsFinalizing");
     return RESOLVE(Py_IsInitialized) && RESOLVE(PyGILState_Ensure) && RESOLVE(PyGILState_Release) &&
-           RESOLVE(PyEval_SaveThread);
+           RESOLVE(PyGILState_GetThisThreadState) && RESOLVE(PyEval_SaveThread) && RESOLVE(PyEval_RestoreThread) &&
+           RESOLVE(PyThreadState_Clear) && RESOLVE(PyThreadState_DeleteCurrent);
 }
 
 static int resolve_config_api(void *lib)
@@ -276,16 +291,37 @@ int sbf_start(sbf_resolve_inner resolve)
     return started == 1;
 }
 
+/* ---- host threads' Python thread states ----
+ * A host thread without a Python thread state gets one on its first call, kept for its life: PyGILState_Ensure
+ * makes it (and takes the GIL), PyEval_SaveThread gives the GIL back and leaves the state's count at 1, so the
+ * inner library's per-call Ensure/Release neither make nor delete one. When the thread ends, delete_thread_state
+ * (the destructor of owned_state_key, which holds the state) deletes it: a host that calls from a new thread each
+ * time keeps no state per call (about 4.4 kB each). It does so directly, not through PyGILState_Release: glibc
+ * clears every thread-specific value of the thread, Python's own record of the thread's state among them,
+ * before or while it calls the destructors. A thread that has a state of its own (the Python threads of a
+ * Python host) keeps it untouched. */
+static pthread_key_t owned_state_key;
+static pthread_once_t owned_state_once = PTHREAD_ONCE_INIT;
+
+static void delete_thread_state(void *state)
+{
+    if (!py.Py_IsInitialized() || (py.Py_IsFinalizing && py.Py_IsFinalizing())) return; /* the interpreter goes */
+    py.PyEval_RestoreThread(state); /* the GIL taken, the state current */
+    py.PyThreadState_Clear(state);
+    py.PyThreadState_DeleteCurrent(); /* and the GIL released */
+}
+
+static void create_owned_state_key(void) { pthread_key_create(&owned_state_key, delete_thread_state); }
+
 void sbf_keep_thread_state(void)
 {
     if (thread_has_state) return;
-    if (py.PyGILState_Ensure() == PyGILState_UNLOCKED)
-        py.PyEval_SaveThread(); /* release the GIL, keep the state */
-    else
-        py.PyGILState_Release(PyGILState_LOCKED); /* the thread already held the GIL: it has a state */
     thread_has_state = 1;
+    if (py.PyGILState_GetThisThreadState()) return; /* the thread has a state of its own */
+    pthread_once(&owned_state_once, create_owned_state_key);
+    py.PyGILState_Ensure();
+    pthread_setspecific(owned_state_key, py.PyEval_SaveThread()); /* release the GIL, keep the state */
 }
-
 
 const char *sbf_exception_text(const char *message, char *out, size_t size)
 {
@@ -297,6 +333,162 @@ const char *sbf_exception_text(const char *message, char *out, size_t size)
     if (!call_end || !exception || call_end > exception) return call;
     snprintf(out, size, "%.*s %s", (int)(call_end + 1 - call), call, exception + 1);
     return out;
+}
+
+/* ---- the resource location ---- */
+
+/* `text` percent-decoded (RFC 3986: every %XY to the byte XY) into `out`; 0 with the cause in `why` if an escape
+ * is malformed, decodes to a NUL byte, or the result does not fit. */
+static int percent_decode(const char *text, char *out, size_t size, char *why, size_t why_size)
+{
+    size_t n = 0;
+    for (const char *c = text; *c; ++c) {
+        unsigned int byte = (unsigned char)*c;
+        if (*c == '%') {
+            if (!isxdigit((unsigned char)c[1]) || !isxdigit((unsigned char)c[2])) {
+                snprintf(why, why_size, "has a '%%' not followed by two hexadecimal digits (at character %d)",
+                         (int)(c - text) + 1);
+                return 0;
+            }
+            const char hex[3] = {c[1], c[2], '\0'};
+            byte = (unsigned int)strtoul(hex, NULL, 16);
+            if (byte == 0) {
+                snprintf(why, why_size, "encodes a NUL byte (%%00)");
+                return 0;
+            }
+            c += 2;
+        }
+        if (n + 1 >= size) {
+            snprintf(why, why_size, "is too long");
+            return 0;
+        }
+        out[n++] = (char)byte;
+    }
+    out[n] = '\0';
+    return 1;
+}
+
+/* The path of `location` into `path` (see sbf_resource_folder); 0 with the cause in `why`. */
+static int location_path(const char *location, char *path, size_t size, char *why, size_t why_size)
+{
+    if (!*location) return snprintf(why, why_size, "is empty"), 0;
+    if (location[0] == '/') {
+        if (strlen(location) >= size) return snprintf(why, why_size, "is too long"), 0;
+        strcpy(path, location);
+        return 1;
+    }
+    if (strncasecmp(location, "file:", 5) != 0)
+        return snprintf(why, why_size, "is neither a file URI (file:///path) nor an absolute path"), 0;
+    const char *rest = location + 5;
+    if (strncmp(rest, "//", 2) == 0) {
+        const char *authority = rest + 2, *slash = strchr(authority, '/');
+        size_t length = slash ? (size_t)(slash - authority) : strlen(authority);
+        if (!slash) return snprintf(why, why_size, "has no path after its host"), 0;
+        if (length && !(length == 9 && strncasecmp(authority, "localhost", 9) == 0))
+            return snprintf(why, why_size, "names the host '%.*s': only local folders can be used (file:///path or "
+                            "file://localhost/path)", (int)length, authority), 0;
+        rest = slash;
+    }
+    if (rest[0] != '/') return snprintf(why, why_size, "is not an absolute file URI (file:///path)"), 0;
+    return percent_decode(rest, path, size, why, why_size);
+}
+
+/* Whether `text` is well-formed UTF-8 (Unicode's table 3-7), which Python needs to take the folder's path. */
+static int is_utf8(const unsigned char *text)
+{
+    while (*text) {
+        unsigned char lead = *text++, low = 0x80, high = 0xBF;
+        int more = lead < 0x80 ? 0 : lead < 0xC2 ? -1 : lead < 0xE0 ? 1 : lead < 0xF0 ? 2 : lead < 0xF5 ? 3 : -1;
+        if (more < 0) return 0;
+        if (lead == 0xE0) low = 0xA0;
+        if (lead == 0xED) high = 0x9F; /* no surrogates */
+        if (lead == 0xF0) low = 0x90;
+        if (lead == 0xF4) high = 0x8F;
+        for (; more > 0; --more, ++text, low = 0x80, high = 0xBF)
+            if (*text < low || *text > high) return 0;
+    }
+    return 1;
+}
+
+/* Whether the folder `path` holds the FMU's slave module (slavemodule.txt naming <module>.py beside it, which the
+ * inner library imports); else the missing file in `why`. */
+static int holds_slave_module(const char *path, char *why, size_t why_size)
+{
+    char file[4096 + 64], module[256] = "";
+    struct stat st;
+    snprintf(file, sizeof file, "%s/slavemodule.txt", path);
+    FILE *list = fopen(file, "r");
+    if (list) {
+        if (!fgets(module, sizeof module, list)) module[0] = '\0';
+        fclose(list);
+    }
+    module[strcspn(module, "\r\n")] = '\0';
+    if (!*module) return snprintf(why, why_size, "is not this FMU's resources folder: %s is missing or empty", file), 0;
+    snprintf(file, sizeof file, "%s/%s.py", path, module);
+    if (stat(file, &st) != 0 || !S_ISREG(st.st_mode))
+        return snprintf(why, why_size, "is not this FMU's resources folder: %s is missing", file), 0;
+    return 1;
+}
+
+/* The resources folder of `location` into `path`; 0 with a message naming the location and the cause in `why`. */
+static int resource_folder(const char *location, char *path, size_t size, char *why, size_t why_size)
+{
+    char cause[4096 + 256];
+    struct stat st;
+    int ok = 0;
+    if (!location)
+        return snprintf(why, why_size, "the resource location is NULL"), 0;
+    if (location_path(location, path, size, cause, sizeof cause)) {
+        if (!is_utf8((const unsigned char *)path))
+            snprintf(cause, sizeof cause, "names a folder whose path is not UTF-8 text, which Python cannot take");
+        else if (strstr(path, "%20") || strstr(path, "file://"))
+            snprintf(cause, sizeof cause, "names the folder %s, whose path contains '%s', which the FMU's library "
+                     "rewrites: move the FMU to a folder without it", path, strstr(path, "%20") ? "%20" : "file://");
+        else if (stat(path, &st) != 0)
+            snprintf(cause, sizeof cause, "names the folder %s, which does not exist (%s)", path, strerror(errno));
+        else if (!S_ISDIR(st.st_mode))
+            snprintf(cause, sizeof cause, "names %s, which is not a folder", path);
+        else
+            ok = holds_slave_module(path, cause, sizeof cause);
+    }
+    if (!ok) snprintf(why, why_size, "the resource location \"%s\" %s", location, cause);
+    return ok;
+}
+
+int sbf_check_instance(const char *function, const char *name, const char *token_name, const char *token,
+                       const char *location, char *path, size_t size, char *why, size_t why_size)
+{
+    char cause[8192];
+    if (!name)
+        snprintf(cause, sizeof cause, "the instance name is NULL");
+    else if (!token || strcmp(token, SBF_TOKEN) != 0)
+        snprintf(cause, sizeof cause, "the %s %s%s%s is not this FMU's %s \"%s\" (see its modelDescription.xml)",
+                 token_name, token ? "\"" : "", token ? token : "NULL", token ? "\"" : "", token_name, SBF_TOKEN);
+    else if (resource_folder(location, path, size, cause, sizeof cause))
+        return 1;
+    snprintf(why, why_size, "%s: %s", function, cause);
+    return 0;
+}
+
+int sbf_step_refused(sbf_mode mode, const char *function, double t, char *why, size_t why_size)
+{
+    static const char *const refusal[] = {
+        [SBF_INSTANTIATED] = "before initialization (enter and exit initialization mode first)",
+        [SBF_INITIALIZING] = "during initialization (exiting initialization mode has not succeeded)",
+        [SBF_STEPPING] = NULL,
+        [SBF_TERMINATED] = "after termination (reset the instance to start again)",
+        [SBF_EXCHANGING] = "for a model-exchange instance"};
+    if (!refusal[mode]) return 0;
+    snprintf(why, why_size, "%s at t = %g s is not allowed %s", function, t, refusal[mode]);
+    return 1;
+}
+
+const char *sbf_category(int status, const char *category)
+{
+    static const char *const names[] = {"logStatusOK", "logStatusWarning", "logStatusDiscard", "logStatusError",
+                                        "logStatusFatal", "logStatusPending"};
+    if (category && *category) return category;
+    return status >= 0 && status < (int)(sizeof names / sizeof *names) ? names[status] : "logStatusError";
 }
 
 /* ---- the host's log categories ---- */

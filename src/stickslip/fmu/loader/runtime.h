@@ -1,9 +1,13 @@
 /* What both FMI fronts of the loader share: finding and starting CPython, loading the library they
- * forward to, Python thread states of host threads, and the filter of the host's log categories.
+ * forward to, Python thread states of host threads, the checks of an instantiation's arguments (resource
+ * location, token, name), the co-simulation states that allow a step, the filter and the names of the host's
+ * log categories, and the refusal of bad serialized FMU states.
  * See runtime.c; the fronts are fmi2_front.c (PythonFMU) and fmi3_front.c (pythonfmu3). */
 #ifndef SBF_RUNTIME_H
 #define SBF_RUNTIME_H
 #include <stddef.h>
+#include <stdlib.h>
+#include <string.h>
 
 /* Called once, under the start lock, with the inner library (dlopen'ed beside this one) and its path:
  * resolves the front's entry points; returns 0 after sbf_fail() if one is missing. */
@@ -15,8 +19,29 @@ const char *sbf_start_error(void);
 void sbf_fail(const char *format, ...) __attribute__((format(printf, 1, 2)));
 
 /* Give this host thread a Python thread state for its life (the inner library's per-call
- * PyGILState_Ensure/Release then only take and give back the GIL). */
+ * PyGILState_Ensure/Release then only take and give back the GIL); a state made here is deleted when the
+ * thread ends. */
 void sbf_keep_thread_state(void);
+
+/* Whether `function` (fmi2Instantiate, fmi3Instantiate...) can make an instance named `name` with the token
+ * `token` (the FMI version's `token_name`: "GUID", "instantiation token") and the resource location `location`:
+ * 1 with the resources folder as the inner library takes it (a plain absolute path) in `path`; else 0 with a
+ * message naming the function, the value and the cause in `why`. The location is an RFC 8089 file URI
+ * (file:///abs, file:/abs, file://localhost/abs; every percent-escape decoded to its byte) or a plain absolute
+ * path (FMI 3's form, taken as is); it must name a folder with the FMU's slave module that the inner library
+ * does not misread. */
+int sbf_check_instance(const char *function, const char *name, const char *token_name, const char *token,
+                       const char *location, char *path, size_t size, char *why, size_t why_size);
+
+/* The states of FMI's co-simulation state machine that the fronts tell apart (FMI 2.0 section 4.2.4, FMI 3.0
+ * section 4.2); a model-exchange instance is SBF_EXCHANGING throughout. */
+typedef enum { SBF_INSTANTIATED, SBF_INITIALIZING, SBF_STEPPING, SBF_TERMINATED, SBF_EXCHANGING } sbf_mode;
+/* 0 if a communication step (`function` at `t` s) is allowed in `mode` (only in SBF_STEPPING), else 1 with the
+ * message saying why not in `why`. */
+int sbf_step_refused(sbf_mode mode, const char *function, double t, char *why, size_t why_size);
+
+/* The log category of a message: `category` unless it is NULL or empty, else its status's ("logStatusError"). */
+const char *sbf_category(int status, const char *category);
 
 /* The inner library's text of a slave exception, "Fatal py exception encountered: [call] PyObject_CallMethod\n
  * <exception>", as "[call] <exception>" in out; other text as is. */
@@ -79,5 +104,32 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
 /* The exported FMI function `name`, forwarded as is. */
 #define SBF_FORWARD(Status, error, fatal, name, failure, params, args) \
     SBF_FORWARD_AS(__attribute__((visibility("default"))), name, Status, error, fatal, name, failure, params, args)
+
+/* ---- for the fronts: the exported deserialization of FMU states ----
+ * The slaves answer bytes that are no FMU state of theirs with a state that serializes as SBF_REFUSED_STATE and
+ * the reason (fmu_src/block_interface.py, state_from_bytes): an exception there would make the inner library
+ * release the slave unbalanced, and the host crashed at its next call. The exported function `name` forwards to
+ * the inner library (by `forward`, an SBF_FORWARD_AS function) and serializes the state it got (through the inner
+ * library's `size_of` and `serialize`); a refused one is freed (`free_state`) and refused with `error` and the
+ * reason, the instance unharmed. */
+#define SBF_REFUSED_STATE "refused FMU state: "
+#define SBF_DESERIALIZE(Status, error, warning, Byte, name, forward, size_of, serialize, free_state)              \
+    __attribute__((visibility("default"))) Status name(void *c, const Byte *bytes, size_t size, void **state)    \
+    {                                                                                                             \
+        Status status = forward(c, bytes, size, state);                                                           \
+        Instance *inst = c;                                                                                       \
+        size_t n = 0;                                                                                             \
+        char *text = NULL;                                                                                        \
+        if (status <= warning && inner.size_of(inst->inner, *state, &n) <= warning && (text = calloc(n + 1, 1)) && \
+            inner.serialize(inst->inner, *state, (void *)text, n) <= warning &&                                   \
+            strncmp(text, SBF_REFUSED_STATE, sizeof SBF_REFUSED_STATE - 1) == 0) {                                \
+            host_log(inst, error, text + sizeof SBF_REFUSED_STATE - 1);                                           \
+            inner.free_state(inst->inner, state);                                                                 \
+            *state = NULL;                                                                                        \
+            status = error;                                                                                       \
+        }                                                                                                         \
+        free(text);                                                                                               \
+        return status;                                                                                            \
+    }
 
 #endif

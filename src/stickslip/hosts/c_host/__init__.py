@@ -73,11 +73,12 @@ class HostRun:
 
 
 def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x", env=None, timeout=600,
-             wrapper=()):
+             wrapper=(), resources=None):
     """Run ``host`` (of the FMU's FMI version) in ``mode`` on the FMU extracted to ``fmu_folder``.
 
     ``start_values``: {name: value} or (name, value) pairs, set in this order (mode "bad" leaves the last
-    one out of its second instance).
+    one out of its second instance). ``resources``: the resource location passed to the FMU instead of its
+    ``resources`` folder (FMI 2: as a file URI, FMI 3: as a path with a trailing slash).
     The child gets only ``PATH`` from this process's environment, plus ``env``. ``wrapper``: a command that runs
     the host, e.g. ``["valgrind"]``.
     """
@@ -89,7 +90,8 @@ def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x
                 for name, value in (start_values.items() if hasattr(start_values, "items") else start_values)]
     version = int(description.fmiVersion[0])
     binary = folder / "binaries" / BINARY_FOLDERS[version] / f"{description.coSimulation.modelIdentifier}.so"
-    resources = (folder / "resources").as_uri() if version == 2 else f"{folder / 'resources'}/"
+    if resources is None:
+        resources = (folder / "resources").as_uri() if version == 2 else f"{folder / 'resources'}/"
     command = [*wrapper, str(host), str(binary), resources, description.guid, mode, repr(stop_time),
                repr(step), str(variables[output].valueReference), *settings]
     child_env = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), **(env or {})}

@@ -21,6 +21,8 @@
  *        at the end of each cycle
  * bench  one run; prints "cpu_us_per_step U": process CPU time of fmi2DoStep + one
  *        fmi2GetReal per step, averaged over the steps
+ * thread_steps  one instance, each fmi2DoStep from a new thread: prints the resident memory
+ *        after 100 steps and at the end ("rss_kb_warm K", "rss_kb_end K"), then "x T X" at the end
  * Every line is flushed. The exit code is 0 when the mode ran to its end (a
  * failing FMI call ends the program with "failed FUNCTION STATUS" and code 1). */
 #define _GNU_SOURCE
@@ -257,6 +259,21 @@ static void mode_bench(void)
     finish(c);
 }
 
+static void *step_call(void *call)
+{
+    StepCall *s = call;
+    check("fmi2DoStep", fmi.do_step(s->instance, s->t, s->h, 1));
+    return NULL;
+}
+
+static void mode_thread_steps(void)
+{
+    Component c = instantiate("threads");
+    check("fmi2ExitInitializationMode", initialize(c, n_settings));
+    steps_from_new_threads(c, step_call, read_output);
+    finish(c);
+}
+
 int main(int argc, char **argv)
 {
     static const char *const names[] = {
@@ -273,6 +290,7 @@ int main(int argc, char **argv)
     else if (!strcmp(mode, "state")) mode_state();
     else if (!strcmp(mode, "cycles")) mode_cycles();
     else if (!strcmp(mode, "bench")) mode_bench();
+    else if (!strcmp(mode, "thread_steps")) mode_thread_steps();
     else {
         fprintf(stderr, "unknown mode %s\n", mode);
         return 2;

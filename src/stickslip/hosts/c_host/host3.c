@@ -15,6 +15,8 @@
  *         at the output points (after any event there) and, with $HOST_ME_COUNTER (the value reference of an
  *         Int32 output), "e T N" after each state event: its time and that output.
  * me-bad  as bad, with model-exchange instances
+ * thread_steps  one co-simulation instance, each fmi3DoStep from a new thread: prints the resident memory
+ *         after 100 steps and at the end ("rss_kb_warm K", "rss_kb_end K"), then "x T X" at the end
  * Every line is flushed. The exit code is 0 when the mode ran to its end (a failing FMI call ends the
  * program with "failed FUNCTION STATUS" and code 1). */
 #define _GNU_SOURCE
@@ -325,6 +327,25 @@ static void mode_bad(void)
     run_one("good");
 }
 
+static void *step_call(void *call)
+{
+    StepCall *s = call;
+    bool event_needed, terminate, early_return;
+    double last_successful;
+    check("fmi3DoStep", fmi.do_step(s->instance, s->t, s->h, true, &event_needed, &terminate, &early_return,
+                                    &last_successful));
+    return NULL;
+}
+
+static void mode_thread_steps(void)
+{
+    Instance c = instantiate("threads");
+    check("fmi3ExitInitializationMode", initialize(c, n_settings));
+    steps_from_new_threads(c, step_call, read_output);
+    check("fmi3Terminate", fmi.terminate(c));
+    fmi.free_instance(c);
+}
+
 int main(int argc, char **argv)
 {
     static const char *const names[] = {
@@ -339,6 +360,7 @@ int main(int argc, char **argv)
     const char *what = model_exchange ? mode + 3 : mode;
     if (!strcmp(what, "run")) run_one("run");
     else if (!strcmp(what, "bad")) mode_bad();
+    else if (!strcmp(mode, "thread_steps")) mode_thread_steps();
     else {
         fprintf(stderr, "unknown mode %s\n", mode);
         return 2;

@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 static pthread_mutex_t print_lock = PTHREAD_MUTEX_INITIALIZER;
 
@@ -81,6 +82,51 @@ static double next_point(long n, double stop)
 {
     double next = (n + 1) * step;
     return next > stop && !close_to(next, stop) ? stop : next;
+}
+
+/* The process's resident memory in kB (Linux /proc/self/statm), or -1 */
+static long resident_kb(void)
+{
+    long pages = -1, resident = -1;
+    FILE *statm = fopen("/proc/self/statm", "r");
+    if (statm) {
+        if (fscanf(statm, "%ld %ld", &pages, &resident) != 2) resident = -1;
+        fclose(statm);
+    }
+    return resident < 0 ? -1 : resident * (sysconf(_SC_PAGESIZE) / 1024);
+}
+
+/* call(argument) on a new thread, created and joined */
+static void on_new_thread(void *(*call)(void *), void *argument)
+{
+    pthread_t thread;
+    if (pthread_create(&thread, NULL, call, argument) || pthread_join(thread, NULL)) {
+        say("failed pthread_create\n");
+        exit(1);
+    }
+}
+
+/* One communication step of `instance` from `t` by `h` s, for a thread */
+typedef struct {
+    void *instance;
+    double t, h;
+} StepCall;
+
+/* Mode "thread_steps": the communication steps of `instance` from t = 0 to the stop time, each made by
+ * `do_step(StepCall *)` on a new thread; prints "rss_kb_warm K" after 100 steps, "rss_kb_end K", "steps N" and
+ * "x T X" (X = read(instance)) at the end. */
+static void steps_from_new_threads(void *instance, void *(*do_step)(void *), double (*read)(void *))
+{
+    double t = 0.0;
+    long n = 0;
+    for (; !done(t, stop_time); ++n) {
+        if (n == 100) say("rss_kb_warm %ld\n", resident_kb());
+        double next = next_point(n, stop_time);
+        StepCall call = {instance, t, next - t};
+        on_new_thread(do_step, &call);
+        t = next;
+    }
+    say("rss_kb_end %ld\nsteps %ld\nx %.17g %.17g\n", resident_kb(), n, t, read(instance));
 }
 
 #endif
