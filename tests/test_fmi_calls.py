@@ -102,16 +102,6 @@ FMI3_EXPECTED = {
 }
 
 #: calls against the standard, left to the loader's state tracking (issue 20's misuse list)
-XFAIL_CALLS = {
-    "fmi3EnterEventMode in co-simulation": "accepted with fmi3OK: a co-simulation instance made with "
-    "eventModeUsed = false must not enter event mode (FMI 3.0 section 4.2.2); needs the front to know the interface",
-    "fmi3UpdateDiscreteStates in co-simulation": "accepted with fmi3OK, and the instance then reports the "
-    "model-exchange block's outputs (x stays 0 m after the next step); needs the front to know the interface",
-    "fmi3InstantiateCoSimulation with event mode": "an instance is made: with hasEventMode unset, "
-    "eventModeUsed = true must fail the instantiation (FMI 3.0 section 2.3.1); belongs with issue 20's checks "
-    "of the instantiation arguments in fmi3InstantiateCoSimulation",
-}
-
 # ---- logging settings: (loggingOn at instantiation, [[on, categories] of each fmi*SetDebugLogging call]) --------
 
 LOG_SETTINGS = {
@@ -242,10 +232,7 @@ def check_outcome(call, outcome):
 
 
 def _expected_params(fmi_version, table):
-    return [pytest.param(fmi_version, label, outcome, id=f"{label}: {outcome}",
-                         marks=[pytest.mark.xfail(strict=True, reason=XFAIL_CALLS[label])] if label in XFAIL_CALLS
-                         else [])
-            for label, outcome in table.items()]
+    return [pytest.param(fmi_version, label, outcome, id=f"{label}: {outcome}") for label, outcome in table.items()]
 
 
 def binary_path(unzipped, fmi_version):
@@ -360,7 +347,6 @@ def test_after_refused_calls_the_instance_steps_as_before(results, fmi_version, 
         assert values["step"] == [False, False, False, H]
 
 
-@pytest.mark.xfail(strict=True, reason=XFAIL_CALLS["fmi3UpdateDiscreteStates in co-simulation"])
 def test_fmi3_co_simulation_outputs_survive_a_model_exchange_call(results):
     values = case(results, 3, "cs_event_update")["values"]
     assert values["x"] == pytest.approx([X_START + V_DRIVE * H], rel=0, abs=EXACT)
@@ -451,9 +437,6 @@ def test_information_messages_reach_the_logger_as_the_setting_asks(results, fmi_
     assert received.get(information) == ((OK, "logAll") if wanted else None)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 20, item 3: the library's own messages come with category NULL (FMI 2),"
-                   " '' (an exception of the slave) or 'cppfmu' (a call PythonFMU does not support), none of which "
-                   "the model description lists (FMI 2.0.4 section 2.1.5, FMI 3.0 section 2.3.1)")
 @pytest.mark.parametrize("fmi_version", [2, 3])
 def test_every_message_has_a_category_the_model_description_lists(results, fmi_version):
     records = (case(results, fmi_version, name) for name in results[fmi_version])

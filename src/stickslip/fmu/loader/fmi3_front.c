@@ -65,7 +65,6 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
  * SpringBlockFriction_fmi3's do) the instance stays valid for fmi3Reset, fmi3SetFMUState and fmi3FreeInstance,
  * which is what fmi3Error means, so fmi3Fatal is returned and logged as fmi3Error. KEPT: the status as is. */
 #define FORWARDED(X)                                                                                               \
-    X(fmi3EnterEventMode, KEPT, (fmi3Instance c), ())                                                             \
     GET_AND_SET(X, Float64, fmi3Float64)                                                                          \
     GET_AND_SET(X, Int32, fmi3Int32)                                                                              \
     GET_AND_SET(X, Int64, fmi3Int64)                                                                              \
@@ -96,17 +95,19 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
     X(fmi3GetNominalsOfContinuousStates, RECOVERABLE, (fmi3Instance c, fmi3Float64 *nominals, size_t n),         \
       (nominals, n))                                                                                              \
     X(fmi3GetNumberOfEventIndicators, RECOVERABLE, (fmi3Instance c, size_t *n), (n))                              \
-    X(fmi3GetNumberOfContinuousStates, RECOVERABLE, (fmi3Instance c, size_t *n), (n))                             \
+    X(fmi3GetNumberOfContinuousStates, RECOVERABLE, (fmi3Instance c, size_t *n), (n))
+
+/* The functions forwarded that move the instance between FMI 3's states (sbf_mode) or need one (event mode and
+ * the discrete-state update: model exchange only), and the deserialization of states: forwarded by
+ * forward_<name>, exported below. */
+#define TRACKED(X)                                                                                                 \
+    X(fmi3EnterEventMode, KEPT, (fmi3Instance c), ())                                                             \
     X(fmi3UpdateDiscreteStates, RECOVERABLE,                                                                      \
       (fmi3Instance c, fmi3Boolean *discreteStatesNeedUpdate, fmi3Boolean *terminateSimulation,                   \
        fmi3Boolean *nominalsChanged, fmi3Boolean *valuesChanged, fmi3Boolean *nextEventTimeDefined,               \
        fmi3Float64 *nextEventTime),                                                                               \
       (discreteStatesNeedUpdate, terminateSimulation, nominalsChanged, valuesChanged, nextEventTimeDefined,       \
-       nextEventTime))
-
-/* The functions forwarded that move the instance between FMI 3's states (sbf_mode) or need one, and the
- * deserialization of states: forwarded by forward_<name>, exported below. */
-#define TRACKED(X)                                                                                                 \
+       nextEventTime))                                                                                            \
     X(fmi3EnterInitializationMode, RECOVERABLE,                                                                   \
       (fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance, fmi3Float64 startTime,                \
        fmi3Boolean stopTimeDefined, fmi3Float64 stopTime),                                                        \
@@ -288,6 +289,12 @@ EXPORT fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3Str
     (void)intermediateUpdate;
     Instance *inst = new_instance("fmi3InstantiateCoSimulation", instanceName, instantiationToken, resourcePath, path,
                                   sizeof path, loggingOn, instanceEnvironment, logMessage);
+    if (inst && eventModeUsed) {
+        host_log(inst, fmi3Error, "fmi3InstantiateCoSimulation: eventModeUsed = true, but this FMU has no event mode in "
+                                  "co-simulation (its model description does not set hasEventMode)");
+        free_instance(inst);
+        return NULL;
+    }
     if (inst)
         inst->inner = inner.fmi3InstantiateCoSimulation(instanceName, instantiationToken, path, visible, true,
                                                         eventModeUsed, earlyReturnAllowed,
@@ -377,6 +384,32 @@ EXPORT fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean tolera
 EXPORT fmi3Status fmi3ExitInitializationMode(fmi3Instance c)
 {
     return moved(c, forward_fmi3ExitInitializationMode(c), SBF_STEPPING);
+}
+
+/* True (and a logged error) if `c` is a co-simulation instance: it has no event mode (no hasEventMode) */
+static int refused_in_co_simulation(fmi3Instance c, const char *function)
+{
+    char why[256];
+    if (!c || ((Instance *)c)->mode == SBF_EXCHANGING) return 0;
+    snprintf(why, sizeof why, "%s is not allowed for a co-simulation instance: this FMU has no event mode in "
+                              "co-simulation", function);
+    host_log(c, fmi3Error, why);
+    return 1;
+}
+
+EXPORT fmi3Status fmi3EnterEventMode(fmi3Instance c)
+{
+    return refused_in_co_simulation(c, "fmi3EnterEventMode") ? fmi3Error : forward_fmi3EnterEventMode(c);
+}
+
+EXPORT fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *discreteStatesNeedUpdate,
+                                           fmi3Boolean *terminateSimulation, fmi3Boolean *nominalsChanged,
+                                           fmi3Boolean *valuesChanged, fmi3Boolean *nextEventTimeDefined,
+                                           fmi3Float64 *nextEventTime)
+{
+    if (refused_in_co_simulation(c, "fmi3UpdateDiscreteStates")) return fmi3Error;
+    return forward_fmi3UpdateDiscreteStates(c, discreteStatesNeedUpdate, terminateSimulation, nominalsChanged,
+                                            valuesChanged, nextEventTimeDefined, nextEventTime);
 }
 
 EXPORT fmi3Status fmi3Terminate(fmi3Instance c) { return moved(c, forward_fmi3Terminate(c), SBF_TERMINATED); }

@@ -483,14 +483,6 @@ int sbf_step_refused(sbf_mode mode, const char *function, double t, char *why, s
     return 1;
 }
 
-const char *sbf_category(int status, const char *category)
-{
-    static const char *const names[] = {"logStatusOK", "logStatusWarning", "logStatusDiscard", "logStatusError",
-                                        "logStatusFatal", "logStatusPending"};
-    if (category && *category) return category;
-    return status >= 0 && status < (int)(sizeof names / sizeof *names) ? names[status] : "logStatusError";
-}
-
 /* ---- the host's log categories ---- */
 
 void sbf_set_log_filter(sbf_log_filter *filter, int on, size_t n, const char *const *categories)
@@ -517,6 +509,16 @@ static int listed_category(const char *name)
     for (size_t k = 0; name && k < N_LOG_CATEGORIES; ++k)
         if (strcmp(name, log_categories[k]) == 0) return 1;
     return 0;
+}
+
+/* The category a message reaches the host with: its own if the model description lists it, else its status's
+ * (OK and Pending: logAll); the libraries pass NULL, "" or "cppfmu", which no host can filter on. */
+const char *sbf_category(int status, const char *category)
+{
+    static const char *const by_status[] = {"logAll", "logStatusWarning", "logStatusDiscard", "logStatusError",
+                                            "logStatusFatal", "logAll"};
+    if (listed_category(category)) return category;
+    return status >= 0 && status < (int)(sizeof by_status / sizeof *by_status) ? by_status[status] : "logStatusError";
 }
 
 int sbf_known_categories(const char *function, size_t n, const char *const *categories, char *why, size_t size)
