@@ -34,9 +34,10 @@ _EPS = 2.220446049250313e-16
 ChainBlock = namedtuple("ChainBlock", "params x0 v0")
 
 
-def simulate_chain(blocks, coupling, v_drive, t_eval, rtol=1e-12):
+def simulate_chain(blocks, coupling, v_drive, t_eval, rtol=1e-12, progress=None):
     """Simulate the chain ``blocks`` (:class:`ChainBlock`) joined by ``coupling`` (``N - 1`` stiffnesses,
-    N/m) on a surface at ``v_drive`` (m/s) from ``t_eval[0]`` to ``t_eval[-1]`` (s).
+    N/m) on a surface at ``v_drive`` (m/s) from ``t_eval[0]`` to ``t_eval[-1]`` (s); ``progress(t)``, if given,
+    is called with the time reached (s) after each event.
 
     Returns a :class:`~.chain_result.ChainResult` sampled on ``t_eval`` (state after any event at a
     sample time), with every block's events and the dense solution.
@@ -48,6 +49,8 @@ def simulate_chain(blocks, coupling, v_drive, t_eval, rtol=1e-12):
     run = _ChainRun(chain, float(t_eval[0]), rtol)
     while run.t < t_eval[-1]:
         run.phase(float(t_eval[-1]))
+        if progress is not None:
+            progress(run.t)
     return ChainResult.sample(chain, run.pieces, run.events, t_eval)
 
 
