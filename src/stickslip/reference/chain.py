@@ -11,7 +11,8 @@ blocks move with the surface (``x' = v_drive``, ``v' = 0``), slipping ones with
 step every block's indicator (``mode v_rel`` while slipping, ``z_slip`` while stuck) is scanned on the
 step's dense output with its time derivative (:func:`~.zero_crossing.first_zero`), so a graze inside a
 step is found; the earliest event of any block ends the step there, the event is applied, and the
-integration restarts.
+integration restarts. While every block is stuck the chain moves with the surface, the coupling forces are
+constant and each block's breakaway is the single block's closed form (:func:`~.stuck.run_stuck`).
 """
 
 import math
@@ -25,6 +26,7 @@ from .errors import ReferenceParameterError, ReferenceSolverError
 from .laws import ReferenceParameters
 from .numeric import STEPS_PER_PERIOD, SUBSTEPS, tolerances
 from .rules import STUCK, acceleration, breakaway_mode, hold_or_break, initial_mode, z_slip
+from .stuck import run_stuck
 from .zero_crossing import first_zero
 
 MAX_EVENTS_PER_INSTANT = 1000
@@ -129,8 +131,12 @@ class _ChainRun:
         scan = _Scan(self.chain, self.modes, self.t_stuck, self.t, self.x, self.v)
         now = scan.at_once()
         if now is not None:
-            self.pieces.append(ChainPiece.constant(self.t, self.x, self.v, self.modes, self.t_stuck))
+            y = np.concatenate([self.x, self.v])
+            self.pieces.append(ChainPiece.linear(self.t, self.t, y, 0.0 * y, self.modes, self.t_stuck))
             self._event(now)
+            return
+        if all(m == STUCK for m in self.modes):
+            self._all_stuck(t_end)
             return
         chain = self.chain
         solver = DOP853(scan.rhs, self.t, np.concatenate([self.x, self.v]), t_end, rtol=self.rtol,
@@ -148,6 +154,21 @@ class _ChainRun:
             if t_hit is not None:
                 self._event(block)
                 return
+
+    def _all_stuck(self, t_end):
+        """Every block stuck: the chain moves with the surface, each ``F_ext`` is constant, and each block breaks
+        away as a single block would (:func:`~.stuck.run_stuck`); the first breakaway ends the phase."""
+        chain, t0 = self.chain, self.t
+        F = chain.forces(self.x)
+        ends = [run_stuck(p, t0, self.x[i], t0 - self.t_stuck[i], chain.v_drive, F[i], t_end)
+                for i, p in enumerate(chain.params)]
+        first = min(range(chain.n), key=lambda i: ends[i][0].t1)
+        t1 = ends[first][0].t1
+        rate = np.concatenate([np.full(chain.n, chain.v_drive), np.zeros(chain.n)])
+        self.pieces.append(ChainPiece.linear(t0, t1, np.concatenate([self.x, self.v]), rate, self.modes, self.t_stuck))
+        self.t, self.x = t1, self.x + chain.v_drive * (t1 - t0)
+        if ends[first][1]:
+            self._event(first)
 
     def _event(self, i):
         """Apply block ``i``'s event at the current time: a breakaway or ``v_rel`` reaching 0."""
@@ -194,16 +215,23 @@ class _Scan:
         x, v = y[:n], y[n:]
         return np.concatenate([np.where(self.stuck, chain.v_drive, v), chain.accelerations(self.modes, x, v)])
 
-    def values(self, i, t, x, v):
-        """Block ``i``'s indicator and its derivative at time ``t`` with all positions ``x`` and velocities ``v``."""
+    def values(self, i, t, x, v, F, dF):
+        """Block ``i``'s indicator and its derivative at time ``t`` from its ``x`` (m), ``v`` (m/s), ``F_ext`` (N)
+        and ``dF_ext/dt`` (N/s)."""
         chain, p, m = self.chain, self.chain.params[i], self.modes[i]
-        F, dF = chain.forces(x)[i], chain.forces(v)[i]
         if m == STUCK:
             t_stick = t - self.t_stuck[i]
-            h = p.kappa * x[i] - F
-            return z_slip(p, x[i], F, t_stick), p.static.rate(t_stick) - np.sign(h) * (p.kappa * chain.v_drive - dF)
-        a = acceleration(p, m, x[i], v[i], chain.v_drive, F)
-        return m * (chain.v_drive - v[i]), -m * a
+            h = p.kappa * x - F
+            return z_slip(p, x, F, t_stick), p.static.rate(t_stick) - np.sign(h) * (p.kappa * chain.v_drive - dF)
+        a = acceleration(p, m, x, v, chain.v_drive, F)
+        return m * (chain.v_drive - v), -m * a
+
+    def values_at(self, i, dense, t):
+        """:meth:`values` of block ``i`` at time ``t`` on a step's ``dense`` output."""
+        n = self.chain.n
+        y = dense(t)
+        F, dF = self.chain.forces(y[:n])[i], self.chain.forces(y[n:])[i]
+        return self.values(i, t, y[i], y[n + i], F, dF)
 
     def at_once(self):
         """The first block whose indicator is at or below 0 and does not rise: its event is now (else None).
@@ -212,13 +240,14 @@ class _Scan:
         ``d2e/dt2 = m (kappa v_drive - dF_ext/dt) / M`` decides, as for one block.
         """
         t, x, v = self.start
+        forces, rates = self.chain.forces(x), self.chain.forces(v)
         for i in range(self.chain.n):
-            value, slope = self.values(i, t, x, v)
+            F, dF = forces[i], rates[i]
+            value, slope = self.values(i, t, x[i], v[i], F, dF)
             if value > 0.0:
                 continue
             p, m = self.chain.params[i], self.modes[i]
             if m != STUCK:
-                F, dF = self.chain.forces(x)[i], self.chain.forces(v)[i]
                 scale = max(abs(p.kappa * x[i]), abs(F), p.kinetic.force(0.0), p.static.force(0.0))
                 if abs(p.M * slope) <= 16.0 * _EPS * scale:
                     slope = m * (p.kappa * self.chain.v_drive - dF) / p.M
@@ -232,17 +261,17 @@ class _Scan:
         n = self.chain.n
         s = t_a + (t_b - t_a) * np.arange(SUBSTEPS + 1) / SUBSTEPS
         ys = dense(s)
+        x, v = ys[:n], ys[n:]
+        forces, rates = self.chain.forces(x), self.chain.forces(v)
         best = (None, None)
         for i in range(n):
             def f(t, i=i):
-                y = dense(t)
-                return self.values(i, t, y[:n], y[n:])[0]
+                return self.values_at(i, dense, t)[0]
 
             def df(t, i=i):
-                y = dense(t)
-                return self.values(i, t, y[:n], y[n:])[1]
+                return self.values_at(i, dense, t)[1]
 
-            pairs = np.array([self.values(i, t, ys[:n, k], ys[n:, k]) for k, t in enumerate(s)])
+            pairs = np.array([self.values(i, t, x[i, k], v[i, k], forces[i, k], rates[i, k]) for k, t in enumerate(s)])
             hit = first_zero(f, s, pairs[:, 0], df, pairs[:, 1], rising=self.rising[i])
             if hit is not None and (best[0] is None or hit < best[0]):
                 best = (hit, i)

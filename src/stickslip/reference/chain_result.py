@@ -21,24 +21,24 @@ class ChainEvent:
 
 
 class ChainPiece:
-    """The chain between ``t0`` and ``t1`` (s) without events: the step's dense output ``dense`` (``None``: the
-    constant state ``y``), each block's mode and the time its stick began (``t_stuck``, NaN while slipping)."""
+    """The chain between ``t0`` and ``t1`` (s) without events: ``dense(t)`` gives the states
+    ``[x_1..x_N, v_1..v_N]`` at the times ``t`` (a solver step's dense output, or :meth:`linear`); each block's mode
+    and the time its stick began (``t_stuck``, NaN while slipping)."""
 
-    def __init__(self, t0, t1, dense, modes, t_stuck, y=None):
-        self.t0, self.t1, self.dense, self.y = t0, t1, dense, y
+    def __init__(self, t0, t1, dense, modes, t_stuck):
+        self.t0, self.t1, self.dense = t0, t1, dense
         self.modes, self.t_stuck = tuple(modes), t_stuck
 
     @classmethod
-    def constant(cls, t, x, v, modes, t_stuck):
-        """A zero-length piece at ``t`` holding the state ``(x, v)`` (before an event at that instant)."""
-        return cls(t, t, None, modes, t_stuck, np.concatenate([x, v]))
+    def linear(cls, t0, t1, y0, rate, modes, t_stuck):
+        """States ``y0 + rate (t - t0)``: every block stuck (the chain moves with the surface), or a zero-length
+        piece (``rate`` 0) holding the state before an event at ``t0``."""
+        y0, rate = np.asarray(y0, float), np.asarray(rate, float)
+        return cls(t0, t1, lambda t: y0[:, None] + rate[:, None] * (np.atleast_1d(t) - t0)[None, :], modes, t_stuck)
 
     def states(self, t):
         """``[x_1..x_N, v_1..v_N]`` at the times ``t`` (array, s): shape ``(2N, len(t))``."""
-        t = np.asarray(t, float)
-        if self.dense is None:
-            return np.repeat(self.y[:, None], t.size, axis=1)
-        return self.dense(t)
+        return self.dense(np.asarray(t, float))
 
 
 @dataclass
