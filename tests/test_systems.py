@@ -4,7 +4,6 @@ chain's reference, and ``stickslip system run``."""
 import csv
 import math
 import textwrap
-import time
 from pathlib import Path
 
 import numpy as np
@@ -53,7 +52,7 @@ def test_the_issues_file_loads_with_the_fmus_start_values_for_what_it_leaves_out
     assert system.blocks[0]["solver.rtol"] == 1e-10  # the FMU's start value
     assert system.times()[-1] == 100.0 and len(system.times()) == 1001
     assert system.forces([0.0, 0.2]) == [0.5 * 0.2, -0.5 * 0.2]
-    assert system.tolerances == {"zoh": 0.5, "me": 1e-6}
+    assert system.tolerances == {"zoh": 0.1, "me": 1e-6}
 
 
 def test_dotted_names_without_quotes_are_the_fmus_names(tmp_path):
@@ -120,19 +119,29 @@ def test_masters_refuse_options_they_do_not_take():
         make_master("zoh", step=0.03).run(load_system(CHAIN2), "unused.fmu")
 
 
-# ---------------------------------------------------------------- the masters on the issue's 2-block chain
+# ---------------------------------------------------------------- the masters on the scenes
+
+#: scene: (zoh's max |dx| / amplitude at h = 0.01 s as measured, its event counts match the reference's)
+ZOH_AT_0_01 = {"chain2-coulomb": (0.0367, True), "chain3-coulomb": (0.0447, True),
+               "chain3-stribeck-aging": (0.266, True), "bk10-velocity-weakening": (0.637, False)}
+_SCENES = {}
 
 
-@pytest.fixture(scope="module")
-def chain2():
-    """The 2-block chain and its reference."""
-    system = load_system(CHAIN2)
-    return system, simulate_chain(system.chain_blocks(), system.coupling, system.v_drive, system.times())
+def scene(name):
+    """The scene ``systems/<name>.toml`` and its reference (computed once)."""
+    if name not in _SCENES:
+        system = load_system(SYSTEMS / f"{name}.toml")
+        _SCENES[name] = system, simulate_chain(system.chain_blocks(), system.coupling, system.v_drive, system.times())
+    return _SCENES[name]
 
 
-def test_zoh_is_first_order_with_the_issues_errors(chain2, fmu_path):
-    """Held inputs: 0.40 m at h = 0.1 s and 0.038 m at h = 0.01 s, as issue 19 measured (first order)."""
-    system, reference = chain2
+def test_every_scene_is_tested():
+    assert sorted(p.stem for p in SYSTEMS.glob("*.toml")) == sorted(ZOH_AT_0_01)
+
+
+def test_zoh_is_first_order_with_the_issues_errors(fmu_path):
+    """Held inputs on the 2-block chain: 0.40 m at h = 0.1 s and 0.038 m at h = 0.01 s, as issue 19 measured."""
+    system, reference = scene("chain2-coulomb")
     errors = {}
     for h in (0.1, 0.01):
         result = make_master("zoh", step=h).run(system, fmu_path)
@@ -145,17 +154,33 @@ def test_zoh_is_first_order_with_the_issues_errors(chain2, fmu_path):
     assert math.log10(errors[0.1] / errors[0.01]) == pytest.approx(1.0, abs=0.1)  # order 1
 
 
-def test_me_couples_exactly(chain2, fmu3_path):
-    """Model exchange of both blocks in one solver at rtol 1e-10: within 1e-6 of the amplitude (measured: 1.4e-10),
-    every event paired with the reference's."""
-    system, reference = chain2
+@pytest.mark.parametrize("name", sorted(set(ZOH_AT_0_01) - {"chain2-coulomb"}))
+def test_zoh_on_the_scenes(name, fmu_path):
+    """zoh at h = 0.01 s: the error measured for each scene (first order: 10 times that at 0.1 s); far from the
+    reference on the Burridge-Knopoff chain, whose slips amplify it."""
+    system, reference = scene(name)
+    result = make_master("zoh", step=0.01).run(system, fmu_path)
+    comparison = compare(result, reference, system.tolerances["zoh"])
+    expected, same_events = ZOH_AT_0_01[name]
+    assert comparison.max_rel_dx == pytest.approx(expected, rel=0.05)
+    assert (list(comparison.master_events) == list(comparison.reference_events)) == same_events
+
+
+@pytest.mark.parametrize("name", sorted(ZOH_AT_0_01))
+def test_me_on_the_scenes(name, fmu3_path):
+    """Model exchange of all blocks in one solver at rtol 1e-10: within the file's tolerance (1e-6 of the
+    amplitude; 1e-4 for the Burridge-Knopoff chain, which amplifies the solver's error), every event of every
+    block paired with the reference's, and the same mode at every sample except where an event falls on it."""
+    system, reference = scene(name)
     result = make_master("me").run(system, fmu3_path)
     comparison = compare(result, reference, system.tolerances["me"])
-    assert comparison.ok and comparison.max_rel_dx < 1e-8
+    assert comparison.ok, comparison
     assert list(comparison.master_events) == list(comparison.reference_events)
-    assert np.all(comparison.max_event_dt < 1e-8)
-    differ = np.any(result.mode != reference.mode, axis=1)  # only where an event falls on a grid time (b2: 8 s)
-    assert all(min(abs(e.t - t) for e in reference.events) < 1e-9 for t in result.t[differ])
+    assert np.all(comparison.max_event_dt < 1e-3 * system.output_interval)
+    differ = np.any(result.mode != reference.mode, axis=1)
+    assert all(min(abs(e.t - t) for e in reference.events) < 1e-3 * system.output_interval for t in result.t[differ])
+    if name != "bk10-velocity-weakening":
+        assert comparison.max_rel_dx < 1e-8
 
 
 # ---------------------------------------------------------------- the command
@@ -163,10 +188,11 @@ def test_me_couples_exactly(chain2, fmu3_path):
 
 def test_command_writes_the_csv_report_and_plots(tmp_path, fmu_path, capsys):
     out = tmp_path / "out"
-    assert main(["system", "run", str(CHAIN2), "--master", "zoh", "--out", str(out), "--fmu", str(fmu_path),
-                 "--quiet"]) == 0
+    assert main(["system", "run", str(CHAIN2), "--master", "zoh", "--step", "0.01", "--out", str(out), "--fmu",
+                 str(fmu_path), "--quiet"]) == 0
     printed = capsys.readouterr().out
-    assert "chain2-coulomb: zoh (step (s) 0.1): max |dx| 0.4 m = 0.388 of the amplitude 1.03 m" in printed
+    assert "chain2-coulomb: zoh (step (s) 0.01): max |dx| 0.0379 m = 0.0367 of the amplitude 1.03 m (tolerance 0.1)" \
+        ": PASS" in printed
     with open(out / "chain2-coulomb.csv") as stream:
         rows = list(csv.reader(stream))
     assert rows[0] == ["time", "b1.x", "b2.x", "b1.v", "b2.v", "b1.mode", "b2.mode"]
@@ -177,15 +203,35 @@ def test_command_writes_the_csv_report_and_plots(tmp_path, fmu_path, capsys):
         assert (out / name).stat().st_size > 10_000
 
 
-def test_command_exits_1_when_the_error_exceeds_the_files_tolerance(tmp_path, fmu_path, capsys):
-    strict = write(tmp_path, CHAIN2.read_text() + "\n[tolerance.zoh]\nmax_rel_dx = 0.01\n", "strict.toml")
-    assert main(["system", "run", str(strict), "--master", "zoh", "--out", str(tmp_path), "--fmu", str(fmu_path),
-                 "--quiet"]) == 1
-    assert "(tolerance 0.01): FAIL" in capsys.readouterr().out
-    assert "**FAIL**" in (tmp_path / "strict.md").read_text()
+def test_command_exits_1_when_the_error_exceeds_the_tolerance(tmp_path, fmu_path, capsys):
+    """zoh at the output interval (0.1 s) is 39% of the amplitude off: above the default 10%, within a file's 50%."""
+    arguments = ["--master", "zoh", "--out", str(tmp_path), "--fmu", str(fmu_path), "--quiet"]
+    assert main(["system", "run", str(CHAIN2), *arguments]) == 1
+    assert "(tolerance 0.1): FAIL" in capsys.readouterr().out
+    assert "**FAIL**" in (tmp_path / "chain2-coulomb.md").read_text()
+    lenient = write(tmp_path, CHAIN2.read_text() + "\n[tolerance.zoh]\nmax_rel_dx = 0.5\n", "lenient.toml")
+    assert main(["system", "run", str(lenient), *arguments]) == 0
+    assert "(tolerance 0.5): PASS" in capsys.readouterr().out
 
 
 def test_command_names_a_bad_file_and_exits_1(tmp_path, capsys):
     bad = write(tmp_path, system_text(blocks=(BLOCK, BLOCK.replace("M = 1.0", "M = 0.0"))))
     assert main(["system", "run", str(bad), "--master", "me", "--out", str(tmp_path)]) == 1
     assert "block b2: M = 0.0 kg is out of range" in capsys.readouterr().err
+
+
+def test_me_finds_a_graze_through_the_graze_indicator(tmp_path, fmu3_path):
+    """b1's slip passes v_drive by 1e-8 m/s for about 1 ms of its 6.3 s period (as in test_reference): its stick
+    indicator has the same sign at the ends of the solver's step, the graze indicator changes sign at the
+    extremum, and the master must stop there and stick the block where the reference does."""
+    grazing = BLOCK.replace("x_start = 0.0", "x_start = 0.60000001").replace("v_start = 0.1", "v_start = 0.0")
+    path = write(tmp_path, system_text("stop_time = 10.0\noutput_interval = 0.1\nv_drive = 0.1\ncoupling = [0.0]",
+                                       blocks=(grazing, BLOCK)))
+    system = load_system(path)
+    reference = simulate_chain(system.chain_blocks(), system.coupling, system.v_drive, system.times())
+    result = make_master("me").run(system, fmu3_path)
+    theirs = [e for e in reference.events if e.block == 0]
+    mine = [e for e in result.events if e.block == 0]
+    assert (theirs[0].kind, theirs[0].mode_before, theirs[0].t) == ("stick", 1, pytest.approx(4.712, abs=0.01))
+    assert [(e.kind, e.t) for e in mine] == [(e.kind, pytest.approx(e.t, abs=1e-6)) for e in theirs]
+    assert compare(result, reference, 1e-6).ok
