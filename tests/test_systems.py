@@ -235,3 +235,12 @@ def test_me_finds_a_graze_through_the_graze_indicator(tmp_path, fmu3_path):
     assert (theirs[0].kind, theirs[0].mode_before, theirs[0].t) == ("stick", 1, pytest.approx(4.712, abs=0.01))
     assert [(e.kind, e.t) for e in mine] == [(e.kind, pytest.approx(e.t, abs=1e-6)) for e in theirs]
     assert compare(result, reference, 1e-6).ok
+
+
+def test_a_master_refuses_the_other_fmi_versions_fmu(fmu_path, fmu3_path):
+    system = load_system(CHAIN2)
+    with pytest.raises(FMUError, match=r"me: .* is an FMI 2 FMU; the master runs the FMI 3 FMU "
+                                       r"\(SpringBlockFriction-fmi3.fmu\)"):
+        make_master("me").run(system, fmu_path)
+    with pytest.raises(FMUError, match=r"zoh: .* is an FMI 3 FMU; the master runs the FMI 2 FMU"):
+        make_master("zoh").run(system, fmu3_path)

@@ -39,7 +39,7 @@ ChainBlock = namedtuple("ChainBlock", "params x0 v0")
 def simulate_chain(blocks, coupling, v_drive, t_eval, rtol=1e-12, progress=None):
     """Simulate the chain ``blocks`` (:class:`ChainBlock`) joined by ``coupling`` (``N - 1`` stiffnesses,
     N/m) on a surface at ``v_drive`` (m/s) from ``t_eval[0]`` to ``t_eval[-1]`` (s); ``progress(t)``, if given,
-    is called with the time reached (s) after each event.
+    is called with the time reached (s) after each solver step.
 
     Returns a :class:`~.chain_result.ChainResult` sampled on ``t_eval`` (state after any event at a
     sample time), with every block's events and the dense solution.
@@ -48,11 +48,9 @@ def simulate_chain(blocks, coupling, v_drive, t_eval, rtol=1e-12, progress=None)
     t_eval = np.asarray(t_eval, float)
     if t_eval.ndim != 1 or t_eval.size == 0 or not np.all(np.isfinite(t_eval)) or np.any(np.diff(t_eval) <= 0.0):
         raise ReferenceParameterError("t_eval must be a non-empty 1-D array of finite, strictly increasing times (s)")
-    run = _ChainRun(chain, float(t_eval[0]), rtol)
+    run = _ChainRun(chain, float(t_eval[0]), rtol, progress or (lambda t: None))
     while run.t < t_eval[-1]:
         run.phase(float(t_eval[-1]))
-        if progress is not None:
-            progress(run.t)
     return ChainResult.sample(chain, run.pieces, run.events, t_eval)
 
 
@@ -113,8 +111,8 @@ class _Chain:
 class _ChainRun:
     """Phases (event-free integrations) and events of one simulation."""
 
-    def __init__(self, chain, t0, rtol):
-        self.chain, self.rtol = chain, rtol
+    def __init__(self, chain, t0, rtol, progress):
+        self.chain, self.rtol, self.progress = chain, rtol, progress
         self.t = t0
         self.x = np.array([b.x0 for b in chain.blocks], float)
         self.v = np.array([b.v0 for b in chain.blocks], float)
@@ -151,6 +149,7 @@ class _ChainRun:
             self.pieces.append(ChainPiece(solver.t_old, t1, dense, self.modes, self.t_stuck))
             y = dense(t1)
             self.t, self.x, self.v = t1, y[:chain.n].copy(), y[chain.n:].copy()
+            self.progress(self.t)
             if t_hit is not None:
                 self._event(block)
                 return
@@ -167,6 +166,7 @@ class _ChainRun:
         rate = np.concatenate([np.full(chain.n, chain.v_drive), np.zeros(chain.n)])
         self.pieces.append(ChainPiece.linear(t0, t1, np.concatenate([self.x, self.v]), rate, self.modes, self.t_stuck))
         self.t, self.x = t1, self.x + chain.v_drive * (t1 - t0)
+        self.progress(self.t)
         if ends[first][1]:
             self._event(first)
 

@@ -11,11 +11,14 @@ A master couples one FMU instance per block of a :class:`~.system_file.System` a
 A new master is one module with such a class, listed in :data:`stickslip.systems.masters.MASTERS`.
 """
 
+import contextlib
 from dataclasses import dataclass, field
+from typing import Callable, ClassVar, Protocol
 
 import numpy as np
 
-from ..hosts.fmpy_host import FMUError
+from ..fmu import FILE_NAMES
+from ..hosts.fmpy_host import ExtractedFMU, FMUError
 from ..reference import ChainEvent
 
 #: FMI version: (Real type, Integer type) of the model description, the setter of each on FMPy's instance
@@ -43,6 +46,17 @@ class SystemResult:
     stats: dict = field(default_factory=dict)
 
 
+class Master(Protocol):
+    """A master (the module text says what each member is)."""
+
+    NAME: ClassVar[str]
+    FMI_VERSION: ClassVar[int]
+    OPTIONS: ClassVar[tuple]
+
+    def run(self, system, fmu_path, progress: Callable[[float], None] = ...) -> SystemResult:
+        ...
+
+
 def event_kind(before, after):
     """"stick" (to mode 0), "slip" (from mode 0) or "overshoot" (+1 <-> -1)."""
     return "stick" if after == 0 else "slip" if before == 0 else "overshoot"
@@ -51,6 +65,26 @@ def event_kind(before, after):
 def new_event(t, block, before, after):
     """The :class:`~stickslip.reference.ChainEvent` of ``block`` (0-based) going from mode ``before`` to ``after``."""
     return ChainEvent(float(t), int(block), event_kind(before, after), int(before), int(after))
+
+
+@contextlib.contextmanager
+def block_instances(master, system, fmu_path, interface="cs"):
+    """``(extracted FMU, [an initialized instance per block])`` for ``master`` (its ``NAME`` and ``FMI_VERSION``):
+    the FMU at ``fmu_path`` extracted once, each block's parameters, ``v_drive`` and its ``F_ext`` at the start
+    positions set. The instances are freed and the folder removed at the end."""
+    with ExtractedFMU(fmu_path) as fmu:
+        if fmu.fmi_version != master.FMI_VERSION:
+            raise FMUError(f"{master.NAME}: {fmu_path} is an FMI {fmu.fmi_version} FMU; the master runs the FMI "
+                           f"{master.FMI_VERSION} FMU ({FILE_NAMES[master.FMI_VERSION]})")
+        instances = []
+        try:
+            forces = system.forces([b["x_start"] for b in system.blocks])
+            for i, (values, F) in enumerate(zip(system.blocks, forces)):
+                instances.append(start_block(fmu, i + 1, {**values, "v_drive": system.v_drive, "F_ext": F}, interface))
+            yield fmu, instances
+        finally:
+            for instance in instances:
+                instance.free()
 
 
 def start_block(extracted, number, values, interface="cs"):

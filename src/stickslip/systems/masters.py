@@ -1,14 +1,15 @@
 """The masters by name (``--master``): each a module with one class (:mod:`.master` says what it implements)."""
 
 from ..hosts.fmpy_host import FMUError
+from .master import Master
 from .me import MeMaster
 from .zoh import ZohMaster
 
 #: master name: its class
-MASTERS = {cls.NAME: cls for cls in (ZohMaster, MeMaster)}
+MASTERS: dict[str, type[Master]] = {cls.NAME: cls for cls in (ZohMaster, MeMaster)}
 
 
-def make_master(name, **options):
+def make_master(name, **options) -> Master:
     """The master ``name`` with ``options`` (None values are left out: the master's defaults); FMUError for an
     unknown master or an option it does not take."""
     if name not in MASTERS:

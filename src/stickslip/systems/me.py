@@ -19,8 +19,8 @@ import numpy as np
 from scipy.integrate import DOP853
 from scipy.optimize import brentq
 
-from ..hosts.fmpy_host import ExtractedFMU, FMUError
-from .master import SystemResult, new_event, start_block
+from ..hosts.fmpy_host import FMUError
+from .master import SystemResult, block_instances, new_event
 from .me_blocks import ExchangeBlocks
 
 STEPS_PER_PERIOD = 20
@@ -43,19 +43,10 @@ class MeMaster:
         self.rtol = rtol
 
     def run(self, system, fmu_path, progress=lambda t: None):
-        with ExtractedFMU(fmu_path) as fmu:
-            instances = []
-            try:
-                x0 = [b["x_start"] for b in system.blocks]
-                for i, (values, F) in enumerate(zip(system.blocks, system.forces(x0))):
-                    instances.append(start_block(fmu, i + 1, {**values, "v_drive": system.v_drive, "F_ext": F},
-                                                 interface="me"))
-                blocks = ExchangeBlocks(system, fmu, instances)
-                blocks.initial_update()
-                return _Run(system, blocks, self.rtol).run(progress)
-            finally:
-                for instance in instances:
-                    instance.free()
+        with block_instances(self, system, fmu_path, interface="me") as (fmu, instances):
+            blocks = ExchangeBlocks(system, fmu, instances)
+            blocks.initial_update()
+            return _Run(system, blocks, self.rtol, progress).run()
 
 
 def max_step(system):
@@ -68,8 +59,8 @@ def max_step(system):
 class _Run:
     """One integration: the state, the indicators' signs, the samples and the events."""
 
-    def __init__(self, system, blocks, rtol):
-        self.system, self.blocks, self.rtol = system, blocks, rtol
+    def __init__(self, system, blocks, rtol, progress):
+        self.system, self.blocks, self.rtol, self.progress = system, blocks, rtol, progress
         self.grid = system.times()
         self.samples = np.empty((self.grid.size, 2 * blocks.n))
         self.modes = np.empty((self.grid.size, blocks.n), int)
@@ -88,7 +79,7 @@ class _Run:
                                                                signs[:, list(_POSITIVE_WHILE_MODE_LASTS)])
         return signs
 
-    def run(self, progress):
+    def run(self):
         start = time.perf_counter()
         atol = self.rtol * self.blocks.nominals()
         t_end = float(self.grid[-1])
@@ -100,7 +91,6 @@ class _Run:
                 pass
             if solver.status == "failed":
                 raise FMUError(f"me: the solver failed at t = {solver.t!r} s")
-            progress(self.t)
         self._sample_until(math.inf, lambda t: np.repeat(self.y[:, None], np.size(t), axis=1))
         _, counts = self.blocks.counts()
         xs, vs = self.samples[:, :self.blocks.n], self.samples[:, self.blocks.n:]
@@ -120,6 +110,7 @@ class _Run:
         t1 = t_b if t_e is None else t_e
         self._sample_until(t1, dense)
         self.t, self.y = t1, dense(t1)
+        self.progress(self.t)
         if t_e is None:
             z = self.blocks.indicators(self.t, self.y)
             self.signs = np.where(z != 0.0, np.sign(z), self.signs)

@@ -14,8 +14,8 @@ import time
 
 import numpy as np
 
-from ..hosts.fmpy_host import ExtractedFMU, FMUError
-from .master import SystemResult, new_event, references, start_block
+from ..hosts.fmpy_host import FMUError
+from .master import SystemResult, block_instances, new_event, references
 
 _READ_REALS = ("x", "v", "t_last_event")
 _READ_INTEGERS = ("mode", "n_events")
@@ -46,16 +46,8 @@ class ZohMaster:
     def run(self, system, fmu_path, progress=lambda t: None):
         h, per_output = self._grid(system)
         grid = np.asarray(system.times())
-        with ExtractedFMU(fmu_path) as fmu:
-            blocks = []
-            try:
-                x0 = [b["x_start"] for b in system.blocks]
-                for i, (values, F) in enumerate(zip(system.blocks, system.forces(x0))):
-                    blocks.append(start_block(fmu, i + 1, {**values, "v_drive": system.v_drive, "F_ext": F}))
-                return _Run(system, fmu, blocks, h, per_output, grid).run(progress)
-            finally:
-                for block in blocks:
-                    block.free()
+        with block_instances(self, system, fmu_path) as (fmu, blocks):
+            return _Run(system, fmu, blocks, h, per_output, grid).run(progress)
 
 
 class _Run:
