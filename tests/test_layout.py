@@ -17,10 +17,11 @@ ALLOWED = {
     "fmu": {"fmu_src"},
     "hosts": {"core", "fmu"},
     "suite": {"core", "reference", "fmu", "hosts"},
+    "systems": {"core", "reference", "fmu", "hosts"},  # chains of blocks: beside suite
     "analysis": {"core", "reference"},
     "stress": {"core", "reference", "fmu", "hosts", "suite"},
     "bench": {"core", "reference", "fmu", "hosts", "suite"},
-    "cli": {"core", "reference", "fmu", "hosts", "suite", "analysis", "stress", "bench"},
+    "cli": {"core", "reference", "fmu", "hosts", "suite", "systems", "analysis", "stress", "bench"},
     "(top)": {"core"},
 }
 

@@ -13,6 +13,7 @@ from ..core.errors import StickSlipError
 from .analysis import add_bifurcation, add_chart, add_map, add_slow_manifold, add_vc
 from .bench import add_bench_parser
 from .stress import add_stress_parser
+from .system import add_system
 
 
 def add_run(subparsers):
@@ -51,7 +52,7 @@ def _build(args):
 
 
 COMMANDS = (add_run, add_build, add_bench_parser, add_versus_parser,
-            add_bifurcation, add_vc, add_map, add_slow_manifold, add_chart, add_stress_parser)
+            add_bifurcation, add_vc, add_map, add_slow_manifold, add_chart, add_stress_parser, add_system)
 
 
 def main(argv=None):

@@ -1,0 +1,54 @@
+"""A master's run against the chain's reference on the same grid: position errors and events, per block."""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """``amplitude`` (m): the reference's largest range of any block's ``x``; per block (arrays over blocks):
+    ``max_abs_dx`` (m), the master's and the reference's event counts, and ``max_event_dt`` (s, NaN where the
+    events cannot be paired: the counts or kinds differ, or the master does not know every event's time);
+    ``tolerance``: the largest allowed ``max_rel_dx``."""
+
+    amplitude: float
+    max_abs_dx: np.ndarray
+    master_events: np.ndarray
+    reference_events: np.ndarray
+    max_event_dt: np.ndarray
+    tolerance: float
+
+    @property
+    def max_rel_dx(self):
+        """The largest ``max |dx|`` of any block as a fraction of the amplitude."""
+        return float(np.max(self.max_abs_dx)) / self.amplitude if self.amplitude > 0.0 else math.inf
+
+    @property
+    def ok(self):
+        return bool(self.max_rel_dx <= self.tolerance)
+
+
+def compare(result, reference, tolerance):
+    """Compare a :class:`~.master.SystemResult` with a :class:`~stickslip.reference.ChainResult` on the same grid;
+    ``tolerance``: the largest allowed ``max |dx|`` as a fraction of the amplitude."""
+    if result.x.shape != reference.x.shape or not np.allclose(result.t, reference.t, rtol=1e-12, atol=0.0):
+        raise ValueError(f"the master's grid ({result.x.shape}) is not the reference's ({reference.x.shape})")
+    n = reference.x.shape[1]
+    dx = np.abs(result.x - reference.x)
+    max_abs_dx = np.where(np.all(np.isfinite(result.x), axis=0), np.max(dx, axis=0, initial=0.0), math.inf)
+    reference_events = np.array([sum(e.block == i for e in reference.events) for i in range(n)])
+    dt = np.array([_event_dt(result, reference, i) for i in range(n)])
+    return Comparison(reference.amplitude(), max_abs_dx, np.asarray(result.event_counts), reference_events, dt,
+                      tolerance)
+
+
+def _event_dt(result, reference, block):
+    """Largest event-time difference (s) of ``block`` when the master's events pair with the reference's, else NaN."""
+    mine = [e for e in result.events if e.block == block]
+    theirs = [e for e in reference.events if e.block == block]
+    if not result.events_complete or len(mine) != len(theirs) or \
+            any(a.kind != b.kind for a, b in zip(mine, theirs)):
+        return math.nan
+    return max((abs(a.t - b.t) for a, b in zip(mine, theirs)), default=0.0)

@@ -1,0 +1,114 @@
+"""What every master shares: the interface a master implements, its result, and its block instances.
+
+A master couples one FMU instance per block of a :class:`~.system_file.System` and returns a
+:class:`SystemResult` on the system's output grid. It is a class with
+
+- ``NAME`` (the ``--master`` value), ``FMI_VERSION`` (2 or 3: which FMU it runs) and ``OPTIONS`` (the names of
+  the keyword arguments its constructor takes, e.g. ``("step",)``; the command's options of the same names);
+- ``run(system, fmu_path, progress)``: simulate ``system`` with the FMU at ``fmu_path``; ``progress(t)`` is
+  called now and then with the simulated time reached (s).
+
+A new master is one module with such a class, listed in :data:`stickslip.systems.masters.MASTERS`.
+"""
+
+import contextlib
+from dataclasses import dataclass, field
+from typing import Callable, ClassVar, Protocol
+
+import numpy as np
+
+from ..fmu import FILE_NAMES
+from ..hosts.fmpy_host import ExtractedFMU, FMUError
+from ..reference import ChainEvent
+
+#: FMI version: (Real type, Integer type) of the model description, the setter of each on FMPy's instance
+_SETTERS = {2: {"Real": "setReal", "Integer": "setInteger"}, 3: {"Float64": "setFloat64", "Int32": "setInt32"}}
+
+
+@dataclass
+class SystemResult:
+    """A master's run on the grid ``t`` (s): arrays of shape ``(len(t), N)`` of ``x`` (m), ``v`` (m/s) and ``mode``;
+    ``events``: the blocks' mode changes it saw (:class:`~stickslip.reference.ChainEvent`, block 0-based),
+    ``events_complete``: whether that list holds every event with its time; ``event_counts``: each block's
+    ``n_events`` at the end; ``wall_time`` (s); ``settings`` (step, tolerance) and ``stats`` (step and call
+    counts) as ``{label: value}`` for the report."""
+
+    master: str
+    t: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    mode: np.ndarray
+    events: list
+    events_complete: bool
+    event_counts: np.ndarray
+    wall_time: float
+    settings: dict = field(default_factory=dict)
+    stats: dict = field(default_factory=dict)
+
+
+class Master(Protocol):
+    """A master (the module text says what each member is)."""
+
+    NAME: ClassVar[str]
+    FMI_VERSION: ClassVar[int]
+    OPTIONS: ClassVar[tuple]
+
+    def run(self, system, fmu_path, progress: Callable[[float], None] = ...) -> SystemResult:
+        ...
+
+
+def event_kind(before, after):
+    """"stick" (to mode 0), "slip" (from mode 0) or "overshoot" (+1 <-> -1)."""
+    return "stick" if after == 0 else "slip" if before == 0 else "overshoot"
+
+
+def new_event(t, block, before, after):
+    """The :class:`~stickslip.reference.ChainEvent` of ``block`` (0-based) going from mode ``before`` to ``after``."""
+    return ChainEvent(float(t), int(block), event_kind(before, after), int(before), int(after))
+
+
+@contextlib.contextmanager
+def block_instances(master, system, fmu_path, interface="cs"):
+    """``(extracted FMU, [an initialized instance per block])`` for ``master`` (its ``NAME`` and ``FMI_VERSION``):
+    the FMU at ``fmu_path`` extracted once, each block's parameters, ``v_drive`` and its ``F_ext`` at the start
+    positions set. The instances are freed and the folder removed at the end."""
+    with ExtractedFMU(fmu_path) as fmu:
+        if fmu.fmi_version != master.FMI_VERSION:
+            raise FMUError(f"{master.NAME}: {fmu_path} is an FMI {fmu.fmi_version} FMU; the master runs the FMI "
+                           f"{master.FMI_VERSION} FMU ({FILE_NAMES[master.FMI_VERSION]})")
+        instances = []
+        try:
+            forces = system.forces([b["x_start"] for b in system.blocks])
+            for i, (values, F) in enumerate(zip(system.blocks, forces)):
+                instances.append(start_block(fmu, i + 1, {**values, "v_drive": system.v_drive, "F_ext": F}, interface))
+            yield fmu, instances
+        finally:
+            for instance in instances:
+                instance.free()
+
+
+def start_block(extracted, number, values, interface="cs"):
+    """An instance of the block ``b<number>`` (1-based) in ``extracted`` (an ExtractedFMU), its parameters and inputs
+    ``values`` (FMU names) set in initialization mode, initialization done. FMUError naming the block if it fails."""
+    instance = extracted.new_instance(name=f"b{number}", interface=interface)
+    variables, setters = extracted.variables, _SETTERS[extracted.fmi_version]
+    try:
+        if extracted.fmi_version == 2:
+            instance.call(instance.fmu.setupExperiment, startTime=0.0)
+            instance.call(instance.fmu.enterInitializationMode)
+        else:
+            instance.call(instance.fmu.enterInitializationMode, startTime=0.0)
+        for name, value in values.items():
+            variable = variables[name]
+            cast = float if variable.type in ("Real", "Float64") else int
+            instance.call(getattr(instance.fmu, setters[variable.type]), [variable.valueReference], [cast(value)])
+        instance.call(instance.fmu.exitInitializationMode)
+    except FMUError as exc:
+        instance.free()
+        raise FMUError(f"block b{number}: {exc}") from None
+    return instance
+
+
+def references(extracted, names):
+    """Value references of the variables ``names`` of ``extracted``."""
+    return [extracted.variables[name].valueReference for name in names]

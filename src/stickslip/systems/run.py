@@ -1,0 +1,82 @@
+"""``stickslip system run``: a system file through a master and the chain's reference, compared, with the files.
+
+Writes ``<out>/<stem>.csv`` (the master's samples), ``<out>/<stem>.md`` (the report), ``<out>/<stem>.png``
+(each block's ``x(t)``, master against reference) and ``<out>/<stem>-spacetime.png`` (which block slips when).
+"""
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from tqdm import tqdm
+
+from ..fmu import ensure_fmu
+from ..reference import simulate_chain
+from .compare import Comparison, compare
+from .master import SystemResult
+from .masters import make_master
+from .plots import plot_positions, plot_space_time
+from .report import summary_line, write_csv, write_report
+from .system_file import load_system
+
+
+@dataclass(frozen=True)
+class SystemOutcome:
+    """The run (:class:`~.master.SystemResult`), its comparison, the summary line and the files written."""
+
+    result: SystemResult
+    comparison: Comparison
+    summary: str
+    files: tuple
+
+    @property
+    def ok(self):
+        return self.comparison.ok
+
+
+def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress=True):
+    """Run the system file ``path`` through the master named ``master`` (with ``options``, e.g. ``{"step": 0.01}``)
+    and the reference; write the files into ``out_dir``; return a :class:`SystemOutcome`.
+
+    ``fmu_path``: the FMU the master runs (default: the built FMU of its FMI version, built if missing or stale).
+    """
+    system = load_system(path)
+    runner = make_master(master, **(options or {}))
+    fmu_path = fmu_path or ensure_fmu(fmi_version=runner.FMI_VERSION)
+    with _progress(f"{system.name} {master}", system.stop_time, show_progress) as step:
+        result = runner.run(system, fmu_path, step)
+    start = time.perf_counter()
+    with _progress(f"{system.name} reference", system.stop_time, show_progress) as step:
+        reference = simulate_chain(system.chain_blocks(), system.coupling, system.v_drive, system.times(),
+                                   progress=step)
+    reference_seconds = time.perf_counter() - start
+    comparison = compare(result, reference, system.tolerances[master])
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = {kind: out / f"{system.name}{suffix}" for kind, suffix in
+             (("csv", ".csv"), ("report", ".md"), ("positions", ".png"), ("space-time", "-spacetime.png"))}
+    write_csv(files["csv"], result)
+    title = f"{system.name} ({result.master})"
+    plot_positions(files["positions"], title, result, reference)
+    plot_space_time(files["space-time"], title, result, reference)
+    figures = {"x of each block, master against reference": files["positions"].name,
+               "which block slips when": files["space-time"].name}
+    write_report(files["report"], system, result, comparison, reference_seconds, figures)
+    return SystemOutcome(result, comparison, summary_line(system, result, comparison), tuple(files.values()))
+
+
+class _progress:
+    """A progress bar over the simulated time (s) as a context: gives ``step(t)``, which moves it to ``t``."""
+
+    def __init__(self, label, total, shown):
+        self.bar = tqdm(total=total, desc=label, unit="s", disable=not shown, leave=False,
+                        bar_format="{desc}: {percentage:3.0f}% |{bar}| {n:.4g}/{total:g} s [{elapsed}<{remaining}]")
+
+    def __enter__(self):
+        return self.step
+
+    def step(self, t):
+        self.bar.update(min(t, self.bar.total) - self.bar.n)
+
+    def __exit__(self, *exc):
+        self.bar.close()

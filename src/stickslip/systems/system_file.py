@@ -1,0 +1,206 @@
+"""System files (TOML): a chain of blocks as data, loaded and validated (format: docs/systems.md).
+
+``[system]`` holds ``stop_time`` (s), ``output_interval`` (s), ``v_drive`` (m/s, the common surface) and
+``coupling`` (N/m, the ``N - 1`` springs between neighbours); each ``[[blocks]]`` table holds FMU parameter
+values by the FMU's names (``M``, ``kappa``, ``"kinetic.law"``, ...; a missing one takes the FMU's start
+value); an optional ``[tolerance.<master>]`` table sets ``max_rel_dx``, the largest error of that master
+against the chain's reference, as a fraction of the chain's amplitude. Names, kinds and law codes come from
+the FMU's variable table (:mod:`stickslip.fmu.variables`), value ranges from the runtime's own checks (the
+FMU checks them again). A malformed file raises :class:`SystemFileError` naming the file, the key and what
+is allowed; block ``i`` (1-based) is ``b<i>`` in messages and in the result's columns.
+"""
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..core import KINETIC_LAWS, RTOL_RANGE, STATIC_LAWS, Parameters, kinetic_law, static_law
+from ..core.errors import ParameterError, StickSlipError
+from ..core.ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, Range, check
+from ..fmu.variables import START_VALUES, VARIABLES
+from ..reference import ChainBlock, parameters_from_values
+
+#: {master: default max |dx| against the reference as a fraction of the chain's amplitude}, see docs/systems.md
+DEFAULT_TOLERANCES = {"zoh": 0.1, "me": 1e-6}
+_SYSTEM_KEYS = {"stop_time", "output_interval", "v_drive", "coupling", "description"}
+_TOP_KEYS = {"system", "blocks", "tolerance"}
+#: {parameter name: its variable in the FMU's table}
+PARAMETERS = {v.name: v for v in VARIABLES if v.causality == "parameter"}
+_LAWS = {"kinetic": KINETIC_LAWS, "static": STATIC_LAWS}
+
+
+class SystemFileError(StickSlipError, ValueError):
+    """A system file is malformed; the message names the file, the key and what is allowed."""
+
+
+@dataclass(frozen=True)
+class System:
+    """One validated system file. ``blocks``: every FMU parameter of each block by FMU name (file values over the
+    FMU's start values); ``tolerances``: {master: max |dx| / amplitude} with the defaults filled in."""
+
+    path: Path
+    stop_time: float
+    output_interval: float
+    v_drive: float
+    coupling: tuple
+    blocks: tuple
+    tolerances: dict = field(default_factory=dict)
+    description: str = ""
+
+    @property
+    def name(self):
+        """The file's stem: it names the output files."""
+        return self.path.stem
+
+    @property
+    def n(self):
+        return len(self.blocks)
+
+    def chain_blocks(self):
+        """The blocks for :func:`stickslip.reference.simulate_chain`: the reference's own laws from the values."""
+        return [ChainBlock(parameters_from_values(b), b["x_start"], b["v_start"]) for b in self.blocks]
+
+    def times(self):
+        """The output grid (s): ``k output_interval`` for ``k = 0 .. stop_time / output_interval``."""
+        return np.arange(round(self.stop_time / self.output_interval) + 1) * self.output_interval
+
+    def forces(self, x):
+        """The coupling forces ``F_ext_i`` (N) at the positions ``x`` (m), SPEC section 5."""
+        f = [0.0] * len(x)
+        for i, kc in enumerate(self.coupling):
+            pull = kc * (x[i + 1] - x[i])
+            f[i] += pull
+            f[i + 1] -= pull
+        return f
+
+
+class _File:
+    """Checks of one file's values; errors name the file and the key."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+
+    def error(self, key, allowed, got):
+        got = "nothing (the key is missing)" if got is None else repr(got)
+        return SystemFileError(f"{self.path}: key '{key}': allowed is {allowed}, got {got}")
+
+    def read(self):
+        """The file's TOML content."""
+        try:
+            return tomllib.loads(self.path.read_text())
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+            raise SystemFileError(f"{self.path}: cannot read a TOML file: {exc}") from exc
+
+    def table(self, value, key, allowed):
+        """``value`` if it is a table whose keys are all in ``allowed`` (``key`` "": the file's top level)."""
+        if not isinstance(value, dict):
+            raise self.error(key, "a table", value)
+        for name in sorted(value):
+            if name not in allowed:
+                raise self.error(f"{key}.{name}".lstrip("."), f"one of the keys {sorted(allowed)}", value[name])
+        return value
+
+    def number(self, value, key, allowed=ANY_FINITE):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not allowed.contains(value):
+            raise self.error(key, f"a finite number in {allowed}", value)
+        return float(value)
+
+
+def load_system(path):
+    """Read and validate a system file; return a :class:`System`."""
+    f = _File(path)
+    data = f.table(f.read(), "", _TOP_KEYS)
+    system = f.table(data.get("system"), "system", _SYSTEM_KEYS)
+    stop_time = f.number(system.get("stop_time"), "system.stop_time", POSITIVE)
+    blocks = data.get("blocks")
+    if not isinstance(blocks, list) or not blocks or not all(isinstance(b, dict) for b in blocks):
+        raise f.error("blocks", "one or more [[blocks]] tables", blocks)
+    output_interval = f.number(system.get("output_interval"), "system.output_interval",
+                               Range(0.0, stop_time, low_open=True))
+    ratio = stop_time / output_interval
+    if abs(ratio - round(ratio)) > 1e-9 * ratio:
+        raise f.error("system.output_interval", f"stop_time ({stop_time!r} s) divided by a whole number",
+                      output_interval)
+    description = system.get("description", "")
+    if not isinstance(description, str):
+        raise f.error("system.description", "a string", description)
+    return System(
+        path=Path(path),
+        stop_time=stop_time,
+        output_interval=output_interval,
+        v_drive=f.number(system.get("v_drive"), "system.v_drive"),
+        coupling=_coupling(f, system.get("coupling"), len(blocks)),
+        blocks=tuple(_block(f, i + 1, b) for i, b in enumerate(blocks)),
+        tolerances=_tolerances(f, data),
+        description=description,
+    )
+
+
+def _coupling(f, value, n):
+    if not isinstance(value, list) or len(value) != n - 1:
+        raise f.error("system.coupling", f"a list of {n - 1} stiffnesses (N/m) for {n} blocks", value)
+    return tuple(f.number(kc, f"system.coupling[{i}]", NON_NEGATIVE) for i, kc in enumerate(value))
+
+
+def _flat(table, prefix=""):
+    """``{dotted name: value}``: ``kinetic.law = 1`` without quotes is a nested table in TOML."""
+    out = {}
+    for key, value in table.items():
+        if isinstance(value, dict):
+            out.update(_flat(value, f"{prefix}{key}."))
+        else:
+            out[f"{prefix}{key}"] = value
+    return out
+
+
+def _block(f, number, table):
+    """Every FMU parameter of block ``number`` (1-based): the file's values over the FMU's start values."""
+    label = f"b{number}"
+    given = _flat(table)
+    for name, value in given.items():
+        variable = PARAMETERS.get(name)
+        if variable is None:
+            why = " (the master sets it)" if name in START_VALUES else ""
+            raise f.error(f"{label}.{name}", f"an FMU parameter{why}: one of {sorted(PARAMETERS)}", value)
+        if variable.kind == "integer":
+            low, high = variable.bounds
+            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+                raise f.error(f"{label}.{name}", f"an integer in [{low}, {high}]: {variable.description}", value)
+        else:
+            f.number(value, f"{label}.{name}")
+    values = {name: START_VALUES[name] for name in PARAMETERS} | given
+    _check_parameters(f, label, values, given)
+    return {name: (int(v) if PARAMETERS[name].kind == "integer" else float(v)) for name, v in values.items()}
+
+
+def _check_parameters(f, label, values, given):
+    """The runtime's range checks of the block (the FMU's own); parameters of a law not selected are refused."""
+    laws = []
+    for kind, table in _LAWS.items():
+        cls = table[values[f"{kind}.law"]]
+        unused = sorted(n for n in given if n.startswith(f"{kind}.") and n != f"{kind}.law"
+                        and n.split(".", 1)[1] not in cls.PARAMETERS)
+        if unused:
+            takes = ", ".join(f"{kind}.{p}" for p in cls.PARAMETERS)
+            raise f.error(f"{label}.{unused[0]}", f"a parameter of {kind} law {cls.CODE} ({cls.NAME}): {takes}",
+                          given[unused[0]])
+        build = kinetic_law if kind == "kinetic" else static_law
+        laws.append(build(cls.CODE, **{p: values[f"{kind}.{p}"] for p in cls.PARAMETERS}))
+    try:
+        Parameters(values["M"], values["kappa"], *laws).check()
+        check("x_start", values["x_start"], ANY_FINITE, "m")
+        check("v_start", values["v_start"], ANY_FINITE, "m/s")
+        check("solver.rtol", values["solver.rtol"], RTOL_RANGE)
+    except ParameterError as exc:
+        raise SystemFileError(f"{f.path}: block {label}: {exc}") from None
+
+
+def _tolerances(f, data):
+    section = f.table(data.get("tolerance", {}), "tolerance", set(DEFAULT_TOLERANCES))
+    out = dict(DEFAULT_TOLERANCES)
+    for master, table in section.items():
+        table = f.table(table, f"tolerance.{master}", {"max_rel_dx"})
+        out[master] = f.number(table.get("max_rel_dx"), f"tolerance.{master}.max_rel_dx", POSITIVE)
+    return out

@@ -1,0 +1,95 @@
+"""The ``zoh`` master: fixed communication step, inputs held over it, as co-simulation engines do.
+
+One FMI 2 co-simulation instance of ``SpringBlockFriction.fmu`` per block (FMPy, through
+:mod:`stickslip.hosts.fmpy_host`: extracted once). At each communication point ``t_k = k h`` every block's
+``F_ext`` is set from the positions all blocks had at ``t_k`` (SPEC section 5) and held while each block
+steps to ``t_(k+1)`` with its own exact stepper (a Jacobi scheme: no block sees another's new position
+within a step). Holding the coupling force is first order in ``h``: the measured error on the 2-block
+chain is in benchmarks/README.md. Each block reports its events through ``n_events`` and
+``t_last_event``: one event within a step is known with its exact time, more only by count.
+"""
+
+import math
+import time
+
+import numpy as np
+
+from ..hosts.fmpy_host import FMUError
+from .master import SystemResult, block_instances, new_event, references
+
+_READ_REALS = ("x", "v", "t_last_event")
+_READ_INTEGERS = ("mode", "n_events")
+
+
+class ZohMaster:
+    """Fixed step ``step`` (s; default: the system's output interval, which must be a whole multiple of it)."""
+
+    NAME = "zoh"
+    FMI_VERSION = 2
+    OPTIONS = ("step",)
+
+    def __init__(self, step=None):
+        if step is not None and not (math.isfinite(step) and step > 0.0):
+            raise FMUError(f"zoh: step = {step!r} s: allowed is a finite step > 0")
+        self.step = step
+
+    def _grid(self, system):
+        """``(h, steps per output)``: the step and the number of steps between output points."""
+        h = self.step or system.output_interval
+        ratio = system.output_interval / h
+        per_output = round(ratio)
+        if per_output < 1 or abs(ratio - per_output) > 1e-9 * ratio:
+            raise FMUError(f"zoh: step = {h!r} s: allowed is output_interval ({system.output_interval!r} s) "
+                           f"divided by a whole number")
+        return h, per_output
+
+    def run(self, system, fmu_path, progress=lambda t: None):
+        h, per_output = self._grid(system)
+        grid = np.asarray(system.times())
+        with block_instances(self, system, fmu_path) as (fmu, blocks):
+            return _Run(system, fmu, blocks, h, per_output, grid).run(progress)
+
+
+class _Run:
+    """One co-simulation: the instances, the samples taken and the events seen."""
+
+    def __init__(self, system, fmu, blocks, h, per_output, grid):
+        self.system, self.blocks, self.h, self.per_output, self.grid = system, blocks, h, per_output, grid
+        self.reals, self.integers = references(fmu, _READ_REALS), references(fmu, _READ_INTEGERS)
+        self.F_ext = references(fmu, ("F_ext",))
+        self.rows, self.events, self.complete = [], [], True
+
+    def read(self):
+        """``(x, v, t_last_event, mode, n_events)`` of every block, each a list over blocks."""
+        values = [b.call(b.fmu.getReal, self.reals) + b.call(b.fmu.getInteger, self.integers) for b in self.blocks]
+        return [list(column) for column in zip(*values)]
+
+    def run(self, progress):
+        start = time.perf_counter()
+        x, v, _, mode, count = self.read()
+        self.rows.append((x, v, mode))
+        t, k, n_steps = 0.0, 0, round((self.grid[-1] - self.grid[0]) / self.h)
+        for k in range(1, n_steps + 1):
+            target = self.grid[0] + k * self.h if k < n_steps else float(self.grid[-1])
+            for block, F in zip(self.blocks, self.system.forces(x)):
+                block.call(block.fmu.setReal, self.F_ext, [F])
+                block.call(block.fmu.doStep, t, target - t)
+            t = t + (target - t)  # the FMU's own new time
+            x, v, t_last, new_mode, new_count = self.read()
+            self._events(t_last, mode, new_mode, count, new_count)
+            mode, count = new_mode, new_count
+            if k % self.per_output == 0 or k == n_steps:
+                self.rows.append((x, v, mode))
+                progress(t)
+        xs, vs, modes = (np.array(column) for column in zip(*self.rows))
+        return SystemResult(ZohMaster.NAME, self.grid[:len(xs)].copy(), xs, vs, modes, self.events, self.complete,
+                            np.array(count), time.perf_counter() - start, {"step (s)": self.h},
+                            {"communication steps": n_steps, "doStep calls": n_steps * len(self.blocks)})
+
+    def _events(self, t_last, mode, new_mode, count, new_count):
+        """Record the events of the last step: one per block is known exactly (``t_last_event``)."""
+        for i, (before, after, n0, n1) in enumerate(zip(mode, new_mode, count, new_count)):
+            if n1 == n0 + 1:
+                self.events.append(new_event(t_last[i], i, before, after))
+            elif n1 > n0:
+                self.complete = False
