@@ -21,6 +21,16 @@ from .errors import ParameterError
 from .ranges import NON_NEGATIVE, POSITIVE, Range, check
 
 
+_LARGEST_LOG_RATIO = 230.0  # ln of the largest (t/tau)^n a sigmoid law raises to powers directly (e^230 ~ 1e100)
+_LOG_LARGEST_FLOAT = 709.782712893384  # ln(1.7976931348623157e308)
+_SMALLEST_RATIO = 1e-290  # below it t/tau or (t/tau)^n may have lost digits to underflow: the sigmoid takes logarithms
+
+
+def _exp(x: float) -> float:
+    """``e^x``, inf where it exceeds the floats (``math.exp`` raises OverflowError there)."""
+    return math.exp(x) if x < _LOG_LARGEST_FLOAT else math.inf
+
+
 def _norm(a: float, b: float) -> float:
     """``sqrt(a^2 + b^2)``: through ``math.sqrt``, which compiled code calls natively (``math.hypot`` it calls as
     a Python function), unless the squares could overflow or underflow; there ``math.hypot``."""
@@ -282,13 +292,16 @@ class Logarithmic(StaticLaw):
     tau: float
 
     def force(self, t: float) -> float:
-        return self.F0 + self.A * math.log1p(t / self.tau)
+        s = t / self.tau
+        if s != math.inf:
+            return self.F0 + self.A * math.log1p(s)
+        return self.F0 + self.A * (math.log(t) - math.log(self.tau))  # t/tau beyond floats: ln(1 + s) = ln s
 
     def rate(self, t: float) -> float:
         return self.A / (self.tau + t)
 
     def curvature(self, t: float) -> float:
-        return -self.A / (self.tau + t) ** 2
+        return -self.rate(t) / (self.tau + t)  # not A/(tau + t)^2: the square over- or underflows
 
     def is_constant(self) -> bool:
         return self.A == 0.0
@@ -318,7 +331,12 @@ class Saturating(StaticLaw):
 
 
 class Sigmoid(StaticLaw):
-    """``F_S(t) = F0 + (F_inf - F0) t^n / (tau^n + t^n)``: non-convex aging for ``n > 1``."""
+    """``F_S(t) = F0 + (F_inf - F0) t^n / (tau^n + t^n)``: non-convex aging for ``n > 1``.
+
+    With ``r = (t/tau)^n``: the direct forms where ``t/tau`` and ``r`` are normal floats and ``r <= e^230`` (the
+    powers of ``1 + r`` stay finite); elsewhere the same expressions in ``L = ln r = n (ln t - ln tau)`` and
+    ``e = exp(-|L|)``, which neither overflow nor lose ``r`` to underflow.
+    """
 
     CODE: ClassVar[int] = 4
     NAME: ClassVar[str] = "sigmoid"
@@ -333,24 +351,55 @@ class Sigmoid(StaticLaw):
     tau: float
     n: float
 
+    def _ratio(self, t: float) -> float:
+        """``r = (t/tau)^n`` for ``t > 0`` where the direct forms hold it to rounding, else NaN (use :meth:`_log_ratio`)."""
+        s = t / self.tau
+        if s > 1.0 and self.n * math.log(s) > _LARGEST_LOG_RATIO:
+            return math.nan
+        r = s ** self.n
+        return r if r >= _SMALLEST_RATIO and s >= _SMALLEST_RATIO else math.nan
+
+    def _log_ratio(self, t: float) -> float:
+        """``ln r = n (ln t - ln tau)`` for ``t > 0``."""
+        return self.n * (math.log(t) - math.log(self.tau))
+
     def force(self, t: float) -> float:
-        r = (t / self.tau) ** self.n
-        return self.F0 + (self.F_inf - self.F0) * r / (1.0 + r)
+        if t <= 0.0:
+            return self.F0
+        r = self._ratio(t)
+        if r == r:
+            return self.F0 + (self.F_inf - self.F0) * r / (1.0 + r)
+        log_r = self._log_ratio(t)  # r / (1 + r) = 1 / (1 + 1/r)
+        if log_r > 0.0:
+            return self.F0 + (self.F_inf - self.F0) / (1.0 + math.exp(-log_r))
+        e = math.exp(log_r)
+        return self.F0 + (self.F_inf - self.F0) * e / (1.0 + e)
 
     def rate(self, t: float) -> float:
         if t <= 0.0:
             if self.n > 1.0 or self.F_inf == self.F0:
                 return 0.0
             return (self.F_inf - self.F0) / self.tau if self.n == 1.0 else math.copysign(math.inf, self.F_inf - self.F0)
-        r = (t / self.tau) ** self.n
-        return (self.F_inf - self.F0) * self.n * r / (t * (1.0 + r) ** 2)
+        r = self._ratio(t)
+        if r == r:
+            return (self.F_inf - self.F0) * self.n * r / (t * (1.0 + r) ** 2)
+        decay = -abs(self._log_ratio(t))  # r / (1 + r)^2 = e / (1 + e)^2, e = exp(-|ln r|)
+        e = math.exp(decay)
+        return (self.F_inf - self.F0) * self.n * _exp(decay - math.log(t)) / (1.0 + e) ** 2
 
     def curvature(self, t: float) -> float:
         if t <= 0.0:
             return math.copysign(math.inf, (self.F_inf - self.F0) * (self.n - 1.0)) if self.n != 1.0 else 0.0
-        r = (t / self.tau) ** self.n
-        shape = (self.n - 1.0) - (self.n + 1.0) * r
-        return (self.F_inf - self.F0) * self.n * r * shape / t / t / (1.0 + r) ** 3
+        r = self._ratio(t)
+        if r == r:
+            shape = (self.n - 1.0) - (self.n + 1.0) * r
+            return (self.F_inf - self.F0) * self.n * r * shape / t / t / (1.0 + r) ** 3
+        log_r = self._log_ratio(t)  # r shape / (1 + r)^3 = e / (1 + e)^2 ((n - 1)(1 - q) - (n + 1) q), q = r/(1 + r)
+        decay = -abs(log_r)
+        e = math.exp(decay)
+        q = 1.0 / (1.0 + e) if log_r > 0.0 else e / (1.0 + e)
+        shape = (self.n - 1.0) * (1.0 - q) - (self.n + 1.0) * q
+        return (self.F_inf - self.F0) * self.n * _exp(decay - 2.0 * math.log(t)) / (1.0 + e) ** 2 * shape
 
     def is_constant(self) -> bool:
         return self.F_inf == self.F0

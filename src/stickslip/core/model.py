@@ -178,15 +178,48 @@ def slip_acceleration_slope(mode: int, v: float, v_drive: float, p: Parameters) 
     return -p.kinetic.slope(0.0 if u < 0.0 else u) / p.M  # max(u, 0.0), without boxing in compiled code
 
 
-def slip_departs(mode, x, v_drive, F_ext, p):
+def slip_departs(mode, x, v_drive, F_ext, p, resolution=0.0):
     """True if a slip in ``mode`` starting at ``v_rel = 0`` moves into its own side (``mode * v_rel > 0``).
 
-    ``v_rel' = -a`` decides; where the acceleration ``a`` is 0, ``v_rel'' = kappa v_drive / M`` does.
+    ``v_rel' = -a`` decides, the sign of the force ``M a = F_ext - kappa x + mode F_K(0+)``; where that force
+    is within ``resolution`` (N, :func:`force_resolution`; 0: exactly 0) and ``v_drive != 0``,
+    ``v_rel'' = kappa v_drive / M`` does: a block at a tangential return or a breakaway where ``F_K(0+)``
+    balances the spring to rounding leaves ``v_rel = 0`` on the side the drive takes it (as Modelica's
+    ``PartialFriction`` keeps a started slip while the force exceeds the kinetic friction).
     """
-    a = slip_acceleration(mode, x, v_drive, v_drive, F_ext, p)
-    if a != 0.0:
-        return mode * a < 0.0
+    force = F_ext - p.kappa * x + mode * p.kinetic.force(0.0)
+    if (force > resolution or force < -resolution) or (force != 0.0 and v_drive == 0.0):
+        return mode * force < 0.0
     return mode * v_drive > 0.0
+
+
+def slip_direction(x, v_drive, F_ext, p, resolution=0.0):
+    """Slip mode of a block at ``v_rel = 0`` that the contact does not hold.
+
+    That of the net force without friction (:func:`breakaway_direction`), unless a slip that way cannot leave
+    ``v_rel = 0`` and one the other way can (:func:`slip_departs` with ``resolution``): the force balance is
+    then within rounding, and the block moves the way the drive takes it.
+    """
+    mode = breakaway_direction(x, F_ext, p)
+    if slip_departs(mode, x, v_drive, F_ext, p, resolution) or not slip_departs(-mode, x, v_drive, F_ext, p,
+                                                                                  resolution):
+        return mode
+    return -mode
+
+
+_EPS = 2.220446049250313e-16  # the spacing of floats at 1
+_ROUNDING_ULPS = 16.0  # rounding of a sum of forces, in units of eps times its terms
+
+
+def force_resolution(t, x, v_drive, F_ext, p):
+    """How closely (N) the stepper knows the force balance of a block at ``v_rel = 0`` at ``t`` (s) and ``x`` (m).
+
+    The rounding of the forces summed (``kappa x``, ``F_ext``, ``F_K(0+)``, and the spring force over the
+    oscillation ``sqrt(kappa M) |v_drive|`` that brought the block there), plus the change of the holding
+    force ``kappa |v_drive|`` over one rounding of ``t``: a stick shorter than that ends where its start was.
+    """
+    terms = abs(p.kappa * x) + abs(F_ext) + p.kinetic.force(0.0) + _impedance(p) * abs(v_drive)
+    return _EPS * (_ROUNDING_ULPS * terms + p.kappa * abs(v_drive) * abs(t))
 
 
 def friction_force(mode, x, v, v_drive, F_ext, p):
@@ -206,11 +239,21 @@ def breakaway_direction(x, F_ext, p):
     return FORWARD if F_ext - p.kappa * x < 0.0 else BACKWARD
 
 
-def mode_at_zero_v_rel(x, F_ext, p):
-    """Mode when ``v_rel`` reaches 0 from slip: STUCK if ``F_S(0)`` holds, else overshoot."""
+def mode_at_zero_v_rel(x, F_ext, p, v_drive=0.0, resolution=0.0):
+    """Mode when ``v_rel`` reaches 0 from slip: STUCK if ``F_S(0)`` holds, else overshoot
+    (:func:`slip_direction`; with ``resolution`` 0 that of the net force, whatever ``v_drive``)."""
     if abs(holding_force(x, F_ext, p)) <= p.static.force(0.0):
         return STUCK
-    return breakaway_direction(x, F_ext, p)
+    return slip_direction(x, v_drive, F_ext, p, resolution)
+
+
+def mode_after_slip(mode, x, v_drive, F_ext, p, resolution):
+    """Mode when a slip in ``mode`` reaches ``v_rel = 0`` at ``x`` (:func:`mode_at_zero_v_rel`), decided from
+    the previous mode as Modelica's ``PartialFriction`` does: a slip that would go on in its own mode touched
+    ``v_rel = 0`` tangentially, where the holding force is ``F_K(0+) <= F_S(0)`` (above it only by rounding),
+    so the block sticks, to break away at once if the holding force is at ``F_S``."""
+    new_mode = mode_at_zero_v_rel(x, F_ext, p, v_drive, resolution)
+    return STUCK if new_mode == mode else new_mode
 
 
 def stuck_or_breakaway(x, F_ext, t_stick, p):

@@ -26,16 +26,17 @@ from typing import Iterable
 from .errors import SolverError
 from .model import (
     STUCK,
-    breakaway_direction,
     check_input_scales,
     check_inputs,
     check_scales,
     check_state,
+    force_resolution,
     friction_force,
     initial_mode,
     mode_after_input_change,
-    mode_at_zero_v_rel,
+    mode_after_slip,
     slip_departs,
+    slip_direction,
     z_slip,
 )
 from .model import Parameters
@@ -276,10 +277,12 @@ class Trajectory:
         mode = segment.mode
         t_stick = segment.t_stick(t1)
         if segment.ends_in_event:
+            p, v_drive, F_ext = self.params, self.v_drive, self.F_ext
+            resolution = force_resolution(t1, x1, v_drive, F_ext, p)
             new_mode = (
-                breakaway_direction(x1, self.F_ext, self.params)
+                slip_direction(x1, v_drive, F_ext, p, resolution)
                 if mode == STUCK
-                else mode_at_zero_v_rel(x1, self.F_ext, self.params)
+                else mode_after_slip(mode, x1, v_drive, F_ext, p, resolution)
             )
             self._check_chain(t1, segment.t0, new_mode)
             self._log_event(t1, mode, new_mode)
@@ -299,7 +302,8 @@ class Trajectory:
             if delay is not None:
                 return StuckSegment(t0, delay, True, x0, self.v_drive, t_stick, replayable)
             return StuckSegment(t0, horizon, False, x0, self.v_drive, t_stick, replayable)
-        if v0 == self.v_drive and not slip_departs(mode, x0, self.v_drive, self.F_ext, p):
+        if v0 == self.v_drive and not slip_departs(mode, x0, self.v_drive, self.F_ext, p,
+                                                   force_resolution(t0, x0, self.v_drive, self.F_ext, p)):
             return StepSegment.instant(t0, mode, x0, v0)  # v_rel cannot leave 0 this way: decide again now
         if p.kinetic.affine() is not None:
             return HarmonicSegment.start(t0, mode, x0, v0, self.v_drive, self.F_ext, p)
