@@ -8,18 +8,24 @@ items 6-9 and 13, and the errors that must name their cause).
   arithmetic, and runs with them that stay finite and break away where ``F_S`` says.
 - Item 9: friction far below the spring's force scale: a free harmonic oscillator whose friction direction
   follows the sign of ``v_rel`` at every sample, against the closed form and the reference.
+- Kinetic laws steeper than floats and the solver resolve: refused by name; slips that creep below the solver's
+  resolution: an error, not a hang.
+- Item 13: forged saved states (runtime snapshots and serialized FMU states of both FMUs) refused by field.
 """
 
+import json
 import math
 from decimal import Decimal, localcontext
 
 import numpy as np
 import pytest
 
-from stickslip.core import (CallableKinetic, Constant, Coulomb, Logarithmic, Parameters, Saturating, Sigmoid,
-                            Trajectory)
+from stickslip.core import (CallableKinetic, Constant, Coulomb, Logarithmic, ParameterError, Parameters, Saturating,
+                            Sigmoid, StickSlipError, Stribeck, Trajectory, Viscous)
 from stickslip.hosts.fmpy_host import run_fmu
 from stickslip.reference import parameters_from_values, simulate_reference
+
+from fmu_probe import run_probe
 
 # ---------------------------------------------------------------------------
 # item 6: F_K(0+) = F_S(0), tangential returns at the holding limit
@@ -251,3 +257,131 @@ def test_a_slip_whose_excursion_from_v_rel_zero_is_below_rounding_ends_there():
         assert traj.mode * traj.v_rel >= 0.0, (t, traj.mode, traj.v_rel)
     assert [(before, after) for _, before, after in traj.events[:2]] == [(0, -1), (-1, 0)]
     assert traj.events[1][0] - 1.0 < 1e-10
+
+
+# ---------------------------------------------------------------------------
+# kinetic laws steeper than floats and the solver resolve: refused by name, or an error instead of a hang
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("kinetic, name", [
+    (Viscous(F0=0.5, gamma=1e300), "kinetic.gamma = 1e+300 N s/m"),  # was: "state overflowed (x = nan)"
+    (Viscous(F0=0.5, gamma=1e50), "kinetic.gamma = 1e+50 N s/m"),  # was: x = 0 where the block is at 5 m
+    (Stribeck(v_stribeck=1e-300), "kinetic.v_stribeck = 1e-300 m/s"),  # was: "step size underflow ... too stiff"
+    (Stribeck(v_stribeck=1e-12), "kinetic.v_stribeck = 1e-12 m/s"),  # was: 85,000 steps in 20 s at t = 10 s
+    (Stribeck(gamma=1e10), "kinetic.gamma = 10000000000.0 N s/m"),  # was: a step every 5e-10 s, without end
+], ids=["viscous-1e300", "viscous-1e50", "stribeck-v-1e-300", "stribeck-v-1e-12", "stribeck-gamma-1e10"])
+def test_kinetic_law_too_steep_for_floats_is_refused_by_name(kinetic, name):
+    p = Parameters(M=1.0, kappa=1.0, kinetic=kinetic, static=Constant(F0=1.0))
+    with pytest.raises(ParameterError) as error:
+        Trajectory(p, 0.0, V_DRIVE, v_drive=V_DRIVE)
+    message = str(error.value)
+    assert name in message and "steepest slope" in message and "allowed is at most" in message, message
+
+
+CHATTER = r"""
+import sys
+from stickslip.core import Constant, Parameters, SolverError, Stribeck, Trajectory
+p = Parameters(M=1.0, kappa=1.0, kinetic=Stribeck(gamma=1e6), static=Constant(F0=1.0))
+traj = Trajectory(p, 0.0, 0.1, v_drive=0.1, rtol=float(sys.argv[1]))
+try:
+    traj.advance_to(50.0)
+    print("RAN", traj.n_events)
+except SolverError as error:
+    print("ERROR", error)
+"""
+
+
+def test_slips_creeping_below_the_solver_resolution_are_an_error_not_a_hang():
+    """A Stribeck law with gamma = 1e6 N s/m (within the damping bound) at rtol = 1e-6: its slips creep at
+    2e-7 m/s, below the solver's resolution (1e-6 m/s), and stuck again every few steps: 500,000 steps in 20 s
+    without reaching t = 11 s. Now an error names the cause within a second; at rtol = 1e-10 the same block runs."""
+    import subprocess
+    import sys
+
+    for rtol, expected in (("1e-6", "ERROR more than 1000 mode changes"), ("1e-10", "RAN 1")):
+        done = subprocess.run([sys.executable, "-c", CHATTER, rtol], capture_output=True, text=True, timeout=60)
+        assert done.stdout.startswith(expected), done.stdout + done.stderr
+    assert "below what the solver resolves" in done.stdout or expected == "RAN 1"
+
+
+# ---------------------------------------------------------------------------
+# item 13: saved states with non-finite or overflowing values are refused by field, through every interface
+# ---------------------------------------------------------------------------
+
+
+def _saved_trajectory():
+    """A Coulomb stick-slip trajectory at t = 11.5 s (mid-slip) and its snapshot through JSON."""
+    p = Parameters(M=1.0, kappa=1.0, kinetic=Coulomb(F0=0.5), static=Constant(F0=1.0))
+    traj = Trajectory(p, 0.0, V_DRIVE, v_drive=V_DRIVE)
+    traj.advance_to(11.5)
+    return p, json.loads(json.dumps(traj.snapshot()))
+
+
+FORGED = [  # (path in the snapshot, value, text the refusal holds)
+    (["t"], 1e300, "saved state t = 1e+300 s lies outside its segment"),
+    (["t"], math.nan, "saved state t = nan is not a finite real"),
+    (["v_drive"], math.inf, "saved state v_drive = inf is not a finite real"),
+    (["F_ext"], 1e200, "|F_ext| = 1e+200 N"),
+    (["rtol"], 0.5, "saved state rtol = 0.5 is out of range"),
+    (["t_last_event"], -math.inf, "saved state t_last_event = -inf is not a finite real"),
+    (["counts", 2], -1, "saved state counts.n_overshoots = -1 is not an int >= 0"),
+    (["stepper", 0], 0.0, "saved state stepper.h = 0.0 is not None or a finite real > 0"),
+    (["segment", 0], "bogus", "is not a list that starts with one of"),
+    (["segment", 5], 1e300, "kappa * |saved state x|"),
+    (["segment", 6], math.inf, "saved state segment (harmonic).v0 = inf is not a finite real"),
+    (["segment", 4], 0, "saved state segment (harmonic) is inconsistent: a slip in mode 0"),
+]
+
+
+@pytest.mark.parametrize("path, value, text", FORGED, ids=[f"{'.'.join(map(str, p))}={v!r}" for p, v, _ in FORGED])
+def test_forged_trajectory_snapshot_is_refused_by_field(path, value, text):
+    """Before the fix such snapshots were taken, and the outputs read +-inf or NaN."""
+    p, snap = _saved_trajectory()
+    target = snap
+    for key in path[:-1]:
+        target = target[key]
+    target[path[-1]] = value
+    with pytest.raises(StickSlipError) as error:
+        Trajectory.from_snapshot(p, snap)
+    assert text in str(error.value), str(error.value)
+
+
+def test_snapshot_through_json_continues_bit_for_bit():
+    p, snap = _saved_trajectory()
+    restored = Trajectory.from_snapshot(p, snap)
+    original = Trajectory(p, 0.0, V_DRIVE, v_drive=V_DRIVE)
+    original.advance_to(11.5)
+    for traj in (restored, original):
+        traj.advance_to(40.0)
+    assert restored.outputs() == original.outputs()
+
+
+STEPPED = [["step", 0.0, 11.5]]
+
+
+@pytest.mark.parametrize("interface, fmi, path, value, text", [
+    ("cs", 2, ["trajectory", "t"], 1e300, "saved state t = 1e+300 s"),
+    ("cs", 2, ["trajectory", "segment", 5], "inf", "saved state segment (harmonic).x0 = inf"),
+    ("cs", 2, ["values", "kinetic.gamma"], "nan", "kinetic.gamma = nan N s/m is out of range"),
+    ("cs", 2, ["start_time"], "nan", "saved state start_time = nan"),
+    ("cs", 3, ["block", "trajectory", "v_drive"], "-inf", "saved state v_drive = -inf"),
+    ("cs", 3, ["time"], "inf", "saved state time = inf"),
+    ("me", 3, ["exchange", "_x"], 1e300, "kappa * |saved state x| = 1e+300 N"),
+    ("me", 3, ["exchange", "t_stuck"], "nan", "saved state t_stuck = nan"),
+], ids=["fmi2-t", "fmi2-segment-x0", "fmi2-unused-law-value", "fmi2-start-time", "fmi3-cs-v_drive", "fmi3-cs-time",
+        "fmi3-me-x", "fmi3-me-t_stuck"])
+def test_forged_fmu_state_is_refused_by_field_and_the_instance_goes_on(fmu_path, fmu3_path, interface, fmi, path,
+                                                                       value, text):
+    """A well-formed serialized FMU state holding a non-finite or overflowing value: fmi2Error/fmi3Error from
+    fmi2SetFMUstate/fmi3SetFMUState naming the field, and the instance keeps its state (each case in a child
+    process). Before the fix the state was taken and the outputs read +-inf with status OK."""
+    actions = (STEPPED if interface == "cs" else [["update"]]) + [["forge", path, value]]
+    report = run_probe(fmu_path if fmi == 2 else fmu3_path, interface, {"v_start": V_DRIVE}, actions)
+    assert report["failed"] is not None and report["failed"][0] == "forge", report
+    assert any(text in message for message in report["messages"]), report["messages"]
+    outputs = report["outputs"]
+    assert all(isinstance(value, float) for value in outputs.values()), outputs
+    if interface == "cs":  # still mid-slip at 11.5 s: x = F_K/kappa + (x_b - F_K/kappa) cos(1.5) + v_drive sin(1.5)
+        assert outputs["x"] == pytest.approx(0.5 + 0.5 * math.cos(1.5) + V_DRIVE * math.sin(1.5), rel=1e-12)
+        assert outputs["t_last_event"] == 10.0

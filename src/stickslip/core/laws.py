@@ -65,6 +65,11 @@ class _Law:
         """The law's parameters as ``{name: value}``."""
         return {name: getattr(self, name) for name in self.PARAMETERS}
 
+    def named_values(self):
+        """The parameters as text, ``kinetic.F0 = 0.5 N, ...``, for messages."""
+        return ", ".join(f"{self.PREFIX}.{name} = {getattr(self, name)!r}" + (f" {unit}" if unit not in ("", "1") else "")
+                         for name, (_, _, unit) in self.PARAMETERS.items())
+
     def check(self):
         """Raise ParameterError for the first parameter outside its range."""
         for name, (_, allowed, unit) in self.PARAMETERS.items():
@@ -101,6 +106,11 @@ class KineticLaw(_Law):
     def at_rest(self) -> float:
         """``F_K(0+)`` in N, the kinetic force just after sliding starts."""
         return self.force(0.0)
+
+    def steepest_slope(self) -> float:
+        """An upper bound (N s/m) of ``|F_K'|`` where slips start and end and along them: the viscous slopes and
+        the drop of a Stribeck peak; 0 where the law says nothing (a Python callable)."""
+        return 0.0
 
 
 class Coulomb(KineticLaw):
@@ -139,6 +149,9 @@ class Viscous(KineticLaw):
     def affine(self):
         return self.F0, self.gamma
 
+    def steepest_slope(self) -> float:
+        return self.gamma
+
 
 class Stribeck(KineticLaw):
     """``F_K(u) = F0 + F_stribeck exp(-(u/v_stribeck)^delta) + gamma u`` (``u >= 0``; powers by ``math.pow``,
@@ -170,6 +183,9 @@ class Stribeck(KineticLaw):
     def affine(self):
         return (self.F0 + self.F_stribeck, self.gamma) if self.F_stribeck == 0.0 else None
 
+    def steepest_slope(self) -> float:
+        return self.gamma + self.F_stribeck * self.delta / self.v_stribeck  # s^(delta-1) e^(-s^delta) <= 1
+
 
 class Lubricated(KineticLaw):
     """Boundary lubrication (Elmer 1997, fig. 3).
@@ -199,6 +215,11 @@ class Lubricated(KineticLaw):
         s = _norm(self.dv, w)
         half_jump = 0.5 * (self.gamma2 - self.gamma1)
         return 0.5 * (self.gamma1 + self.gamma2) + half_jump * (w / s + u * self.dv * self.dv / (s * s * s))
+
+    def steepest_slope(self) -> float:
+        """The larger viscous slope: the transition at ``v_tilde``, however sharp, is crossed within a slip (a
+        kink the stepper's step control handles), not where slips start and end."""
+        return self.gamma1 if self.gamma1 > self.gamma2 else self.gamma2
 
 
 class CallableKinetic(KineticLaw):

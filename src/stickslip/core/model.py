@@ -22,6 +22,7 @@ from .ranges import ANY_FINITE, POSITIVE, check
 FORWARD = 1
 STUCK = 0
 BACKWARD = -1
+_EPS = 2.220446049250313e-16  # the spacing of floats at 1
 
 
 class Parameters:
@@ -91,7 +92,30 @@ def check_scales(x, v, v_drive, F_ext, p, state_names=("x", "v")):
             if law.PARAMETERS[name][2] == "N":
                 _check_force_scale(f"{prefix}.{name}", value, lambda: f"{prefix}.{name} = {value!r} N")
     _check_force_scale("F_S(0)", p.static.force(0.0), lambda: f"static law {p.static!r}")
+    check_damping(p)
     check_state_scales(x, v, p, state_names)
+
+
+MAX_DAMPING_RATIO = 1e7  # the steepest |F_K'| over 2 sqrt(kappa M)
+
+
+def check_damping(p):
+    """Raise ParameterError naming the kinetic law's parameters if its steepest slope ``|F_K'|``
+    (:meth:`~.laws.KineticLaw.steepest_slope`) exceeds :data:`MAX_DAMPING_RATIO` times ``2 sqrt(kappa M)``.
+
+    Beyond it a closed-form slip loses more than ``eps`` times the ratio to cancellation (its centre lies
+    ``gamma v / kappa`` away), and a numeric slip creeps at ``(F_S - F_K)/|F_K'|``, below the velocities the
+    solver resolves: it would stick and slip again every few steps without end.
+    """
+    limit = 2.0 * MAX_DAMPING_RATIO * _impedance(p)
+    slope = p.kinetic.steepest_slope()
+    if not slope <= limit:
+        raise ParameterError(
+            f"the {p.kinetic.NAME} law's steepest slope |F_K'| = {slope:.4g} N s/m ({p.kinetic.named_values()}; "
+            f"kappa = {p.kappa!r} N/m, "
+            f"M = {p.M!r} kg) is out of range: allowed is at most {MAX_DAMPING_RATIO:g} * 2 sqrt(kappa M) = "
+            f"{limit:.4g} N s/m (a damping ratio of {MAX_DAMPING_RATIO:g})"
+        )
 
 
 def check_state_scales(x, v, p, state_names=("x", "v")):
@@ -108,6 +132,29 @@ def check_input_scales(v_drive, F_ext, p):
     _check_force_scale("|F_ext|", abs(F_ext), lambda: f"F_ext = {F_ext!r} N")
     _check_force_scale("sqrt(kappa M) * |v_drive|", _impedance(p) * abs(v_drive),
                        lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, v_drive = {v_drive!r} m/s")
+
+
+TIME_RESOLUTION = 1e-8  # the coarsest spacing of floats allowed at a start time, in units of sqrt(M/kappa)
+
+
+def check_start_time(name, t, p):
+    """Raise ParameterError naming ``name`` unless the start time ``t`` (s) is finite and floats resolve it to
+    :data:`TIME_RESOLUTION` of the block's time scale ``sqrt(M/kappa)`` (``|t| <= 4.5e7 sqrt(M/kappa)``).
+
+    Events and steps are placed to the spacing of floats at ``t``: far beyond the bound that rounding alone moves
+    the block (at 1e12 s with ``M = kappa = 1``, by 1e-5 m per event, 1.5e-3 m after a hundred) and stops the
+    stepper (step size underflow, event chains). A run may go on past the bound (a saved state from there is
+    taken back); it cannot start there.
+    """
+    check(name, t, ANY_FINITE, "s")
+    time_scale = math.sqrt(p.M / p.kappa)
+    bound = TIME_RESOLUTION * time_scale / _EPS
+    if abs(t) > bound:
+        raise ParameterError(
+            f"{name} = {t!r} s is out of range: floats space times there by {_EPS * abs(t):.3g} s, coarser than "
+            f"{TIME_RESOLUTION:g} sqrt(M/kappa) = {TIME_RESOLUTION * time_scale:.3g} s; allowed is |{name}| <= "
+            f"{bound:.4g} s (move the time origin nearer)"
+        )
 
 
 def _impedance(p):
@@ -207,7 +254,6 @@ def slip_direction(x, v_drive, F_ext, p, resolution=0.0):
     return -mode
 
 
-_EPS = 2.220446049250313e-16  # the spacing of floats at 1
 _ROUNDING_ULPS = 16.0  # rounding of a sum of forces, in units of eps times its terms
 
 
