@@ -190,7 +190,8 @@ class BlockInterface:
     # ---- runtime objects -----------------------------------------------------------
 
     def parameters(self, values=None):
-        """The runtime's Parameters from ``values`` (default: the current values), each checked (:func:`check_values`)."""
+        """The runtime's Parameters from ``values`` (default: the current values), each value checked first
+        (:func:`check_values`)."""
         v = self.values if values is None else values
         check_values(v)
         return Parameters(v["M"], v["kappa"], _law(v, "kinetic", kinetic_law), _law(v, "static", static_law))
@@ -228,8 +229,8 @@ class BlockInterface:
         return {"values": dict(self.values), "start_time": self.start_time, "trajectory": snapshot}
 
     def restore_block_state(self, state):
-        """Undo to a state from :meth:`block_state` (which stays usable for another restore): :meth:`checked_block_state`,
-        then :meth:`take_block_state`; a refused state leaves the instance as it was."""
+        """Undo to a state from :meth:`block_state` (which stays usable for another restore):
+        :meth:`checked_block_state`, then :meth:`take_block_state`; a refused state leaves the instance as it was."""
         self.take_block_state(self.checked_block_state(state))
 
     def checked_block_state(self, state):

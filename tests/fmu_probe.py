@@ -80,7 +80,8 @@ def _act(inst, action):
 
 
 def _outputs(inst):
-    names = [n for n, v in inst.extracted.variables.items() if v.causality == "output" and v.type in ("Real", "Float64")]
+    names = [n for n, v in inst.extracted.variables.items()
+             if v.causality == "output" and v.type in ("Real", "Float64")]
     read = inst.fmu.getReal if inst.extracted.fmi_version == 2 else inst.fmu.getFloat64
     values = inst.call(read, [inst.extracted.variables[n].valueReference for n in names])
     return {n: (v if math.isfinite(v) else repr(v)) for n, v in zip(names, values)}

@@ -67,7 +67,7 @@ class _Law:
 
     def named_values(self):
         """The parameters as text, ``kinetic.F0 = 0.5 N, ...``, for messages."""
-        return ", ".join(f"{self.PREFIX}.{name} = {getattr(self, name)!r}" + (f" {unit}" if unit not in ("", "1") else "")
+        return ", ".join(f"{self.PREFIX}.{name} = {getattr(self, name)!r}" + ("" if unit in ("", "1") else f" {unit}")
                          for name, (_, _, unit) in self.PARAMETERS.items())
 
     def check(self):
@@ -373,7 +373,8 @@ class Sigmoid(StaticLaw):
     n: float
 
     def _ratio(self, t: float) -> float:
-        """``r = (t/tau)^n`` for ``t > 0`` where the direct forms hold it to rounding, else NaN (use :meth:`_log_ratio`)."""
+        """``r = (t/tau)^n`` for ``t > 0`` where the direct forms hold it to rounding, else NaN (then
+        :meth:`_log_ratio` serves)."""
         s = t / self.tau
         if s > 1.0 and self.n * math.log(s) > _LARGEST_LOG_RATIO:
             return math.nan

@@ -63,8 +63,9 @@ def record(name, saved, kinds):
     missing = [key for key in kinds if key not in saved]
     unknown = sorted(key for key in saved if key not in kinds)
     if missing or unknown:
-        problems = [f"lacks the fields {missing}" if missing else "", f"has unknown fields {unknown}" if unknown else ""]
-        raise StateError(f"{label} {' and '.join(p for p in problems if p)}")
+        problems = [f"lacks the fields {missing}"] if missing else []
+        problems += [f"has unknown fields {unknown}"] if unknown else []
+        raise StateError(f"{label} {' and '.join(problems)}")
     return {key: field(f"{name}.{key}" if name else key, saved[key], kind) for key, kind in kinds.items()}
 
 

@@ -62,6 +62,7 @@ _SNAPSHOT_FIELDS = {"t": saved_state.REAL, "v_drive": saved_state.REAL, "F_ext":
                     "stepper": saved_state.NESTED, "segment": saved_state.NESTED}
 _COUNT_FIELDS = tuple((name, saved_state.COUNT) for name in ("n_stick_events", "n_slip_events", "n_overshoots",
                                                                "chain"))
+_BURST_FIELDS = (("start", saved_state.REAL), ("count", saved_state.COUNT))
 _STEPPER_FIELDS = (("h", saved_state.OPTIONAL_STEP), ("stiff", saved_state.FLAG), ("votes", saved_state.COUNT),
                    ("n_steps", saved_state.COUNT), ("n_rejected", saved_state.COUNT))
 
@@ -285,7 +286,7 @@ class Trajectory:
         check("saved state rtol", fields["rtol"], RTOL_RANGE, error=StateError)
         check_input_scales(fields["v_drive"], fields["F_ext"], params)
         counts = saved_state.sequence("counts", snap["counts"], _COUNT_FIELDS)
-        burst = saved_state.sequence("burst", snap["burst"], (("start", saved_state.REAL), ("count", saved_state.COUNT)))
+        burst = saved_state.sequence("burst", snap["burst"], _BURST_FIELDS)
         stepper = saved_state.sequence("stepper", snap["stepper"], _STEPPER_FIELDS)
         segment = segment_from_list(snap["segment"], params)
         if not (segment.t0 <= t <= segment.t1 and fields["t_last_event"] <= t):
@@ -296,7 +297,8 @@ class Trajectory:
         saved_state.field("v at t", v, saved_state.REAL)
         check_state_scales(x, v, params, ("saved state x", "saved state v"))
         traj = cls(params, 0.0, 0.0, rtol=fields["rtol"])  # at rest: every field is replaced below
-        traj.t, traj.v_drive, traj.F_ext, traj.t_last_event = t, fields["v_drive"], fields["F_ext"], fields["t_last_event"]
+        traj.t, traj.v_drive, traj.F_ext = t, fields["v_drive"], fields["F_ext"]
+        traj.t_last_event = fields["t_last_event"]
         traj.n_stick_events, traj.n_slip_events, traj.n_overshoots, traj._chain = counts
         traj._burst_start, traj._burst = burst
         traj._stepper = SlipStepper.from_snapshot(traj.rtol, stepper)
