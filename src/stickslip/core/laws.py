@@ -15,15 +15,15 @@ A Python user may pass any callable through :class:`CallableKinetic` or
 from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
 
 import math
-from typing import ClassVar
+from typing import ClassVar, Final
 
 from .errors import ParameterError
 from .ranges import NON_NEGATIVE, POSITIVE, Range, check
 
 
-_LARGEST_LOG_RATIO = 230.0  # ln of the largest (t/tau)^n a sigmoid law raises to powers directly (e^230 ~ 1e100)
-_LOG_LARGEST_FLOAT = 709.782712893384  # ln(1.7976931348623157e308)
-_SMALLEST_RATIO = 1e-290  # below it t/tau or (t/tau)^n may have lost digits to underflow: the sigmoid takes logarithms
+_LARGEST_LOG_RATIO: Final = 230.0  # ln of the largest (t/tau)^n a sigmoid law raises to powers directly (e^230 ~ 1e100)
+_LOG_LARGEST_FLOAT: Final = 709.782712893384  # ln(1.7976931348623157e308)
+_SMALLEST_RATIO: Final = 1e-290  # below it t/tau or (t/tau)^n may have lost digits to underflow: the sigmoid takes logarithms
 
 
 def _exp(x: float) -> float:

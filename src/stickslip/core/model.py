@@ -14,6 +14,7 @@ the surface). Transitions are decided from the previous mode.
 from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
 
 import math
+from typing import Final
 
 from .errors import ParameterError
 from .laws import KineticLaw, StaticLaw, check_pair
@@ -22,7 +23,7 @@ from .ranges import ANY_FINITE, POSITIVE, check
 FORWARD = 1
 STUCK = 0
 BACKWARD = -1
-_EPS = 2.220446049250313e-16  # the spacing of floats at 1
+_EPS: Final = 2.220446049250313e-16  # the spacing of floats at 1
 
 
 class Parameters:
@@ -254,7 +255,7 @@ def slip_direction(x, v_drive, F_ext, p, resolution=0.0):
     return -mode
 
 
-_ROUNDING_ULPS = 16.0  # rounding of a sum of forces, in units of eps times its terms
+_ROUNDING_ULPS: Final = 16.0  # rounding of a sum of forces, in units of eps times its terms
 
 
 def force_resolution(t, x, v_drive, F_ext, p):

@@ -21,7 +21,7 @@ when the inputs change.
 from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
 
 import math
-from typing import Iterable
+from typing import Final, Iterable
 
 from . import saved_state
 from .errors import SolverError, StateError
@@ -50,9 +50,9 @@ from .stuck import breakaway_delay
 
 RTOL_RANGE = Range(1e-14, 1e-2)
 _MAX_EVENT_CHAIN = 100  # mode changes in a row without time advancing
-_MAX_BURST = 1000  # mode changes within _BURST_WINDOW time scales sqrt(M/kappa) (stick-slip has a few per period)
-_BURST_WINDOW = 1.0
-_EPS = 2.220446049250313e-16  # the spacing of floats at 1
+_MAX_BURST: Final = 1000  # mode changes within _BURST_WINDOW time scales sqrt(M/kappa) (stick-slip has a few per period)
+_BURST_WINDOW: Final = 1.0  # in units of sqrt(M/kappa)
+_EPS: Final = 2.220446049250313e-16  # the spacing of floats at 1
 _STUCK_HORIZON_PERIODS = 1e6  # an aging stick is searched for a breakaway this far ahead, then re-searched
 
 # The fields of :meth:`Trajectory.snapshot` and their kinds (:mod:`.saved_state`)
