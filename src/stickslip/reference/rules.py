@@ -37,9 +37,9 @@ def hold_or_break(p, x, F_ext, t_stick, v_drive=0.0, t=0.0):
     return STUCK if z_slip(p, x, F_ext, t_stick) >= 0.0 else slip_mode(p, x, v_drive, F_ext, t)
 
 
-def initial_mode(p, x, v, v_drive, F_ext, t):
+def initial_mode(p, x, v, v_drive, F_ext, t=0.0):
     """Mode at the start time ``t`` (s): stuck if ``v == v_drive`` and ``F_S(0)`` holds, else the sign of
-    ``v_rel``."""
+    ``v_rel`` (``t`` matters only where the forces balance to rounding, see :func:`departure`)."""
     v_rel = v_drive - v
     if v_rel == 0.0:
         return hold_or_break(p, x, F_ext, 0.0, v_drive, t)
