@@ -93,7 +93,8 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         _check_kind(kind, references)
         for reference, value in zip(references, values):
             if reference >= OUTPUTS_AT:
-                raise TypeError(f"Variable with valueReference={reference} is an output: it cannot be set!")
+                raise TypeError(f"{VARIABLES[reference].name} (valueReference={reference}) is an output: it cannot "
+                                f"be set")
             self.set_variable(VARIABLES[reference].name, value)
 
     def set_variable(self, name, value):
@@ -135,8 +136,7 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
 
     def do_step(self, current_time, step_size):
         """Hold the inputs and advance to ``current_time + step_size`` s (raises on failure, never discards)."""
-        self.current_trajectory().advance_to(current_time + step_size)
-        self.outputs_changed()
+        self.advance(current_time, step_size)
         return True
 
     def _get_fmu_state(self):

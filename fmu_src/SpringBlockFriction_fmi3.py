@@ -10,7 +10,7 @@ uses shows in its calls: the outputs follow the trajectory until the first model
 ``build_fmu.py`` bundles the runtime and the shared table under names only this FMU uses.
 
 pythonfmu3 0.3.4 passes no start time to the slave: a co-simulation starts at the first ``do_step``'s
-time, model exchange at t = 0 unless the host calls ``fmi3SetTime`` before the first event update. Its
+time, model exchange at t = 0, unless the host (or the FMU's loader) calls ``fmi3SetTime`` during initialization. Its
 ``Fmi3UpdateDiscreteStatesResult`` misspells two fields that its C++ wrapper reads
 (``discreteStatesNeedUpdate``, ``nominalContinuousStatesChanged``), so the update returns its own.
 """
@@ -21,7 +21,7 @@ from collections import namedtuple
 from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, Fmi3Variability, Float64, Int32,
                         ModelExchange)
 
-from block_interface import BlockInterface, balance_release, check_state, serialized_states
+from block_interface import BlockInterface, balance_release, check_state, saved_state, serialized_states
 from stickslip.core.exchange import INDICATORS, ExchangeBlock
 
 _CAUSALITY = {"parameter": Fmi3Causality.parameter, "input": Fmi3Causality.input, "output": Fmi3Causality.output}
@@ -34,6 +34,10 @@ INDICATOR_VARIABLES = {
     "breakaway": ("N", "event indicator: F_S(t_stick) - |kappa x - F_ext| while stuck, 1 while slipping"),
     "graze": ("m/s2", "event indicator: mode * dv_rel/dt while slipping (zero at an extremum of v_rel), 1 while stuck"),
 }
+
+# the fields of _get_fmu_state's dict and their kinds (the runtime's saved_state)
+_FMU_STATE_KINDS = {"block": saved_state.NESTED, "exchange": saved_state.NESTED, "time": saved_state.REAL,
+                    "interface": saved_state.FLAG, "stepped": saved_state.FLAG}
 
 DiscreteUpdate = namedtuple(
     "DiscreteUpdate", "discreteStatesNeedUpdate terminateSimulation nominalContinuousStatesChanged "
@@ -50,7 +54,7 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         self.time = 0.0
         self.block = None  # the ExchangeBlock, built when initialization ends
         self.exchange = False  # True once the host made a model-exchange call
-        self._stepped = False  # a co-simulation step was taken
+        self._stepped = False  # a co-simulation step was taken, or the host gave the start time
         self.init_block()
         self.register_variables({"real": Float64, "integer": Int32}, _CAUSALITY, _VARIABILITY)
         state_refs = {v.name: v.value_reference for v in self.vars.values()}
@@ -74,6 +78,27 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
                     description=description, getter=getter, derivative=derivative),
             nested=False,
         )
+
+    def set_float64(self, vrs, values):
+        """Set Float64 parameters (before initialization ends) or inputs; TypeError naming any other variable."""
+        self._check_settable(vrs)
+        super().set_float64(vrs, values)
+
+    def set_int32(self, vrs, values):
+        """Set Int32 parameters (before initialization ends); TypeError naming any other variable."""
+        self._check_settable(vrs)
+        super().set_int32(vrs, values)
+
+    def _check_settable(self, references):
+        """TypeError unless each value reference is a parameter or an input (pythonfmu3 would call an output's
+        missing setter, "'NoneType' object is not callable", and set ``time`` through the slave's attribute)."""
+        for reference in references:
+            variable = self.vars.get(reference)
+            if variable is None:
+                raise TypeError(f"no variable has valueReference={reference}")
+            if variable.causality not in (Fmi3Causality.parameter, Fmi3Causality.input):
+                raise TypeError(f"{variable.name} (valueReference={reference}) is of causality "
+                                f"{variable.causality.name}: only parameters and inputs can be set")
 
     def set_variable(self, name, value):
         super().set_variable(name, value)
@@ -101,21 +126,27 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
                 "stepped": self._stepped}
 
     def _set_fmu_state(self, state):
+        """Undo to a state from :meth:`_get_fmu_state`, each field checked before any is taken (StateError or
+        ParameterError naming the first out of place or range; bytes that were no state: StateError)."""
         check_state(state)
-        self.restore_block_state(state["block"])
-        self.time, self.exchange, self._stepped = state["time"], state["interface"], state["stepped"]
-        saved = state["exchange"]
-        self.block = None if saved is None else ExchangeBlock.from_snapshot(self.parameters(), saved)
+        fields = saved_state.record("", state, _FMU_STATE_KINDS)
+        checked = self.checked_block_state(fields["block"])
+        saved = fields["exchange"]
+        block = None if saved is None else ExchangeBlock.from_snapshot(checked[3], saved)
+        self.take_block_state(checked)
+        self.time, self.exchange, self._stepped = fields["time"], fields["interface"], fields["stepped"]
+        self.block = block
 
     # ---- FMI: co-simulation ----------------------------------------------------------
 
     def do_step(self, current_time, step_size):
-        """Hold the inputs and advance to ``current_time + step_size`` s (raises on failure, never discards)."""
+        """Hold the inputs and advance to ``current_time + step_size`` s (raises on failure, never discards). Each
+        step starts where the last ended (:func:`block_interface.check_step`); the first starts the trajectory at
+        ``current_time`` unless the host gave the start time (fmi3SetTime during initialization)."""
         if not self._stepped and current_time != self.trajectory.t:
             self.trajectory = self.new_trajectory(t0=current_time)
         self._stepped = True
-        self.current_trajectory().advance_to(current_time + step_size)
-        self.outputs_changed()
+        self.advance(current_time, step_size)
         return True
 
     # ---- FMI: model exchange ---------------------------------------------------------
@@ -127,9 +158,14 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         return self._new_block() if self.block is None else self.block
 
     def set_time(self, time):
-        self.time = float(time)
-        if self.block is not None:  # before initialization ends: the start time
-            self._exchange_call().t = self.time
+        """The model's time (s); before initialization ends, the start time of both interfaces (a co-simulation
+        then starts there, not at its first doStep): ParameterError for a time the block cannot take."""
+        if self.block is None:
+            self.time = self.start_time = float(time)
+            self._stepped = True  # the first doStep starts at the start time, not wherever it says
+        else:
+            self._exchange_call().set_time(time)
+            self.time = float(time)
 
     def get_continuous_states(self):
         return self._exchange_call().states()

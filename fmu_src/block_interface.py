@@ -13,17 +13,19 @@ import copy
 import ctypes
 import functools
 import json
+import math
 from collections import namedtuple
 
 from stickslip.core import (
-    ANY_FINITE, KINETIC_LAWS, POSITIVE, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, Trajectory,
-    kinetic_law, static_law,
+    ANY_FINITE, KINETIC_LAWS, NON_NEGATIVE, POSITIVE, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, StateError,
+    Trajectory, check, kinetic_law, saved_state, static_law,
 )
 
 #: causality "parameter" (fixed), "input" or "output"; kind "real" or "integer"; variability "fixed",
 #: "continuous" or "discrete"; start None for outputs; unit "" or "1" when dimensionless; bounds inclusive
-#: (min, max), None where unbounded; attribute: the Trajectory attribute an output reads (None otherwise).
-Variable = namedtuple("Variable", "name causality kind variability start unit description bounds attribute")
+#: (min, max), None where unbounded; attribute: the Trajectory attribute an output reads (None otherwise); allowed: the
+#: Range of a real parameter or input (None for law codes and outputs).
+Variable = namedtuple("Variable", "name causality kind variability start unit description bounds attribute allowed")
 
 _UNBOUNDED = (None, None)
 
@@ -94,16 +96,16 @@ def _inclusive_bounds(allowed):
 def _variables():
     def parameter(name, kind, default, unit, description, allowed):
         return Variable(name, "parameter", kind, "fixed", default, unit, _with_range(description, allowed),
-                        _inclusive_bounds(allowed), None)
+                        _inclusive_bounds(allowed), None, allowed)
 
     def law_code(kind, laws):
         codes = ", ".join(f"{code} {laws[code].NAME}" for code in sorted(laws))
         return Variable(f"{kind}.law", "parameter", "integer", "fixed", 1, "", f"{kind} friction law: {codes}",
-                        (min(laws), max(laws)), None)
+                        (min(laws), max(laws)), None, None)
 
     def input_(name, start, unit, description):
         return Variable(name, "input", "real", "continuous", start, unit, _with_range(description, ANY_FINITE),
-                        _UNBOUNDED, None)
+                        _UNBOUNDED, None, ANY_FINITE)
 
     table = [
         parameter("M", "real", 1.0, "kg", "block mass", POSITIVE),
@@ -120,7 +122,7 @@ def _variables():
     table.append(input_("v_drive", 0.1, "m/s", "surface (drive) velocity"))
     table.append(input_("F_ext", 0.0, "N", "external force on the block"))
     for name, attribute, kind, variability, unit, text in _OUTPUTS:
-        table.append(Variable(name, "output", kind, variability, None, unit, text, _UNBOUNDED, attribute))
+        table.append(Variable(name, "output", kind, variability, None, unit, text, _UNBOUNDED, attribute, None))
     return tuple(table)
 
 
@@ -189,15 +191,12 @@ class BlockInterface:
 
     # ---- runtime objects -----------------------------------------------------------
 
-    def _law(self, kind, build):
-        code = self.values[f"{kind}.law"]
-        names = build(code).PARAMETERS  # raises ParameterError for an unknown code
-        return build(code, **{name: self.values[f"{kind}.{name}"] for name in names})
-
-    def parameters(self):
-        """The runtime's Parameters from the current values (laws checked by the runtime when used)."""
-        v = self.values
-        return Parameters(v["M"], v["kappa"], self._law("kinetic", kinetic_law), self._law("static", static_law))
+    def parameters(self, values=None):
+        """The runtime's Parameters from ``values`` (default: the current values), each value checked first
+        (:func:`check_values`)."""
+        v = self.values if values is None else values
+        check_values(v)
+        return Parameters(v["M"], v["kappa"], _law(v, "kinetic", kinetic_law), _law(v, "static", static_law))
 
     def new_trajectory(self, t0=None):
         """A Trajectory from the parameters, start state and inputs, starting at ``t0`` (default start_time)."""
@@ -216,6 +215,14 @@ class BlockInterface:
             self._inputs_changed = False
         return self.trajectory
 
+    def advance(self, current_time, step_size):
+        """``doStep``: hold the inputs and advance the trajectory from ``current_time`` by ``step_size`` s, after
+        :func:`check_step` (the step must start where the last one ended)."""
+        trajectory = self.current_trajectory()
+        check_step(current_time, step_size, trajectory.t)
+        trajectory.advance_to(current_time + step_size)
+        self.outputs_changed()
+
     # ---- FMU state ---------------------------------------------------------------
 
     def block_state(self):
@@ -224,19 +231,33 @@ class BlockInterface:
         return {"values": dict(self.values), "start_time": self.start_time, "trajectory": snapshot}
 
     def restore_block_state(self, state):
-        """Undo to a state from :meth:`block_state` (which stays usable for another restore).
+        """Undo to a state from :meth:`block_state` (which stays usable for another restore):
+        :meth:`checked_block_state`, then :meth:`take_block_state`; a refused state leaves the instance as it was."""
+        self.take_block_state(self.checked_block_state(state))
+
+    def checked_block_state(self, state):
+        """``(values, start time, trajectory, parameters)`` of a state from :meth:`block_state`, every value checked
+        and nothing taken: the parameters and inputs (:func:`check_values`), the start time and the trajectory
+        (:meth:`Trajectory.from_snapshot`); StateError or ParameterError names a field out of place or range.
 
         A state saved during initialization (no trajectory yet) is refused once initialization has ended: the
         instance would go on without a trajectory, every step discarded (FMI does not say what it means)."""
-        if state["trajectory"] is None and self.trajectory is not None:
+        state = copy.deepcopy(state)
+        fields = saved_state.record("", state, _BLOCK_STATE_KINDS)
+        values = saved_state.record("values", fields["values"], dict.fromkeys(self.values, saved_state.NESTED))
+        parameters = self.parameters(values)
+        snapshot = fields["trajectory"]
+        if snapshot is None and self.trajectory is not None:
             raise StateError("this FMU state was saved during initialization mode and cannot be restored after "
                              "initialization ended: reset the instance first, or restore a state saved after "
                              "initialization")
-        state = copy.deepcopy(state)
-        self.values.update(state["values"])
-        self.start_time = state["start_time"]
-        snapshot = state["trajectory"]
-        self.trajectory = None if snapshot is None else Trajectory.from_snapshot(self.parameters(), snapshot)
+        trajectory = None if snapshot is None else Trajectory.from_snapshot(parameters, snapshot)
+        return values, fields["start_time"], trajectory, parameters
+
+    def take_block_state(self, checked):
+        """Take a state from :meth:`checked_block_state`."""
+        values, self.start_time, self.trajectory, _ = checked
+        self.values.update(values)
         self._inputs_changed = False  # the restored trajectory holds the restored inputs
         self.outputs_changed()
 
@@ -246,10 +267,6 @@ class BlockInterface:
 #: How a refused state (:func:`state_from_bytes`) serializes: this prefix, then the reason as UTF-8. The FMUs' loader
 #: (``fmi2DeSerializeFMUstate``/``fmi3DeserializeFMUState`` in ``src/stickslip/fmu/loader``) looks for it.
 REFUSED_STATE = b"refused FMU state: "
-
-
-class StateError(ValueError):
-    """An FMU state that this instance cannot take now, or bytes that are no FMU state of this FMU."""
 
 
 def serialized_states(cls, keys):
@@ -288,6 +305,46 @@ def check_state(state):
     """Raise :class:`StateError` with the reason for a refused state (from :func:`state_from_bytes`)."""
     if "refused" in state:
         raise StateError(state["refused"])
+
+
+_BLOCK_STATE_KINDS = {"values": saved_state.NESTED, "start_time": saved_state.REAL, "trajectory": saved_state.NESTED}
+
+
+def _law(values, kind, build):
+    """The ``kind`` ("kinetic" or "static") law that ``values`` select (``build``: kinetic_law or static_law)."""
+    code = values[f"{kind}.law"]
+    names = build(code).PARAMETERS  # raises ParameterError for an unknown code
+    return build(code, **{name: values[f"{kind}.{name}"] for name in names})
+
+
+def check_values(values):
+    """Raise ParameterError naming the first real parameter or input in ``values`` (by FMU name) outside its
+    range, whether its law is selected or not: every value the FMU accepted is one it checked (the law codes,
+    and ranges that join several values, are the runtime's checks)."""
+    for variable in VARIABLES:
+        if variable.allowed is not None:
+            check(variable.name, values[variable.name], variable.allowed, variable.unit)
+
+
+_STEP_ROUNDING = 8 * 2.220446049250313e-16  # relative: a host sums the communication points its own way
+
+
+def check_step(current_time, step_size, t):
+    """Raise ParameterError unless ``currentCommunicationPoint`` and ``communicationStepSize`` (s) are finite, the
+    step size is >= 0, and the step starts at the FMU's time ``t`` (s), the start time or the end of the last step,
+    to rounding: a gap or an overlap between communication points is refused, not integrated through."""
+    gap, allowed = abs(current_time - t), _STEP_ROUNDING * max(abs(current_time), abs(t))
+    if step_size >= 0.0 and math.isfinite(current_time + step_size) and gap <= allowed:
+        return  # the usual step, in a few comparisons (this runs at every doStep)
+    check("currentCommunicationPoint", current_time, ANY_FINITE, "s")
+    check("communicationStepSize", step_size, NON_NEGATIVE, "s")
+    if gap > allowed:
+        kind = "a gap" if current_time > t else "an overlap"
+        raise ParameterError(
+            f"currentCommunicationPoint = {current_time!r} s is not the FMU's time t = {t!r} s (the start time or "
+            f"the end of the last step): {kind} of {abs(current_time - t):.6g} s between communication points; "
+            f"a step starts where the last ended (restore a saved FMU state to go back)"
+        )
 
 
 # ---- PythonFMU's release of the slave on an exception -----------------------------

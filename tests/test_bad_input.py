@@ -22,6 +22,7 @@ from stickslip.suite.scenario import ScenarioError, load_scenario, load_scenario
 from stickslip.stress.session import FmuCallError, FmuSession, fmi2Error, fmi2Fatal
 
 import machine_needs
+from fmu_probe import run_probe
 from scenario_texts import VALID
 
 STICK_SLIP = {"M": 1.0, "kappa": 1.0, "kinetic.F0": 0.5, "static.F0": 1.0}
@@ -170,13 +171,15 @@ def test_bad_parameter_status_is_fmi2Error_not_fmi2Fatal(session):
     assert direct.value.status == fmi2Error
 
 
-def test_parameter_of_an_unused_law_is_not_checked(session):
-    """Documented behaviour: only the selected laws' parameters are validated (kinetic.gamma1 belongs to
-    law 4, the run uses law 1), so a NaN there is harmless and accepted."""
-    inst = session.instantiate(session.start_values({"kinetic.law": 1, "kinetic.gamma1": math.nan}))
-    inst.do_step(1.0)
-    assert math.isfinite(inst.read()["x"])
-    inst.free()
+@pytest.mark.parametrize("name, value", [("kinetic.gamma", math.nan), ("kinetic.gamma1", -1.0), ("static.n", 30.0)])
+def test_parameter_of_an_unused_law_is_checked_too(session, name, value):
+    """Every value set is checked, whether its law is selected or not (issue 20: kinetic.gamma = NaN with law 1
+    was accepted); the run uses laws 1 and 1 here."""
+    with pytest.raises(FmuCallError) as error:
+        session.instantiate(session.start_values({"kinetic.law": 1, "static.law": 1, name: value}))
+    message = "\n".join(error.value.messages)
+    assert f"{name} = {value!r}" in message and "out of range: allowed is a finite value in" in message, message
+    assert _runs_normally(session)
 
 
 # ---------------------------------------------------------------------------
@@ -215,7 +218,9 @@ def test_bad_input_from_an_fmpy_input_table_is_an_exception(session, fmu_path):
     assert _runs_normally(session)
 
 
-@pytest.mark.parametrize("h, text", [(-0.5, "back to t = 0.5 s"), (math.nan, "t = nan")], ids=["negative", "nan"])
+@pytest.mark.parametrize("h, text", [(-0.5, "communicationStepSize = -0.5 s is out of range"),
+                                     (math.nan, "communicationStepSize = nan s is out of range")],
+                         ids=["negative", "nan"])
 def test_bad_communication_step_is_an_error(session, fmu_path, h, text):
     inst = session.instantiate(session.start_values(STICK_SLIP))
     try:
@@ -480,3 +485,95 @@ def test_scenario_law_parameter_message_states_its_true_range(tmp_path, kind, la
         load_scenario(_write(tmp_path, text))
     message = str(info.value)
     assert f"'{kind}.{parameter}'" in message and f"a finite number in {allowed}" in message, message
+
+
+# ---------------------------------------------------------------------------
+# errors that name their cause (issue 20, "Messages and misuse")
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("start, texts", [
+    ({"kinetic.law": 2, "kinetic.gamma": 1e300}, ["kinetic.gamma = 1e+300 N s/m", "steepest slope"]),
+    ({"kinetic.law": 3, "kinetic.v_stribeck": 1e-300}, ["kinetic.v_stribeck = 1e-300 m/s", "steepest slope"]),
+], ids=["gamma-1e300", "v_stribeck-1e-300"])
+def test_law_too_steep_names_its_parameter(session, start, texts):
+    """Was: "state overflowed (x = nan)" at the first breakaway, and "step size underflow ... too stiff"."""
+    with pytest.raises(FmuCallError) as error:
+        session.instantiate(session.start_values(start))
+    message = "\n".join(error.value.messages)
+    assert error.value.function == "fmi2ExitInitializationMode"
+    assert all(text in message for text in texts) and "allowed is at most" in message, message
+    assert _runs_normally(session)
+
+
+@pytest.mark.parametrize("start_time", [1e12, 1e15, -1e13])
+def test_start_time_beyond_the_resolution_of_time_is_refused(session, start_time):
+    """Was: "step size underflow" or "event chain" from 1e15 s, and x silently shifted by 1.5e-3 m from 1e12 s."""
+    with pytest.raises(FmuCallError) as error:
+        session.instantiate(session.start_values(STICK_SLIP), start_time=start_time)
+    message = "\n".join(error.value.messages)
+    assert f"start time = {start_time!r} s is out of range" in message, message
+    assert "floats space times there by" in message and "allowed is |start time| <= 4.504e+07 s" in message
+    assert _runs_normally(session)
+
+
+def test_large_start_time_within_the_bound_runs_as_from_zero(session):
+    """1e6 s is inside the bound (4.5e7 sqrt(M/kappa)): the run matches the one from 0 to 1e-9 m."""
+    rows = []
+    for start_time in (0.0, 1e6):
+        inst = session.instantiate(session.start_values(dict(STICK_SLIP, v_start=0.1)), start_time=start_time)
+        for _ in range(30):
+            inst.do_step(1.0)
+        rows.append(inst.read())
+        inst.free()
+    assert rows[1]["x"] == pytest.approx(rows[0]["x"], abs=1e-9) and rows[1]["n_events"] == rows[0]["n_events"]
+
+
+@pytest.mark.parametrize("first, text", [
+    (5.0, "currentCommunicationPoint = 5.0 s is not the FMU's time t = 0.0 s"),  # a first step after the start
+    (math.nan, "currentCommunicationPoint = nan s is out of range"),
+], ids=["first-step-late", "nan"])
+def test_first_step_must_start_at_the_start_time(session, first, text):
+    """Was: integrated from the start time through the gap (FMI 2), restarted at t (FMI 3)."""
+    inst = session.instantiate(session.start_values(STICK_SLIP))
+    try:
+        with pytest.raises(FmuCallError) as error:
+            inst.call(inst.fmu.doStep, first, 1.0)
+        assert text in "\n".join(error.value.messages)
+        inst.do_step(1.0)  # from the start time: the instance goes on
+    finally:
+        inst.free()
+
+
+@pytest.mark.parametrize("offset, kind", [(0.5, "a gap of 0.5 s"), (-0.5, "an overlap of 0.5 s")])
+def test_gaps_and_overlaps_between_communication_points_are_refused(session, offset, kind):
+    inst = session.instantiate(session.start_values(STICK_SLIP))
+    try:
+        inst.do_step(1.0)
+        with pytest.raises(FmuCallError) as error:
+            inst.call(inst.fmu.doStep, 1.0 + offset, 1.0)
+        message = "\n".join(error.value.messages)
+        assert f"currentCommunicationPoint = {1.0 + offset!r} s is not the FMU's time t = 1.0 s" in message
+        assert kind in message, message
+        inst.do_step(1.0)
+    finally:
+        inst.free()
+
+
+def test_fmi3_gaps_setting_outputs_and_going_back_before_a_stick_name_the_cause(fmu3_path):
+    """FMI 3 (each in a child process): a gap after the first step, setting an output (was "'NoneType' object is
+    not callable") or the independent time, and fmi3SetTime before the current stick began (was "math domain
+    error" from F_S at a negative stick time)."""
+    cases = [
+        ("cs", {}, [["step", 0.0, 1.0], ["step", 1.5, 1.0]], "currentCommunicationPoint = 1.5 s is not the FMU's time"),
+        ("cs", {}, [["set", "x", 1.0]], "x (valueReference="),
+        ("cs", {}, [["set", "time", 1.0]], "time (valueReference="),
+        ("me", {"v_start": 0.1, "static.law": 2}, [["update"], ["time", 1.0], ["time", -2.0]],
+         "time = -2.0 s is before the current stick began at t = 0.0 s"),
+    ]
+    for interface, start, actions, text in cases:
+        report = run_probe(fmu3_path, interface, start, actions)
+        assert report["failed"] == actions[-1], report
+        assert any(text in message for message in report["messages"]), (text, report["messages"])
+    assert "is of causality output: only parameters and inputs can be set" in "".join(
+        run_probe(fmu3_path, "cs", {}, [["set", "x", 1.0]])["messages"])

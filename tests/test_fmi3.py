@@ -11,6 +11,7 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import FMU3Model, FMU3Slave
 from fmpy.validation import validate_fmu
 
@@ -34,13 +35,14 @@ ELMER = {"M": 40.0, "kappa": 1.0, "kinetic.law": 4, "kinetic.gamma1": 3.0, "kine
 ME_ONLY = {"der(x)", "der(v)", "indicator.stick", "indicator.breakaway", "indicator.graze", "time"}
 
 
-def instance(unzipped3, cls, start, name):
-    """An instance of the FMI 3 FMU (``FMU3Slave`` or ``FMU3Model``) with ``start`` set, out of initialization."""
+def instance(unzipped3, cls, start, name, start_time=0.0):
+    """An instance of the FMI 3 FMU (``FMU3Slave`` or ``FMU3Model``) with ``start`` set, out of initialization,
+    started at ``start_time`` (s)."""
     folder, description, variables = unzipped3
     fmu = cls(guid=description.guid, unzipDirectory=folder, instanceName=name,
               modelIdentifier=description.coSimulation.modelIdentifier)
     fmu.instantiate(loggingOn=True)
-    fmu.enterInitializationMode(startTime=0.0)
+    fmu.enterInitializationMode(startTime=start_time)
     for key, value in start.items():
         variable = variables[key]
         setter = fmu.setInt32 if variable.type == "Int32" else fmu.setFloat64
@@ -121,9 +123,10 @@ def test_co_simulation_equals_the_fmi2_fmu_bit_for_bit(path, fmu_path, fmu3_path
         assert np.array_equal(fmi2[name], fmi3[name]), name
 
 
-def test_co_simulation_starts_at_the_first_steps_time(unzipped3):
-    """pythonfmu3 passes no start time: the trajectory starts where the first fmi3DoStep does."""
-    fmu = instance(unzipped3, FMU3Slave, {**ELMER, "v_start": 0.1}, "cs-start")
+def test_co_simulation_starts_at_the_start_time_and_refuses_a_first_step_elsewhere(unzipped3):
+    """pythonfmu3 passes no start time; the loader hands fmi3EnterInitializationMode's to the slave: the trajectory
+    starts there, and a first fmi3DoStep at another time is refused naming both times (as in FMI 2)."""
+    fmu = instance(unzipped3, FMU3Slave, {**ELMER, "v_start": 0.1}, "cs-start", start_time=5.0)
     try:
         rows = []
         for k in range(40):
@@ -136,6 +139,13 @@ def test_co_simulation_starts_at_the_first_steps_time(unzipped3):
     x, v = traj.sample([6.0 + k for k in range(40)])
     assert [row[:2] for row in rows] == [list(pair) for pair in zip(x, v)]
     assert rows[-1][2] == traj.t_last_event > 15.0  # the breakaway 10 s after the start
+
+    late = instance(unzipped3, FMU3Slave, {**ELMER, "v_start": 0.1}, "cs-late", start_time=0.0)
+    try:
+        with pytest.raises(FMICallException):
+            late.doStep(5.0, 1.0)
+    finally:
+        late.freeInstance()
 
 
 def test_co_simulation_state_restore_and_serialization_continue_bit_for_bit(unzipped3):

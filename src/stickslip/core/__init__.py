@@ -12,7 +12,8 @@ from ._implementation import select as _select
 
 IMPLEMENTATION = _select(__name__, _os.path.dirname(__file__))
 
-from .errors import ParameterError, SolverError, StickSlipError
+from . import saved_state
+from .errors import ParameterError, SolverError, StateError, StickSlipError
 from .laws import (
     KINETIC_LAWS,
     STATIC_LAWS,
@@ -30,13 +31,14 @@ from .laws import (
     static_law,
 )
 from .model import BACKWARD, FORWARD, STUCK, Parameters
-from .ranges import ANY_FINITE, POSITIVE
+from .ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, check
 from .trajectory import OUTPUT_NAMES, RTOL_RANGE, Trajectory
 
 __all__ = [
-    "ANY_FINITE", "BACKWARD", "FORWARD", "IMPLEMENTATION", "POSITIVE", "STUCK", "KINETIC_LAWS", "OUTPUT_NAMES",
-    "STATIC_LAWS",
+    "ANY_FINITE", "BACKWARD", "FORWARD", "IMPLEMENTATION", "NON_NEGATIVE", "POSITIVE", "STUCK", "KINETIC_LAWS",
+    "OUTPUT_NAMES", "STATIC_LAWS",
     "CallableKinetic", "CallableStatic", "Constant", "Coulomb", "Logarithmic", "Lubricated",
-    "Parameters", "ParameterError", "RTOL_RANGE", "Saturating", "Sigmoid", "SolverError", "StickSlipError",
-    "Stribeck", "Trajectory", "Viscous", "kinetic_law", "static_law",
+    "Parameters", "ParameterError", "RTOL_RANGE", "Saturating", "Sigmoid", "SolverError", "StateError",
+    "StickSlipError", "Stribeck", "Trajectory", "Viscous", "check", "kinetic_law", "saved_state",
+    "static_law",
 ]

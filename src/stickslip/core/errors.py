@@ -18,3 +18,10 @@ class SolverError(StickSlipError, RuntimeError):
 
     The message names the simulation time and the cause.
     """
+
+
+class StateError(StickSlipError, ValueError):
+    """A saved state holds a field that is missing, of the wrong kind or out of range.
+
+    The message names the field (e.g. ``saved state t``), its value and what is allowed.
+    """

@@ -36,12 +36,15 @@ discrete state between the host's calls.
 
 import math
 
+from . import saved_state
+from .errors import ParameterError, StateError
 from .model import (
     STUCK,
     breakaway_direction,
     check_input_scales,
     check_inputs,
     check_scales,
+    check_start_time,
     check_state,
     check_state_scales,
     friction_force,
@@ -52,6 +55,7 @@ from .model import (
     stuck_or_breakaway,
     z_slip,
 )
+from .ranges import ANY_FINITE, check
 from .stuck import breakaway_delay
 
 INACTIVE = 1.0  # value of an event indicator in the modes where it does not apply (never crosses zero)
@@ -71,6 +75,7 @@ class ExchangeBlock:
         check_state(x0, v0)
         check_inputs(v_drive, F_ext)
         check_scales(x0, v0, v_drive, F_ext, params, ("x_start", "v_start"))
+        check_start_time("start time", t0, params)
         self.params = params
         self.t = float(t0)
         self.v_drive, self.F_ext = float(v_drive), float(F_ext)
@@ -82,6 +87,18 @@ class ExchangeBlock:
         self._inputs = (self.v_drive, self.F_ext)  # at the last update: a change since is an input jump
 
     # ---- continuous part -------------------------------------------------------
+
+    def set_time(self, t):
+        """The host's time ``t`` (s). ParameterError (the time kept) for a non-finite one, or one before the
+        current stick began: the stick time ``t - t_stuck`` would be negative, a state the block never had."""
+        t = float(t)
+        check("time", t, ANY_FINITE, "s")
+        if self.t_stuck is not None and t < self.t_stuck:
+            raise ParameterError(
+                f"time = {t!r} s is before the current stick began at t = {self.t_stuck!r} s: the block's state "
+                f"there is not known (a host goes back past an event by restoring a saved FMU state)"
+            )
+        self.t = t
 
     def states(self):
         """``[x, v]`` (m, m/s)."""
@@ -216,10 +233,31 @@ class ExchangeBlock:
 
     @classmethod
     def from_snapshot(cls, params, snap):
-        """Rebuild a block saved by :meth:`snapshot` (with the same parameters)."""
+        """Rebuild a block saved by :meth:`snapshot` (with the same parameters). StateError or ParameterError
+        names a field that is missing, ill-typed, non-finite, beyond the force scales, or inconsistent (a
+        stick start with a slipping mode, times after ``t``)."""
+        fields = saved_state.record("", snap, _SAVED_KINDS)
+        t, x, v, t_stuck = fields["t"], fields["_x"], fields["_v"], fields["t_stuck"]
+        check_input_scales(fields["v_drive"], fields["F_ext"], params)
+        inputs = saved_state.sequence("_inputs", snap["_inputs"], (("v_drive", saved_state.REAL),
+                                                                   ("F_ext", saved_state.REAL)))
+        check_input_scales(inputs[0], inputs[1], params)
+        check_state_scales(x, v, params, ("saved state x", "saved state v"))
+        stuck_since = t if t_stuck is None else t_stuck
+        if (t_stuck is None) != (fields["mode"] != STUCK) or max(stuck_since, fields["t_last_event"]) > t:
+            raise StateError(f"saved state t_stuck = {t_stuck!r} s, t_last_event = {fields['t_last_event']!r} s "
+                             f"do not fit mode {fields['mode']} at t = {t!r} s")
         block = cls.__new__(cls)
         block.params = params
         for name in cls._SAVED:
-            setattr(block, name, snap[name])
-        block._inputs = tuple(block._inputs)
+            setattr(block, name, fields[name])
+        block._inputs = tuple(inputs)
         return block
+
+
+# The kinds of the fields of ExchangeBlock.snapshot (:mod:`.saved_state`)
+_SAVED_KINDS = {"t": saved_state.REAL, "v_drive": saved_state.REAL, "F_ext": saved_state.REAL,
+                "mode": saved_state.MODE, "_x": saved_state.REAL, "_v": saved_state.REAL,
+                "t_stuck": saved_state.OPTIONAL_REAL, "n_stick_events": saved_state.COUNT,
+                "n_slip_events": saved_state.COUNT, "n_overshoots": saved_state.COUNT,
+                "t_last_event": saved_state.REAL, "_inputs": saved_state.NESTED}

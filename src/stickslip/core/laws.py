@@ -15,10 +15,20 @@ A Python user may pass any callable through :class:`CallableKinetic` or
 from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
 
 import math
-from typing import ClassVar
+from typing import ClassVar, Final
 
 from .errors import ParameterError
 from .ranges import NON_NEGATIVE, POSITIVE, Range, check
+
+
+_LARGEST_LOG_RATIO: Final = 230.0  # ln of the largest (t/tau)^n a sigmoid law raises to powers directly (e^230 ~ 1e100)
+_LOG_LARGEST_FLOAT: Final = 709.782712893384  # ln(1.7976931348623157e308)
+_SMALLEST_RATIO: Final = 1e-290  # below it t/tau or (t/tau)^n may have lost digits to underflow: the sigmoid takes logarithms
+
+
+def _exp(x: float) -> float:
+    """``e^x``, inf where it exceeds the floats (``math.exp`` raises OverflowError there)."""
+    return math.exp(x) if x < _LOG_LARGEST_FLOAT else math.inf
 
 
 def _norm(a: float, b: float) -> float:
@@ -54,6 +64,11 @@ class _Law:
     def parameters(self):
         """The law's parameters as ``{name: value}``."""
         return {name: getattr(self, name) for name in self.PARAMETERS}
+
+    def named_values(self):
+        """The parameters as text, ``kinetic.F0 = 0.5 N, ...``, for messages."""
+        return ", ".join(f"{self.PREFIX}.{name} = {getattr(self, name)!r}" + ("" if unit in ("", "1") else f" {unit}")
+                         for name, (_, _, unit) in self.PARAMETERS.items())
 
     def check(self):
         """Raise ParameterError for the first parameter outside its range."""
@@ -92,6 +107,11 @@ class KineticLaw(_Law):
         """``F_K(0+)`` in N, the kinetic force just after sliding starts."""
         return self.force(0.0)
 
+    def steepest_slope(self) -> float:
+        """An upper bound (N s/m) of ``|F_K'|`` where slips start and end and along them: the viscous slopes and
+        the drop of a Stribeck peak; 0 where the law says nothing (a Python callable)."""
+        return 0.0
+
 
 class Coulomb(KineticLaw):
     """``F_K(u) = F0``."""
@@ -129,6 +149,9 @@ class Viscous(KineticLaw):
     def affine(self):
         return self.F0, self.gamma
 
+    def steepest_slope(self) -> float:
+        return self.gamma
+
 
 class Stribeck(KineticLaw):
     """``F_K(u) = F0 + F_stribeck exp(-(u/v_stribeck)^delta) + gamma u`` (``u >= 0``; powers by ``math.pow``,
@@ -160,6 +183,9 @@ class Stribeck(KineticLaw):
     def affine(self):
         return (self.F0 + self.F_stribeck, self.gamma) if self.F_stribeck == 0.0 else None
 
+    def steepest_slope(self) -> float:
+        return self.gamma + self.F_stribeck * self.delta / self.v_stribeck  # s^(delta-1) e^(-s^delta) <= 1
+
 
 class Lubricated(KineticLaw):
     """Boundary lubrication (Elmer 1997, fig. 3).
@@ -189,6 +215,11 @@ class Lubricated(KineticLaw):
         s = _norm(self.dv, w)
         half_jump = 0.5 * (self.gamma2 - self.gamma1)
         return 0.5 * (self.gamma1 + self.gamma2) + half_jump * (w / s + u * self.dv * self.dv / (s * s * s))
+
+    def steepest_slope(self) -> float:
+        """The larger viscous slope: the transition at ``v_tilde``, however sharp, is crossed within a slip (a
+        kink the stepper's step control handles), not where slips start and end."""
+        return self.gamma1 if self.gamma1 > self.gamma2 else self.gamma2
 
 
 class CallableKinetic(KineticLaw):
@@ -282,13 +313,16 @@ class Logarithmic(StaticLaw):
     tau: float
 
     def force(self, t: float) -> float:
-        return self.F0 + self.A * math.log1p(t / self.tau)
+        s = t / self.tau
+        if s != math.inf:
+            return self.F0 + self.A * math.log1p(s)
+        return self.F0 + self.A * (math.log(t) - math.log(self.tau))  # t/tau beyond floats: ln(1 + s) = ln s
 
     def rate(self, t: float) -> float:
         return self.A / (self.tau + t)
 
     def curvature(self, t: float) -> float:
-        return -self.A / (self.tau + t) ** 2
+        return -self.rate(t) / (self.tau + t)  # not A/(tau + t)^2: the square over- or underflows
 
     def is_constant(self) -> bool:
         return self.A == 0.0
@@ -318,7 +352,12 @@ class Saturating(StaticLaw):
 
 
 class Sigmoid(StaticLaw):
-    """``F_S(t) = F0 + (F_inf - F0) t^n / (tau^n + t^n)``: non-convex aging for ``n > 1``."""
+    """``F_S(t) = F0 + (F_inf - F0) t^n / (tau^n + t^n)``: non-convex aging for ``n > 1``.
+
+    With ``r = (t/tau)^n``: the direct forms where ``t/tau`` and ``r`` are normal floats and ``r <= e^230`` (the
+    powers of ``1 + r`` stay finite); elsewhere the same expressions in ``L = ln r = n (ln t - ln tau)`` and
+    ``e = exp(-|L|)``, which neither overflow nor lose ``r`` to underflow.
+    """
 
     CODE: ClassVar[int] = 4
     NAME: ClassVar[str] = "sigmoid"
@@ -333,24 +372,56 @@ class Sigmoid(StaticLaw):
     tau: float
     n: float
 
+    def _ratio(self, t: float) -> float:
+        """``r = (t/tau)^n`` for ``t > 0`` where the direct forms hold it to rounding, else NaN (then
+        :meth:`_log_ratio` serves)."""
+        s = t / self.tau
+        if s > 1.0 and self.n * math.log(s) > _LARGEST_LOG_RATIO:
+            return math.nan
+        r = s ** self.n
+        return r if r >= _SMALLEST_RATIO and s >= _SMALLEST_RATIO else math.nan
+
+    def _log_ratio(self, t: float) -> float:
+        """``ln r = n (ln t - ln tau)`` for ``t > 0``."""
+        return self.n * (math.log(t) - math.log(self.tau))
+
     def force(self, t: float) -> float:
-        r = (t / self.tau) ** self.n
-        return self.F0 + (self.F_inf - self.F0) * r / (1.0 + r)
+        if t <= 0.0:
+            return self.F0
+        r = self._ratio(t)
+        if r == r:
+            return self.F0 + (self.F_inf - self.F0) * r / (1.0 + r)
+        log_r = self._log_ratio(t)  # r / (1 + r) = 1 / (1 + 1/r)
+        if log_r > 0.0:
+            return self.F0 + (self.F_inf - self.F0) / (1.0 + math.exp(-log_r))
+        e = math.exp(log_r)
+        return self.F0 + (self.F_inf - self.F0) * e / (1.0 + e)
 
     def rate(self, t: float) -> float:
         if t <= 0.0:
             if self.n > 1.0 or self.F_inf == self.F0:
                 return 0.0
             return (self.F_inf - self.F0) / self.tau if self.n == 1.0 else math.copysign(math.inf, self.F_inf - self.F0)
-        r = (t / self.tau) ** self.n
-        return (self.F_inf - self.F0) * self.n * r / (t * (1.0 + r) ** 2)
+        r = self._ratio(t)
+        if r == r:
+            return (self.F_inf - self.F0) * self.n * r / (t * (1.0 + r) ** 2)
+        decay = -abs(self._log_ratio(t))  # r / (1 + r)^2 = e / (1 + e)^2, e = exp(-|ln r|)
+        e = math.exp(decay)
+        return (self.F_inf - self.F0) * self.n * _exp(decay - math.log(t)) / (1.0 + e) ** 2
 
     def curvature(self, t: float) -> float:
         if t <= 0.0:
             return math.copysign(math.inf, (self.F_inf - self.F0) * (self.n - 1.0)) if self.n != 1.0 else 0.0
-        r = (t / self.tau) ** self.n
-        shape = (self.n - 1.0) - (self.n + 1.0) * r
-        return (self.F_inf - self.F0) * self.n * r * shape / t / t / (1.0 + r) ** 3
+        r = self._ratio(t)
+        if r == r:
+            shape = (self.n - 1.0) - (self.n + 1.0) * r
+            return (self.F_inf - self.F0) * self.n * r * shape / t / t / (1.0 + r) ** 3
+        log_r = self._log_ratio(t)  # r shape / (1 + r)^3 = e / (1 + e)^2 ((n - 1)(1 - q) - (n + 1) q), q = r/(1 + r)
+        decay = -abs(log_r)
+        e = math.exp(decay)
+        q = 1.0 / (1.0 + e) if log_r > 0.0 else e / (1.0 + e)
+        shape = (self.n - 1.0) * (1.0 - q) - (self.n + 1.0) * q
+        return (self.F_inf - self.F0) * self.n * _exp(decay - 2.0 * math.log(t)) / (1.0 + e) ** 2 * shape
 
     def is_constant(self) -> bool:
         return self.F_inf == self.F0

@@ -15,7 +15,7 @@ known in closed form), where ``v`` is monotonic: exact, and blind to no graze.
 
 import math
 
-from .rootfind import brent, first_crossing
+from .rootfind import brent, monotone_fall
 
 _MAX_PIECES = 64
 
@@ -151,8 +151,6 @@ class HarmonicSlip:
 
 
 def _crossing_on_monotone_piece(g, a, b):
-    """Where monotone ``g`` goes from > 0 (slip side) at ``a`` to <= 0 at ``b``, else None."""
-    ga, gb = g(a), g(b)
-    if ga > 0.0 and gb <= 0.0:
-        return first_crossing(g, a, b, ga, gb)
-    return None
+    """Where monotone ``g`` goes from > 0 (slip side) at ``a`` to <= 0 at ``b``, else None; past the slip's
+    start (``a > 0``) also ``a`` itself where ``g`` is 0 there and falls (:func:`.rootfind.monotone_fall`)."""
+    return monotone_fall(g, a, b, g(a), g(b), a > 0.0)

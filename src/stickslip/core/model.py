@@ -14,6 +14,7 @@ the surface). Transitions are decided from the previous mode.
 from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
 
 import math
+from typing import Final
 
 from .errors import ParameterError
 from .laws import KineticLaw, StaticLaw, check_pair
@@ -22,6 +23,7 @@ from .ranges import ANY_FINITE, POSITIVE, check
 FORWARD = 1
 STUCK = 0
 BACKWARD = -1
+_EPS: Final = 2.220446049250313e-16  # the spacing of floats at 1
 
 
 class Parameters:
@@ -91,7 +93,30 @@ def check_scales(x, v, v_drive, F_ext, p, state_names=("x", "v")):
             if law.PARAMETERS[name][2] == "N":
                 _check_force_scale(f"{prefix}.{name}", value, lambda: f"{prefix}.{name} = {value!r} N")
     _check_force_scale("F_S(0)", p.static.force(0.0), lambda: f"static law {p.static!r}")
+    check_damping(p)
     check_state_scales(x, v, p, state_names)
+
+
+MAX_DAMPING_RATIO = 1e7  # the steepest |F_K'| over 2 sqrt(kappa M)
+
+
+def check_damping(p):
+    """Raise ParameterError naming the kinetic law's parameters if its steepest slope ``|F_K'|``
+    (:meth:`~.laws.KineticLaw.steepest_slope`) exceeds :data:`MAX_DAMPING_RATIO` times ``2 sqrt(kappa M)``.
+
+    Beyond it a closed-form slip loses more than ``eps`` times the ratio to cancellation (its centre lies
+    ``gamma v / kappa`` away), and a numeric slip creeps at ``(F_S - F_K)/|F_K'|``, below the velocities the
+    solver resolves: it would stick and slip again every few steps without end.
+    """
+    limit = 2.0 * MAX_DAMPING_RATIO * _impedance(p)
+    slope = p.kinetic.steepest_slope()
+    if not slope <= limit:
+        raise ParameterError(
+            f"the {p.kinetic.NAME} law's steepest slope |F_K'| = {slope:.4g} N s/m ({p.kinetic.named_values()}; "
+            f"kappa = {p.kappa!r} N/m, "
+            f"M = {p.M!r} kg) is out of range: allowed is at most {MAX_DAMPING_RATIO:g} * 2 sqrt(kappa M) = "
+            f"{limit:.4g} N s/m (a damping ratio of {MAX_DAMPING_RATIO:g})"
+        )
 
 
 def check_state_scales(x, v, p, state_names=("x", "v")):
@@ -108,6 +133,29 @@ def check_input_scales(v_drive, F_ext, p):
     _check_force_scale("|F_ext|", abs(F_ext), lambda: f"F_ext = {F_ext!r} N")
     _check_force_scale("sqrt(kappa M) * |v_drive|", _impedance(p) * abs(v_drive),
                        lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, v_drive = {v_drive!r} m/s")
+
+
+TIME_RESOLUTION = 1e-8  # the coarsest spacing of floats allowed at a start time, in units of sqrt(M/kappa)
+
+
+def check_start_time(name, t, p):
+    """Raise ParameterError naming ``name`` unless the start time ``t`` (s) is finite and floats resolve it to
+    :data:`TIME_RESOLUTION` of the block's time scale ``sqrt(M/kappa)`` (``|t| <= 4.5e7 sqrt(M/kappa)``).
+
+    Events and steps are placed to the spacing of floats at ``t``: far beyond the bound that rounding alone moves
+    the block (at 1e12 s with ``M = kappa = 1``, by 1e-5 m per event, 1.5e-3 m after a hundred) and stops the
+    stepper (step size underflow, event chains). A run may go on past the bound (a saved state from there is
+    taken back); it cannot start there.
+    """
+    check(name, t, ANY_FINITE, "s")
+    time_scale = math.sqrt(p.M / p.kappa)
+    bound = TIME_RESOLUTION * time_scale / _EPS
+    if abs(t) > bound:
+        raise ParameterError(
+            f"{name} = {t!r} s is out of range: floats space times there by {_EPS * abs(t):.3g} s, coarser than "
+            f"{TIME_RESOLUTION:g} sqrt(M/kappa) = {TIME_RESOLUTION * time_scale:.3g} s; allowed is |{name}| <= "
+            f"{bound:.4g} s (move the time origin nearer)"
+        )
 
 
 def _impedance(p):
@@ -178,15 +226,47 @@ def slip_acceleration_slope(mode: int, v: float, v_drive: float, p: Parameters) 
     return -p.kinetic.slope(0.0 if u < 0.0 else u) / p.M  # max(u, 0.0), without boxing in compiled code
 
 
-def slip_departs(mode, x, v_drive, F_ext, p):
+def slip_departs(mode, x, v_drive, F_ext, p, resolution=0.0):
     """True if a slip in ``mode`` starting at ``v_rel = 0`` moves into its own side (``mode * v_rel > 0``).
 
-    ``v_rel' = -a`` decides; where the acceleration ``a`` is 0, ``v_rel'' = kappa v_drive / M`` does.
+    ``v_rel' = -a`` decides, the sign of the force ``M a = F_ext - kappa x + mode F_K(0+)``; where that force
+    is within ``resolution`` (N, :func:`force_resolution`; 0: exactly 0) and ``v_drive != 0``,
+    ``v_rel'' = kappa v_drive / M`` does: a block at a tangential return or a breakaway where ``F_K(0+)``
+    balances the spring to rounding leaves ``v_rel = 0`` on the side the drive takes it (as Modelica's
+    ``PartialFriction`` keeps a started slip while the force exceeds the kinetic friction).
     """
-    a = slip_acceleration(mode, x, v_drive, v_drive, F_ext, p)
-    if a != 0.0:
-        return mode * a < 0.0
+    force = F_ext - p.kappa * x + mode * p.kinetic.force(0.0)
+    if (force > resolution or force < -resolution) or (force != 0.0 and v_drive == 0.0):
+        return mode * force < 0.0
     return mode * v_drive > 0.0
+
+
+def slip_direction(x, v_drive, F_ext, p, resolution=0.0):
+    """Slip mode of a block at ``v_rel = 0`` that the contact does not hold.
+
+    That of the net force without friction (:func:`breakaway_direction`), unless a slip that way cannot leave
+    ``v_rel = 0`` and one the other way can (:func:`slip_departs` with ``resolution``): the force balance is
+    then within rounding, and the block moves the way the drive takes it.
+    """
+    mode = breakaway_direction(x, F_ext, p)
+    if slip_departs(mode, x, v_drive, F_ext, p, resolution) or not slip_departs(-mode, x, v_drive, F_ext, p,
+                                                                                  resolution):
+        return mode
+    return -mode
+
+
+_ROUNDING_ULPS: Final = 16.0  # rounding of a sum of forces, in units of eps times its terms
+
+
+def force_resolution(t, x, v_drive, F_ext, p):
+    """How closely (N) the stepper knows the force balance of a block at ``v_rel = 0`` at ``t`` (s) and ``x`` (m).
+
+    The rounding of the forces summed (``kappa x``, ``F_ext``, ``F_K(0+)``, and the spring force over the
+    oscillation ``sqrt(kappa M) |v_drive|`` that brought the block there), plus the change of the holding
+    force ``kappa |v_drive|`` over one rounding of ``t``: a stick shorter than that ends where its start was.
+    """
+    terms = abs(p.kappa * x) + abs(F_ext) + p.kinetic.force(0.0) + _impedance(p) * abs(v_drive)
+    return _EPS * (_ROUNDING_ULPS * terms + p.kappa * abs(v_drive) * abs(t))
 
 
 def friction_force(mode, x, v, v_drive, F_ext, p):
@@ -206,11 +286,21 @@ def breakaway_direction(x, F_ext, p):
     return FORWARD if F_ext - p.kappa * x < 0.0 else BACKWARD
 
 
-def mode_at_zero_v_rel(x, F_ext, p):
-    """Mode when ``v_rel`` reaches 0 from slip: STUCK if ``F_S(0)`` holds, else overshoot."""
+def mode_at_zero_v_rel(x, F_ext, p, v_drive=0.0, resolution=0.0):
+    """Mode when ``v_rel`` reaches 0 from slip: STUCK if ``F_S(0)`` holds, else overshoot
+    (:func:`slip_direction`; with ``resolution`` 0 that of the net force, whatever ``v_drive``)."""
     if abs(holding_force(x, F_ext, p)) <= p.static.force(0.0):
         return STUCK
-    return breakaway_direction(x, F_ext, p)
+    return slip_direction(x, v_drive, F_ext, p, resolution)
+
+
+def mode_after_slip(mode, x, v_drive, F_ext, p, resolution):
+    """Mode when a slip in ``mode`` reaches ``v_rel = 0`` at ``x`` (:func:`mode_at_zero_v_rel`), decided from
+    the previous mode as Modelica's ``PartialFriction`` does: a slip that would go on in its own mode touched
+    ``v_rel = 0`` tangentially, where the holding force is ``F_K(0+) <= F_S(0)`` (above it only by rounding),
+    so the block sticks, to break away at once if the holding force is at ``F_S``."""
+    new_mode = mode_at_zero_v_rel(x, F_ext, p, v_drive, resolution)
+    return STUCK if new_mode == mode else new_mode
 
 
 def stuck_or_breakaway(x, F_ext, t_stick, p):

@@ -17,7 +17,7 @@ from . import poly
 from .errors import SolverError
 from .integrators import Step, dopri5_step, rosenbrock_step
 from .model import Parameters, SlipAccelerator, slip_acceleration_slope
-from .rootfind import first_crossing
+from .rootfind import monotone_fall
 
 _SAFETY: Final = 0.9
 _MAX_GROWTH: Final = 5.0
@@ -245,7 +245,7 @@ def _search_slip_end(cv: list[float], mode: int, v_drive: float) -> float | None
 
     breaks = poly.monotone_breaks(cv)
     for a, b in zip(breaks, breaks[1:]):
-        ga, gb = g(a), g(b)
-        if ga > 0.0 and gb <= 0.0:
-            return first_crossing(g, a, b, ga, gb)
+        end = monotone_fall(g, a, b, g(a), g(b), a > 0.0)
+        if end is not None:
+            return end
     return None

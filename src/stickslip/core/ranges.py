@@ -39,10 +39,10 @@ NON_NEGATIVE = Range(0.0, None)
 ANY_FINITE = Range()
 
 
-def check(name, value, allowed, unit=""):
-    """Raise :class:`ParameterError` naming ``name`` unless ``value`` lies in ``allowed``."""
+def check(name, value, allowed, unit="", error=ParameterError):
+    """Raise ``error`` (:class:`ParameterError`) naming ``name`` unless ``value`` lies in ``allowed``."""
     if not allowed.contains(value):
         unit_text = f" {unit}" if unit else ""
-        raise ParameterError(
+        raise error(
             f"{name} = {value!r}{unit_text} is out of range: allowed is a finite value in {allowed}"
         )

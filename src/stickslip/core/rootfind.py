@@ -79,3 +79,17 @@ def first_crossing(f: Callable[[float], float], a: float, b: float, fa: float, f
             nudged = b
         return nudged
     return root
+
+
+def monotone_fall(f: Callable[[float], float], a: float, b: float, fa: float, fb: float,
+                  after_start: bool) -> float | None:
+    """Where ``f``, monotone on ``[a, b]``, falls from > 0 to <= 0 (:func:`first_crossing`), else None.
+
+    With ``after_start`` (``a`` is an extremum past the start of what ``f`` measures), ``f(a) == 0`` and
+    ``f(b) < 0`` give ``a``: ``f`` left 0 at the start and came back at ``a`` by less than rounding.
+    """
+    if fa > 0.0 and fb <= 0.0:
+        return first_crossing(f, a, b, fa, fb)
+    if after_start and fa == 0.0 and fb < 0.0:
+        return a
+    return None

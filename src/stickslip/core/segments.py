@@ -14,9 +14,11 @@ import math
 from typing import ClassVar
 
 from . import poly
+from .errors import StateError
 from .integrators import Step
 from .linear_slip import HarmonicSlip
 from .model import STUCK, Parameters
+from .saved_state import COUNT, FLAG, MODE, REAL, REALS, TIME_END, sequence
 
 
 class Segment:
@@ -81,6 +83,8 @@ class StuckSegment(Segment):
     """
 
     KIND: ClassVar[str] = "stuck"
+    FIELDS: ClassVar[tuple] = (("t0", REAL), ("duration", TIME_END), ("ends_in_event", FLAG), ("x0", REAL),
+                               ("v_drive", REAL), ("t_stick0", REAL), ("replayable_end", FLAG))
     __slots__ = ("duration", "x0", "v_drive", "t_stick0", "replayable_end")
     duration: float
     x0: float
@@ -115,6 +119,8 @@ class HarmonicSegment(Segment):
     """Slip under an affine kinetic law, in closed form (see :mod:`.linear_slip`)."""
 
     KIND: ClassVar[str] = "harmonic"
+    FIELDS: ClassVar[tuple] = (("t0", REAL), ("t1", TIME_END), ("ends_in_event", FLAG), ("mode", MODE), ("x0", REAL),
+                               ("v0", REAL), ("v_drive", REAL), ("F_ext", REAL))
     __slots__ = ("x0", "v0", "v_drive", "F_ext", "motion")
     x0: float
     v0: float
@@ -156,6 +162,8 @@ class StepSegment(Segment):
     """
 
     KIND: ClassVar[str] = "step"
+    FIELDS: ClassVar[tuple] = (("t0", REAL), ("t1", REAL), ("ends_in_event", FLAG), ("mode", MODE), ("h", REAL),
+                               ("cx", REALS), ("cv", REALS), ("x1", REAL), ("v1", REAL))
     __slots__ = ("h", "cx", "cv", "x1", "v1")
     h: float
     cx: list[float]
@@ -214,12 +222,37 @@ class StepSegment(Segment):
 
 
 def segment_from_list(values, p):
-    """Rebuild a segment from :meth:`~Segment.to_list` output."""
-    kind, *fields = values
+    """Rebuild a segment from :meth:`~Segment.to_list` output (with the parameters ``p`` it was saved with).
+
+    StateError names a field that is missing, of the wrong kind or inconsistent: times out of order, a
+    negative duration or stick time, a slip in mode 0, a closed-form slip under a law that has none.
+    """
+    kinds = {StuckSegment.KIND: StuckSegment, HarmonicSegment.KIND: HarmonicSegment, StepSegment.KIND: StepSegment}
+    kind = values[0] if isinstance(values, list) and values else None
+    if not isinstance(kind, str) or kind not in kinds:
+        raise StateError(f"saved state segment {values!r:.80} is not a list that starts with one of {sorted(kinds)}")
+    segment_class = kinds[kind]
+    fields = dict(zip((name for name, _ in segment_class.FIELDS),
+                      sequence(f"segment ({kind})", values[1:], segment_class.FIELDS)))
+    _check_segment(kind, fields, p)
+    if segment_class is HarmonicSegment:
+        return HarmonicSegment(*fields.values(), p)
+    return segment_class(*fields.values())
+
+
+def _check_segment(kind, fields, p):
+    """StateError for fields that no segment of ``kind`` saved by this runtime under ``p`` holds."""
     if kind == StuckSegment.KIND:
-        return StuckSegment(*fields)
-    if kind == HarmonicSegment.KIND:
-        return HarmonicSegment(*fields, p)
-    if kind == StepSegment.KIND:
-        return StepSegment(*fields)
-    raise ValueError(f"unknown segment kind {kind!r} in a saved trajectory state")
+        problem = ("duration < 0" if fields["duration"] < 0.0 else "t_stick0 < 0" if fields["t_stick0"] < 0.0
+                   else None)
+    elif fields["t1"] < fields["t0"]:
+        problem = "t1 < t0"
+    elif fields["mode"] == STUCK:
+        problem = "a slip in mode 0"
+    elif kind == HarmonicSegment.KIND:
+        problem = "a closed-form slip under a kinetic law that has none" if p.kinetic.affine() is None else None
+    else:
+        problem = ("h < 0" if fields["h"] < 0.0 else "cx and cv of different lengths"
+                   if len(fields["cx"]) != len(fields["cv"]) else None)
+    if problem:
+        raise StateError(f"saved state segment ({kind}) is inconsistent: {problem}")

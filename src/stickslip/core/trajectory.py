@@ -21,21 +21,25 @@ when the inputs change.
 from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
 
 import math
-from typing import Iterable
+from typing import Final, Iterable
 
-from .errors import SolverError
+from . import saved_state
+from .errors import SolverError, StateError
 from .model import (
     STUCK,
-    breakaway_direction,
     check_input_scales,
     check_inputs,
     check_scales,
+    check_start_time,
     check_state,
+    check_state_scales,
+    force_resolution,
     friction_force,
     initial_mode,
     mode_after_input_change,
-    mode_at_zero_v_rel,
+    mode_after_slip,
     slip_departs,
+    slip_direction,
     z_slip,
 )
 from .model import Parameters
@@ -46,7 +50,21 @@ from .stuck import breakaway_delay
 
 RTOL_RANGE = Range(1e-14, 1e-2)
 _MAX_EVENT_CHAIN = 100  # mode changes in a row without time advancing
+_MAX_BURST: Final = 1000  # mode changes within _BURST_WINDOW time scales sqrt(M/kappa) (stick-slip has a few per period)
+_BURST_WINDOW: Final = 1.0  # in units of sqrt(M/kappa)
+_EPS: Final = 2.220446049250313e-16  # the spacing of floats at 1
 _STUCK_HORIZON_PERIODS = 1e6  # an aging stick is searched for a breakaway this far ahead, then re-searched
+
+# The fields of :meth:`Trajectory.snapshot` and their kinds (:mod:`.saved_state`)
+_SNAPSHOT_FIELDS = {"t": saved_state.REAL, "v_drive": saved_state.REAL, "F_ext": saved_state.REAL,
+                    "rtol": saved_state.REAL, "counts": saved_state.NESTED, "burst": saved_state.NESTED,
+                    "t_last_event": saved_state.REAL,
+                    "stepper": saved_state.NESTED, "segment": saved_state.NESTED}
+_COUNT_FIELDS = tuple((name, saved_state.COUNT) for name in ("n_stick_events", "n_slip_events", "n_overshoots",
+                                                               "chain"))
+_BURST_FIELDS = (("start", saved_state.REAL), ("count", saved_state.COUNT))
+_STEPPER_FIELDS = (("h", saved_state.OPTIONAL_STEP), ("stiff", saved_state.FLAG), ("votes", saved_state.COUNT),
+                   ("n_steps", saved_state.COUNT), ("n_rejected", saved_state.COUNT))
 
 # The properties that :meth:`Trajectory.outputs` returns, in its order.
 OUTPUT_NAMES = (
@@ -70,6 +88,8 @@ class Trajectory:
     t_last_event: float  # s
     events: list | None
     _chain: int
+    _burst_start: float  # s: the first mode change counted in _burst
+    _burst: int
     _stepper: SlipStepper
     _segment: Segment
     _x: float  # m, at t
@@ -86,6 +106,7 @@ class Trajectory:
         check_inputs(v_drive, F_ext)
         check("solver.rtol", rtol, RTOL_RANGE)
         check_scales(x0, v0, v_drive, F_ext, params, ("x_start", "v_start"))
+        check_start_time("start time", t0, params)
         self.params = params
         self.rtol = float(rtol)
         self.t = float(t0)
@@ -97,6 +118,7 @@ class Trajectory:
         self.t_last_event = self.t  # the start time until the first event
         self.events = [] if record_events else None
         self._chain = 0
+        self._burst_start, self._burst = self.t, 0
         self._stepper = SlipStepper(self.rtol, memo_size=MEMO_SIZE if reuse_steps else 0)
         mode = initial_mode(x0, v0, self.v_drive, self.F_ext, params)
         self._segment = self._start_segment(self.t, float(x0), float(v0), mode, 0.0)
@@ -127,10 +149,10 @@ class Trajectory:
 
     def advance_to(self, t: float) -> None:
         """Advance to time ``t >= self.t`` (s), through every event up to and at ``t``."""
-        if not t >= self.t:
-            raise SolverError(f"cannot advance from t = {self.t!r} s back to t = {t!r} s")
         if not math.isfinite(t):
             raise SolverError(f"cannot advance from t = {self.t!r} s to t = {t!r} s: the end time must be finite")
+        if not t >= self.t:
+            raise SolverError(f"cannot advance from t = {self.t!r} s back to t = {t!r} s")
         end = float(t)
         while self._segment.t1 <= end:
             self._finish_segment()
@@ -245,6 +267,7 @@ class Trajectory:
             "F_ext": self.F_ext,
             "rtol": self.rtol,
             "counts": [self.n_stick_events, self.n_slip_events, self.n_overshoots, self._chain],
+            "burst": [self._burst_start, self._burst],
             "t_last_event": self.t_last_event,
             "stepper": self._stepper.snapshot(),
             "segment": self._segment.to_list(),
@@ -252,16 +275,35 @@ class Trajectory:
 
     @classmethod
     def from_snapshot(cls, params, snap):
-        """Rebuild a trajectory saved by :meth:`snapshot` (with the same parameters)."""
-        traj = cls(params, 0.0, 0.0, rtol=snap["rtol"])  # at rest: every field is replaced below
-        traj.t = snap["t"]
-        traj.v_drive = snap["v_drive"]
-        traj.F_ext = snap["F_ext"]
-        traj.n_stick_events, traj.n_slip_events, traj.n_overshoots, traj._chain = snap["counts"]
-        traj.t_last_event = snap["t_last_event"]
-        traj._stepper = SlipStepper.from_snapshot(traj.rtol, snap["stepper"])
-        traj._segment = segment_from_list(snap["segment"], params)
-        traj._x, traj._v = traj._segment.state(traj.t)
+        """Rebuild a trajectory saved by :meth:`snapshot` (with the same parameters).
+
+        Every field is checked first (:mod:`.saved_state`, :func:`.segments.segment_from_list`): a missing,
+        ill-typed or non-finite one, inputs or a state whose force scales overflow, or a segment that does not
+        hold the saved time raise StateError or ParameterError naming it.
+        """
+        fields = saved_state.record("", snap, _SNAPSHOT_FIELDS)
+        t = fields["t"]
+        check("saved state rtol", fields["rtol"], RTOL_RANGE, error=StateError)
+        check_input_scales(fields["v_drive"], fields["F_ext"], params)
+        counts = saved_state.sequence("counts", snap["counts"], _COUNT_FIELDS)
+        burst = saved_state.sequence("burst", snap["burst"], _BURST_FIELDS)
+        stepper = saved_state.sequence("stepper", snap["stepper"], _STEPPER_FIELDS)
+        segment = segment_from_list(snap["segment"], params)
+        if not (segment.t0 <= t <= segment.t1 and fields["t_last_event"] <= t):
+            raise StateError(f"saved state t = {t!r} s lies outside its segment [{segment.t0!r}, {segment.t1!r}] s "
+                             f"or before its last event at {fields['t_last_event']!r} s")
+        x, v = segment.state(t)
+        saved_state.field("x at t", x, saved_state.REAL)
+        saved_state.field("v at t", v, saved_state.REAL)
+        check_state_scales(x, v, params, ("saved state x", "saved state v"))
+        traj = cls(params, 0.0, 0.0, rtol=fields["rtol"])  # at rest: every field is replaced below
+        traj.t, traj.v_drive, traj.F_ext = t, fields["v_drive"], fields["F_ext"]
+        traj.t_last_event = fields["t_last_event"]
+        traj.n_stick_events, traj.n_slip_events, traj.n_overshoots, traj._chain = counts
+        traj._burst_start, traj._burst = burst
+        traj._stepper = SlipStepper.from_snapshot(traj.rtol, stepper)
+        traj._segment = segment
+        traj._x, traj._v = x, v
         return traj
 
     # ------------------------------------------------------------------
@@ -276,10 +318,12 @@ class Trajectory:
         mode = segment.mode
         t_stick = segment.t_stick(t1)
         if segment.ends_in_event:
+            p, v_drive, F_ext = self.params, self.v_drive, self.F_ext
+            resolution = force_resolution(t1, x1, v_drive, F_ext, p)
             new_mode = (
-                breakaway_direction(x1, self.F_ext, self.params)
+                slip_direction(x1, v_drive, F_ext, p, resolution)
                 if mode == STUCK
-                else mode_at_zero_v_rel(x1, self.F_ext, self.params)
+                else mode_after_slip(mode, x1, v_drive, F_ext, p, resolution)
             )
             self._check_chain(t1, segment.t0, new_mode)
             self._log_event(t1, mode, new_mode)
@@ -299,7 +343,8 @@ class Trajectory:
             if delay is not None:
                 return StuckSegment(t0, delay, True, x0, self.v_drive, t_stick, replayable)
             return StuckSegment(t0, horizon, False, x0, self.v_drive, t_stick, replayable)
-        if v0 == self.v_drive and not slip_departs(mode, x0, self.v_drive, self.F_ext, p):
+        if v0 == self.v_drive and not slip_departs(mode, x0, self.v_drive, self.F_ext, p,
+                                                   force_resolution(t0, x0, self.v_drive, self.F_ext, p)):
             return StepSegment.instant(t0, mode, x0, v0)  # v_rel cannot leave 0 this way: decide again now
         if p.kinetic.affine() is not None:
             return HarmonicSegment.start(t0, mode, x0, v0, self.v_drive, self.F_ext, p)
@@ -320,15 +365,36 @@ class Trajectory:
             self.n_overshoots += 1
 
     def _check_chain(self, t_event: float, t_segment_start: float, new_mode: int) -> None:
-        """Guard against endless event chains at one instant (never hang)."""
+        """Guard against endless event chains (never hang): more than :data:`_MAX_EVENT_CHAIN` mode changes
+        without time advancing, or more than :data:`_MAX_BURST` within :data:`_BURST_WINDOW` time scales."""
         time_scale = math.sqrt(self.params.M / self.params.kappa)  # s: 1/omega0, the slip's natural time
-        if t_event - t_segment_start > 1e-13 * max(time_scale, abs(t_event)):
+        if t_event - self._burst_start > _BURST_WINDOW * time_scale:
+            self._burst_start, self._burst = t_event, 0
+        self._burst += 1
+        if self._burst > _MAX_BURST:
+            raise SolverError(self._burst_message(t_event, time_scale))
+        step = 1e-13 * max(time_scale, abs(t_event))
+        if t_event - t_segment_start > step:
             self._chain = 0
             return
         self._chain += 1
         if self._chain > _MAX_EVENT_CHAIN:
+            coarse = (f"; floats space times at t by {_EPS * abs(t_event):.3g} s, against the block's time scale "
+                      f"sqrt(M/kappa) = {time_scale:.3g} s" if abs(t_event) > time_scale else "")
             raise SolverError(
                 f"event chain at t = {t_event!r} s: more than {_MAX_EVENT_CHAIN} mode changes without time "
-                f"advancing (now entering mode {new_mode:+d}); the contact cannot decide between sticking "
-                f"and slipping; check that F_K(0+) < F_S(0) and the inputs"
+                f"advancing by {step:.3g} s (now entering mode {new_mode:+d}); the contact cannot decide between "
+                f"sticking and slipping; check that F_K(0+) <= F_S(0) and the inputs{coarse}"
             )
+
+    def _burst_message(self, t_event: float, time_scale: float) -> str:
+        """Why more than :data:`_MAX_BURST` mode changes came within :data:`_BURST_WINDOW` time scales."""
+        p = self.params
+        speed = p.static.force(0.0) / math.sqrt(p.kappa * p.M)
+        return (
+            f"more than {_MAX_BURST} mode changes between t = {self._burst_start!r} s and {t_event!r} s (within "
+            f"{_BURST_WINDOW:g} sqrt(M/kappa) = {_BURST_WINDOW * time_scale:.3g} s): the slips creep at velocities "
+            f"below what the solver resolves, solver.rtol = {self.rtol:g} times the slip's velocity scale "
+            f"F_S(0)/sqrt(kappa M) = {speed:.3g} m/s, so each one sticks again within a few steps; the kinetic law "
+            f"is too steep for this tolerance ({p.kinetic.named_values()}): lower solver.rtol"
+        )

@@ -59,6 +59,11 @@ class AffineSlip:
         v = self.v0 * E - (self.w2 * self.y0 + self.b * self.v0) * S
         return self.x_eq + y, v
 
+    def acceleration(self, t):
+        """``dv/dt`` (m/s^2) at the times ``t`` (array, s): ``a0 E - (w0^2 v0 + b a0) S``."""
+        E, S = self._basis(np.asarray(t, float) - self.t0)
+        return self.a0 * E - (self.w2 * self.v0 + self.b * self.a0) * S
+
     def t_stick(self, t):
         """Stick time (s): 0 while slipping."""
         return np.zeros_like(np.asarray(t, float))
@@ -84,12 +89,13 @@ def run_affine(p, mode, t0, x0, v0, v_drive, F_ext, t_max):
     """Slip from ``t0`` until ``v_rel`` reaches 0 or ``t_max``; returns ``(phase, hit)``.
 
     ``v`` is monotonic between the computed extrema, so each piece holds at
-    most one crossing, located with brentq on the closed form.
+    most one crossing, located with brentq on the closed form; the acceleration
+    at mid-piece samples shows which extremum is a maximum of ``v_rel``.
     """
     phase = AffineSlip(p, mode, t0, x0, v0, v_drive, F_ext)
     rising = True
     if mode * (v_drive - v0) == 0.0:
-        rising = departure(p, mode, x0, v_drive, F_ext) > 0
+        rising = departure(p, mode, x0, v_drive, F_ext, t0) > 0
         if not rising:
             return phase, True
     horizon = t_max - t0
@@ -99,7 +105,11 @@ def run_affine(p, mode, t0, x0, v0, v_drive, F_ext, t_max):
     def e(tau):
         return mode * (v_drive - phase.state(t0 + tau)[1])  # mode * v_rel, scalar or array
 
-    s = np.concatenate([[0.0], phase.extrema(horizon), [horizon]])
-    tau = first_zero(e, s, e(s), rising=rising)
+    def de(tau):
+        return -mode * phase.acceleration(t0 + tau)
+
+    ends = np.concatenate([[0.0], phase.extrema(horizon), [horizon]])
+    s = np.sort(np.concatenate([ends, 0.5 * (ends[:-1] + ends[1:])]))  # mid-piece samples give de its signs
+    tau = first_zero(e, s, e(s), de, de(s), rising=rising)
     phase.t1 = t_max if tau is None else t0 + tau
     return phase, tau is not None

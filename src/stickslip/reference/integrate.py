@@ -9,7 +9,7 @@ from .laws import ReferenceParameters
 from .closed_form import run_affine
 from .numeric import run_numeric
 from .result import ReferenceEvent, ReferenceResult
-from .rules import STUCK, breakaway_mode, hold_or_break, initial_mode, mode_after_input
+from .rules import STUCK, hold_or_break, initial_mode, mode_after_input, slip_mode
 from .stuck import run_stuck
 
 MAX_EVENTS_PER_INSTANT = 1000
@@ -32,7 +32,7 @@ def simulate_reference(params, x0, v0, inputs, t_eval, rtol=1e-12):
     run = _Run(params, rtol)
     t_end = t_eval[-1]
     _, vd, F = breakpoints[0]
-    run.state = _State(float(t_eval[0]), float(x0), float(v0), initial_mode(params, x0, v0, vd, F), 0.0)
+    run.state = _State(float(t_eval[0]), float(x0), float(v0), initial_mode(params, x0, v0, vd, F, t_eval[0]), 0.0)
     for k, (t_k, vd, F) in enumerate(breakpoints):
         if t_k > t_end:
             break
@@ -87,9 +87,11 @@ class _Run:
         s, p = self.state, self.p
         s.v = v_drive  # both events happen at v_rel = 0
         if s.mode == STUCK:
-            self._record("slip", breakaway_mode(p, s.x, F_ext), 0.0)
+            self._record("slip", slip_mode(p, s.x, v_drive, F_ext, s.t), 0.0)
             return
-        mode = hold_or_break(p, s.x, F_ext, 0.0)
+        mode = hold_or_break(p, s.x, F_ext, 0.0, v_drive, s.t)
+        if mode == s.mode:  # no crossing: a tangential return, held by F_K(0+) <= F_S(0) (beyond it by rounding)
+            mode = STUCK
         self._record("stick" if mode == STUCK else "overshoot", mode, 0.0)
 
     def apply_input(self, v_drive, F_ext):
@@ -97,7 +99,7 @@ class _Run:
         s = self.state
         if s.mode == STUCK:
             s.v = v_drive
-        mode = mode_after_input(self.p, s.mode, s.x, s.v, s.t_stick, v_drive, F_ext)
+        mode = mode_after_input(self.p, s.mode, s.x, s.v, s.t_stick, v_drive, F_ext, s.t)
         if mode != s.mode:
             self._record("input", mode, 0.0)
 

@@ -48,7 +48,7 @@ def run_numeric(p, mode, t0, x0, v0, v_drive, F_ext, t_max, rtol):
     """
     rising = True
     if mode * (v_drive - v0) == 0.0:
-        rising = departure(p, mode, x0, v_drive, F_ext) > 0
+        rising = departure(p, mode, x0, v_drive, F_ext, t0) > 0
         if not rising:
             return NumericSlip(mode, t0, x0, v0), True
     if t_max <= t0:

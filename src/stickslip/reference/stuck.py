@@ -32,11 +32,13 @@ class StuckPhase:
 def run_stuck(p, t0, x0, t_stick0, v_drive, F_ext, t_max):
     """Stay stuck from ``t0`` up to ``t_max`` or the first time ``|kappa x - F_ext| > F_S(t_stick)``.
 
-    Returns ``(phase, broke)``; if ``broke`` the phase ends at the break time.
-    The start must hold: ``z_slip >= 0`` at ``t0``.
+    Returns ``(phase, broke)``; if ``broke`` the phase ends at the break time (at once where the start
+    does not hold: ``z_slip < 0`` at ``t0``).
     """
     horizon = t_max - t0
-    if p.static.is_constant():
+    if z_slip(p, x0, F_ext, t_stick0) < 0.0:
+        tau = 0.0  # a tangential return held beyond F_S by rounding only: the contact gives way at once
+    elif p.static.is_constant():
         tau = _linear_break(p, x0, v_drive, F_ext)
     else:
         tau = _aging_break(p, x0, t_stick0, v_drive, F_ext, horizon)

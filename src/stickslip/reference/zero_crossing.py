@@ -31,8 +31,9 @@ def first_zero(f, s, fs, df=None, dfs=None, rising=True):
 
     If ``fs[0] == 0``, ``f`` is leaving 0 and a zero counts only after ``f`` has
     been positive; ``rising=True`` says it is known to rise (non-positive values
-    before that are rounding), ``rising=False`` that a negative value means it
-    never rose, so the zero is ``s[0]``.
+    before that are rounding; a maximum at or below 0 before any positive value,
+    a rise smaller than rounding, is the zero), ``rising=False`` that a negative
+    value means it never rose, so the zero is ``s[0]``.
     """
     start = 0
     if fs[0] <= 0.0:
@@ -55,13 +56,15 @@ def _leave_zero(f, s, fs, df, dfs, rising):
     """Scan ``f`` leaving 0: ``(index of its first positive sample, None)`` or ``(None, zero or None)``."""
     positive = np.flatnonzero(fs[1:] > 0.0)
     last = positive[0] if positive.size else len(s) - 1  # intervals [s[i], s[i+1]] with fs[i+1] <= 0
-    peaks = np.zeros(last, bool) if dfs is None else (dfs[:last] > 0.0) & (dfs[1:last + 1] < 0.0)
+    peaks = np.zeros(last, bool) if dfs is None else (dfs[:last] > 0.0) & (dfs[1:last + 1] <= 0.0)
     negative = np.zeros(last, bool) if rising else fs[1:last + 1] < 0.0
     for i in np.flatnonzero(peaks | negative):
         if peaks[i]:
             t_max = root(df, s[i], s[i + 1])
             if f(t_max) > 0.0:
                 return None, root(f, t_max, s[i + 1])
+            if rising:
+                return None, t_max
         if negative[i]:
             return None, s[0]
     return (last + 1, None) if positive.size else (None, None)

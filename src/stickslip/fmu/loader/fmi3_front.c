@@ -378,6 +378,10 @@ EXPORT fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean tolera
 {
     fmi3Status status = forward_fmi3EnterInitializationMode(c, toleranceDefined, tolerance, startTime,
                                                             stopTimeDefined, stopTime);
+    if (status <= fmi3Warning) { /* pythonfmu3 keeps startTime to itself: the slave takes it as its time */
+        fmi3Status timed = fmi3SetTime(c, startTime);
+        if (timed > status) status = timed;
+    }
     return moved(c, status, SBF_INITIALIZING);
 }
 

@@ -1,0 +1,119 @@
+"""A child process that drives one FMU instance through FMPy and prints what happened as JSON (for tests whose
+calls might crash or hang the host: tests/test_numeric_limits.py, tests/test_bad_input.py).
+
+``python fmu_probe.py FMU INTERFACE START_JSON ACTIONS_JSON``: instantiate (interface "cs" or "me"), enter
+initialization at the start time ``START_JSON["start_time"]`` (default 0), set the start values, leave
+initialization, then run the actions in order, each ``[name, *arguments]``:
+
+- ``["step", t_from, h]``: doStep from ``t_from`` by ``h`` s;
+- ``["time", t]``: fmi3SetTime (model exchange);
+- ``["set", name, value]``: set a variable by name;
+- ``["update"]``: fmi3EnterEventMode, fmi3UpdateDiscreteStates, fmi3EnterContinuousTimeMode;
+- ``["forge", path, value]``: serialize the current FMU state, set the field at ``path`` (a list of keys) in its
+  JSON to ``value``, deserialize it and set it (value ``"nan"``, ``"inf"``, ``"-inf"`` for those floats).
+
+Prints one JSON object: ``{"ok": bool, "failed": the action that failed or null, "messages": [...], "outputs":
+{name: value} after the last action (null if reading fails)}``; the first failing action stops the list.
+"""
+
+import json
+import math
+import subprocess
+import sys
+
+from stickslip.hosts.fmpy_host import ExtractedFMU, FmuCallError
+
+SPECIAL = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
+
+
+def _setter(inst, name):
+    """A function that sets the variable ``name`` of the instance ``inst`` to a value."""
+    variable, fmi2 = inst.extracted.variables[name], inst.extracted.fmi_version == 2
+    if variable.type in ("Integer", "Int32"):
+        integer = inst.fmu.setInteger if fmi2 else inst.fmu.setInt32
+        return lambda value: inst.call(integer, [variable.valueReference], [int(value)])
+    real = inst.fmu.setReal if fmi2 else inst.fmu.setFloat64
+    return lambda value: inst.call(real, [variable.valueReference], [SPECIAL.get(value, value)])
+
+
+def _initialize(inst, start):
+    fmu, start_time = inst.fmu, start.pop("start_time", 0.0)
+    if inst.extracted.fmi_version == 2:
+        inst.call(fmu.setupExperiment, startTime=start_time)
+        inst.call(fmu.enterInitializationMode)
+    else:
+        inst.call(fmu.enterInitializationMode, startTime=start_time)
+    for name, value in start.items():
+        _setter(inst, name)(value)
+    inst.call(fmu.exitInitializationMode)
+
+
+def _forge(inst, path, value):
+    fmu = inst.fmu
+    state = inst.call(fmu.getFMUstate if inst.extracted.fmi_version == 2 else fmu.getFMUState)
+    saved = json.loads(bytes(inst.call(fmu.serializeFMUstate if inst.extracted.fmi_version == 2
+                                       else fmu.serializeFMUState, state)).rstrip(b"\0"))
+    target = saved
+    for key in path[:-1]:
+        target = target[key]
+    target[path[-1]] = SPECIAL.get(value, value) if isinstance(value, str) else value
+    forged = inst.call(fmu.deSerializeFMUstate if inst.extracted.fmi_version == 2 else fmu.deserializeFMUState,
+                       json.dumps(saved).encode())
+    inst.call(fmu.setFMUstate if inst.extracted.fmi_version == 2 else fmu.setFMUState, forged)
+
+
+def _act(inst, action):
+    name, *arguments = action
+    fmu = inst.fmu
+    if name == "step":
+        inst.call(fmu.doStep, SPECIAL.get(arguments[0], arguments[0]), SPECIAL.get(arguments[1], arguments[1]))
+    elif name == "time":
+        inst.call(fmu.setTime, arguments[0])
+    elif name == "set":
+        _setter(inst, arguments[0])(arguments[1])
+    elif name == "update":
+        inst.call(fmu.enterEventMode)
+        inst.call(fmu.updateDiscreteStates)
+        inst.call(fmu.enterContinuousTimeMode)
+    elif name == "forge":
+        _forge(inst, *arguments)
+
+
+def _outputs(inst):
+    names = [n for n, v in inst.extracted.variables.items()
+             if v.causality == "output" and v.type in ("Real", "Float64")]
+    read = inst.fmu.getReal if inst.extracted.fmi_version == 2 else inst.fmu.getFloat64
+    values = inst.call(read, [inst.extracted.variables[n].valueReference for n in names])
+    return {n: (v if math.isfinite(v) else repr(v)) for n, v in zip(names, values)}
+
+
+def main(path, interface, start, actions):
+    report = {"ok": True, "failed": None, "messages": [], "outputs": None}
+    with ExtractedFMU(path) as fmu:
+        inst = fmu.new_instance(interface=interface)
+        try:
+            _initialize(inst, dict(start))
+            for action in actions:
+                report["failed"] = action
+                _act(inst, action)
+            report["failed"] = None
+        except FmuCallError as error:
+            report["ok"], report["messages"] = False, list(error.messages)
+        try:
+            report["outputs"] = _outputs(inst)
+        except FmuCallError as error:
+            report["messages"] += list(error.messages)
+    print(json.dumps(report))
+
+
+def run_probe(fmu_path, interface, start, actions, timeout=120):
+    """This script on ``fmu_path`` in a child process with a time limit of ``timeout`` s: its report (a crash
+    or a hang fails the calling test, not the test session)."""
+    done = subprocess.run([sys.executable, __file__, str(fmu_path), interface, json.dumps(start), json.dumps(actions)],
+                          capture_output=True, text=True, timeout=timeout)
+    assert done.returncode == 0, f"the probe died with {done.returncode}: {done.stderr[-3000:]}"
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2], json.loads(sys.argv[3]), json.loads(sys.argv[4]))
