@@ -29,7 +29,7 @@ import time
 import numpy as np
 
 from ..hosts.fmpy_host import FMUError
-from .master import SystemResult, block_instances, new_event, references
+from .master import SystemResult, block_instances, checked_rtol, new_event, references
 
 EVENT_TOL = 1e-10  # s: an event this close before a step's end has landed on it
 CELLS = 4  # cells per communication step while a block slips (1 while all are stuck)
@@ -51,10 +51,7 @@ class AdaptiveMaster:
     OPTIONS = ("rtol",)
 
     def __init__(self, rtol=None):
-        rtol = 1e-9 if rtol is None else rtol
-        if not 1e-14 <= rtol <= 1e-2:
-            raise FMUError(f"adaptive: rtol = {rtol!r}: allowed is [1e-14, 0.01]")
-        self.rtol = rtol
+        self.rtol = checked_rtol("adaptive", rtol, default=1e-9, lowest=1e-14)
 
     def run(self, system, fmu_path, progress=lambda t: None):
         with block_instances(self, system, fmu_path) as (fmu, instances):
