@@ -52,7 +52,7 @@ def test_the_issues_file_loads_with_the_fmus_start_values_for_what_it_leaves_out
     assert system.blocks[0]["solver.rtol"] == 1e-10  # the FMU's start value
     assert system.times()[-1] == 100.0 and len(system.times()) == 1001
     assert system.forces([0.0, 0.2]) == [0.5 * 0.2, -0.5 * 0.2]
-    assert system.tolerances == {"zoh": 0.1, "me": 1e-6}
+    assert system.tolerances == {"zoh": 0.1, "me": 1e-6, "adaptive": 1e-6}
 
 
 def test_dotted_names_without_quotes_are_the_fmus_names(tmp_path):
@@ -105,13 +105,13 @@ def test_unknown_tables_and_unreadable_files_are_named(tmp_path):
 
 def test_tolerances_per_master(tmp_path):
     system = load_system(write(tmp_path, system_text(extra="[tolerance.zoh]\nmax_rel_dx = 0.01\n")))
-    assert system.tolerances == {"zoh": 0.01, "me": 1e-6}
-    with pytest.raises(SystemFileError, match=r"key 'tolerance.exact': allowed is one of the keys \['me', 'zoh'\]"):
+    assert system.tolerances == {"zoh": 0.01, "me": 1e-6, "adaptive": 1e-6}
+    with pytest.raises(SystemFileError, match=r"key 'tolerance.exact': allowed is one of the keys \['adaptive', 'me', 'zoh'\]"):
         load_system(write(tmp_path, system_text(extra="[tolerance.exact]\nmax_rel_dx = 0.01\n")))
 
 
 def test_masters_refuse_options_they_do_not_take():
-    with pytest.raises(FMUError, match=r"master 'zoh' takes no option 'rtol' \(the masters \['me'\] do\)"):
+    with pytest.raises(FMUError, match=r"master 'zoh' takes no option 'rtol' \(the masters \['adaptive', 'me'\] do\)"):
         make_master("zoh", rtol=1e-8)
     with pytest.raises(FMUError, match="master 'exact': allowed are"):
         make_master("exact")
@@ -181,6 +181,31 @@ def test_me_on_the_scenes(name, fmu3_path):
     assert all(min(abs(e.t - t) for e in reference.events) < 1e-3 * system.output_interval for t in result.t[differ])
     if name != "bk10-velocity-weakening":
         assert comparison.max_rel_dx < 1e-8
+
+
+@pytest.mark.parametrize("name", ["chain2-coulomb", "chain3-coulomb"])
+def test_adaptive_keeps_the_coulomb_chains_exact(name, fmu_path):
+    """adaptive at its default rtol: within 1e-8 of the amplitude (the file allows 1e-6), every event paired with
+    the reference's within 1e-8 s (issue 19's target), with step rejections and event redos through FMU states."""
+    system, reference = scene(name)
+    result = make_master("adaptive").run(system, fmu_path)
+    comparison = compare(result, reference, system.tolerances["adaptive"])
+    assert comparison.ok and comparison.max_rel_dx < 1e-8, comparison
+    assert list(comparison.master_events) == list(comparison.reference_events)
+    assert np.all(comparison.max_event_dt < 1e-8), comparison.max_event_dt
+    assert result.stats["event redos"] > 0 and result.stats["rejected steps"] > 0
+
+
+def test_adaptive_on_the_stribeck_chain(fmu_path):
+    """The Stribeck chain with an aging block: within the file's tolerance (1e-6 of the amplitude; see the file)."""
+    system, reference = scene("chain3-stribeck-aging")
+    result = make_master("adaptive").run(system, fmu_path)
+    assert compare(result, reference, system.tolerances["adaptive"]).ok
+
+
+def test_adaptive_refuses_a_bad_rtol():
+    with pytest.raises(FMUError, match=r"adaptive: rtol = 0.5: allowed is \[1e-14, 0.01\]"):
+        make_master("adaptive", rtol=0.5)
 
 
 # ---------------------------------------------------------------- the command

@@ -13,10 +13,12 @@ def add_system(subparsers):
     run.add_argument("file", metavar="FILE.toml", help="system file")
     run.add_argument("--master", required=True, choices=sorted(MASTERS),
                      help="zoh: fixed step, held inputs (FMI 2 co-simulation); me: FMI 3 model exchange of all "
-                          "blocks in one solver")
+                          "blocks in one solver; adaptive: FMI 2 co-simulation with events landed, step rejection and "
+                          "iterated coupling")
     run.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     run.add_argument("--step", type=float, help="zoh: communication step in s (default: the file's output_interval)")
-    run.add_argument("--rtol", type=float, help="me: the solver's relative tolerance (default 1e-10)")
+    run.add_argument("--rtol", type=float, help="me: the solver's relative tolerance (default 1e-10); "
+                     "adaptive: error per second as a fraction of the largest F_S/kappa (default 1e-9)")
     run.add_argument("--fmu", help="the FMU to run (default: the built FMU of the master's FMI version)")
     run.add_argument("--quiet", action="store_true", help="no progress bars")
     run.set_defaults(handler=_run)

@@ -25,6 +25,15 @@ from ..reference import ChainEvent
 _SETTERS = {2: {"Real": "setReal", "Integer": "setInteger"}, 3: {"Float64": "setFloat64", "Int32": "setInt32"}}
 
 
+def checked_rtol(master, rtol, default, lowest):
+    """``rtol`` of the master named ``master`` (``default`` if None), or FMUError naming it and the range
+    ``[lowest, 0.01]``."""
+    rtol = default if rtol is None else rtol
+    if not lowest <= rtol <= 1e-2:
+        raise FMUError(f"{master}: rtol = {rtol!r}: allowed is [{lowest:g}, 0.01]")
+    return rtol
+
+
 @dataclass
 class SystemResult:
     """A master's run on the grid ``t`` (s): arrays of shape ``(len(t), N)`` of ``x`` (m), ``v`` (m/s) and ``mode``;

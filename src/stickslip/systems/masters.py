@@ -1,12 +1,13 @@
 """The masters by name (``--master``): each a module with one class (:mod:`.master` says what it implements)."""
 
 from ..hosts.fmpy_host import FMUError
+from .adaptive import AdaptiveMaster
 from .master import Master
 from .me import MeMaster
 from .zoh import ZohMaster
 
 #: master name: its class
-MASTERS: dict[str, type[Master]] = {cls.NAME: cls for cls in (ZohMaster, MeMaster)}
+MASTERS: dict[str, type[Master]] = {cls.NAME: cls for cls in (ZohMaster, MeMaster, AdaptiveMaster)}
 
 
 def make_master(name, **options) -> Master:

@@ -20,7 +20,7 @@ from scipy.integrate import DOP853
 from scipy.optimize import brentq
 
 from ..hosts.fmpy_host import FMUError
-from .master import SystemResult, block_instances, new_event
+from .master import SystemResult, block_instances, checked_rtol, new_event
 from .me_blocks import ExchangeBlocks
 
 STEPS_PER_PERIOD = 20
@@ -37,10 +37,7 @@ class MeMaster:
     OPTIONS = ("rtol",)
 
     def __init__(self, rtol=None):
-        rtol = 1e-10 if rtol is None else rtol
-        if not 1e-13 <= rtol <= 1e-2:
-            raise FMUError(f"me: rtol = {rtol!r}: allowed is [1e-13, 0.01]")
-        self.rtol = rtol
+        self.rtol = checked_rtol("me", rtol, default=1e-10, lowest=1e-13)
 
     def run(self, system, fmu_path, progress=lambda t: None):
         with block_instances(self, system, fmu_path, interface="me") as (fmu, instances):

@@ -23,7 +23,7 @@ from ..fmu.variables import START_VALUES, VARIABLES
 from ..reference import ChainBlock, parameters_from_values
 
 #: {master: default max |dx| against the reference as a fraction of the chain's amplitude}, see docs/systems.md
-DEFAULT_TOLERANCES = {"zoh": 0.1, "me": 1e-6}
+DEFAULT_TOLERANCES = {"zoh": 0.1, "me": 1e-6, "adaptive": 1e-6}
 _SYSTEM_KEYS = {"stop_time", "output_interval", "v_drive", "coupling", "description"}
 _TOP_KEYS = {"system", "blocks", "tolerance"}
 #: {parameter name: its variable in the FMU's table}

@@ -1,0 +1,354 @@
+"""The ``adaptive`` master: FMI 2 co-simulation blocks kept exact in a chain by event landing, step rejection
+and a coupling of higher order than holding.
+
+One co-simulation instance of ``SpringBlockFriction.fmu`` per block (FMPy, :mod:`stickslip.hosts.fmpy_host`).
+A communication step ``[t, T]`` is cut into cells; every block's FMU state at ``t`` is saved
+(``fmi2GetFMUstate``) and the step is iterated (Jacobi waveform relaxation): each block steps its cells with
+``F_ext`` taken from the neighbours' positions of the previous sweep (iteration 0: extrapolated), interpolated
+by cubic Hermite polynomials through ``x`` and ``v`` at the cell ends; the states are restored
+(``fmi2SetFMUstate``) before every new sweep, until the cell-end positions change by less than a hundredth of
+the step's tolerance. The FMU holds its input over a ``doStep``, so a slipping block steps each cell in two
+halves whose constant forces carry the interpolated force's impulse and first moment over the cell (the
+block's end state is then exact to ``omega^2 delta^4`` for a cell of length ``delta``, third order in all); a
+stuck block, whose motion ``F_ext`` does not change, gets the force at each cell's end, so its ``z_slip`` there
+is the true one.
+
+Step control: the leading error term of each cell (the force's residual against the two constants, weighted by
+``(T - s)^2``, times ``omega^2 + (dF_friction/dv / M)^2`` from the block's own outputs) summed over the step
+must stay below ``rtol`` times the chain's length scale (largest ``F_S/kappa``) per second; else the step is
+redone shorter. Events: when a block's ``n_events`` moves within a step, the step is redone with its end on
+the event, located by the Illinois method on the block's indicator (``z_slip`` stuck, ``mode * z_stick``
+slipping; past the event: minus the time since it, scaled by the indicator's rate) until the event lies
+within ``EVENT_TOL`` s before the step's end (after ``MAX_REDOS`` tries the last one is kept and counted). Every
+communication point of the output grid is one.
+"""
+
+import math
+import time
+
+import numpy as np
+
+from ..hosts.fmpy_host import FMUError
+from .master import SystemResult, block_instances, checked_rtol, new_event, references
+
+EVENT_TOL = 1e-10  # s: an event this close before a step's end has landed on it
+CELLS = 4  # cells per communication step while a block slips (1 while all are stuck)
+STEPS_PER_PERIOD = 8  # longest step: this fraction of the shortest free period
+MAX_SWEEPS = 12
+MAX_REDOS = 60
+_GAUSS_U, _GAUSS_W = (np.array([0.5 - math.sqrt(0.15), 0.5, 0.5 + math.sqrt(0.15)]), np.array([5, 8, 5]) / 18.0)
+_READ_CELL = ("x", "v", "F_friction", "F_spring")
+_READ_END = ("z_slip", "z_stick", "t_last_event")
+_READ_INT = ("mode", "n_events")
+
+
+class AdaptiveMaster:
+    """Tolerance ``rtol`` (default 1e-9): the estimated error per second of simulated time, as a fraction of the
+    chain's length scale (largest ``F_S / kappa`` of its blocks)."""
+
+    NAME = "adaptive"
+    FMI_VERSION = 2
+    OPTIONS = ("rtol",)
+
+    def __init__(self, rtol=None):
+        self.rtol = checked_rtol("adaptive", rtol, default=1e-9, lowest=1e-14)
+
+    def run(self, system, fmu_path, progress=lambda t: None):
+        with block_instances(self, system, fmu_path) as (fmu, instances):
+            return _Run(system, _Blocks(fmu, instances), self.rtol, progress).run()
+
+
+def hermite(u, x0, v0, x1, v1, delta):
+    """Cubic Hermite interpolant at ``u`` in [0, 1] of a cell of length ``delta`` (s), ends ``(x, v)``."""
+    u2, u3 = u * u, u * u * u
+    return ((2 * u3 - 3 * u2 + 1) * x0 + (u3 - 2 * u2 + u) * delta * v0 + (3 * u2 - 2 * u3) * x1
+            + (u3 - u2) * delta * v1)
+
+
+def coupling_matrix(system):
+    """``K`` (N/m) with ``F_ext = K x`` (SPEC section 5)."""
+    n = system.n
+    K = np.zeros((n, n))
+    for i, kc in enumerate(system.coupling):
+        K[i, i] -= kc
+        K[i + 1, i + 1] -= kc
+        K[i, i + 1] += kc
+        K[i + 1, i] += kc
+    return K
+
+
+class _Blocks:
+    """The instances: their saved states, inputs, steps and outputs."""
+
+    def __init__(self, fmu, instances):
+        self.instances = instances
+        self.cell_refs, self.end_refs = references(fmu, _READ_CELL), references(fmu, _READ_END)
+        self.int_refs, self.F_ext = references(fmu, _READ_INT), references(fmu, ("F_ext",))
+        self.states = [None] * len(instances)
+        self.do_steps = 0
+
+    def save(self):
+        """Save every block's FMU state (the previous one freed)."""
+        for i, b in enumerate(self.instances):
+            if self.states[i] is not None:
+                b.call(b.fmu.freeFMUState, self.states[i])
+            self.states[i] = b.call(b.fmu.getFMUState)
+
+    def restore(self):
+        for b, state in zip(self.instances, self.states):
+            b.call(b.fmu.setFMUState, state)
+
+    def free(self):
+        for b, state in zip(self.instances, self.states):
+            if state is not None:
+                b.call(b.fmu.freeFMUState, state)
+        self.states = [None] * len(self.instances)
+
+    def step(self, i, t, h, force):
+        """Block ``i`` from ``t`` over ``h`` s with ``F_ext = force`` (N)."""
+        b = self.instances[i]
+        b.call(b.fmu.setReal, self.F_ext, [float(force)])
+        b.call(b.fmu.doStep, t, h)
+        self.do_steps += 1
+
+    def cell(self, i):
+        """``(x, v, F_friction, F_spring)`` of block ``i``."""
+        b = self.instances[i]
+        return b.call(b.fmu.getReal, self.cell_refs)
+
+    def set_force(self, i, force):
+        b = self.instances[i]
+        b.call(b.fmu.setReal, self.F_ext, [float(force)])
+
+    def end(self):
+        """``(z_slip, z_stick, t_last_event, mode, n_events)`` of every block, each an array over blocks."""
+        rows = [b.call(b.fmu.getReal, self.end_refs) + b.call(b.fmu.getInteger, self.int_refs)
+                for b in self.instances]
+        return [np.array(column) for column in zip(*rows)]
+
+
+class _Attempt:
+    """One communication step ``[t, T]`` tried: the cell times, each block's ``x``, ``v`` (arrays ``(N, cells + 1)``)
+    and ``F_friction`` at the cell ends, the end outputs, the error estimate (m) and the sweeps it took."""
+
+    def __init__(self, times, X, V):
+        self.times, self.X, self.V = times, X, V
+        self.friction = np.zeros_like(X)
+        self.spring = np.zeros(X.shape[0])
+        self.held = np.zeros(X.shape[0])  # N: each block's F_ext over its last cell
+        self.error, self.sweeps, self.converged = 0.0, 0, False
+        self.end = None
+
+    @property
+    def T(self):
+        return float(self.times[-1])
+
+
+class _Run:
+    """One co-simulation: the blocks, the current communication point, the samples and the events."""
+
+    def __init__(self, system, blocks, rtol, progress):
+        self.system, self.blocks, self.progress = system, blocks, progress
+        self.K = coupling_matrix(system)
+        self.M = np.array([b["M"] for b in system.blocks])
+        self.omega2 = np.array([b["kappa"] / b["M"] for b in system.blocks])
+        scale = max(b["static.F0"] / b["kappa"] for b in system.blocks)
+        self.tol = rtol * scale  # m per s
+        side = [0.0, *system.coupling, 0.0]
+        w2 = max((b["kappa"] + 2.0 * (side[i] + side[i + 1])) / b["M"] for i, b in enumerate(system.blocks))
+        self.h_slip = 2.0 * math.pi / math.sqrt(w2) / STEPS_PER_PERIOD
+        self.grid = system.times()
+        self.t = 0.0
+        first = np.array([blocks.cell(i) for i in range(system.n)])
+        self.x, self.v = first[:, 0], first[:, 1]
+        self.a = (first[:, 3] + first[:, 2] + self.K @ self.x) / self.M
+        self.end = blocks.end()
+        self.rows = [(self.x.copy(), self.v.copy(), self.end[3].copy())]
+        self.events, self.complete = [], True
+        self.h = self.h_slip / 4.0
+        self.stats = {"communication steps": 0, "rejected steps": 0, "event redos": 0, "events not landed": 0,
+                      "sweeps": 0}
+
+    def run(self):
+        start = time.perf_counter()
+        t_end = float(self.grid[-1])
+        try:
+            while self.t < t_end:
+                self._advance()
+        finally:
+            self.blocks.free()
+        xs, vs, modes = (np.array(column) for column in zip(*self.rows))
+        self.stats["doStep calls"] = self.blocks.do_steps
+        return SystemResult(AdaptiveMaster.NAME, self.grid[:len(xs)].copy(), xs, vs, modes, self.events,
+                            self.complete, np.array(self.end[4]), time.perf_counter() - start,
+                            {"rtol": self.tol / max(b["static.F0"] / b["kappa"] for b in self.system.blocks),
+                             "event tolerance (s)": EVENT_TOL}, self.stats)
+
+    def _advance(self):
+        """One accepted communication step from ``t`` (redone shorter, and on an event, as needed)."""
+        self.blocks.save()
+        next_grid = self.grid[np.searchsorted(self.grid, self.t, side="right")]
+        slipping = bool(np.any(self.end[3] != 0))
+        for _ in range(MAX_REDOS):
+            h = min(self.h, self.h_slip) if slipping else math.inf
+            T = min(self.t + h, float(next_grid))
+            clipped = T < self.t + h
+            attempt = self._attempt(T, CELLS if slipping else 1)
+            if attempt.converged and attempt.error <= 2.0 * self.tol * (T - self.t):
+                break
+            self.stats["rejected steps"] += 1
+            self.h = (T - self.t) * (0.5 if not attempt.converged else self._factor(attempt))
+        else:
+            raise FMUError(f"adaptive: no step from t = {self.t!r} s meets the tolerance")
+        crossing = self._crossing(attempt)
+        if crossing is not None:
+            attempt = self._land(attempt, crossing)
+        if attempt.error > 0.0 and not clipped and attempt.T == T:
+            self.h = (T - self.t) * self._factor(attempt)
+        self._accept(attempt)
+        if self.t == float(next_grid):
+            self.rows.append((self.x.copy(), self.v.copy(), self.end[3].copy()))
+            self.progress(self.t)
+
+    def _factor(self, attempt):
+        """The step's growth factor from its error estimate (local error order 4 per cell: 3 per second)."""
+        ratio = self.tol * (attempt.T - self.t) / max(attempt.error, 1e-300)
+        return min(2.0, max(0.2, 0.8 * ratio ** (1.0 / 3.0)))
+
+    def _attempt(self, T, cells):
+        """The step ``[t, T]`` in ``cells`` cells, swept until the waveforms converge (or ``MAX_SWEEPS``)."""
+        times = np.linspace(self.t, T, cells + 1)
+        tau = times - self.t
+        attempt = _Attempt(times, self.x[:, None] + self.v[:, None] * tau + 0.5 * self.a[:, None] * tau ** 2,
+                           self.v[:, None] + self.a[:, None] * tau)
+        slipping = self.end[3] != 0
+        floor = max(0.01 * self.tol * (T - self.t), 1e-14 * (1.0 + float(np.max(np.abs(self.x)))))
+        while attempt.sweeps < MAX_SWEEPS and not attempt.converged:
+            c1, c2, f_start, residual = self._forces(attempt)
+            self.blocks.restore()
+            X, V = attempt.X.copy(), attempt.V.copy()
+            for i in range(self.system.n):
+                self._sweep_block(i, attempt, c1[i], c2[i] if slipping[i] else f_start[i], slipping[i])
+            delta = times[1] - times[0]
+            change = max(float(np.max(np.abs(attempt.X - X))), float(np.max(np.abs(attempt.V - V))) * delta)
+            attempt.sweeps += 1
+            attempt.converged = change <= floor
+            attempt.error = self._estimate(attempt, residual, slipping)
+            if attempt.error > 4.0 * self.tol * (T - self.t):
+                break  # rejected whatever the sweeps give
+        self.stats["sweeps"] += attempt.sweeps
+        attempt.end = self.blocks.end()
+        return attempt
+
+    def _sweep_block(self, i, attempt, first, second, slipping):
+        """Step block ``i`` over every cell of ``attempt``: two halves with ``first[k]``, ``second[k]`` while it
+        slips, one step with ``second[k]`` (the force at the cell's start) while it sticks; read the cell ends."""
+        times = attempt.times
+        for k in range(times.size - 1):
+            t0, t1 = float(times[k]), float(times[k + 1])
+            if slipping:
+                mid = 0.5 * (t0 + t1)
+                self.blocks.step(i, t0, mid - t0, first[k])
+                self.blocks.step(i, mid, t1 - mid, second[k])
+            else:
+                self.blocks.step(i, t0, t1 - t0, second[k])
+            x, v, friction, spring = self.blocks.cell(i)
+            attempt.X[i, k + 1], attempt.V[i, k + 1], attempt.friction[i, k + 1] = x, v, friction
+            attempt.spring[i], attempt.held[i] = spring, second[k]
+
+    def _forces(self, attempt):
+        """Per block and cell (arrays ``(N, cells)``): the two half-cell forces (N) carrying the interpolated
+        coupling force's impulse and first moment about the cell's end, the force at the cell's start, and the
+        residual ``int (F - c) (T_cell - s)^2 ds`` (N s^3) of the two constants."""
+        X, V, delta = attempt.X, attempt.V, attempt.times[1] - attempt.times[0]
+        u = _GAUSS_U[None, None, :]
+        x_nodes = hermite(u, X[:, :-1, None], V[:, :-1, None], X[:, 1:, None], V[:, 1:, None], delta)
+        F = np.einsum("ij,jkq->ikq", self.K, x_nodes)  # (N, cells, 3)
+        h = 0.5 * delta
+        impulse = delta * F @ _GAUSS_W
+        moment = delta ** 2 * F @ (_GAUSS_W * (1.0 - _GAUSS_U))
+        A, B = impulse / h, moment / h ** 2
+        c1, c2 = B - 0.5 * A, 1.5 * A - B
+        second = delta ** 3 * F @ (_GAUSS_W * (1.0 - _GAUSS_U) ** 2)
+        residual = second - h ** 3 * (7.0 * c1 + c2) / 3.0
+        return c1, c2, self.K @ X[:, :-1], residual
+
+    def _estimate(self, attempt, residual, slipping):
+        """The step's error estimate (m): per slipping block, the velocity error of its cells' force residuals
+        (``lambda^2 / 2M`` times the residual, ``lambda^2 = omega^2 + (dF_friction/dv / M)^2``) over ``lambda``,
+        summed over the cells; the largest of any block."""
+        dv = np.diff(attempt.V, axis=1)
+        dF = np.diff(attempt.friction, axis=1)
+        gamma = np.where(np.abs(dv) > 1e-12, np.abs(dF) / np.maximum(np.abs(dv), 1e-12), 0.0)
+        lam2 = self.omega2[:, None] + (gamma / self.M[:, None]) ** 2
+        per_cell = np.sqrt(lam2) / (2.0 * self.M[:, None]) * np.abs(residual)
+        return float(np.max(np.where(slipping, per_cell.sum(axis=1), 0.0)))
+
+    def _accept(self, attempt):
+        """Make ``attempt`` the new communication point; record its events."""
+        before, end = self.end, attempt.end
+        for i in np.flatnonzero(end[4] != before[4]):
+            if end[4][i] == before[4][i] + 1:
+                self.events.append(new_event(end[2][i], i, before[3][i], end[3][i]))
+            else:
+                self.complete = False
+        self.t, self.end = attempt.T, end
+        self.x, self.v = attempt.X[:, -1].copy(), attempt.V[:, -1].copy()
+        self.a = (attempt.spring + attempt.friction[:, -1] + self.K @ self.x) / self.M
+        self.stats["communication steps"] += 1
+
+    def _held_margin(self, attempt):
+        """Each block's ``z_slip`` (N) at the step's end with the true coupling force there (the FMU's is with the
+        force it held over the last cell); meaningful for the blocks stuck at ``t``."""
+        kx = -attempt.spring
+        return attempt.end[0] + np.abs(kx - attempt.held) - np.abs(kx - self.K @ attempt.X[:, -1])
+
+    def _crossing(self, attempt):
+        """``(block, t_e)`` of the first event in ``attempt``: a block's own (``n_events`` moved; ``t_e`` its time,
+        or the step's middle for two or more), else a stuck block whose true margin at the end is negative
+        (``t_e`` None); None if neither."""
+        moved = np.flatnonzero(attempt.end[4] != self.end[4])
+        if moved.size:
+            times = [attempt.end[2][i] if attempt.end[4][i] == self.end[4][i] + 1 else 0.5 * (self.t + attempt.T)
+                     for i in moved]
+            j = int(np.argmin(times))
+            return int(moved[j]), float(times[j])
+        margin = np.where(self.end[3] == 0, self._held_margin(attempt), math.inf)
+        return (int(np.argmin(margin)), None) if np.min(margin) < 0.0 else None
+
+    def _indicator(self, attempt, block):
+        """Block ``block``'s indicator at the end of ``attempt`` (``self`` at ``t``: None), positive while its mode
+        at ``t`` lasts: the true ``z_slip`` while stuck, ``mode * v_rel`` while slipping."""
+        mode = self.end[3][block]
+        if attempt is None:
+            return float(self.end[0][block] if mode == 0 else mode * self.end[1][block])
+        return float(self._held_margin(attempt)[block] if mode == 0 else mode * attempt.end[1][block])
+
+    def _land(self, attempt, crossing):
+        """The step redone to end on its first event: Illinois on the event block's indicator (past a block's own
+        event: minus the time since it, times the indicator's mean rate over the first try)."""
+        block, t_e = crossing
+        lo, psi_lo = self.t, max(self._indicator(None, block), 1e-300)
+        psi_hi = self._indicator(attempt, block) if t_e is None else -psi_lo / max(t_e - self.t, EVENT_TOL)
+        rate = (psi_lo - psi_hi) / (attempt.T - self.t) if t_e is None else -psi_hi
+        hi, psi_hi, side, own = attempt.T, (psi_hi if t_e is None else -(attempt.T - t_e) * rate), 0, t_e
+        for _ in range(MAX_REDOS):
+            if attempt.T == hi and (own is not None and hi - own <= EVENT_TOL or own is None and hi - lo <= EVENT_TOL):
+                return attempt
+            if attempt.T == lo and own is not None and own - lo <= EVENT_TOL:
+                return attempt
+            T = hi if hi - lo <= EVENT_TOL else min(max((lo * psi_hi - hi * psi_lo) / (psi_hi - psi_lo),
+                                                        lo + 0.25 * EVENT_TOL), hi - 0.25 * EVENT_TOL)
+            attempt = self._attempt(T, CELLS if np.any(self.end[3] != 0) else 1)
+            self.stats["event redos"] += 1
+            found = self._crossing(attempt)
+            if found is not None:
+                own = found[1]
+                psi = -(T - own) * rate if own is not None else min(self._indicator(attempt, block), -1e-300)
+                hi, psi_hi = T, psi
+                psi_lo, side = (psi_lo * 0.5 if side == 1 else psi_lo), 1
+            else:
+                lo, psi_lo = T, max(self._indicator(attempt, block), 1e-300)
+                psi_hi, side = (psi_hi * 0.5 if side == -1 else psi_hi), -1
+        self.stats["events not landed"] += 1  # events that keep moving (triggering each other): the last try
+        return attempt
