@@ -22,7 +22,7 @@ from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, 
                         ModelExchange)
 
 from block_interface import BlockInterface, balance_release, check_state, saved_state, serialized_states
-from stickslip.core.exchange import INDICATORS, ExchangeBlock
+from stickslip.core.exchange import INDICATORS, ExchangeBlock, check_inputs  # one import of the runtime (staging)
 
 _CAUSALITY = {"parameter": Fmi3Causality.parameter, "input": Fmi3Causality.input, "output": Fmi3Causality.output}
 _VARIABILITY = {name: getattr(Fmi3Variability, name) for name in ("fixed", "continuous", "discrete")}
@@ -101,9 +101,16 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
                                 f"{variable.causality.name}: only parameters and inputs can be set")
 
     def set_variable(self, name, value):
+        """A parameter or an input. An input is checked first, as the runtime checks it (ParameterError naming
+        it and its range: fmi3Error, the value kept): finite in every mode, and after initialization within the
+        force scales of the parameters, then, both interfaces alike, also held by the model-exchange block."""
+        if name in ("v_drive", "F_ext"):
+            inputs = {"v_drive": self.values["v_drive"], "F_ext": self.values["F_ext"], name: value}
+            if self.block is None:
+                check_inputs(inputs["v_drive"], inputs["F_ext"])  # the parameters may still change
+            else:
+                self.block.set_inputs(inputs["v_drive"], inputs["F_ext"])
         super().set_variable(name, value)
-        if self.block is not None and name in ("v_drive", "F_ext"):
-            setattr(self.block, name, float(value))
 
     def current_state(self):
         return self.block if self.exchange else self.current_trajectory()

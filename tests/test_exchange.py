@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from stickslip.core import STUCK, Parameters, kinetic_law, static_law
+from stickslip.core import STUCK, ParameterError, Parameters, kinetic_law, static_law
 from stickslip.core.exchange import INACTIVE, ExchangeBlock
 from stickslip.reference import parameters_from_values, simulate_reference
 
@@ -174,7 +174,7 @@ def test_a_stuck_block_breaks_away_beyond_F_S_of_its_stick_time_in_the_direction
                 block.set_states(holding_x(ref, F_ext, sign * holding), 0.12)
                 assert block.update() is False and block.mode == STUCK and block.t_stuck == T0
             block.set_states(x := holding_x(ref, F_ext, sign * 1.01 * aged), 0.12)
-            assert block.update() is False  # v stays v_drive: the slip starts there
+            assert block.update() is True  # v stays v_drive (the slip starts there), the mode changed: a restart
             assert block.mode == spec_breakaway_mode(ref, x, F_ext) == sign
             assert block.states() == [x, 0.12] and block.t_stick == 0.0
             assert (block.n_slip_events, block.n_events, block.t_last_event) == (1, 1, T0 + 2.0)
@@ -189,14 +189,14 @@ def test_a_slip_reaching_v_rel_zero_sticks_iff_F_S_of_zero_holds_else_overshoots
     core, ref = both_parameters(law_values("stribeck", static))
     fs0, v_drive = ref.static.force(0.0), 0.2
     for F_ext in F_EXTS:
-        cases = [(h, STUCK) for h in (0.0, 0.7 * fs0, -0.999 * fs0)]
+        cases = [(h, STUCK) for h in (0.0, 0.7 * fs0, -mode * 0.999 * fs0)]  # mode * holding <= F_K(0+): arrivals
         cases += [(-mode * f * fs0, -mode) for f in (1.001, 1.1)]  # within F_S(5 s) for the aging laws
         for holding, expected in cases:
             block = ExchangeBlock(core, 0.0, v_drive - mode * 0.3, v_drive, F_ext, t0=T0)
             block.t = T0 + 5.0
             x = holding_x(ref, F_ext, holding)
             block.set_states(x, v_drive)
-            assert block.update() is False and block.mode == expected
+            assert block.update() is (expected != mode) and block.mode == expected  # the mode changed: a restart
             assert block.states() == [x, v_drive] and block.t_last_event == T0 + 5.0
             if expected == STUCK:
                 assert block.n_stick_events == 1 and block.t_stuck == T0 + 5.0
@@ -204,7 +204,7 @@ def test_a_slip_reaching_v_rel_zero_sticks_iff_F_S_of_zero_holds_else_overshoots
                 assert_force_close(block.indicators()[1], spec_z_slip(ref, x, F_ext, 1.0), 4.0)
             else:
                 assert expected == spec_breakaway_mode(ref, x, F_ext)
-                assert block.n_overshoots == 1 and block.indicators()[0] == 0.0
+                assert block.n_overshoots == 1 and 0.0 < block.indicators()[0] < 1e-15  # leaving v_rel = 0
 
 
 def test_the_stick_test_holds_at_equality():
@@ -212,7 +212,7 @@ def test_the_stick_test_holds_at_equality():
     slips only when the holding force exceeds F_S), at a slip's end and at the start."""
     core, ref = both_parameters(law_values("coulomb", "constant", kappa=2.0))
     assert ref.kappa * 0.75 - 0.5 == ref.static.force(0.0)
-    block = ExchangeBlock(core, 0.0, -0.1, 0.0, 0.5)
+    block = ExchangeBlock(core, 0.0, 0.1, 0.0, 0.5)  # mode -1, arriving: -kappa x + F_ext - F_K(0+) < 0
     block.set_states(0.75, 0.0)
     block.update()
     assert block.mode == STUCK
@@ -237,7 +237,7 @@ def test_input_jumps_during_a_stick(static):
             block.update()
             assert block.mode == STUCK and block.t_stick == (T0 + 4.0) - T0  # t - t_stuck
         block.F_ext = ref.kappa * 0.1 - sign * 1.02 * aged
-        assert block.update() is False
+        assert block.update() is True  # the mode changed
         assert block.mode == spec_breakaway_mode(ref, 0.1, block.F_ext) == sign
         assert block.states() == [0.1, -0.25] and block.n_slip_events == 1
 
@@ -249,9 +249,79 @@ def test_an_input_jump_during_a_slip_keeps_v_and_the_mode_follows_the_new_v_rel(
     block = ExchangeBlock(core, 0.3, 0.1, 0.4, -0.45, t0=T0)
     assert block.mode == 1
     block.t, block.v_drive = T0 + 1.0, -0.2
-    assert block.update() is False
+    assert block.update() is True  # the mode changed
     assert block.mode == -1 and block.states() == [0.3, 0.1]
     assert_force_close(block.derivatives()[1], spec_acceleration(ref, -1, 0.3, 0.1, -0.2, -0.45), 2.0)
+
+
+WEAKENING = {**law_values("lubricated", "saturating"), "static.F_inf": 0.6}  # F_S falls from 1 N to 0.6 N
+
+
+def event_points(core, ref, F_ext, mode):
+    """``{kind: block}`` of blocks just updated at an event 5 s into a stick or a slip in ``mode``: a breakaway
+    (holding 1 % beyond ``F_S(5 s)``), a stick and an overshoot at ``v_rel = 0`` (0.7 and 1.05 ``F_S(0)``, against the
+    slip)."""
+    v_drive, blocks = 0.2, {}
+    block = stuck_block(core, F_ext, v_drive)
+    block.t = T0 + 5.0
+    block.set_states(holding_x(ref, F_ext, -mode * 1.01 * ref.static.force(5.0)), v_drive)
+    blocks["breakaway"] = block
+    for kind, holding in (("stick", -mode * 0.7), ("overshoot", -mode * 1.05)):  # arrivals: mode * holding < 0
+        block = ExchangeBlock(core, 0.0, v_drive - mode * 0.3, v_drive, F_ext, t0=T0)
+        block.t = T0 + 5.0
+        block.set_states(holding_x(ref, F_ext, holding * ref.static.force(0.0)), v_drive)
+        blocks[kind] = block
+    for block in blocks.values():
+        assert block.update() is True and block.n_events == 1
+    return blocks
+
+
+@pytest.mark.parametrize("values", [law_values("lubricated", "logarithmic"), WEAKENING], ids=["aging", "weakening"])
+@pytest.mark.parametrize("mode", [1, -1])
+def test_an_event_update_repeated_with_nothing_changed_changes_nothing(values, mode):
+    """Issue 20 item 11: a host that re-enters Event Mode at an event's instant (no time, state or input
+    changed) gets no mode change, no event counted, no restart, the same derivatives; right after a breakaway
+    or an overshoot the stick indicator is positive (the slip leaves ``v_rel = 0``), not on its zero. Before,
+    a weakening law (F_S(0) > F_S(t)) flipped a breakaway back to a stick and counted an event each time."""
+    core, ref = both_parameters(values)
+    for F_ext in F_EXTS:
+        for kind, block in event_points(core, ref, F_ext, mode).items():
+            before = (block.mode, block.states(), block.derivatives(), block.indicators(), block.t_stuck)
+            for _ in range(3):
+                assert block.update() is False
+                assert (block.mode, block.states(), block.derivatives(), block.indicators(), block.t_stuck) == before
+                assert block.n_events == 1
+            if kind != "stick":
+                stick_indicator, graze = block.indicators()[0], block.indicators()[2]
+                assert block.mode == spec_breakaway_mode(ref, block.x, F_ext) and block.v_rel == 0.0
+                assert 0.0 < stick_indicator <= 2.0 ** -52 * block.nominals()[1] and graze > 0.0
+
+
+def test_a_slip_that_arrives_at_v_rel_zero_still_reads_zero():
+    """The stick indicator's lift applies where the slip leaves ``v_rel = 0`` only: arriving there (``m dv_rel/dt
+    < 0``) it reads 0 and the update sticks, so the event a host locates stays where it is."""
+    core, ref = both_parameters(law_values("coulomb", "constant"))
+    block = ExchangeBlock(core, 0.0, 0.5, 0.2, 0.0, t0=T0)  # mode -1; at x = 0.5 m the spring pulls back
+    block.set_states(0.5, 0.2)
+    assert block.mode == -1 and block.indicators()[0] == 0.0 and block.indicators()[2] < 0.0
+    assert block.update() is True and block.mode == STUCK
+
+
+@pytest.mark.parametrize("name, value", [("v_drive", math.nan), ("F_ext", math.inf), ("F_ext", -math.inf),
+                                         ("v_drive", -math.inf), ("F_ext", 1e200)])
+def test_set_inputs_refuses_non_finite_or_overflowing_inputs_naming_them(name, value):
+    """Issue 20 item 12: the inputs the host sets between events are checked as the co-simulation checks
+    them: ParameterError naming the input and its allowed range; the block keeps its inputs, and its
+    indicators and derivatives stay finite."""
+    core, _ = both_parameters(law_values("stribeck", "sigmoid"))
+    block = ExchangeBlock(core, 0.2, 0.1, 0.3, -0.45, t0=T0)
+    inputs = {"v_drive": 0.3, "F_ext": -0.45, name: value}
+    with pytest.raises(ParameterError, match=rf"{name} = .* is out of range: allowed is|{name}.*at most"):
+        block.set_inputs(inputs["v_drive"], inputs["F_ext"])
+    assert (block.v_drive, block.F_ext) == (0.3, -0.45)
+    assert all(map(math.isfinite, block.indicators() + block.derivatives()))
+    block.set_inputs(0.25, 0.1)
+    assert (block.v_drive, block.F_ext) == (0.25, 0.1)
 
 
 # ---- a model-exchange host: scipy's solve_ivp, events from the indicators, update() at each -----------------

@@ -279,7 +279,7 @@ def test_model_exchange_state_restore_and_serialization(unzipped3):
         before = snapshot()
         assert before[2] == [1]
         fmu.setTime(30.0)
-        fmu.setContinuousStates((c_double * 2)(0.3, 0.1), 2)
+        fmu.setContinuousStates((c_double * 2)(-0.3, 0.1), 2)  # the spring pushes: the slip arrives at v_rel = 0
         fmu.enterEventMode()
         fmu.updateDiscreteStates()  # v = v_drive: sticks
         assert snapshot()[2] == [0]

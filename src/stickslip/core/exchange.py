@@ -13,6 +13,16 @@ discrete state between the host's calls.
   in the modes where it does not apply), zero at the event:
 
   ``stick`` (m/s)      slipping: ``m v_rel``, zero when the slip reaches ``v_rel = 0``;
+                       where a slip leaves ``v_rel = 0`` (right after a breakaway
+                       or an overshoot: ``m v_rel = 0`` and moving into its own
+                       side, :func:`.model.slip_departs`) it reads ``LEAVING``
+                       times the speed nominal instead, the sign it has just
+                       after, as the Reference-FMUs' BouncingBall lifts its
+                       height to DBL_MIN after a bounce: an indicator on its zero
+                       at the event would be a second root there (CVode stops:
+                       "root found at and very near t") and an arrival to the
+                       event update. Only that point changes: an arrival's zero
+                       is located where it is;
   ``breakaway`` (N)    stuck: ``z_slip = F_S(t_stick) - |kappa x - F_ext|``;
   ``graze`` (m/s^2)    slipping: ``m dv_rel/dt = -m a``, zero at each extremum
                        of ``v_rel``: a sign-based locator sees a dip of
@@ -28,7 +38,8 @@ discrete state between the host's calls.
   runtime's breakaway delay is 0: a host's locator that stopped on the zero
   would see no sign change after it); a slip that reached ``v_rel = 0`` sticks or overshoots
   (:func:`.model.mode_at_zero_v_rel`, with ``v`` set to ``v_drive``, the
-  event's point); an input jump acts as in :meth:`.trajectory.Trajectory.set_inputs`
+  event's point; a slip leaving ``v_rel = 0`` has not reached it, so an update
+  repeated with nothing changed changes nothing); an input jump acts as in :meth:`.trajectory.Trajectory.set_inputs`
   (:func:`.model.mode_after_input_change`). Inputs are expected to change
   at events (piecewise constant, as FMPy applies a table with steps); any input
   change since the last update counts as a jump at it.
@@ -52,6 +63,7 @@ from .model import (
     mode_after_input_change,
     mode_at_zero_v_rel,
     slip_acceleration,
+    slip_departs,
     stuck_or_breakaway,
     z_slip,
 )
@@ -59,6 +71,7 @@ from .ranges import ANY_FINITE, check
 from .stuck import breakaway_delay
 
 INACTIVE = 1.0  # value of an event indicator in the modes where it does not apply (never crosses zero)
+LEAVING = 2.0 ** -52  # of the speed nominal: the stick indicator where a slip leaves v_rel = 0 (module docstring)
 INDICATORS = ("stick", "breakaway", "graze")
 
 
@@ -112,6 +125,15 @@ class ExchangeBlock:
         check_state_scales(x, v, self.params)
         self._x, self._v = x, v
 
+    def set_inputs(self, v_drive, F_ext):
+        """The host's inputs ``v_drive`` (m/s) and ``F_ext`` (N), checked as the co-simulation checks them
+        (:meth:`.trajectory.Trajectory.set_inputs`): ParameterError naming the input and its range (the inputs
+        kept) for a non-finite one or one whose force scale overflows. The event update applies a change."""
+        v_drive, F_ext = float(v_drive), float(F_ext)
+        check_inputs(v_drive, F_ext)
+        check_input_scales(v_drive, F_ext, self.params)
+        self.v_drive, self.F_ext = v_drive, F_ext
+
     def nominals(self):
         """Scales of ``x`` and ``v`` (m, m/s): ``F_S(0)/kappa`` and ``F_S(0)/sqrt(kappa M)``, the stick-slip
         amplitude and the slip's speed scale, so a host's absolute tolerance is relative to them."""
@@ -129,21 +151,28 @@ class ExchangeBlock:
         """``[stick, breakaway, graze]`` (m/s, N, m/s^2), see the module docstring."""
         if self.mode == STUCK:
             return [INACTIVE, self.z_slip, INACTIVE]
-        m = self.mode
-        accel = slip_acceleration(m, self._x, self._v, self.v_drive, self.F_ext, self.params)
-        return [m * (self.v_drive - self._v), INACTIVE, -m * accel]
+        accel = slip_acceleration(self.mode, self._x, self._v, self.v_drive, self.F_ext, self.params)
+        return [self._stick_indicator(), INACTIVE, -self.mode * accel]
+
+    def _stick_indicator(self):
+        """``m v_rel`` (m/s) while slipping in mode ``m``; ``LEAVING`` times the speed nominal where the slip
+        leaves ``v_rel = 0`` (see the module docstring)."""
+        m_v_rel = self.mode * (self.v_drive - self._v)
+        if m_v_rel == 0.0 and slip_departs(self.mode, self._x, self.v_drive, self.F_ext, self.params):
+            return LEAVING * self.nominals()[1]
+        return m_v_rel
 
     # ---- event update ------------------------------------------------------------
 
     def update(self):
-        """Apply the transition due at ``t`` with the current inputs; True if the host's ``v`` changed."""
+        """Apply the transition due at ``t`` with the current inputs; True if the host must restart its solver
+        from :meth:`states` (``valuesOfContinuousStatesChanged``): its ``v`` changed, or the mode did. At a mode
+        change the derivatives jump, and a solver that goes on from its own history (fmusim's CVode does
+        unless told) would keep the old mode's solution beyond the event, where it has already integrated."""
         p = self.params
         x, v_drive, F_ext = self._x, self.v_drive, self.F_ext
         old = self.mode
         jumped = (v_drive, F_ext) != self._inputs
-        if jumped:
-            check_inputs(v_drive, F_ext)
-            check_input_scales(v_drive, F_ext, p)
         if old == STUCK:
             new = stuck_or_breakaway(x, F_ext, self.t_stick, p)  # = mode_after_input_change for a stuck block
             if new == STUCK and breakaway_delay(x, v_drive, F_ext, self.t_stick, p, self._time_scale()) == 0.0:
@@ -152,13 +181,13 @@ class ExchangeBlock:
         elif jumped and old * (self._inputs[0] - self._v) > 0.0:  # the jump, not the motion, moved v_rel
             new = mode_after_input_change(old, x, self._v, 0.0, v_drive, F_ext, p)
             v = v_drive if new == STUCK else self._v
-        elif old * (v_drive - self._v) <= 0.0:  # the slip reached v_rel = 0: this is the event's point
+        elif self._stick_indicator() <= 0.0:  # the slip reached v_rel = 0: this is the event's point
             new = mode_at_zero_v_rel(x, F_ext, p)
             v = v_drive
         else:
             new, v = old, self._v
         self._inputs = (v_drive, F_ext)
-        changed = v != self._v
+        changed = v != self._v or new != old
         self._v = v
         if new != old:
             self._log_event(old, new)
