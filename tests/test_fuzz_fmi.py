@@ -361,6 +361,67 @@ def test_fuzzed_call_sequences_hold(targets, target, data):
     check(worker, version, folder, calls, model)
 
 
+INSTANCE, MODEL_EXCHANGE = ["instantiate", "plain"], ["instantiate", "me-plain"]
+INITIALIZED = [["enter_initialization"], ["exit_initialization"]]
+#: what the fuzzer found that the fronts or the slave now refuse or answer: {name: (target, calls, the label of the
+#: call, its status, a text of its message)}
+FOUND = {
+    "fmi2SetFMUstate of a NULL state (crashed)": (
+        "fmi2-cs", [INSTANCE, *INITIALIZED, ["set_state", 0]], "fmi2SetFMUstate", ERROR,
+        "fmi2SetFMUstate: the FMU state is NULL (no state was got into it, or it was freed)"),
+    "fmi2SerializedFMUstateSize of a NULL state (crashed)": (
+        "fmi2-cs", [INSTANCE, ["serialize", 0, 0]], "fmi2SerializedFMUstateSize", ERROR, "the FMU state is NULL"),
+    "fmi3SetFMUState of a NULL state (named no cause)": (
+        "fmi3-cs", [INSTANCE, ["set_state", 0]], "fmi3SetFMUState", ERROR, "the FMU state is NULL"),
+    "fmi3SerializedFMUStateSize of a NULL state (fatal, then a crash)": (
+        "fmi3-me", [MODEL_EXCHANGE, ["serialize", 0, 0], ["get", ["x"]]], "fmi3SerializedFMUStateSize", ERROR,
+        "the FMU state is NULL"),
+    "fmi3GetEventIndicators of 4 (a Python exception left set)": (
+        "fmi3-cs", [INSTANCE, ["read GetEventIndicators", 4]], "fmi3GetEventIndicators", ERROR,
+        "fmi3GetEventIndicators: nEventIndicators = 4, but this FMU has 3 event indicators"),
+    "fmi3GetEventIndicators of 2 (OK, two of three)": (
+        "fmi3-me", [MODEL_EXCHANGE, ["read GetEventIndicators", 2]], "fmi3GetEventIndicators", ERROR,
+        "nEventIndicators = 2, but this FMU has 3"),
+    "fmi3GetContinuousStates of 3 (a Python exception left set)": (
+        "fmi3-me", [MODEL_EXCHANGE, ["read GetContinuousStates", 3]], "fmi3GetContinuousStates", ERROR,
+        "nContinuousStates = 3, but this FMU has 2 continuous states"),
+    "fmi3GetNominalsOfContinuousStates of 3": (
+        "fmi3-me", [MODEL_EXCHANGE, ["read GetNominalsOfContinuousStates", 3]], "fmi3GetNominalsOfContinuousStates",
+        ERROR, "nContinuousStates = 3"),
+    "fmi3GetContinuousStateDerivatives of 3": (
+        "fmi3-me", [MODEL_EXCHANGE, ["read GetContinuousStateDerivatives", 3]], "fmi3GetContinuousStateDerivatives",
+        ERROR, "nContinuousStates = 3"),
+    "fmi3SetContinuousStates of 1 (IndexError)": (
+        "fmi3-me", [MODEL_EXCHANGE, *INITIALIZED, ["set_states", [1.0]]], "fmi3SetContinuousStates", ERROR,
+        "nContinuousStates = 1, but this FMU has 2"),
+    "fmi2SetupExperiment at startTime = inf (outputs inf with OK)": (
+        "fmi2-cs", [INSTANCE, ["enter_initialization", False, 0.0, math.inf, False, 0.0], ["get", ["t_last_event"]]],
+        "fmi2SetupExperiment", ERROR, "fmi2SetupExperiment: startTime = inf; allowed: a finite value"),
+    "fmi2SetupExperiment with stopTime = nan": (
+        "fmi2-cs", [INSTANCE, ["setup_experiment", False, 0.0, 0.0, True, math.nan]], "fmi2SetupExperiment", ERROR,
+        "stopTime = nan; allowed: a finite value"),
+    "fmi3EnterInitializationMode with tolerance = -inf": (
+        "fmi3-me", [MODEL_EXCHANGE, ["enter_initialization", True, -math.inf, 0.0, False, 0.0]],
+        "fmi3EnterInitializationMode", ERROR, "tolerance = -inf; allowed: a finite value"),
+    "fmi3GetFloat64 of der(x) and an indicator before initialization (AttributeError of None)": (
+        "fmi3-cs", [INSTANCE, ["get", ["der(x)", "der(v)", "indicator.breakaway"]]], "fmi3GetFloat64", OK, None),
+}
+
+
+@pytest.mark.parametrize("name", FOUND)
+def test_a_found_case_is_answered(targets, name):
+    """Each case alone in the target's child: the call's status and message, and every property of the fuzzer."""
+    target, calls, label, status, text = FOUND[name]
+    *_, model, worker = targets[target]
+    said = worker.run(calls)
+    assert "failure" not in said, said["failure"]
+    [record] = [record for record in said["calls"] if record["label"] == label]
+    assert record["result"] == status, record
+    assert text is None or any(text in message for _, _, message in record["messages"]), record["messages"]
+    assert violations(said["calls"], model) == []
+    assert said["calls"][-1]["function"].endswith("FreeInstance")
+
+
 @pytest.mark.parametrize("name", OPEN)
 @pytest.mark.xfail(strict=True, reason="open findings of the fuzzer: see OPEN")
 def test_an_open_finding(targets, name):
