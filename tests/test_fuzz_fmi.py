@@ -147,6 +147,8 @@ def violations(records, model):
     return found
 
 
+INSTANCE, MODEL_EXCHANGE = ["instantiate", "plain"], ["instantiate", "me-plain"]
+INITIALIZED = [["enter_initialization"], ["exit_initialization"]]
 #: findings left open, each held by a strict xfail test below (``test_an_open_finding``): {name: (pattern of the
 #: violation, why it is open, a sequence that shows it, its target)}; the fuzzer lets a matching violation pass
 OPEN = {
@@ -164,6 +166,18 @@ OPEN = {
         "its range (issue 20, 'Messages and misuse'; the runtime's message, on branch i20-numerics)",
         [["instantiate", "plain"], ["enter_initialization"], ["exit_initialization"], ["step", 0.0, math.nan]],
         "fmi2-cs"),
+    "fmi3-exchange-call-in-co-simulation": (
+        r"fmi3GetFloat64 -> 3 without an error message naming the cause.*NoneType.{0,3} object has no attribute",
+        "FMI 3: a model-exchange call (fmi3GetContinuousStateDerivatives, ...) on a co-simulation instance before "
+        "initialization is answered with OK, and the outputs then fail with \"'NoneType' object has no attribute "
+        "'friction_force'\" (issue 20, 'Messages and misuse': model-exchange calls in the wrong state; the fronts' "
+        "state machine is issue 20's other half)",
+        [INSTANCE, ["read GetContinuousStateDerivatives", 2], ["get", ["F_friction"]]], "fmi3-cs"),
+    "fmi3-set-time-not-finite": (
+        r"fmi3GetFloat64 -> 0 wrote a non-finite value: .*'time': (inf|-inf|nan)",
+        "FMI 3: fmi3SetTime(inf) before initialization returns OK and the time then reads inf with OK (issue 20, "
+        "item 12; fmi3SetTime's check is on branch i20-numerics, which changes the same slave)",
+        [MODEL_EXCHANGE, ["set_time", math.inf], ["get", ["time"]]], "fmi3-me"),
 }
 
 
@@ -361,8 +375,6 @@ def test_fuzzed_call_sequences_hold(targets, target, data):
     check(worker, version, folder, calls, model)
 
 
-INSTANCE, MODEL_EXCHANGE = ["instantiate", "plain"], ["instantiate", "me-plain"]
-INITIALIZED = [["enter_initialization"], ["exit_initialization"]]
 #: what the fuzzer found that the fronts or the slave now refuse or answer: {name: (target, calls, the label of the
 #: call, its status, a text of its message)}
 FOUND = {
