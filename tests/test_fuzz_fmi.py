@@ -178,6 +178,12 @@ OPEN = {
         "FMI 3: fmi3SetTime(inf) before initialization returns OK and the time then reads inf with OK (issue 20, "
         "item 12; fmi3SetTime's check is on branch i20-numerics, which changes the same slave)",
         [MODEL_EXCHANGE, ["set_time", math.inf], ["get", ["time"]]], "fmi3-me"),
+    "fmi3-input-not-finite-in-model-exchange": (
+        r"fmi3GetFloat64 -> 0 wrote a non-finite value: .*'F_friction': nan",
+        "FMI 3 model exchange: v_drive = NaN set in continuous-time mode returns OK, and F_friction then reads NaN "
+        "with OK (issue 20, item 12; the input check is on branches i20-me and i20-numerics)",
+        [MODEL_EXCHANGE, *INITIALIZED, ["update"], ["enter_continuous_time_mode"], ["set", "v_drive", math.nan],
+         ["get", ["F_friction"]]], "fmi3-me"),
 }
 
 
