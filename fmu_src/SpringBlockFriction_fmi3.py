@@ -59,11 +59,11 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         self.register_variables({"real": Float64, "integer": Int32}, _CAUSALITY, _VARIABILITY)
         state_refs = {v.name: v.value_reference for v in self.vars.values()}
         for index, (name, unit, text) in enumerate(DERIVATIVES):
-            self._local(name, unit, text, lambda i=index: self.block.derivatives()[i],
+            self._local(name, unit, text, lambda i=index: self._block_now().derivatives()[i],
                         derivative=state_refs[name[4:-1]])
         for index, name in enumerate(INDICATORS):
             unit, text = INDICATOR_VARIABLES[name]
-            self._local(f"indicator.{name}", unit, text, lambda i=index: self.block.indicators()[i])
+            self._local(f"indicator.{name}", unit, text, lambda i=index: self._block_now().indicators()[i])
             self.register_event_indicator(len(self.vars) - 1)
         self.variable_units["time"], self.variable_bounds["time"] = "s", (None, None)
         self.register_variable(Float64("time", causality=Fmi3Causality.independent,
@@ -158,11 +158,16 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
 
     # ---- FMI: model exchange ---------------------------------------------------------
 
+    def _block_now(self):
+        """The ExchangeBlock at the current state; before initialization ends, the one the current values start
+        (ParameterError naming a bad parameter)."""
+        return self._new_block() if self.block is None else self.block
+
     def _exchange_call(self):
         """The block a model-exchange call reads; during initialization, the one the current values start."""
         self.exchange = True
         self.outputs_changed()
-        return self._new_block() if self.block is None else self.block
+        return self._block_now()
 
     def set_time(self, time):
         """The model's time (s); before initialization ends, the start time of both interfaces (a co-simulation

@@ -46,8 +46,6 @@ typedef struct {
  * SpringBlockFriction's do) the instance stays valid for fmi2Reset, fmi2SetFMUstate and fmi2FreeInstance,
  * which is what fmi2Error means, so fmi2Fatal is returned and logged as fmi2Error. KEPT: the status as is. */
 #define FORWARDED(X)                                                                                               \
-    X(fmi2SetupExperiment, RECOVERABLE, (fmi2Component c, fmi2Boolean a, fmi2Real b, fmi2Real d, fmi2Boolean e, fmi2Real f), \
-      (a, b, d, e, f))                                                                                             \
     X(fmi2GetReal, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Real *x), (v, n, x))  \
     X(fmi2GetInteger, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Integer *x), (v, n, x)) \
     X(fmi2GetBoolean, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Boolean *x), (v, n, x)) \
@@ -57,9 +55,6 @@ typedef struct {
     X(fmi2SetBoolean, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Boolean *x), (v, n, x)) \
     X(fmi2SetString, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2String *x), (v, n, x)) \
     X(fmi2GetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate *s), (s))                                       \
-    X(fmi2SetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate s), (s))                                        \
-    X(fmi2SerializedFMUstateSize, KEPT, (fmi2Component c, fmi2FMUstate s, size_t *n), (s, n))                      \
-    X(fmi2SerializeFMUstate, KEPT, (fmi2Component c, fmi2FMUstate s, fmi2Byte *b, size_t n), (s, b, n))            \
     X(fmi2GetDirectionalDerivative, KEPT,                                                                          \
       (fmi2Component c, const fmi2ValueReference *u, size_t nu, const fmi2ValueReference *k, size_t nk,            \
        const fmi2Real *dk, fmi2Real *du),                                                                          \
@@ -78,6 +73,8 @@ typedef struct {
 /* The functions forwarded that move the instance between FMI 2's states (sbf_mode) or need one, and the
  * deserialization of states: forwarded by forward_<name>, exported below. */
 #define TRACKED(X)                                                                                                 \
+    X(fmi2SetupExperiment, RECOVERABLE, (fmi2Component c, fmi2Boolean a, fmi2Real b, fmi2Real d, fmi2Boolean e, fmi2Real f), \
+      (a, b, d, e, f))                                                                                             \
     X(fmi2EnterInitializationMode, RECOVERABLE, (fmi2Component c), ())                                             \
     X(fmi2ExitInitializationMode, RECOVERABLE, (fmi2Component c), ())                                              \
     X(fmi2Terminate, RECOVERABLE, (fmi2Component c), ())                                                           \
@@ -85,11 +82,19 @@ typedef struct {
     X(fmi2DoStep, RECOVERABLE, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean k), (t, h, k))                \
     X(fmi2DeSerializeFMUstate, KEPT, (fmi2Component c, const fmi2Byte *b, size_t n, fmi2FMUstate *s), (b, n, s))
 
+/* The functions forwarded that take an FMU state, refused for a NULL one (SBF_STATE_USED): forwarded by
+ * forward_<name>, exported below. */
+#define STATE_USED(X)                                                                                              \
+    X(fmi2SetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate s), (s))                                        \
+    X(fmi2SerializedFMUstateSize, KEPT, (fmi2Component c, fmi2FMUstate s, size_t *n), (s, n))                      \
+    X(fmi2SerializeFMUstate, KEPT, (fmi2Component c, fmi2FMUstate s, fmi2Byte *b, size_t n), (s, b, n))
+
 /* PythonFMU's entry points */
 static struct {
 #define POINTER(name, failure, params, args) fmi2Status(*name) params;
     FORWARDED(POINTER)
     TRACKED(POINTER)
+    STATE_USED(POINTER)
 #undef POINTER
     fmi2Component (*fmi2Instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
                                      fmi2Boolean, fmi2Boolean);
@@ -139,7 +144,7 @@ static void relay_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Status 
 static int resolve_inner(void *lib, const char *path)
 {
 #define LOAD(name, failure, params, args) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
-    if (1 FORWARDED(LOAD) TRACKED(LOAD) LOAD(fmi2Instantiate, , , ) LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , )
+    if (1 FORWARDED(LOAD) TRACKED(LOAD) STATE_USED(LOAD) LOAD(fmi2Instantiate, , , ) LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , )
             LOAD(fmi2FreeFMUstate, , , ))
         return 1;
 #undef LOAD
@@ -250,6 +255,10 @@ SBF_FREE_STATE(fmi2Status, fmi2Error, fmi2Fatal, fmi2FreeFMUstate, fmi2FMUstate)
 #define FORWARD(name, failure, params, args) \
     SBF_FORWARD_AS(static, forward_##name, fmi2Status, fmi2Error, fmi2Fatal, name, failure, params, args)
 TRACKED(FORWARD)
+STATE_USED(FORWARD)
+#undef FORWARD
+#define FORWARD(name, failure, params, args) SBF_STATE_USED(fmi2Status, fmi2Error, name, forward_##name, params, args)
+STATE_USED(FORWARD)
 #undef FORWARD
 
 /* `status` of a call that moves the instance `c` to `mode` when it succeeds */
@@ -257,6 +266,18 @@ static fmi2Status moved(fmi2Component c, fmi2Status status, sbf_mode mode)
 {
     if (c && status <= fmi2Warning) ((Instance *)c)->mode = mode;
     return status;
+}
+
+EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+                                      fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
+{
+    char why[256];
+    if (c && sbf_experiment_refused("fmi2SetupExperiment", toleranceDefined, tolerance, startTime, stopTimeDefined,
+                                    stopTime, why, sizeof why)) {
+        host_log(c, fmi2Error, why);
+        return fmi2Error;
+    }
+    return forward_fmi2SetupExperiment(c, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime);
 }
 
 EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c)

@@ -72,9 +72,6 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
     GET_AND_SET(X, Boolean, fmi3Boolean)                                                                          \
     GET_AND_SET(X, String, fmi3String)                                                                            \
     X(fmi3GetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState *s), (s))                                       \
-    X(fmi3SetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState s), (s))                                        \
-    X(fmi3SerializedFMUStateSize, KEPT, (fmi3Instance c, fmi3FMUState s, size_t *size), (s, size))                \
-    X(fmi3SerializeFMUState, KEPT, (fmi3Instance c, fmi3FMUState s, fmi3Byte *bytes, size_t size), (s, bytes, size)) \
     X(fmi3GetDirectionalDerivative, KEPT,                                                                         \
       (fmi3Instance c, const fmi3ValueReference *unknowns, size_t nUnknowns, const fmi3ValueReference *knowns,    \
        size_t nKnowns, const fmi3Float64 *seed, size_t nSeed, fmi3Float64 *sensitivity, size_t nSensitivity),    \
@@ -89,18 +86,17 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
        fmi3Boolean *terminateSimulation),                                                                         \
       (noSetFMUStatePriorToCurrentPoint, enterEventMode, terminateSimulation))                                    \
     X(fmi3SetTime, RECOVERABLE, (fmi3Instance c, fmi3Float64 time), (time))                                       \
-    X(fmi3SetContinuousStates, RECOVERABLE, (fmi3Instance c, const fmi3Float64 *x, size_t n), (x, n))             \
-    X(fmi3GetEventIndicators, RECOVERABLE, (fmi3Instance c, fmi3Float64 *z, size_t n), (z, n))                    \
-    X(fmi3GetContinuousStates, RECOVERABLE, (fmi3Instance c, fmi3Float64 *x, size_t n), (x, n))                   \
-    X(fmi3GetNominalsOfContinuousStates, RECOVERABLE, (fmi3Instance c, fmi3Float64 *nominals, size_t n),         \
-      (nominals, n))                                                                                              \
     X(fmi3GetNumberOfEventIndicators, RECOVERABLE, (fmi3Instance c, size_t *n), (n))                              \
     X(fmi3GetNumberOfContinuousStates, RECOVERABLE, (fmi3Instance c, size_t *n), (n))
 
 /* The functions forwarded that move the instance between FMI 3's states (sbf_mode) or need one (event mode and
- * the discrete-state update: model exchange only), and the deserialization of states: forwarded by
- * forward_<name>, exported below. */
+ * the discrete-state update: model exchange only), the deserialization of states, and the model-exchange arrays
+ * whose size is checked (COUNTED): forwarded by forward_<name>, exported below. */
 #define TRACKED(X)                                                                                                 \
+    X(fmi3SetContinuousStates, RECOVERABLE, (fmi3Instance c, const fmi3Float64 *x, size_t n), (x, n))             \
+    X(fmi3GetEventIndicators, RECOVERABLE, (fmi3Instance c, fmi3Float64 *z, size_t n), (z, n))                    \
+    X(fmi3GetContinuousStates, RECOVERABLE, (fmi3Instance c, fmi3Float64 *x, size_t n), (x, n))                   \
+    X(fmi3GetNominalsOfContinuousStates, RECOVERABLE, (fmi3Instance c, fmi3Float64 *x, size_t n), (x, n))         \
     X(fmi3EnterEventMode, KEPT, (fmi3Instance c), ())                                                             \
     X(fmi3UpdateDiscreteStates, RECOVERABLE,                                                                      \
       (fmi3Instance c, fmi3Boolean *discreteStatesNeedUpdate, fmi3Boolean *terminateSimulation,                   \
@@ -123,6 +119,13 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
        terminateSimulation, earlyReturn, lastSuccessfulTime))                                                     \
     X(fmi3DeserializeFMUState, KEPT, (fmi3Instance c, const fmi3Byte *bytes, size_t size, fmi3FMUState *s),       \
       (bytes, size, s))
+
+/* The functions forwarded that take an FMU state, refused for a NULL one (SBF_STATE_USED): forwarded by
+ * forward_<name>, exported below. */
+#define STATE_USED(X)                                                                                              \
+    X(fmi3SetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState s), (s))                                        \
+    X(fmi3SerializedFMUStateSize, KEPT, (fmi3Instance c, fmi3FMUState s, size_t *size), (s, size))                \
+    X(fmi3SerializeFMUState, KEPT, (fmi3Instance c, fmi3FMUState s, fmi3Byte *bytes, size_t size), (s, bytes, size))
 
 /* ---- the functions pythonfmu3 does not implement, and the mode changes this FMU never allows (pythonfmu3
  * answers them with fmi3OK): configuration mode (the model has no structural parameter) and step mode (no event
@@ -171,6 +174,7 @@ static struct {
 #define POINTER(name, failure, params, args) fmi3Status(*name) params;
     FORWARDED(POINTER)
     TRACKED(POINTER)
+    STATE_USED(POINTER)
 #undef POINTER
     fmi3Instance (*fmi3InstantiateCoSimulation)(fmi3String, fmi3String, fmi3String, fmi3Boolean, fmi3Boolean,
                                                 fmi3Boolean, fmi3Boolean, const fmi3ValueReference *, size_t,
@@ -220,7 +224,7 @@ static void relay_log(fmi3InstanceEnvironment env, fmi3Status status, fmi3String
 static int resolve_inner(void *lib, const char *path)
 {
 #define LOAD(name, failure, params, args) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
-    if (1 FORWARDED(LOAD) TRACKED(LOAD) LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
+    if (1 FORWARDED(LOAD) TRACKED(LOAD) STATE_USED(LOAD) LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
             LOAD(fmi3FreeInstance, , , ) LOAD(fmi3GetContinuousStateDerivatives, , , )
             LOAD(fmi3FreeFMUState, , , ))
         return 1;
@@ -363,6 +367,10 @@ FORWARDED(FORWARD)
 #define FORWARD(name, failure, params, args) \
     SBF_FORWARD_AS(static, forward_##name, fmi3Status, fmi3Error, fmi3Fatal, name, failure, params, args)
 TRACKED(FORWARD)
+STATE_USED(FORWARD)
+#undef FORWARD
+#define FORWARD(name, failure, params, args) SBF_STATE_USED(fmi3Status, fmi3Error, name, forward_##name, params, args)
+STATE_USED(FORWARD)
 #undef FORWARD
 
 /* `status` of a call that moves the co-simulation instance `c` to `mode` when it succeeds */
@@ -376,6 +384,12 @@ static fmi3Status moved(fmi3Instance c, fmi3Status status, sbf_mode mode)
 EXPORT fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
                                               fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)
 {
+    char why[256];
+    if (c && sbf_experiment_refused("fmi3EnterInitializationMode", toleranceDefined, tolerance, startTime,
+                                    stopTimeDefined, stopTime, why, sizeof why)) {
+        host_log(c, fmi3Error, why);
+        return fmi3Error;
+    }
     fmi3Status status = forward_fmi3EnterInitializationMode(c, toleranceDefined, tolerance, startTime,
                                                             stopTimeDefined, stopTime);
     if (status <= fmi3Warning) { /* pythonfmu3 keeps startTime to itself: the slave takes it as its time */
@@ -446,8 +460,38 @@ SBF_DESERIALIZE(fmi3Status, fmi3Error, fmi3Warning, fmi3Byte, fmi3DeserializeFMU
 SBF_FORWARD_AS(static, forward_derivatives, fmi3Status, fmi3Error, fmi3Fatal, fmi3GetContinuousStateDerivatives,
                RECOVERABLE, (fmi3Instance c, fmi3Float64 *dx, size_t n), (dx, n))
 
+/* 1 (after a message naming `function`) if `n` is not the number of the instance's event indicators (`indicators`)
+ * or continuous states: pythonfmu3 reads or writes `n` values of its lists, past their end (a Python exception
+ * left set in the host) or short of it. */
+static int wrong_count(fmi3Instance c, const char *function, size_t n, int indicators)
+{
+    char why[256];
+    size_t count = 0;
+    fmi3Status status = indicators ? fmi3GetNumberOfEventIndicators(c, &count) : fmi3GetNumberOfContinuousStates(c, &count);
+    if (!c || status > fmi3Warning || n == count) return 0;
+    snprintf(why, sizeof why, "%s: %s = %zu, but this FMU has %zu %s", function,
+             indicators ? "nEventIndicators" : "nContinuousStates", n, count,
+             indicators ? "event indicators" : "continuous states");
+    host_log(c, fmi3Error, why);
+    return 1;
+}
+
+/* The exported model-exchange function `name` with the array `values` of `n` doubles, refused (fmi3Error) when `n`
+ * is not the FMU's count (wrong_count) */
+#define COUNTED(name, indicators, Values)                                                   \
+    EXPORT fmi3Status name(fmi3Instance c, Values *values, size_t n)                        \
+    {                                                                                       \
+        return wrong_count(c, #name, n, indicators) ? fmi3Error : forward_##name(c, values, n); \
+    }
+COUNTED(fmi3SetContinuousStates, 0, const fmi3Float64)
+COUNTED(fmi3GetContinuousStates, 0, fmi3Float64)
+COUNTED(fmi3GetNominalsOfContinuousStates, 0, fmi3Float64)
+COUNTED(fmi3GetEventIndicators, 1, fmi3Float64)
+#undef COUNTED
+
 EXPORT fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 *dx, size_t n)
 {
+    if (wrong_count(c, "fmi3GetContinuousStateDerivatives", n, 0)) return fmi3Error;
     fmi3Status status = forward_derivatives(c, dx, n);
     for (size_t i = 0; i < n && status <= fmi3Warning; i++)
         if (!isfinite(dx[i])) status = fmi3Error;

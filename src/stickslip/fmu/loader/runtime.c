@@ -24,6 +24,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <link.h>
+#include <math.h>
 #include <pthread.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -480,6 +481,22 @@ int sbf_step_refused(sbf_mode mode, const char *function, double t, char *why, s
         [SBF_EXCHANGING] = "for a model-exchange instance"};
     if (!refusal[mode]) return 0;
     snprintf(why, why_size, "%s at t = %g s is not allowed %s", function, t, refusal[mode]);
+    return 1;
+}
+
+int sbf_experiment_refused(const char *function, int tolerance_defined, double tolerance, double start,
+                           int stop_defined, double stop, char *why, size_t why_size)
+{
+    const char *name = NULL;
+    double value = 0.0;
+    if (!isfinite(start))
+        name = "startTime", value = start;
+    else if (stop_defined && !isfinite(stop))
+        name = "stopTime", value = stop;
+    else if (tolerance_defined && !isfinite(tolerance))
+        name = "tolerance", value = tolerance;
+    if (!name) return 0;
+    snprintf(why, why_size, "%s: %s = %g; allowed: a finite value", function, name, value);
     return 1;
 }
 

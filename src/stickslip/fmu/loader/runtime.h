@@ -40,6 +40,12 @@ typedef enum { SBF_INSTANTIATED, SBF_INITIALIZING, SBF_STEPPING, SBF_TERMINATED,
  * message saying why not in `why`. */
 int sbf_step_refused(sbf_mode mode, const char *function, double t, char *why, size_t why_size);
 
+/* 0 if the experiment's times `function` (fmi2SetupExperiment, fmi3EnterInitializationMode) was given are finite
+ * (the start time; the stop time and the tolerance where defined), else 1 with the message naming the first that
+ * is not in `why`. */
+int sbf_experiment_refused(const char *function, int tolerance_defined, double tolerance, double start,
+                           int stop_defined, double stop, char *why, size_t why_size);
+
 /* The log category of a message: `category` unless it is NULL or empty, else its status's ("logStatusError"). */
 const char *sbf_category(int status, const char *category);
 
@@ -104,6 +110,19 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
 /* The exported FMI function `name`, forwarded as is. */
 #define SBF_FORWARD(Status, error, fatal, name, failure, params, args) \
     SBF_FORWARD_AS(__attribute__((visibility("default"))), name, Status, error, fatal, name, failure, params, args)
+
+/* The exported FMU-state function `name` (its FMU state parameter named `s`), forwarded by `forward` (an
+ * SBF_FORWARD_AS function) unless the state is NULL (none was got into it, or it was freed): that is refused with
+ * `error` and a message naming `name` (PythonFMU crashed the host, pythonfmu3 failed fatally). */
+#define SBF_STATE_USED(Status, error, name, forward, params, args)                                                 \
+    __attribute__((visibility("default"))) Status name params                                                    \
+    {                                                                                                             \
+        if (c && !s) {                                                                                            \
+            host_log(c, error, #name ": the FMU state is NULL (no state was got into it, or it was freed)");     \
+            return error;                                                                                         \
+        }                                                                                                         \
+        return forward(c SBF_FORWARD_ARGS args);                                                                  \
+    }
 
 /* ---- for the fronts: the exported deserialization of FMU states ----
  * The slaves answer bytes that are no FMU state of theirs with a state that serializes as SBF_REFUSED_STATE and
