@@ -124,6 +124,25 @@ def test_ecos_bad_parameter_message_shows_at_debug_level(fmu_path):
     assert output.count("fmi2DoStep at t = ") == 3 and "not allowed during initialization" in output
 
 
+def test_ecos_command_line_runs_from_a_copy_with_the_run_bit(fmu_path, tmp_path):
+    """ecospy ships its ``ecos`` command without the run bit: a copy with it (and libtbb.so.12 found) simulates
+    the FMU at its default start values; its CSV holds 6 decimals, so x agrees with FMPy to 5e-7 m."""
+    env = ecos_environment()
+    shipped = Path(importlib.util.find_spec("ecospy").origin).parent / "binaries" / "ecos"
+    assert not os.access(shipped, os.X_OK)  # as ecospy 0.7.2 installs it
+    command = tmp_path / "ecos"
+    shutil.copy(shipped, command)
+    command.chmod(0o755)
+    proc = subprocess.run([str(command), "simulate", "--path", str(fmu_path), "--stepSize",
+                           str(SCENE.output_interval), "--stopTime", "20"], capture_output=True, text=True,
+                          timeout=TIMEOUT, env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout[-1000:] + proc.stderr[-1000:]
+    table = np.genfromtxt(tmp_path / "SpringBlockFriction.csv", delimiter=",", names=True, deletechars="")
+    x = table["instance::x[REAL]"][1:]
+    reference = fmpy_at(fmu_path, {}, {"time": [SCENE.output_interval * (k + 1) for k in range(len(x))]})
+    assert len(x) == 199 and np.abs(x - reference["x"]).max() <= 5e-7  # ecos writes no row at the stop time
+
+
 # ---------------------------------------------------------------------------
 # FMU Manipulation Toolbox: fmutool -check, FMU container
 # ---------------------------------------------------------------------------
