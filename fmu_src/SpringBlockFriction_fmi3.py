@@ -172,6 +172,8 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
     def set_time(self, time):
         """The model's time (s); before initialization ends, the start time of both interfaces (a co-simulation
         then starts there, not at its first doStep): ParameterError for a time the block cannot take."""
+        if not math.isfinite(time):
+            raise ValueError(f"time = {time!r} s is out of range: allowed is a finite value")
         if self.block is None:
             self.time = self.start_time = float(time)
             self._stepped = True  # the first doStep starts at the start time, not wherever it says

@@ -152,20 +152,6 @@ INITIALIZED = [["enter_initialization"], ["exit_initialization"]]
 #: findings left open, each held by a strict xfail test below (``test_an_open_finding``): {name: (pattern of the
 #: violation, why it is open, a sequence that shows it, its target)}; the fuzzer lets a matching violation pass
 OPEN = {
-    "fmi3-set-output": (
-        r"fmi3Set(Float64|Int32) -> 3 without an error message naming the cause.*NoneType.{0,3} object is not callable",
-        "FMI 3: setting an output, a local or the time is refused with \"'NoneType' object is not callable\" "
-        "(pythonfmu3 calls the variable's missing setter), naming no variable; the slave's check is on branch "
-        "i20-numerics (set_float64/set_int32), which changes the same slave",
-        [["instantiate", "plain"], ["enter_initialization"], ["exit_initialization"], ["set", "z_slip", 1.0]],
-        "fmi3-cs"),
-    "step-back": (
-        r"DoStep -> 3 without an error message naming the cause.*cannot advance from t = ",
-        "a step with a NaN, infinite or huge negative time or step size is refused with \"cannot advance from t = 0 "
-        "s back to t = nan s\" (or \"to t = inf s: the end time must be finite\"), naming neither the argument nor "
-        "its range (issue 20, 'Messages and misuse'; the runtime's message, on branch i20-numerics)",
-        [["instantiate", "plain"], ["enter_initialization"], ["exit_initialization"], ["step", 0.0, math.nan]],
-        "fmi2-cs"),
     "fmi3-exchange-call-in-co-simulation": (
         r"fmi3GetFloat64 -> 3 without an error message naming the cause.*NoneType.{0,3} object has no attribute",
         "FMI 3: a model-exchange call (fmi3GetContinuousStateDerivatives, ...) on a co-simulation instance before "
@@ -173,17 +159,6 @@ OPEN = {
         "'friction_force'\" (issue 20, 'Messages and misuse': model-exchange calls in the wrong state; the fronts' "
         "state machine is issue 20's other half)",
         [INSTANCE, ["read GetContinuousStateDerivatives", 2], ["get", ["F_friction"]]], "fmi3-cs"),
-    "fmi3-set-time-not-finite": (
-        r"fmi3GetFloat64 -> 0 wrote a non-finite value: .*'time': (inf|-inf|nan)",
-        "FMI 3: fmi3SetTime(inf) before initialization returns OK and the time then reads inf with OK (issue 20, "
-        "item 12; fmi3SetTime's check is on branch i20-numerics, which changes the same slave)",
-        [MODEL_EXCHANGE, ["set_time", math.inf], ["get", ["time"]]], "fmi3-me"),
-    "fmi3-input-not-finite-in-model-exchange": (
-        r"fmi3GetFloat64 -> 0 wrote a non-finite value: .*'F_friction': nan",
-        "FMI 3 model exchange: v_drive = NaN set in continuous-time mode returns OK, and F_friction then reads NaN "
-        "with OK (issue 20, item 12; the input check is on branches i20-me and i20-numerics)",
-        [MODEL_EXCHANGE, *INITIALIZED, ["update"], ["enter_continuous_time_mode"], ["set", "v_drive", math.nan],
-         ["get", ["F_friction"]]], "fmi3-me"),
 }
 
 
