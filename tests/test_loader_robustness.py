@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from stickslip.hosts.c_host import HostBuildError, compile_host, run_host
+from stickslip.hosts.c_host import run_host
 
 PROBE = Path(__file__).resolve().with_name("loader_probe.py")
 TIMEOUT = 60  # s: a case that has not ended by then hangs
@@ -175,10 +175,10 @@ def test_fmi2_model_exchange_is_refused(unzipped):
                            "not fmuType = 0 (fmi2ModelExchange)"]
 
 
-def test_a_bad_resource_location_in_the_c_host_returns(extracted, tmp_path):
+def test_a_bad_resource_location_in_the_c_host_returns(extracted, request):
     """The C host, where the loader starts Python itself: the FMI 3 FMU hung there."""
     fmi, folder = extracted
-    host = _host(tmp_path, fmi)
+    host = _host(request, fmi)
     run = run_host(host, folder, "run", 1.0, 0.5, STUCK, resources="/nonexistent/", timeout=TIMEOUT)
     assert run.returncode == 1 and run.lines == [["failed", f"{PREFIX[fmi]}Instantiate" + ("" if fmi == 2 else
                                                                                            "CoSimulation"), "NULL"]]
@@ -295,18 +295,16 @@ def test_fmi3_a_model_exchange_instance_takes_no_communication_step(unzipped3):
 # ---------------------------------------------------------------------------
 
 
-def _host(tmp_path, fmi):
-    try:
-        return compile_host(tmp_path, fmi_version=fmi)
-    except HostBuildError as exc:
-        pytest.skip(f"no C host: {exc}")
+def _host(request, fmi):
+    """The session's C host of FMI version ``fmi`` (conftest: skipped, naming the need, where it cannot be built)."""
+    return request.getfixturevalue("host" if fmi == 2 else "host3")
 
 
-def test_a_new_thread_per_step_keeps_memory_flat(extracted, tmp_path):
+def test_a_new_thread_per_step_keeps_memory_flat(extracted, request):
     """Each host thread's Python thread state is deleted when the thread ends: 2,000 steps, each from a new thread,
     grew the process by 8.5 MB (4.4 kB per thread; 50,000: 22 -> 240 MB); now by less than 1 MB."""
     fmi, folder = extracted
-    host = _host(tmp_path, fmi)
+    host = _host(request, fmi)
     run = run_host(host, folder, "thread_steps", 20.0, 0.01, STUCK, timeout=TIMEOUT)
     assert run.completed, (run.returncode, run.lines[-3:], run.stderr[-2000:])
     assert run.value("steps") == ["2000"]
