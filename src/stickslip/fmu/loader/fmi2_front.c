@@ -10,6 +10,7 @@
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -63,7 +64,6 @@ typedef struct {
     X(fmi2GetRealOutputDerivatives, KEPT,                                                                          \
       (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *o, fmi2Real *x), (v, n, o, x))   \
     X(fmi2CancelStep, KEPT, (fmi2Component c), ())                                                                 \
-    X(fmi2GetRealStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Real *x), (k, x))                     \
     X(fmi2GetIntegerStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Integer *x), (k, x))               \
     X(fmi2GetBooleanStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Boolean *x), (k, x))               \
     X(fmi2GetStringStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2String *x), (k, x))
@@ -87,7 +87,8 @@ typedef struct {
     X(fmi2Terminate, RECOVERABLE, (fmi2Component c), ())                                                           \
     X(fmi2Reset, KEPT, (fmi2Component c), ())                                                                      \
     X(fmi2DoStep, RECOVERABLE, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean k), (t, h, k))                \
-    X(fmi2DeSerializeFMUstate, KEPT, (fmi2Component c, const fmi2Byte *b, size_t n, fmi2FMUstate *s), (b, n, s))
+    X(fmi2DeSerializeFMUstate, KEPT, (fmi2Component c, const fmi2Byte *b, size_t n, fmi2FMUstate *s), (b, n, s))    \
+    X(fmi2GetRealStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Real *x), (k, x))
 
 /* The functions forwarded that take an FMU state, refused for a NULL one (SBF_STATE_USED): forwarded by
  * forward_<name>, exported below. */
@@ -121,6 +122,7 @@ typedef struct {
     sbf_log_filter logging;
     int fatal_is_error; /* during a RECOVERABLE call: PythonFMU's fmi2Fatal is reported as fmi2Error */
     sbf_fast_path fast; /* steps and output reads without PythonFMU (fast_path.h) */
+    double last_successful_time; /* s: the end of the last step that succeeded (NaN before any, as PythonFMU) */
 } Instance;
 
 static void host_log(const Instance *inst, fmi2Status status, const char *text)
@@ -206,6 +208,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
     inst->relay.logger = relay_log;
     inst->relay.componentEnvironment = inst;
     inst->logging.on = loggingOn;
+    inst->last_successful_time = NAN;
     if (!instantiable(inst, name, type, guid, resources, path, sizeof path)) {
         free_instance(inst);
         return NULL;
@@ -332,11 +335,24 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolea
         return fmi2Error;
     }
     sbf_keep_thread_state();
+    fmi2Status status;
     switch (sbf_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
-    case 0: return fmi2OK;
+    case 0: status = fmi2OK; break;
     case 1: host_log(c, fmi2Error, why); return fmi2Error;
-    default: return forward_fmi2DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint);
+    default: status = forward_fmi2DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint);
     }
+    if (status <= fmi2Warning) ((Instance *)c)->last_successful_time = t + h;
+    return status;
+}
+
+/* fmi2LastSuccessfulTime from the loader, which sees every step (PythonFMU does not see the fast path's) */
+EXPORT fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
+{
+    if (c && s == fmi2LastSuccessfulTime && value) {
+        *value = ((Instance *)c)->last_successful_time;
+        return fmi2OK;
+    }
+    return forward_fmi2GetRealStatus(c, s, value);
 }
 
 SBF_DESERIALIZE(fmi2Status, fmi2Error, fmi2Warning, fmi2Byte, fmi2DeSerializeFMUstate, forward_fmi2DeSerializeFMUstate,
