@@ -27,16 +27,12 @@ import operator
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
-from block_interface import VARIABLES, BlockInterface, balance_release, check_state, serialized_states
-from stickslip.core import OUTPUT_NAMES
+from block_interface import FIRST_OUTPUT, VARIABLES, BlockInterface, balance_release, check_state, serialized_states
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input, "output": Fmi2Causality.output}
 _VARIABILITY = {name: getattr(Fmi2Variability, name) for name in ("fixed", "continuous", "discrete")}
 _KIND = {"real": Real, "integer": Integer}
 
-OUTPUTS_AT = len(VARIABLES) - len(OUTPUT_NAMES)  # the outputs' first value reference
-if tuple(v.attribute for v in VARIABLES[OUTPUTS_AT:]) != OUTPUT_NAMES:
-    raise ImportError("block_interface.VARIABLES must end with the outputs in Trajectory.outputs() order")
 _REFERENCE_OF = {v.name: reference for reference, v in enumerate(VARIABLES)}
 _REFERENCES = {kind: frozenset(r for r, v in enumerate(VARIABLES) if _KIND[v.kind] is kind) for kind in (Real, Integer)}
 _MAX_READ_PLANS = 64  # distinct sets of value references whose checked reader an instance keeps
@@ -54,6 +50,7 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         self._by_reference = [v.start for v in VARIABLES]  # every value by value reference; outputs may be stale
         self._outputs_stale = True  # the outputs' part needs an evaluation at the current state
         self._read_plans = {}  # (type, value references) -> (read, needs_outputs), see _read_plan
+        self.offer_to_loader("linux64")
 
     def to_xml(self, model_options=None):
         """PythonFMU's model description, with the variables registered for it first."""
@@ -71,7 +68,7 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
             plan = self._read_plan(kind, key[1])
         read, needs_outputs = plan
         if needs_outputs and self._outputs_stale:
-            self._by_reference[OUTPUTS_AT:] = self.current_trajectory().outputs()
+            self._by_reference[FIRST_OUTPUT:] = self.current_trajectory().outputs()
             self._outputs_stale = False
         return read(self._by_reference)
 
@@ -80,10 +77,10 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         _check_kind(kind, references)
         if len(references) == 1:
             reference = references[0]
-            plan = (lambda values: [values[reference]]), reference >= OUTPUTS_AT
+            plan = (lambda values: [values[reference]]), reference >= FIRST_OUTPUT
         else:
             pick = operator.itemgetter(*references) if references else lambda values: ()
-            plan = (lambda values: list(pick(values))), max(references, default=-1) >= OUTPUTS_AT
+            plan = (lambda values: list(pick(values))), max(references, default=-1) >= FIRST_OUTPUT
         if len(self._read_plans) >= _MAX_READ_PLANS:  # an importer reads a few fixed sets; bound the rest
             self._read_plans.clear()
         self._read_plans[(kind, references)] = plan
@@ -92,7 +89,7 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
     def _write(self, kind, references, values):
         _check_kind(kind, references)
         for reference, value in zip(references, values):
-            if reference >= OUTPUTS_AT:
+            if reference >= FIRST_OUTPUT:
                 raise TypeError(f"{VARIABLES[reference].name} (valueReference={reference}) is an output: it cannot "
                                 f"be set")
             self.set_variable(VARIABLES[reference].name, value)
@@ -136,7 +133,8 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
 
     def do_step(self, current_time, step_size):
         """Hold the inputs and advance to ``current_time + step_size`` s (raises on failure, never discards)."""
-        self.advance(current_time, step_size)
+        self._by_reference[FIRST_OUTPUT:] = self.advance(current_time, step_size)
+        self._outputs_stale = False
         return True
 
     def _get_fmu_state(self):
@@ -145,7 +143,7 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
     def _set_fmu_state(self, state):
         check_state(state)
         self.restore_block_state(state)
-        self._by_reference[:OUTPUTS_AT] = [self.values[v.name] for v in VARIABLES[:OUTPUTS_AT]]
+        self._by_reference[:FIRST_OUTPUT] = [self.values[v.name] for v in VARIABLES[:FIRST_OUTPUT]]
 
 
 def _check_kind(kind, references):

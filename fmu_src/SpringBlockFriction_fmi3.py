@@ -69,6 +69,7 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         self.register_variable(Float64("time", causality=Fmi3Causality.independent,
                                        variability=Fmi3Variability.continuous, description="simulation time",
                                        getter=lambda: self.time), nested=False)
+        self.offer_to_loader("x86_64-linux")
 
     def _local(self, name, unit, description, getter, derivative=None):
         self.variable_units[name] = unit
@@ -148,13 +149,18 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
 
     def do_step(self, current_time, step_size):
         """Hold the inputs and advance to ``current_time + step_size`` s (raises on failure, never discards). Each
-        step starts where the last ended (:func:`block_interface.check_step`); the first starts the trajectory at
+        step starts where the last ended (:meth:`Trajectory.communicate`); the first starts the trajectory at
         ``current_time`` unless the host gave the start time (fmi3SetTime during initialization)."""
         if not self._stepped and current_time != self.trajectory.t:
             self.trajectory = self.new_trajectory(t0=current_time)
         self._stepped = True
         self.advance(current_time, step_size)
         return True
+
+    def fast_step_call(self):
+        """The C loader's call for the next doSteps (:meth:`BlockInterface.fast_step_call`); None before the first
+        step, which may move the start time (:meth:`do_step`)."""
+        return super().fast_step_call() if self._stepped else None
 
     # ---- FMI: model exchange ---------------------------------------------------------
 

@@ -13,11 +13,11 @@ import copy
 import ctypes
 import functools
 import json
-import math
+import os
 from collections import namedtuple
 
 from stickslip.core import (
-    ANY_FINITE, KINETIC_LAWS, NON_NEGATIVE, POSITIVE, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, StateError,
+    ANY_FINITE, KINETIC_LAWS, OUTPUT_NAMES, POSITIVE, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, StateError,
     Trajectory, check, kinetic_law, saved_state, static_law,
 )
 
@@ -128,6 +128,12 @@ def _variables():
 
 #: Every variable of the FMU, in declaration order.
 VARIABLES = _variables()
+#: The value reference of the first output (the outputs end the table, in :meth:`Trajectory.outputs` order) and the
+#: outputs' kinds, "r" real or "i" integer: what the C loader's fast path reads (see offer_to_loader).
+FIRST_OUTPUT = next(reference for reference, v in enumerate(VARIABLES) if v.causality == "output")
+OUTPUT_KINDS = "".join(v.kind[0] for v in VARIABLES[FIRST_OUTPUT:])
+if tuple(v.attribute for v in VARIABLES[FIRST_OUTPUT:]) != OUTPUT_NAMES:
+    raise ImportError("block_interface.VARIABLES must end with the outputs in Trajectory.outputs() order")
 
 
 class BlockInterface:
@@ -216,12 +222,41 @@ class BlockInterface:
         return self.trajectory
 
     def advance(self, current_time, step_size):
-        """``doStep``: hold the inputs and advance the trajectory from ``current_time`` by ``step_size`` s, after
-        :func:`check_step` (the step must start where the last one ended)."""
-        trajectory = self.current_trajectory()
-        check_step(current_time, step_size, trajectory.t)
-        trajectory.advance_to(current_time + step_size)
+        """``doStep``: hold the inputs and advance the trajectory from ``current_time`` by ``step_size`` s
+        (:meth:`Trajectory.communicate`: the step must start where the last one ended); the outputs after it, in
+        :data:`VARIABLES` order."""
         self.outputs_changed()
+        return self.current_trajectory().communicate(current_time, step_size)
+
+    # ---- the C loader's fast path ----------------------------------------------------
+
+    def offer_to_loader(self, platform):
+        """Offer this slave to the FMU's C loader that is instantiating it (``binaries/<platform>/<model>.so`` beside
+        the resources folder), which then takes each doStep through :meth:`fast_step_call` and answers reads of the
+        outputs (value references from :data:`FIRST_OUTPUT`, kinds :data:`OUTPUT_KINDS`) itself. Nothing happens
+        where that library is not loaded in this process (a slave made in Python, the builder) or has no fast
+        path."""
+        if self.resources is None or not hasattr(os, "RTLD_NOLOAD"):
+            return
+        folder = os.path.dirname(os.path.abspath(self.resources))
+        path = os.path.join(folder, "binaries", platform, f"{type(self).__name__}.so")
+        try:
+            loader = ctypes.PyDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_LOCAL)  # the GIL stays held in the call
+        except OSError:
+            return
+        try:
+            bind = getattr(loader, "sbf_bind_slave", None)
+            if bind is not None:
+                bind.argtypes, bind.restype = (ctypes.py_object, ctypes.c_uint, ctypes.c_char_p), ctypes.c_int
+                bind(self, FIRST_OUTPUT, OUTPUT_KINDS.encode("ascii"))
+        finally:
+            ctypes.CDLL(None).dlclose(ctypes.c_void_p(loader._handle))  # the reference this lookup took; the host holds its own
+
+    def fast_step_call(self):
+        """The C loader's call for the next doSteps: the current trajectory's :meth:`Trajectory.communicate`, the
+        inputs set so far applied (the loader asks again after any other call that may change them)."""
+        self.outputs_changed()
+        return self.current_trajectory().communicate
 
     # ---- FMU state ---------------------------------------------------------------
 
@@ -324,27 +359,6 @@ def check_values(values):
     for variable in VARIABLES:
         if variable.allowed is not None:
             check(variable.name, values[variable.name], variable.allowed, variable.unit)
-
-
-_STEP_ROUNDING = 8 * 2.220446049250313e-16  # relative: a host sums the communication points its own way
-
-
-def check_step(current_time, step_size, t):
-    """Raise ParameterError unless ``currentCommunicationPoint`` and ``communicationStepSize`` (s) are finite, the
-    step size is >= 0, and the step starts at the FMU's time ``t`` (s), the start time or the end of the last step,
-    to rounding: a gap or an overlap between communication points is refused, not integrated through."""
-    gap, allowed = abs(current_time - t), _STEP_ROUNDING * max(abs(current_time), abs(t))
-    if step_size >= 0.0 and math.isfinite(current_time + step_size) and gap <= allowed:
-        return  # the usual step, in a few comparisons (this runs at every doStep)
-    check("currentCommunicationPoint", current_time, ANY_FINITE, "s")
-    check("communicationStepSize", step_size, NON_NEGATIVE, "s")
-    if gap > allowed:
-        kind = "a gap" if current_time > t else "an overlap"
-        raise ParameterError(
-            f"currentCommunicationPoint = {current_time!r} s is not the FMU's time t = {t!r} s (the start time or "
-            f"the end of the last step): {kind} of {abs(current_time - t):.6g} s between communication points; "
-            f"a step starts where the last ended (restore a saved FMU state to go back)"
-        )
 
 
 # ---- PythonFMU's release of the slave on an exception -----------------------------

@@ -13,6 +13,8 @@ is found between consecutive extrema of ``v`` (zeros of the acceleration,
 known in closed form), where ``v`` is monotonic: exact, and blind to no graze.
 """
 
+from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
+
 import math
 
 from .rootfind import brent, monotone_fall
@@ -24,6 +26,15 @@ class HarmonicSlip:
     """The closed-form motion of one affine slip phase starting at ``(x0, v0)``."""
 
     __slots__ = ("alpha", "w2", "omega0_sq", "x_c", "y0", "v0", "a0", "j0")
+    # typed, so that the compiled runtime evaluates the motion in native floats (it runs at every step)
+    alpha: float  # 1/s
+    w2: float  # 1/s^2
+    omega0_sq: float  # 1/s^2
+    x_c: float  # m
+    y0: float  # m
+    v0: float  # m/s
+    a0: float  # m/s^2
+    j0: float  # m/s^3
 
     def __init__(self, mode, x0, v0, v_drive, F_ext, p):
         F0, gamma = p.kinetic.affine()
@@ -36,7 +47,7 @@ class HarmonicSlip:
         self.a0 = -(2.0 * self.alpha * v0 + self.omega0_sq * self.y0)
         self.j0 = -(2.0 * self.alpha * self.a0 + self.omega0_sq * v0)
 
-    def _damped_basis(self, tau):
+    def _damped_basis(self, tau: float) -> tuple[float, float]:
         """``(e^{-alpha tau} C(tau), e^{-alpha tau} S(tau))``, overflow-safe."""
         alpha, w2 = self.alpha, self.w2
         if w2 > 0.0:
@@ -54,20 +65,20 @@ class HarmonicSlip:
         fast = math.exp(-(alpha + beta) * tau)
         return 0.5 * (slow + fast), 0.5 * (slow - fast) / beta
 
-    def _response(self, u0, du0, tau):
+    def _response(self, u0: float, du0: float, tau: float) -> float:
         c, s = self._damped_basis(tau)
         return u0 * c + (du0 + self.alpha * u0) * s
 
-    def position(self, tau):
+    def position(self, tau: float) -> float:
         return self.x_c + self._response(self.y0, self.v0, tau)
 
-    def velocity(self, tau):
+    def velocity(self, tau: float) -> float:
         return self._response(self.v0, self.a0, tau)
 
-    def acceleration(self, tau):
+    def acceleration(self, tau: float) -> float:
         return self._response(self.a0, self.j0, tau)
 
-    def state(self, tau):
+    def state(self, tau: float) -> tuple[float, float]:
         c, s = self._damped_basis(tau)
         alpha = self.alpha
         x = self.x_c + self.y0 * c + (self.v0 + alpha * self.y0) * s

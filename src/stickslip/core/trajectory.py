@@ -5,6 +5,7 @@ Usage (the whole contract the FMU slave and the Python API rely on)::
     traj = Trajectory(params, x0, v0, v_drive=0.1, F_ext=0.0, t0=0.0, rtol=1e-10)
     traj.set_inputs(v_drive, F_ext)   # inputs held constant from now on; no-op if unchanged
     traj.advance_to(t)                # t >= traj.t; processes every event up to and at t
+    traj.communicate(t, h)            # a co-simulation step from t == traj.t by h >= 0; the outputs after it
     xs, vs = traj.sample(times)       # advance_to each of the increasing times, collecting x and v
     traj.x, traj.v, traj.mode, ...    # state at traj.t (see the properties below)
     snap = traj.snapshot()            # JSON-serializable dict, exact floats
@@ -24,7 +25,7 @@ import math
 from typing import Final, Iterable
 
 from . import saved_state
-from .errors import SolverError, StateError
+from .errors import ParameterError, SolverError, StateError
 from .model import (
     STUCK,
     check_input_scales,
@@ -44,7 +45,7 @@ from .model import (
 )
 from .model import Parameters
 from .numeric_slip import MEMO_SIZE, SlipStepper
-from .ranges import Range, check
+from .ranges import ANY_FINITE, NON_NEGATIVE, Range, check
 from .segments import HarmonicSegment, Segment, StepSegment, StuckSegment, segment_from_list
 from .stuck import breakaway_delay
 
@@ -53,6 +54,7 @@ _MAX_EVENT_CHAIN = 100  # mode changes in a row without time advancing
 _MAX_BURST: Final = 1000  # mode changes within _BURST_WINDOW time scales sqrt(M/kappa) (stick-slip has a few per period)
 _BURST_WINDOW: Final = 1.0  # in units of sqrt(M/kappa)
 _EPS: Final = 2.220446049250313e-16  # the spacing of floats at 1
+_STEP_ROUNDING: Final = 8 * _EPS  # relative: a host sums the communication points its own way
 _STUCK_HORIZON_PERIODS = 1e6  # an aging stick is searched for a breakaway this far ahead, then re-searched
 
 # The fields of :meth:`Trajectory.snapshot` and their kinds (:mod:`.saved_state`)
@@ -149,7 +151,7 @@ class Trajectory:
 
     def advance_to(self, t: float) -> None:
         """Advance to time ``t >= self.t`` (s), through every event up to and at ``t``."""
-        if not math.isfinite(t):
+        if not _finite(t):
             raise SolverError(f"cannot advance from t = {self.t!r} s to t = {t!r} s: the end time must be finite")
         if not t >= self.t:
             raise SolverError(f"cannot advance from t = {self.t!r} s back to t = {t!r} s")
@@ -158,7 +160,7 @@ class Trajectory:
             self._finish_segment()
         self.t = end
         self._x, self._v = self._segment.state(self.t)
-        if not (math.isfinite(self._x) and math.isfinite(self._v)):
+        if not (_finite(self._x) and _finite(self._v)):
             raise SolverError(f"the state overflowed at t = {self.t!r} s (x = {self._x!r}, v = {self._v!r})")
 
     def sample(self, times: Iterable[float]) -> tuple[list[float], list[float]]:
@@ -182,6 +184,14 @@ class Trajectory:
             bad = next(i for i, (x, v) in enumerate(zip(xs, vs)) if not (math.isfinite(x) and math.isfinite(v)))
             raise SolverError(f"the state overflowed at t = {grid[bad]!r} s (x = {xs[bad]!r}, v = {vs[bad]!r})")
         return xs, vs
+
+    def communicate(self, current_time: float, step_size: float) -> tuple:
+        """A co-simulation step (FMI doStep, inputs held): from ``current_time`` (s), which must be this
+        trajectory's time (:func:`check_step`), to ``current_time + step_size`` (s); the outputs after it
+        (:meth:`outputs`). The FMU's loader calls it directly, once per communication step."""
+        check_step(current_time, step_size, self.t)
+        self.advance_to(current_time + step_size)
+        return self.outputs()
 
     # ------------------------------------------------------------------
     # state and outputs at self.t
@@ -398,3 +408,27 @@ class Trajectory:
             f"F_S(0)/sqrt(kappa M) = {speed:.3g} m/s, so each one sticks again within a few steps; the kinetic law "
             f"is too steep for this tolerance ({p.kinetic.named_values()}): lower solver.rtol"
         )
+
+
+def check_step(current_time: float, step_size: float, t: float) -> None:
+    """Raise ParameterError unless ``currentCommunicationPoint`` and ``communicationStepSize`` (s) are finite, the
+    step size is >= 0, and the step starts at the FMU's time ``t`` (s), the start time or the end of the last step,
+    to rounding: a gap or an overlap between communication points is refused, not integrated through."""
+    gap, allowed = abs(current_time - t), _STEP_ROUNDING * max(abs(current_time), abs(t))
+    if step_size >= 0.0 and _finite(current_time + step_size) and gap <= allowed:
+        return  # the usual step, in a few comparisons (this runs at every doStep)
+    check("currentCommunicationPoint", current_time, ANY_FINITE, "s")
+    check("communicationStepSize", step_size, NON_NEGATIVE, "s")
+    if gap > allowed:
+        kind = "a gap" if current_time > t else "an overlap"
+        raise ParameterError(
+            f"currentCommunicationPoint = {current_time!r} s is not the FMU's time t = {t!r} s (the start time or "
+            f"the end of the last step): {kind} of {abs(current_time - t):.6g} s between communication points; "
+            f"a step starts where the last ended (restore a saved FMU state to go back)"
+        )
+
+
+def _finite(value: float) -> bool:
+    """``math.isfinite(value)`` as native float arithmetic in the compiled runtime (mypyc calls ``math.isfinite``
+    as a Python function, boxing its argument): false for an infinity or NaN only."""
+    return value - value == 0.0

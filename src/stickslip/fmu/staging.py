@@ -101,7 +101,8 @@ def stage_runtime(folder, tag, runtime, slave, interface, model_name, compiled=T
     shutil.copytree(runtime, package_dir, ignore=shutil.ignore_patterns(*COMPILED_ARTIFACTS))
     (package_dir / "block_interface.py").write_text(
         rewrite_once(interface, r"\bstickslip\.core\b", package, "the runtime as 'from stickslip.core import ...'"))
-    slave_code = rewrite_once(slave, r"\bstickslip\.core\b", package, "the runtime as 'from stickslip.core import ...'")
+    slave_code = rewrite_once(slave, r"\bstickslip\.core\b", package, "the runtime as 'from stickslip.core import ...'",
+                              optional=True)
     slave_code = rewrite_once(slave, r"\bfrom block_interface import\b", f"from {package}.block_interface import",
                                "the shared table as 'from block_interface import ...'", slave_code)
     (package_dir / "fmu_slave.py").write_text(slave_code)
@@ -114,11 +115,12 @@ def stage_runtime(folder, tag, runtime, slave, interface, model_name, compiled=T
     return staged
 
 
-def rewrite_once(path, pattern, replacement, what, code=None):
-    """``code`` (default: the text of ``path``) with ``pattern`` replaced; StagingError unless it occurs once."""
+def rewrite_once(path, pattern, replacement, what, code=None, optional=False):
+    """``code`` (default: the text of ``path``) with ``pattern`` replaced; StagingError unless it occurs once
+    (or, if ``optional``, at most once)."""
     code, count = re.subn(pattern, replacement, Path(path).read_text() if code is None else code)
-    if count != 1:
-        raise StagingError(f"{path} must import {what} exactly once")
+    if count > 1 or (count == 0 and not optional):
+        raise StagingError(f"{path} must import {what} {'at most' if optional else 'exactly'} once")
     return code
 
 

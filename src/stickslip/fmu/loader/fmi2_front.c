@@ -10,6 +10,7 @@
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -46,8 +47,6 @@ typedef struct {
  * SpringBlockFriction's do) the instance stays valid for fmi2Reset, fmi2SetFMUstate and fmi2FreeInstance,
  * which is what fmi2Error means, so fmi2Fatal is returned and logged as fmi2Error. KEPT: the status as is. */
 #define FORWARDED(X)                                                                                               \
-    X(fmi2GetReal, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Real *x), (v, n, x))  \
-    X(fmi2GetInteger, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Integer *x), (v, n, x)) \
     X(fmi2GetBoolean, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Boolean *x), (v, n, x)) \
     X(fmi2GetString, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2String *x), (v, n, x)) \
     X(fmi2SetReal, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Real *x), (v, n, x)) \
@@ -65,10 +64,18 @@ typedef struct {
     X(fmi2GetRealOutputDerivatives, KEPT,                                                                          \
       (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *o, fmi2Real *x), (v, n, o, x))   \
     X(fmi2CancelStep, KEPT, (fmi2Component c), ())                                                                 \
-    X(fmi2GetRealStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Real *x), (k, x))                     \
     X(fmi2GetIntegerStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Integer *x), (k, x))               \
     X(fmi2GetBooleanStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Boolean *x), (k, x))               \
     X(fmi2GetStringStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2String *x), (k, x))
+
+/* The getters of the outputs' types: answered from the fast path's buffer where it holds every value asked for
+ * (fast_path.h), else forwarded by forward_<name> as calls that only read; exported below. X(name, failure,
+ * parameters, arguments after the component, the fast path's reader) */
+#define READERS(X)                                                                                                 \
+    X(fmi2GetReal, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Real *x), (v, n, x),  \
+      sbf_fast_reals)                                                                                              \
+    X(fmi2GetInteger, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Integer *x),       \
+      (v, n, x), sbf_fast_integers)
 
 /* The functions forwarded that move the instance between FMI 2's states (sbf_mode) or need one, and the
  * deserialization of states: forwarded by forward_<name>, exported below. */
@@ -80,7 +87,8 @@ typedef struct {
     X(fmi2Terminate, RECOVERABLE, (fmi2Component c), ())                                                           \
     X(fmi2Reset, KEPT, (fmi2Component c), ())                                                                      \
     X(fmi2DoStep, RECOVERABLE, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean k), (t, h, k))                \
-    X(fmi2DeSerializeFMUstate, KEPT, (fmi2Component c, const fmi2Byte *b, size_t n, fmi2FMUstate *s), (b, n, s))
+    X(fmi2DeSerializeFMUstate, KEPT, (fmi2Component c, const fmi2Byte *b, size_t n, fmi2FMUstate *s), (b, n, s))    \
+    X(fmi2GetRealStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Real *x), (k, x))
 
 /* The functions forwarded that take an FMU state, refused for a NULL one (SBF_STATE_USED): forwarded by
  * forward_<name>, exported below. */
@@ -91,7 +99,8 @@ typedef struct {
 
 /* PythonFMU's entry points */
 static struct {
-#define POINTER(name, failure, params, args) fmi2Status(*name) params;
+#define POINTER(name, failure, params, args, ...) fmi2Status(*name) params;
+    READERS(POINTER)
     FORWARDED(POINTER)
     TRACKED(POINTER)
     STATE_USED(POINTER)
@@ -112,6 +121,8 @@ typedef struct {
     char *name;
     sbf_log_filter logging;
     int fatal_is_error; /* during a RECOVERABLE call: PythonFMU's fmi2Fatal is reported as fmi2Error */
+    sbf_fast_path fast; /* steps and output reads without PythonFMU (fast_path.h) */
+    double last_successful_time; /* s: the end of the last step that succeeded (NaN before any, as PythonFMU) */
 } Instance;
 
 static void host_log(const Instance *inst, fmi2Status status, const char *text)
@@ -143,8 +154,8 @@ static void relay_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Status 
 /* sbf_start's resolver: PythonFMU's entry points */
 static int resolve_inner(void *lib, const char *path)
 {
-#define LOAD(name, failure, params, args) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
-    if (1 FORWARDED(LOAD) TRACKED(LOAD) STATE_USED(LOAD) LOAD(fmi2Instantiate, , , ) LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , )
+#define LOAD(name, failure, params, args, ...) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
+    if (1 READERS(LOAD) FORWARDED(LOAD) TRACKED(LOAD) STATE_USED(LOAD) LOAD(fmi2Instantiate, , , ) LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , )
             LOAD(fmi2FreeFMUstate, , , ))
         return 1;
 #undef LOAD
@@ -159,6 +170,7 @@ EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
 
 static void free_instance(Instance *inst)
 {
+    sbf_fast_unbind(&inst->fast);
     sbf_set_log_filter(&inst->logging, 0, 0, NULL);
     free(inst->name);
     free(inst);
@@ -196,6 +208,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
     inst->relay.logger = relay_log;
     inst->relay.componentEnvironment = inst;
     inst->logging.on = loggingOn;
+    inst->last_successful_time = NAN;
     if (!instantiable(inst, name, type, guid, resources, path, sizeof path)) {
         free_instance(inst);
         return NULL;
@@ -206,7 +219,9 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
         return NULL;
     }
     sbf_keep_thread_state();
+    sbf_fast_binding(&inst->fast);
     inst->inner = inner.fmi2Instantiate(name, type, guid, path, &inst->relay, visible, 1);
+    sbf_fast_binding(NULL);
     if (!inst->inner) {
         free_instance(inst);
         return NULL;
@@ -219,6 +234,7 @@ EXPORT void fmi2FreeInstance(fmi2Component c)
     Instance *inst = c;
     if (!inst) return;
     sbf_keep_thread_state();
+    sbf_fast_unbind(&inst->fast);
     inner.fmi2FreeInstance(inst->inner);
     free_instance(inst);
 }
@@ -250,6 +266,11 @@ EXPORT fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Sta
     SBF_FORWARD(fmi2Status, fmi2Error, fmi2Fatal, name, failure, params, args)
 FORWARDED(FORWARD)
 #undef FORWARD
+
+#define READER(name, failure, params, args, read) \
+    SBF_READER(fmi2Status, fmi2OK, fmi2Error, fmi2Fatal, name, failure, params, args, read)
+READERS(READER)
+#undef READER
 
 SBF_FREE_STATE(fmi2Status, fmi2Error, fmi2Fatal, fmi2FreeFMUstate, fmi2FMUstate)
 #define FORWARD(name, failure, params, args) \
@@ -292,16 +313,46 @@ EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 
 EXPORT fmi2Status fmi2Terminate(fmi2Component c) { return moved(c, forward_fmi2Terminate(c), SBF_TERMINATED); }
 
-EXPORT fmi2Status fmi2Reset(fmi2Component c) { return moved(c, forward_fmi2Reset(c), SBF_INSTANTIATED); }
+/* PythonFMU makes a new slave: it offers itself to the fast path again */
+EXPORT fmi2Status fmi2Reset(fmi2Component c)
+{
+    if (!c) return fmi2Error;
+    Instance *inst = c;
+    sbf_keep_thread_state();
+    sbf_fast_unbind(&inst->fast);
+    sbf_fast_binding(&inst->fast);
+    fmi2Status status = forward_fmi2Reset(c);
+    sbf_fast_binding(NULL);
+    return moved(c, status, SBF_INSTANTIATED);
+}
 
 EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
-    char why[256];
-    if (c && sbf_step_refused(((Instance *)c)->mode, "fmi2DoStep", t, why, sizeof why)) {
+    char why[4096];
+    if (!c) return fmi2Error;
+    if (sbf_step_refused(((Instance *)c)->mode, "fmi2DoStep", t, why, sizeof why)) {
         host_log(c, fmi2Error, why);
         return fmi2Error;
     }
-    return forward_fmi2DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint);
+    sbf_keep_thread_state();
+    fmi2Status status;
+    switch (sbf_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
+    case 0: status = fmi2OK; break;
+    case 1: host_log(c, fmi2Error, why); return fmi2Error;
+    default: status = forward_fmi2DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint);
+    }
+    if (status <= fmi2Warning) ((Instance *)c)->last_successful_time = t + h;
+    return status;
+}
+
+/* fmi2LastSuccessfulTime from the loader, which sees every step (PythonFMU does not see the fast path's) */
+EXPORT fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
+{
+    if (c && s == fmi2LastSuccessfulTime && value) {
+        *value = ((Instance *)c)->last_successful_time;
+        return fmi2OK;
+    }
+    return forward_fmi2GetRealStatus(c, s, value);
 }
 
 SBF_DESERIALIZE(fmi2Status, fmi2Error, fmi2Warning, fmi2Byte, fmi2DeSerializeFMUstate, forward_fmi2DeSerializeFMUstate,

@@ -65,8 +65,8 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
  * SpringBlockFriction_fmi3's do) the instance stays valid for fmi3Reset, fmi3SetFMUState and fmi3FreeInstance,
  * which is what fmi3Error means, so fmi3Fatal is returned and logged as fmi3Error. KEPT: the status as is. */
 #define FORWARDED(X)                                                                                               \
-    GET_AND_SET(X, Float64, fmi3Float64)                                                                          \
-    GET_AND_SET(X, Int32, fmi3Int32)                                                                              \
+    X(fmi3SetFloat64, RECOVERABLE, SETTER(fmi3Float64), ARRAY_ARGS)                                               \
+    X(fmi3SetInt32, RECOVERABLE, SETTER(fmi3Int32), ARRAY_ARGS)                                                   \
     GET_AND_SET(X, Int64, fmi3Int64)                                                                              \
     GET_AND_SET(X, UInt64, fmi3UInt64)                                                                            \
     GET_AND_SET(X, Boolean, fmi3Boolean)                                                                          \
@@ -88,6 +88,13 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
     X(fmi3SetTime, RECOVERABLE, (fmi3Instance c, fmi3Float64 time), (time))                                       \
     X(fmi3GetNumberOfEventIndicators, RECOVERABLE, (fmi3Instance c, size_t *n), (n))                              \
     X(fmi3GetNumberOfContinuousStates, RECOVERABLE, (fmi3Instance c, size_t *n), (n))
+
+/* The getters of the outputs' types: answered from the fast path's buffer where it holds every value asked for
+ * (fast_path.h), else forwarded by forward_<name> as calls that only read; exported below. X(name, failure,
+ * parameters, arguments after the instance, the fast path's reader) */
+#define READERS(X)                                                                                                 \
+    X(fmi3GetFloat64, RECOVERABLE, GETTER(fmi3Float64), ARRAY_ARGS, fast_float64)                                 \
+    X(fmi3GetInt32, RECOVERABLE, GETTER(fmi3Int32), ARRAY_ARGS, fast_int32)
 
 /* The functions forwarded that move the instance between FMI 3's states (sbf_mode) or need one (event mode and
  * the discrete-state update: model exchange only), the deserialization of states, and the model-exchange arrays
@@ -171,7 +178,8 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
 
 /* pythonfmu3's entry points */
 static struct {
-#define POINTER(name, failure, params, args) fmi3Status(*name) params;
+#define POINTER(name, failure, params, args, ...) fmi3Status(*name) params;
+    READERS(POINTER)
     FORWARDED(POINTER)
     TRACKED(POINTER)
     STATE_USED(POINTER)
@@ -195,6 +203,7 @@ typedef struct {
     fmi3LogMessageCallback log_message;   /* the host's */
     sbf_log_filter logging;
     int fatal_is_error; /* during a RECOVERABLE call: pythonfmu3's fmi3Fatal is reported as fmi3Error */
+    sbf_fast_path fast; /* steps and output reads without pythonfmu3 (fast_path.h) */
 } Instance;
 
 static void host_log(const Instance *inst, fmi3Status status, const char *text)
@@ -223,8 +232,8 @@ static void relay_log(fmi3InstanceEnvironment env, fmi3Status status, fmi3String
 /* sbf_start's resolver: pythonfmu3's entry points */
 static int resolve_inner(void *lib, const char *path)
 {
-#define LOAD(name, failure, params, args) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
-    if (1 FORWARDED(LOAD) TRACKED(LOAD) STATE_USED(LOAD) LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
+#define LOAD(name, failure, params, args, ...) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
+    if (1 READERS(LOAD) FORWARDED(LOAD) TRACKED(LOAD) STATE_USED(LOAD) LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
             LOAD(fmi3FreeInstance, , , ) LOAD(fmi3GetContinuousStateDerivatives, , , )
             LOAD(fmi3FreeFMUState, , , ))
         return 1;
@@ -239,6 +248,7 @@ EXPORT const char *fmi3GetVersion(void) { return "3.0"; }
 
 static void free_instance(Instance *inst)
 {
+    sbf_fast_unbind(&inst->fast);
     sbf_set_log_filter(&inst->logging, 0, 0, NULL);
     free(inst);
 }
@@ -299,11 +309,14 @@ EXPORT fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3Str
         free_instance(inst);
         return NULL;
     }
-    if (inst)
+    if (inst) {
+        sbf_fast_binding(&inst->fast);
         inst->inner = inner.fmi3InstantiateCoSimulation(instanceName, instantiationToken, path, visible, true,
                                                         eventModeUsed, earlyReturnAllowed,
                                                         requiredIntermediateVariables, nRequiredIntermediateVariables,
                                                         inst, relay_log, NULL);
+        sbf_fast_binding(NULL);
+    }
     return instantiated(inst);
 }
 
@@ -343,6 +356,7 @@ EXPORT void fmi3FreeInstance(fmi3Instance c)
     Instance *inst = c;
     if (!inst) return;
     sbf_keep_thread_state();
+    sbf_fast_unbind(&inst->fast);
     inner.fmi3FreeInstance(inst->inner);
     free_instance(inst);
 }
@@ -364,6 +378,23 @@ EXPORT fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, siz
     SBF_FORWARD(fmi3Status, fmi3Error, fmi3Fatal, name, failure, params, args)
 FORWARDED(FORWARD)
 #undef FORWARD
+
+/* the fast path's readers with FMI 3's count of values: scalars only (n = nvr) */
+static int fast_float64(const sbf_fast_path *fast, const fmi3ValueReference *vr, size_t nvr, fmi3Float64 *values,
+                        size_t n)
+{
+    return n == nvr && sbf_fast_reals(fast, vr, nvr, values);
+}
+
+static int fast_int32(const sbf_fast_path *fast, const fmi3ValueReference *vr, size_t nvr, fmi3Int32 *values, size_t n)
+{
+    return n == nvr && sbf_fast_integers(fast, vr, nvr, values);
+}
+
+#define READER(name, failure, params, args, read) \
+    SBF_READER(fmi3Status, fmi3OK, fmi3Error, fmi3Fatal, name, failure, params, args, read)
+READERS(READER)
+#undef READER
 #define FORWARD(name, failure, params, args) \
     SBF_FORWARD_AS(static, forward_##name, fmi3Status, fmi3Error, fmi3Fatal, name, failure, params, args)
 TRACKED(FORWARD)
@@ -432,22 +463,43 @@ EXPORT fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *discrete
 
 EXPORT fmi3Status fmi3Terminate(fmi3Instance c) { return moved(c, forward_fmi3Terminate(c), SBF_TERMINATED); }
 
-EXPORT fmi3Status fmi3Reset(fmi3Instance c) { return moved(c, forward_fmi3Reset(c), SBF_INSTANTIATED); }
+/* pythonfmu3 makes a new slave: it offers itself to the fast path again */
+EXPORT fmi3Status fmi3Reset(fmi3Instance c)
+{
+    if (!c) return fmi3Error;
+    Instance *inst = c;
+    sbf_keep_thread_state();
+    sbf_fast_unbind(&inst->fast);
+    sbf_fast_binding(&inst->fast);
+    fmi3Status status = forward_fmi3Reset(c);
+    sbf_fast_binding(NULL);
+    return moved(c, status, SBF_INSTANTIATED);
+}
 
 EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
                              fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation,
                              fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime)
 {
-    char why[256];
+    char why[4096];
     /* pythonfmu3 writes only terminateSimulation, and only if the slave's do_step returns one; this FMU needs no
      * event handling and never returns early or terminates */
     *eventHandlingNeeded = *terminateSimulation = *earlyReturn = false;
-    if (c && sbf_step_refused(((Instance *)c)->mode, "fmi3DoStep", t, why, sizeof why)) {
+    if (!c) return fmi3Error;
+    if (sbf_step_refused(((Instance *)c)->mode, "fmi3DoStep", t, why, sizeof why)) {
         host_log(c, fmi3Error, why);
         return fmi3Error;
     }
-    return forward_fmi3DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded, terminateSimulation,
-                              earlyReturn, lastSuccessfulTime);
+    sbf_keep_thread_state();
+    fmi3Status status;
+    switch (sbf_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
+    case 0: status = fmi3OK; break;
+    case 1: host_log(c, fmi3Error, why); return fmi3Error;
+    default:
+        status = forward_fmi3DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded,
+                                    terminateSimulation, earlyReturn, lastSuccessfulTime);
+    }
+    if (status <= fmi3Warning) *lastSuccessfulTime = t + h;
+    return status;
 }
 
 SBF_DESERIALIZE(fmi3Status, fmi3Error, fmi3Warning, fmi3Byte, fmi3DeserializeFMUState, forward_fmi3DeserializeFMUState,

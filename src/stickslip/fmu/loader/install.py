@@ -1,6 +1,7 @@
 """Compile the loader and put it into a PythonFMU (FMI 2) or pythonfmu3 (FMI 3) FMU as its Linux binary.
 
-The loader is ``runtime.c`` (CPython and the inner library) with the front of the
+The loader is ``runtime.c`` (CPython and the inner library) and ``fast_path.c`` (steps and output reads
+without the inner library) with the front of the
 FMU's FMI version (``fmi2_front.c`` or ``fmi3_front.c``). It becomes
 ``binaries/<linux folder>/<model identifier>.so``; the library's own binary stays
 beside it as ``<model identifier>_pythonfmu.so``. The loader
@@ -25,7 +26,7 @@ HERE = Path(__file__).resolve().parent
 #: FMI version: (the front's source, the FMU's folder of Linux binaries, the library that built the FMU)
 FRONTS = {2: (HERE / "fmi2_front.c", "binaries/linux64", "PythonFMU"),
           3: (HERE / "fmi3_front.c", "binaries/x86_64-linux", "pythonfmu3")}
-RUNTIME = (HERE / "runtime.c", HERE / "runtime.h")
+RUNTIME = (HERE / "runtime.c", HERE / "runtime.h", HERE / "fast_path.c", HERE / "fast_path.h")
 #: what a built binary depends on
 SOURCES = (*RUNTIME, *(front for front, _, _ in FRONTS.values()), Path(__file__).resolve())
 LIBPYTHON_VARIABLE = "SBF_LIBPYTHON"  # the loader's override: path or name of a CPython shared library
@@ -60,7 +61,7 @@ def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, toke
     path, soname = build_libpython()
     command = [
         compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o", str(dest),
-        str(FRONTS[fmi_version][0]), str(RUNTIME[0]),
+        str(FRONTS[fmi_version][0]), str(RUNTIME[0]), str(RUNTIME[2]),
         f"-DSBF_INNER_LIBRARY={_c_string(inner_name)}", f"-DSBF_TOKEN={_c_string(token)}",
         f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
         f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}", "-ldl", "-lpthread",

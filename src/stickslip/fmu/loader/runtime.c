@@ -285,6 +285,7 @@ int sbf_start(sbf_resolve_inner resolve)
             else
                 initialize_python(where);
         }
+        if (started == 0) sbf_fast_resolve(lib);
         if (started == 0) load_inner(resolve);
         if (started == 0) started = 1;
     }

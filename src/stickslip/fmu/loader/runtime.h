@@ -9,6 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fast_path.h"
+
 /* Called once, under the start lock, with the inner library (dlopen'ed beside this one) and its path:
  * resolves the front's entry points; returns 0 after sbf_fail() if one is missing. */
 typedef int (*sbf_resolve_inner)(void *library, const char *path);
@@ -83,18 +85,24 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
 #endif
 #define KEPT 0
 #define SBF_FORWARD_ARGS(...) __VA_OPT__(, ) __VA_ARGS__
-/* The function `function` (with linkage `Linkage`) that forwards to the inner library's `name`. */
-#define SBF_FORWARD_AS(Linkage, function, Status, error, fatal, name, failure, params, args) \
-    Linkage Status function params                                                        \
-    {                                                                                     \
-        Instance *inst = c;                                                               \
-        if (!inst) return error;                                                          \
-        sbf_keep_thread_state();                                                          \
-        inst->fatal_is_error = failure;                                                   \
-        Status status = inner.name(inst->inner SBF_FORWARD_ARGS args);                    \
-        inst->fatal_is_error = 0;                                                         \
-        return failure && status == fatal ? error : status;                               \
+/* The function `function` (with linkage `Linkage`) that forwards to the inner library's `name`, after the fast
+ * path's bookkeeping (sbf_fast_forward; the front's Instance has the field `fast`): `changes` is 0 for a call that
+ * only reads values, 1 for any other. */
+#define SBF_FORWARD_WITH(Linkage, function, Status, error, fatal, name, failure, changes, params, args) \
+    Linkage Status function params                                                                   \
+    {                                                                                                \
+        Instance *inst = c;                                                                          \
+        if (!inst) return error;                                                                     \
+        sbf_keep_thread_state();                                                                     \
+        sbf_fast_forward(&inst->fast, changes);                                                      \
+        inst->fatal_is_error = failure;                                                              \
+        Status status = inner.name(inst->inner SBF_FORWARD_ARGS args);                               \
+        inst->fatal_is_error = 0;                                                                    \
+        return failure && status == fatal ? error : status;                                          \
     }
+/* The same, for a call that may change the instance */
+#define SBF_FORWARD_AS(Linkage, function, Status, error, fatal, name, failure, params, args) \
+    SBF_FORWARD_WITH(Linkage, function, Status, error, fatal, name, failure, 1, params, args)
 /* The exported fmi2FreeFMUstate / fmi3FreeFMUState `name`, forwarded to the inner library's, and as the standard
  * asks: a null pointer is ignored and the freed state comes back as NULL (PythonFMU and pythonfmu3 dereference
  * the one and leave the other). Status 0 is OK and 1 warning in both. */
@@ -106,6 +114,16 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
         Status status = forward_free_state(c, s);                                                              \
         if (status <= 1) *s = NULL;                                                                            \
         return status;                                                                                         \
+    }
+/* The exported getter `name` (its component parameter named `c`): answered by the fast path's reader `read` (the
+ * instance's `fast`, then the getter's arguments after the component) where that holds every value asked for,
+ * else forwarded by forward_<name> as a call that only reads. */
+#define SBF_READER(Status, ok, error, fatal, name, failure, params, args, read)                                  \
+    SBF_FORWARD_WITH(static, forward_##name, Status, error, fatal, name, failure, 0, params, args)              \
+    __attribute__((visibility("default"))) Status name params                                                  \
+    {                                                                                                           \
+        if (c && read(&((Instance *)c)->fast SBF_FORWARD_ARGS args)) return ok;                                 \
+        return forward_##name(c SBF_FORWARD_ARGS args);                                                         \
     }
 /* The exported FMI function `name`, forwarded as is. */
 #define SBF_FORWARD(Status, error, fatal, name, failure, params, args) \

@@ -1,0 +1,195 @@
+/* The loader's fast path (fast_path.h): the slave's step call made directly, the outputs kept in C. */
+#define _GNU_SOURCE
+#include "fast_path.h"
+
+#include <dlfcn.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- CPython: the functions the fast path calls (stable C API) ---- */
+typedef void PyObject;
+static struct {
+    int (*PyGILState_Ensure)(void);
+    void (*PyGILState_Release)(int);
+    PyObject *(*PyObject_CallMethod)(PyObject *, const char *, const char *, ...);
+    PyObject *(*PyObject_CallFunctionObjArgs)(PyObject *, ...);
+    PyObject *(*PyFloat_FromDouble)(double);
+    double (*PyFloat_AsDouble)(PyObject *);
+    long (*PyLong_AsLong)(PyObject *);
+    ptrdiff_t (*PyTuple_Size)(PyObject *);
+    PyObject *(*PyTuple_GetItem)(PyObject *, ptrdiff_t);
+    void (*Py_IncRef)(PyObject *);
+    void (*Py_DecRef)(PyObject *);
+    PyObject *(*PyErr_Occurred)(void);
+    void (*PyErr_Fetch)(PyObject **, PyObject **, PyObject **);
+    void (*PyErr_NormalizeException)(PyObject **, PyObject **, PyObject **);
+    void (*PyErr_Clear)(void);
+    PyObject *(*PyObject_Repr)(PyObject *);
+    const char *(*PyUnicode_AsUTF8)(PyObject *);
+} py;
+static PyObject *py_none; /* Py_None */
+static int available;     /* every function above was found */
+
+void sbf_fast_resolve(void *lib)
+{
+    const char *setting = getenv(SBF_FAST_PATH_VARIABLE);
+    if (setting && strcmp(setting, "0") == 0) return; /* off: every call goes the inner library's way */
+#define RESOLVE(symbol) (*(void **)&py.symbol = dlsym(lib, #symbol)) != NULL
+    available = RESOLVE(PyGILState_Ensure) && RESOLVE(PyGILState_Release) && RESOLVE(PyObject_CallMethod) &&
+                RESOLVE(PyObject_CallFunctionObjArgs) && RESOLVE(PyFloat_FromDouble) && RESOLVE(PyFloat_AsDouble) &&
+                RESOLVE(PyLong_AsLong) && RESOLVE(PyTuple_Size) && RESOLVE(PyTuple_GetItem) && RESOLVE(Py_IncRef) &&
+                RESOLVE(Py_DecRef) && RESOLVE(PyErr_Occurred) && RESOLVE(PyErr_Fetch) &&
+                RESOLVE(PyErr_NormalizeException) && RESOLVE(PyErr_Clear) && RESOLVE(PyObject_Repr) &&
+                RESOLVE(PyUnicode_AsUTF8) && (py_none = dlsym(lib, "_Py_NoneStruct")) != NULL;
+#undef RESOLVE
+}
+
+/* ---- binding: the slave offers itself while the inner library constructs it ---- */
+static __thread sbf_fast_path *binding;
+
+void sbf_fast_binding(sbf_fast_path *fast) { binding = fast; }
+
+/* Called by the slave (through ctypes.PyDLL, the GIL held) while the inner library constructs it on this thread:
+ * `slave` is the slave object, `first` the value reference of its first output, `kinds` one letter per output
+ * ('r' real, 'i' integer). 1 if bound; 0 if no instance of this library is being made here or the offer is
+ * malformed. */
+__attribute__((visibility("default"))) int sbf_bind_slave(PyObject *slave, unsigned first, const char *kinds)
+{
+    sbf_fast_path *fast = binding;
+    size_t n = kinds ? strlen(kinds) : 0;
+    if (!fast || !available || !slave || n == 0 || n > SBF_MAX_OUTPUTS || strspn(kinds, "ri") != n) return 0;
+    if (fast->step) py.Py_DecRef(fast->step);
+    if (fast->slave) py.Py_DecRef(fast->slave);
+    py.Py_IncRef(slave);
+    *fast = (sbf_fast_path){.slave = slave, .first = first, .n = n};
+    memcpy(fast->kinds, kinds, n);
+    return 1;
+}
+
+/* ---- the step ---- */
+
+/* The pending Python exception as "[doStep] <repr>" in `why`, cleared. */
+static void exception_text(char *why, size_t size)
+{
+    PyObject *type = NULL, *value = NULL, *traceback = NULL;
+    py.PyErr_Fetch(&type, &value, &traceback);
+    py.PyErr_NormalizeException(&type, &value, &traceback);
+    PyObject *repr = value ? py.PyObject_Repr(value) : NULL;
+    const char *text = repr ? py.PyUnicode_AsUTF8(repr) : NULL;
+    snprintf(why, size, "[doStep] %s", text ? text : "unknown error");
+    py.PyErr_Clear();
+    PyObject *held[] = {repr, type, value, traceback};
+    for (size_t i = 0; i < sizeof held / sizeof *held; ++i)
+        if (held[i]) py.Py_DecRef(held[i]);
+}
+
+/* The outputs `result` (a tuple of fast->n numbers) into the buffer; 0 (a Python exception set) if it is not. */
+static int keep_outputs(sbf_fast_path *fast, PyObject *result)
+{
+    if (py.PyTuple_Size(result) != (ptrdiff_t)fast->n) return 0;
+    for (size_t i = 0; i < fast->n; ++i) {
+        PyObject *item = py.PyTuple_GetItem(result, (ptrdiff_t)i);
+        if (fast->kinds[i] == 'r')
+            fast->reals[i] = py.PyFloat_AsDouble(item);
+        else
+            fast->integers[i] = py.PyLong_AsLong(item);
+    }
+    return py.PyErr_Occurred() == NULL;
+}
+
+/* The slave's step call, asked for if none is kept: 1 if there is one, 0 if the slave has none now (its next
+ * step goes the inner library's way), -1 on an exception. Under the GIL. */
+static int have_step_call(sbf_fast_path *fast)
+{
+    if (fast->step) return 1;
+    PyObject *step = py.PyObject_CallMethod(fast->slave, "fast_step_call", NULL);
+    if (!step) return -1;
+    if (step == py_none) {
+        py.Py_DecRef(step);
+        return 0;
+    }
+    fast->step = step;
+    return 1;
+}
+
+int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size)
+{
+    if (!fast->slave) return -1;
+    int gil = py.PyGILState_Ensure();
+    int outcome = -1;
+    int found = have_step_call(fast);
+    if (found != 0) {
+        PyObject *result = NULL;
+        if (found == 1) {
+            PyObject *time = py.PyFloat_FromDouble(t), *size = py.PyFloat_FromDouble(h);
+            if (time && size) result = py.PyObject_CallFunctionObjArgs(fast->step, time, size, NULL);
+            if (time) py.Py_DecRef(time);
+            if (size) py.Py_DecRef(size);
+        }
+        fast->moved = 1; /* a failed step may have moved the state part of the way */
+        fast->fresh = result && keep_outputs(fast, result);
+        outcome = fast->fresh ? 0 : 1;
+        if (outcome) exception_text(why, why_size);
+        if (result) py.Py_DecRef(result);
+    }
+    py.PyGILState_Release(gil);
+    return outcome;
+}
+
+void sbf_fast_forward(sbf_fast_path *fast, int changes)
+{
+    if (changes) fast->fresh = 0;
+    if (!fast->moved && !(changes && fast->step)) return;
+    int gil = py.PyGILState_Ensure();
+    if (fast->moved) {
+        PyObject *done = py.PyObject_CallMethod(fast->slave, "outputs_changed", NULL);
+        if (done)
+            py.Py_DecRef(done);
+        else
+            py.PyErr_Clear();
+        fast->moved = 0;
+    }
+    if (changes && fast->step) {
+        py.Py_DecRef(fast->step);
+        fast->step = NULL;
+    }
+    py.PyGILState_Release(gil);
+}
+
+void sbf_fast_unbind(sbf_fast_path *fast)
+{
+    if (fast->slave) {
+        int gil = py.PyGILState_Ensure();
+        if (fast->step) py.Py_DecRef(fast->step);
+        py.Py_DecRef(fast->slave);
+        py.PyGILState_Release(gil);
+    }
+    *fast = (sbf_fast_path){0};
+}
+
+/* ---- the reads ---- */
+
+/* 1 if every value reference of vr[0..n) is an output of kind `kind` and the buffer is fresh */
+static int buffered(const sbf_fast_path *fast, char kind, const unsigned *vr, size_t n)
+{
+    if (!fast->fresh || (n && !vr)) return 0;
+    for (size_t i = 0; i < n; ++i)
+        if (vr[i] < fast->first || vr[i] - fast->first >= fast->n || fast->kinds[vr[i] - fast->first] != kind)
+            return 0;
+    return 1;
+}
+
+int sbf_fast_reals(const sbf_fast_path *fast, const unsigned *vr, size_t n, double *values)
+{
+    if (!buffered(fast, 'r', vr, n) || (n && !values)) return 0;
+    for (size_t i = 0; i < n; ++i) values[i] = fast->reals[vr[i] - fast->first];
+    return 1;
+}
+
+int sbf_fast_integers(const sbf_fast_path *fast, const unsigned *vr, size_t n, int *values)
+{
+    if (!buffered(fast, 'i', vr, n) || (n && !values)) return 0;
+    for (size_t i = 0; i < n; ++i) values[i] = (int)fast->integers[vr[i] - fast->first];
+    return 1;
+}

@@ -1,0 +1,65 @@
+/* The loader's fast path: a communication step and the reads of the outputs after it, without the inner library.
+ *
+ * The inner library (PythonFMU, pythonfmu3) turns every FMI call into a Python method call on the slave: its
+ * arguments into Python lists, the results back, its log queue drained. Per step that costs more than the step.
+ * The slave therefore offers itself to the loader while the inner library constructs it (sbf_bind_slave, called
+ * from fmu_src/block_interface.py, offer_to_loader), with the value reference of its first output and the
+ * outputs' kinds. The loader then
+ *   - takes a communication step by one call of the slave's step call (fast_step_call(): the runtime's compiled
+ *     Trajectory.communicate, which checks the step, advances and returns every output in order), and keeps
+ *     the outputs it returns in a buffer of its own;
+ *   - answers reads of outputs from that buffer, without entering Python;
+ *   - before forwarding any other call to the inner library, tells the slave that the state moved (its own
+ *     caches of the outputs are stale: outputs_changed()) and, unless the call only reads, forgets the step
+ *     call and the buffer: inputs, parameters, a restored state or a reset change what the next step starts
+ *     from, and the slave gives a new step call for it.
+ * The outputs are the very values the slave's getters answer (the same conversions as the inner library's),
+ * so results do not depend on which path a call takes. Where the slave offers nothing (a pythonfmu binary
+ * without this loader's symbol, a CPython without the functions below, SBF_FAST_PATH=0 in the environment), every
+ * call goes the inner library's way.
+ */
+#ifndef SBF_FAST_PATH_H
+#define SBF_FAST_PATH_H
+#include <stddef.h>
+
+#define SBF_MAX_OUTPUTS 64
+/* The environment variable that turns the fast path off for the process when it is "0" (to compare the paths) */
+#define SBF_FAST_PATH_VARIABLE "SBF_FAST_PATH"
+
+typedef struct {
+    void *slave;     /* the slave (a PyObject reference held), NULL while none is bound */
+    void *step;      /* the slave's step call for the next steps (a reference held), NULL until asked for */
+    unsigned first;  /* value reference of the first output; the others follow */
+    size_t n;        /* number of outputs */
+    char kinds[SBF_MAX_OUTPUTS]; /* 'r' real, 'i' integer, per output */
+    double reals[SBF_MAX_OUTPUTS];
+    long integers[SBF_MAX_OUTPUTS];
+    int fresh; /* reals/integers hold the outputs at the current state */
+    int moved; /* a fast step moved the state since the slave last heard of it */
+} sbf_fast_path;
+
+/* Resolve the CPython functions the fast path calls from `libpython` (a dlopen handle or RTLD_DEFAULT); without
+ * them the fast path stays off. Called once, from sbf_start. */
+void sbf_fast_resolve(void *libpython);
+
+/* The instance whose slave the inner library constructs next on this thread (NULL when done): set around the
+ * inner library's instantiation and reset, when the slave calls sbf_bind_slave. */
+void sbf_fast_binding(sbf_fast_path *fast);
+
+/* A communication step from `t` by `h` (s): -1 if the fast path cannot take it (forward the call instead), 0 if
+ * taken, 1 if the step failed, with the slave's exception as "[doStep] <repr>" in `why`. */
+int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size);
+
+/* Before a call is forwarded to the inner library: the slave hears that the state moved; if `changes` (the call
+ * may change the state, parameters or inputs), the step call and the buffer are forgotten. */
+void sbf_fast_forward(sbf_fast_path *fast, int changes);
+
+/* 1 with the `n` values of the outputs `vr` in `values` if the buffer holds them all (each of kind 'r', or 'i'
+ * for sbf_fast_integers), else 0 (forward the call). */
+int sbf_fast_reals(const sbf_fast_path *fast, const unsigned *vr, size_t n, double *values);
+int sbf_fast_integers(const sbf_fast_path *fast, const unsigned *vr, size_t n, int *values);
+
+/* Drop the slave and its step call (freeing or resetting the instance). */
+void sbf_fast_unbind(sbf_fast_path *fast);
+
+#endif
