@@ -49,6 +49,16 @@ class Session:
             else:
                 (self.fmu.setReal if self.v2 else self.fmu.setFloat64)([self.refs[name]], [value])
 
+    def initialize(self, start):
+        """Start values set, initialization at t = 0 s."""
+        self.set(start)
+        if self.v2:
+            self.fmu.setupExperiment(startTime=0.0)
+            self.fmu.enterInitializationMode()
+        else:
+            self.fmu.enterInitializationMode(startTime=0.0)
+        self.fmu.exitInitializationMode()
+
     def read(self, label, refs=None):
         get_real = self.fmu.getReal if self.v2 else self.fmu.getFloat64
         get_int = self.fmu.getInteger if self.v2 else self.fmu.getInt32
@@ -95,13 +105,7 @@ def session(fmu_path, scene):
     start = SCENES[scene]
     with ExtractedFMU(fmu_path) as extracted:
         s = Session(extracted)
-        s.set(start)
-        if s.v2:
-            s.fmu.setupExperiment(startTime=0.0)
-            s.fmu.enterInitializationMode()
-        else:
-            s.fmu.enterInitializationMode(startTime=0.0)
-        s.fmu.exitInitializationMode()
+        s.initialize(start)
         s.read("initial")
         t = s.run({}, 0.0, 200, "first")
         t = s.run({"F_ext": 0.3}, t, 100, "input")  # an input change between steps
@@ -115,13 +119,7 @@ def session(fmu_path, scene):
         s.read("after the refused step")
         t = s.run({}, t, 20, "after the gap")
         s.fmu.reset()
-        s.set(start)
-        if s.v2:
-            s.fmu.setupExperiment(startTime=0.0)
-            s.fmu.enterInitializationMode()
-        else:
-            s.fmu.enterInitializationMode(startTime=0.0)
-        s.fmu.exitInitializationMode()
+        s.initialize(start)
         s.run({}, 0.0, 50, "after reset")
         s.inst.free()
         return {**s.record, "counts": s.counts}

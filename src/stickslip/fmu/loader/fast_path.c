@@ -168,6 +168,12 @@ void sbf_fast_unbind(sbf_fast_path *fast)
     *fast = (sbf_fast_path){0};
 }
 
+void sbf_fast_rebinding(sbf_fast_path *fast)
+{
+    sbf_fast_unbind(fast);
+    binding = fast;
+}
+
 /* ---- the reads ---- */
 
 /* 1 if every value reference of vr[0..n) is an output of kind `kind` and the buffer is fresh */

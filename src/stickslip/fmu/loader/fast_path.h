@@ -59,7 +59,10 @@ void sbf_fast_forward(sbf_fast_path *fast, int changes);
 int sbf_fast_reals(const sbf_fast_path *fast, const unsigned *vr, size_t n, double *values);
 int sbf_fast_integers(const sbf_fast_path *fast, const unsigned *vr, size_t n, int *values);
 
-/* Drop the slave and its step call (freeing or resetting the instance). */
+/* Drop the slave and its step call (freeing the instance). */
 void sbf_fast_unbind(sbf_fast_path *fast);
+/* Drop them and bind the slave the inner library constructs next on this thread (around a reset, which makes a new
+ * slave); sbf_fast_binding(NULL) after. */
+void sbf_fast_rebinding(sbf_fast_path *fast);
 
 #endif

@@ -313,14 +313,10 @@ EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 
 EXPORT fmi2Status fmi2Terminate(fmi2Component c) { return moved(c, forward_fmi2Terminate(c), SBF_TERMINATED); }
 
-/* PythonFMU makes a new slave: it offers itself to the fast path again */
+/* PythonFMU makes a new slave, which offers itself to the fast path again */
 EXPORT fmi2Status fmi2Reset(fmi2Component c)
 {
-    if (!c) return fmi2Error;
-    Instance *inst = c;
-    sbf_keep_thread_state();
-    sbf_fast_unbind(&inst->fast);
-    sbf_fast_binding(&inst->fast);
+    if (c) sbf_fast_rebinding(&((Instance *)c)->fast);
     fmi2Status status = forward_fmi2Reset(c);
     sbf_fast_binding(NULL);
     return moved(c, status, SBF_INSTANTIATED);

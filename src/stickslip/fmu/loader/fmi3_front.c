@@ -463,14 +463,10 @@ EXPORT fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *discrete
 
 EXPORT fmi3Status fmi3Terminate(fmi3Instance c) { return moved(c, forward_fmi3Terminate(c), SBF_TERMINATED); }
 
-/* pythonfmu3 makes a new slave: it offers itself to the fast path again */
+/* pythonfmu3 makes a new slave, which offers itself to the fast path again */
 EXPORT fmi3Status fmi3Reset(fmi3Instance c)
 {
-    if (!c) return fmi3Error;
-    Instance *inst = c;
-    sbf_keep_thread_state();
-    sbf_fast_unbind(&inst->fast);
-    sbf_fast_binding(&inst->fast);
+    if (c) sbf_fast_rebinding(&((Instance *)c)->fast);
     fmi3Status status = forward_fmi3Reset(c);
     sbf_fast_binding(NULL);
     return moved(c, status, SBF_INSTANTIATED);
