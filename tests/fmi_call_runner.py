@@ -440,6 +440,12 @@ FMI3_REFUSED = (
       for unit in ("Decimal", "Fraction")),
     "fmi3EvaluateDiscreteStates", "fmi3ActivateModelPartition",
 )
+#: the model-exchange functions FMI 3.0 does not allow in co-simulation (section 2.3)
+FMI3_EXCHANGE_ONLY = (
+    "fmi3EnterContinuousTimeMode", "fmi3SetTime", "fmi3SetContinuousStates", "fmi3GetContinuousStates",
+    "fmi3GetNominalsOfContinuousStates", "fmi3GetContinuousStateDerivatives", "fmi3GetEventIndicators",
+    "fmi3GetNumberOfContinuousStates", "fmi3GetNumberOfEventIndicators", "fmi3CompletedIntegratorStep",
+)
 #: the types pythonfmu3 implements that the model has no variable of
 FMI3_OTHER_TYPES = ("Int64", "UInt64", "Boolean", "String")
 
@@ -526,10 +532,20 @@ def fmi3_modes(b):
     return {"step": step, "x": x}
 
 
-def fmi3_cs_event_update(b):
-    """fmi3UpdateDiscreteStates on a co-simulation instance (no event mode): refused, and the next step's
-    outputs are those of the co-simulation."""
+def fmi3_cs_exchange_calls(b):
+    """The model-exchange functions (FMI 3.0 section 2.3: not allowed in co-simulation, :data:`FMI3_EXCHANGE_ONLY`)
+    with a stuck block's arguments, and fmi3UpdateDiscreteStates (no event mode), on an initialized co-simulation
+    instance: each refused, and the next step's outputs are those of the co-simulation."""
     c = b.initialized(STUCK)
+    count, flags, values = c_size_t(), [c_bool(), c_bool()], (c_double * 3)()
+    arguments = {"fmi3EnterContinuousTimeMode": (), "fmi3SetTime": (0.5,),
+                 "fmi3SetContinuousStates": ((c_double * 2)(0.05, 0.1), 2), "fmi3GetContinuousStates": (values, 2),
+                 "fmi3GetNominalsOfContinuousStates": (values, 2), "fmi3GetContinuousStateDerivatives": (values, 2),
+                 "fmi3GetEventIndicators": (values, 3), "fmi3GetNumberOfContinuousStates": (byref(count),),
+                 "fmi3GetNumberOfEventIndicators": (byref(count),),
+                 "fmi3CompletedIntegratorStep": (True, *map(byref, flags))}
+    for name in FMI3_EXCHANGE_ONLY:
+        b(name, c, *arguments[name], label=f"{name} in co-simulation")
     b.update(c, label="fmi3UpdateDiscreteStates in co-simulation")
     step = b.do_step(c, 0.0, 0.5, label="fmi3DoStep after the refusal")
     x = b.get(c, "Float64", "x", label="fmi3GetFloat64 after the refusal")
@@ -589,7 +605,7 @@ def fmi3_log(b, logging_on, debug_logging_calls):
 
 FMI3_CASES = {"version": fmi3_version, "cs_stuck_step": stuck_step, "reset": reset, "fmu_state": fmu_state,
               "other_types": lambda b: other_types(b, FMI3_OTHER_TYPES),
-              "refused": fmi3_refused, "modes": fmi3_modes, "cs_event_update": fmi3_cs_event_update,
+              "refused": fmi3_refused, "modes": fmi3_modes, "cs_exchange_calls": fmi3_cs_exchange_calls,
               "model_exchange": fmi3_model_exchange, "log": fmi3_log}
 
 if __name__ == "__main__":

@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from fmi_call_runner import FMI3_OTHER_TYPES, FMI3_REFUSED
+from fmi_call_runner import FMI3_EXCHANGE_ONLY, FMI3_OTHER_TYPES, FMI3_REFUSED
 
 RUNNER = Path(__file__).with_name("fmi_call_runner.py")
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
@@ -97,6 +97,7 @@ FMI3_EXPECTED = {
         "fmi3EnterConfigurationMode", "fmi3ExitConfigurationMode",  # the model has no structural parameter
         "fmi3EnterStepMode",  # co-simulation without event mode (no hasEventMode) never is in event mode
         "fmi3EnterEventMode in co-simulation", "fmi3UpdateDiscreteStates in co-simulation",  # likewise
+        *(f"{name} in co-simulation" for name in FMI3_EXCHANGE_ONLY),  # FMI 3.0 section 2.3
     ], "refused"),
     **dict.fromkeys(["fmi3InstantiateScheduledExecution", "fmi3InstantiateCoSimulation with event mode"], "null"),
 }
@@ -113,13 +114,9 @@ LOG_SETTINGS = {
     "off, none named": (True, [[False, []]]),
     "on, then off for logStatusWarning": (True, [[False, ["logStatusWarning"]]]),
     "FMI 3's example: all off, then logStatusFatal": (True, [[False, []], [True, ["logStatusFatal"]]]),
+    "logAll, then logStatusWarning": (False, [[True, ["logAll"]], [True, ["logStatusWarning"]]]),
     "unknown: logEvents": (False, [[True, ["logEvents"]]]),
     "unknown: NULL": (False, [[True, [None]]]),
-}
-XFAIL_LOG = {  # (FMI version, setting): why
-    (3, "on, then off for logStatusWarning"): "the filter replaces the categories (FMI 2's rule); FMI 3.0 section "
-    "2.3.1: fmi3SetDebugLogging(false, categories) disables only those categories, logAll stays on "
-    "(runtime.c's sbf_set_log_filter, outside the fronts)",
 }
 
 
@@ -182,7 +179,7 @@ def _log_case(setting):
 def _plain_cases(fmi_version):
     names = {2: ("version", "stuck_step", "reset", "fmu_state", "boolean_string", "derivatives", "status"),
              3: ("version", "cs_stuck_step", "reset", "fmu_state", "other_types", "refused", "modes",
-                 "cs_event_update", "model_exchange")}
+                 "cs_exchange_calls", "model_exchange")}
     return names[fmi_version]
 
 
@@ -347,9 +344,17 @@ def test_after_refused_calls_the_instance_steps_as_before(results, fmi_version, 
         assert values["step"] == [False, False, False, H]
 
 
-def test_fmi3_co_simulation_outputs_survive_a_model_exchange_call(results):
-    values = case(results, 3, "cs_event_update")["values"]
-    assert values["x"] == pytest.approx([X_START + V_DRIVE * H], rel=0, abs=EXACT)
+def test_fmi3_co_simulation_refuses_the_model_exchange_calls_and_its_outputs_survive_them(results):
+    """FMI 3.0 section 2.3: the model-exchange functions are "not allowed in Co-Simulation": each is refused with a
+    message naming it and why; fmi3SetTime(0.5) and fmi3SetContinuousStates(x = 0.05 m) change nothing, so one
+    step of H from t = 0 gives the stuck block's x = x_start + v_drive H."""
+    record = case(results, 3, "cs_exchange_calls")
+    for name in FMI3_EXCHANGE_ONLY:
+        [call] = calls(record, f"{name} in co-simulation")
+        assert call["result"] == ERROR and [message[2] for message in call["messages"]] == [
+            f"{name} is not allowed for a co-simulation instance: it is a model-exchange function (FMI 3.0: not "
+            "allowed in co-simulation; the instance was made by fmi3InstantiateCoSimulation)"], call
+    assert record["values"]["x"] == pytest.approx([X_START + V_DRIVE * H], rel=0, abs=EXACT)
 
 
 def test_fmi2_status_inquiries_after_a_completed_step(results):
@@ -384,10 +389,8 @@ def test_the_model_descriptions_list_the_categories_the_tests_use(unzipped, unzi
         assert tuple(category.name for category in description.logCategories) == LISTED
 
 
-def _log_params(xfails=None):
-    return [pytest.param(fmi_version, setting, id=f"FMI {fmi_version}, {setting}",
-                         marks=[pytest.mark.xfail(strict=True, reason=xfails[fmi_version, setting])]
-                         if xfails and (fmi_version, setting) in xfails else [])
+def _log_params():
+    return [pytest.param(fmi_version, setting, id=f"FMI {fmi_version}, {setting}")
             for fmi_version in (2, 3) for setting in LOG_SETTINGS]
 
 
@@ -428,7 +431,7 @@ def test_warnings_and_errors_reach_the_logger_at_every_setting(results, fmi_vers
         assert call["result"] == ERROR and any(m[0] == ERROR and bad_mass in m[2] for m in call["messages"]), call
 
 
-@pytest.mark.parametrize("fmi_version, setting", _log_params(XFAIL_LOG))
+@pytest.mark.parametrize("fmi_version, setting", _log_params())
 def test_information_messages_reach_the_logger_as_the_setting_asks(results, fmi_version, setting):
     record = case(results, fmi_version, _log_case(setting))
     [information] = [message for message, status in record["values"]["queued"].items() if status == OK]

@@ -261,6 +261,42 @@ def test_backwards_time_is_refused():
         traj.advance_to(0.5)
 
 
+def test_a_step_beyond_the_time_resolution_is_followed_only_into_a_lasting_phase():
+    """sqrt(M/kappa) = 2 s: floats space times by more than that beyond 2 s / 2**-52 = 2**53 s. A block at rest
+    without drive (one stick for ever) is followed to 1e300 s; a driven block (stick-slip for ever, a step to
+    1e300 s ran for ever) stops after 1000 segments, each ending in an event, with an error naming the cause."""
+    p = Parameters(4.0, 1.0, Coulomb(F0=0.5), Constant(F0=1.0))
+    resting = Trajectory(p, 0.3, 0.0, v_drive=0.0)
+    resting.advance_to(1e300)
+    assert (resting.t, resting.x, resting.v, resting.mode, resting.n_events) == (1e300, 0.3, 0.0, STUCK, 0)
+    driven = Trajectory(p, 0.0, 0.0, v_drive=0.1)
+    with pytest.raises(SolverError, match=r"to t = 9007199254740994.0 s: time resolution lost: floats space times "
+                                          r"there by 2 s, more than the block's time scale sqrt\(M/kappa\) = 2 s, "
+                                          r"and the block did not come to a lasting phase within 1000 segments"):
+        driven.advance_to(math.nextafter(2.0 ** 53, math.inf))
+    assert driven.n_events == 1000 and driven.t == driven.t_last_event > 0.0
+
+
+def test_an_advance_through_too_many_segments_stops_at_a_state_to_go_on_from():
+    """Every advance_to ends (a step to 1e300 s ran for ever, 7e298 stick-slip cycles): after max_segments
+    segments (here each ends in an event) it stops at the last event with an error naming the count, in the state
+    an unlimited trajectory has there, and goes on from it bit for bit."""
+    p = Parameters(1.0, 1.0, Coulomb(F0=0.5), Constant(F0=1.0))
+    limited, unlimited = (Trajectory(p, 0.0, 0.0, v_drive=0.1, max_segments=n) for n in (50, 10 ** 6))
+    with pytest.raises(SolverError, match=r"from t = 0.0 s to t = 10000.0 s: the step would need more than 50 "
+                                          r"segments \(events and integrator steps\); stopped at t = .* after 50 "
+                                          r"events in all; take shorter steps"):
+        limited.advance_to(1e4)
+    assert limited.n_events == 50 and limited.t == limited.t_last_event > 0.0
+    unlimited.advance_to(limited.t)
+    assert limited.outputs() == unlimited.outputs()
+    for step in (100.0, 200.0):  # shorter steps: 15 and 30 events
+        t = limited.t + step
+        limited.advance_to(t)
+        unlimited.advance_to(t)
+        assert limited.outputs() == unlimited.outputs()
+
+
 def test_stribeck_with_fractional_exponent_runs_through_its_slip_ends():
     """Stages near a slip's end probe v_rel slightly past 0, where (u/v_s)^1.5 has no real value."""
     law = Stribeck(F0=0.4, F_stribeck=0.3, v_stribeck=0.1, delta=1.5, gamma=0.05)

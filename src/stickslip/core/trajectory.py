@@ -56,6 +56,9 @@ _BURST_WINDOW: Final = 1.0  # in units of sqrt(M/kappa)
 _EPS: Final = 2.220446049250313e-16  # the spacing of floats at 1
 _STEP_ROUNDING: Final = 8 * _EPS  # relative: a host sums the communication points its own way
 _STUCK_HORIZON_PERIODS = 1e6  # an aging stick is searched for a breakaway this far ahead, then re-searched
+MAX_SEGMENTS: Final = 1_000_000  # segments (events, closed-form phases, Runge-Kutta steps) in one advance_to
+_SETTLE_SEGMENTS: Final = 1000  # segments within which a step beyond the time resolution must reach its last phase
+SEGMENTS_RANGE = Range(1, None)
 
 # The fields of :meth:`Trajectory.snapshot` and their kinds (:mod:`.saved_state`)
 _SNAPSHOT_FIELDS = {"t": saved_state.REAL, "v_drive": saved_state.REAL, "F_ext": saved_state.REAL,
@@ -89,6 +92,8 @@ class Trajectory:
     n_overshoots: int
     t_last_event: float  # s
     events: list | None
+    max_segments: int
+    _last_time: float  # s: the largest |t| that floats resolve to the block's time scale
     _chain: int
     _burst_start: float  # s: the first mode change counted in _burst
     _burst: int
@@ -98,15 +103,18 @@ class Trajectory:
     _v: float  # m/s, at t
 
     def __init__(self, params, x0, v0, v_drive=0.0, F_ext=0.0, t0=0.0, rtol=1e-10, record_events=False,
-                 reuse_steps=True):
+                 reuse_steps=True, max_segments=MAX_SEGMENTS):
         """``record_events``: keep every mode change as ``(t, mode_before, mode_after)`` in ``self.events``
         (memory grows with the run; otherwise ``self.events`` is None and only the counters are kept).
         ``reuse_steps``: replay remembered Runge-Kutta steps from bit-identical states (the same numbers,
-        less work, see :class:`~.numeric_slip.SlipStepper`); False integrates every step."""
+        less work, see :class:`~.numeric_slip.SlipStepper`); False integrates every step.
+        ``max_segments``: the most segments one :meth:`advance_to` goes through (a count, so that every call
+        ends)."""
         params.check()
         check_state(x0, v0)
         check_inputs(v_drive, F_ext)
         check("solver.rtol", rtol, RTOL_RANGE)
+        check("max_segments", max_segments, SEGMENTS_RANGE)
         check_scales(x0, v0, v_drive, F_ext, params, ("x_start", "v_start"))
         check_start_time("start time", t0, params)
         self.params = params
@@ -119,6 +127,8 @@ class Trajectory:
         self.n_overshoots = 0
         self.t_last_event = self.t  # the start time until the first event
         self.events = [] if record_events else None
+        self.max_segments = int(max_segments)
+        self._last_time = math.sqrt(params.M / params.kappa) / _EPS
         self._chain = 0
         self._burst_start, self._burst = self.t, 0
         self._stepper = SlipStepper(self.rtol, memo_size=MEMO_SIZE if reuse_steps else 0)
@@ -150,18 +160,50 @@ class Trajectory:
         self._x, self._v = self._segment.state(self.t)
 
     def advance_to(self, t: float) -> None:
-        """Advance to time ``t >= self.t`` (s), through every event up to and at ``t``."""
-        if not _finite(t):
-            raise SolverError(f"cannot advance from t = {self.t!r} s to t = {t!r} s: the end time must be finite")
+        """Advance to time ``t >= self.t`` (s), through every event up to and at ``t``.
+
+        Raises SolverError for an end time that is not finite, and after :attr:`max_segments` segments short of
+        ``t``, or :data:`_SETTLE_SEGMENTS` where floats space times at ``t`` by more than the block's time scale
+        ``sqrt(M/kappa)`` (there only a last phase that lasts, a rest or a stick without drive, can be followed).
+        The trajectory then stays at the start of the segment reached, a valid state to go on from."""
+        left = self.max_segments
+        if not abs(t) <= self._last_time:
+            if not _finite(t):
+                raise SolverError(f"cannot advance from t = {self.t!r} s to t = {t!r} s: the end time must be finite")
+            left = min(left, _SETTLE_SEGMENTS)
         if not t >= self.t:
             raise SolverError(f"cannot advance from t = {self.t!r} s back to t = {t!r} s")
         end = float(t)
         while self._segment.t1 <= end:
             self._finish_segment()
+            left -= 1
+            if left == 0:
+                self._stop_short(end)
         self.t = end
         self._x, self._v = self._segment.state(self.t)
         if not (_finite(self._x) and _finite(self._v)):
             raise SolverError(f"the state overflowed at t = {self.t!r} s (x = {self._x!r}, v = {self._v!r})")
+
+    def _stop_short(self, end: float) -> None:
+        """Stay at the start of the current segment and raise SolverError: the segments allowed to
+        :meth:`advance_to` went by short of ``end`` (s)."""
+        start = self.t
+        self.t = self._segment.t0
+        self._x, self._v = self._segment.state(self.t)
+        stopped = f"stopped at t = {self.t!r} s after {self.n_events} events in all"
+        if abs(end) > self._last_time:
+            time_scale = math.sqrt(self.params.M / self.params.kappa)
+            raise SolverError(
+                f"cannot advance from t = {start!r} s to t = {end!r} s: time resolution lost: floats space times "
+                f"there by {_EPS * abs(end):.3g} s, more than the block's time scale sqrt(M/kappa) = "
+                f"{time_scale:.3g} s, and the block did not come to a lasting phase within "
+                f"{min(self.max_segments, _SETTLE_SEGMENTS)} segments; {stopped}; allowed is |t| <= {self._last_time:.4g} s"
+            )
+        raise SolverError(
+            f"cannot advance from t = {start!r} s to t = {end!r} s: the step would need more than "
+            f"{self.max_segments} segments (events and integrator steps); {stopped}; take shorter steps (shorter "
+            f"communication steps)"
+        )
 
     def sample(self, times: Iterable[float]) -> tuple[list[float], list[float]]:
         """Advance through the increasing ``times`` (s); the lists of ``x`` (m) and ``v`` (m/s) there."""

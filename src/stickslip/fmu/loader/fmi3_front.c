@@ -5,7 +5,8 @@
  * and loads pythonfmu3's binary (runtime.c), then forwards the FMI calls that pythonfmu3 implements (failures of
  * the model's calls as fmi3Error where the slave allows it: see FORWARDED). The functions pythonfmu3 leaves
  * unimplemented would throw a C++ exception through the host (std::terminate); they are answered here with
- * fmi3Error and a logged message instead (UNSUPPORTED), as is scheduled execution.
+ * fmi3Error and a logged message instead (UNSUPPORTED), as is scheduled execution, and so are the model-exchange
+ * functions on a co-simulation instance (EXCHANGE_ONLY).
  * pythonfmu3 filters its error messages by the host's log categories too; it is therefore instantiated with
  * logging on and no categories, and this library filters: warnings, discards, errors and fatals always reach
  * the host's logMessage, other messages only as the host asked (loggingOn, fmi3SetDebugLogging categories).
@@ -17,6 +18,7 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "runtime.h"
 
@@ -79,7 +81,12 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
     X(fmi3GetOutputDerivatives, KEPT,                                                                             \
       (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, const fmi3Int32 *orders, fmi3Float64 *values,   \
        size_t n),                                                                                                 \
-      (vr, nvr, orders, values, n))                                                                               \
+      (vr, nvr, orders, values, n))
+
+/* The model-exchange functions forwarded as they are, refused for a co-simulation instance (FMI 3.0 section
+ * 2.3: "Not allowed in Co-Simulation"): forwarded by forward_<name>, exported below (the model-exchange arrays
+ * are refused by refused_array). */
+#define EXCHANGE_ONLY(X)                                                                                           \
     X(fmi3EnterContinuousTimeMode, KEPT, (fmi3Instance c), ())                                                    \
     X(fmi3CompletedIntegratorStep, KEPT,                                                                          \
       (fmi3Instance c, fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *enterEventMode,                 \
@@ -181,6 +188,7 @@ static struct {
 #define POINTER(name, failure, params, args, ...) fmi3Status(*name) params;
     READERS(POINTER)
     FORWARDED(POINTER)
+    EXCHANGE_ONLY(POINTER)
     TRACKED(POINTER)
     STATE_USED(POINTER)
 #undef POINTER
@@ -233,7 +241,8 @@ static void relay_log(fmi3InstanceEnvironment env, fmi3Status status, fmi3String
 static int resolve_inner(void *lib, const char *path)
 {
 #define LOAD(name, failure, params, args, ...) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
-    if (1 READERS(LOAD) FORWARDED(LOAD) TRACKED(LOAD) STATE_USED(LOAD) LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
+    if (1 READERS(LOAD) FORWARDED(LOAD) EXCHANGE_ONLY(LOAD) TRACKED(LOAD) STATE_USED(LOAD)
+            LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
             LOAD(fmi3FreeInstance, , , ) LOAD(fmi3GetContinuousStateDerivatives, , , )
             LOAD(fmi3FreeFMUState, , , ))
         return 1;
@@ -361,6 +370,21 @@ EXPORT void fmi3FreeInstance(fmi3Instance c)
     free_instance(inst);
 }
 
+/* FMI 3.0 section 2.3.1's rule: each of the n `categories` (every listed one if n = 0) is switched to `on`, the
+ * others keep their state (FMI 2's rule, sbf_set_log_filter's, replaces them all). */
+static void switch_categories(sbf_log_filter *filter, fmi3Boolean on, size_t n, const fmi3String *categories)
+{
+    const char *const *listed;
+    size_t count = sbf_listed_categories(&listed), m = 0;
+    const char *enabled[count];
+    for (size_t k = 0; k < count; ++k) {
+        int named = n == 0;
+        for (size_t i = 0; i < n && !named; ++i) named = strcmp(categories[i], listed[k]) == 0;
+        if (named ? on : sbf_log_wanted(filter, fmi3OK, listed[k])) enabled[m++] = listed[k];
+    }
+    sbf_set_log_filter(filter, m > 0, m, enabled);
+}
+
 /* Categories the model description does not list are refused (fmi3Error, a message), the filter kept. */
 EXPORT fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, size_t n, const fmi3String *categories)
 {
@@ -370,7 +394,7 @@ EXPORT fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, siz
         host_log(c, fmi3Error, why);
         return fmi3Error;
     }
-    sbf_set_log_filter(&((Instance *)c)->logging, loggingOn, n, categories);
+    switch_categories(&((Instance *)c)->logging, loggingOn, n, categories);
     return fmi3OK;
 }
 
@@ -397,6 +421,7 @@ READERS(READER)
 #undef READER
 #define FORWARD(name, failure, params, args) \
     SBF_FORWARD_AS(static, forward_##name, fmi3Status, fmi3Error, fmi3Fatal, name, failure, params, args)
+EXCHANGE_ONLY(FORWARD)
 TRACKED(FORWARD)
 STATE_USED(FORWARD)
 #undef FORWARD
@@ -424,7 +449,7 @@ EXPORT fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean tolera
     fmi3Status status = forward_fmi3EnterInitializationMode(c, toleranceDefined, tolerance, startTime,
                                                             stopTimeDefined, stopTime);
     if (status <= fmi3Warning) { /* pythonfmu3 keeps startTime to itself: the slave takes it as its time */
-        fmi3Status timed = fmi3SetTime(c, startTime);
+        fmi3Status timed = forward_fmi3SetTime(c, startTime);
         if (timed > status) status = timed;
     }
     return moved(c, status, SBF_INITIALIZING);
@@ -435,20 +460,33 @@ EXPORT fmi3Status fmi3ExitInitializationMode(fmi3Instance c)
     return moved(c, forward_fmi3ExitInitializationMode(c), SBF_STEPPING);
 }
 
-/* True (and a logged error) if `c` is a co-simulation instance: it has no event mode (no hasEventMode) */
-static int refused_in_co_simulation(fmi3Instance c, const char *function)
+/* True (and a logged error naming `function` and `reason`) if `c` is a co-simulation instance */
+static int refused_in_co_simulation(fmi3Instance c, const char *function, const char *reason)
 {
-    char why[256];
+    char why[512];
     if (!c || ((Instance *)c)->mode == SBF_EXCHANGING) return 0;
-    snprintf(why, sizeof why, "%s is not allowed for a co-simulation instance: this FMU has no event mode in "
-                              "co-simulation", function);
+    snprintf(why, sizeof why, "%s is not allowed for a co-simulation instance: %s", function, reason);
     host_log(c, fmi3Error, why);
     return 1;
 }
+#define NO_EVENT_MODE "this FMU has no event mode in co-simulation"
+#define EXCHANGE_FUNCTION \
+    "it is a model-exchange function (FMI 3.0: not allowed in co-simulation; the instance was made by " \
+    "fmi3InstantiateCoSimulation)"
+
+#define EXPORT_EXCHANGE_ONLY(name, failure, params, args)                         \
+    EXPORT fmi3Status name params                                                 \
+    {                                                                             \
+        if (refused_in_co_simulation(c, #name, EXCHANGE_FUNCTION)) return fmi3Error; \
+        return forward_##name(c SBF_FORWARD_ARGS args);                           \
+    }
+EXCHANGE_ONLY(EXPORT_EXCHANGE_ONLY)
+#undef EXPORT_EXCHANGE_ONLY
 
 EXPORT fmi3Status fmi3EnterEventMode(fmi3Instance c)
 {
-    return refused_in_co_simulation(c, "fmi3EnterEventMode") ? fmi3Error : forward_fmi3EnterEventMode(c);
+    if (refused_in_co_simulation(c, "fmi3EnterEventMode", NO_EVENT_MODE)) return fmi3Error;
+    return forward_fmi3EnterEventMode(c);
 }
 
 EXPORT fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *discreteStatesNeedUpdate,
@@ -456,7 +494,7 @@ EXPORT fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *discrete
                                            fmi3Boolean *valuesChanged, fmi3Boolean *nextEventTimeDefined,
                                            fmi3Float64 *nextEventTime)
 {
-    if (refused_in_co_simulation(c, "fmi3UpdateDiscreteStates")) return fmi3Error;
+    if (refused_in_co_simulation(c, "fmi3UpdateDiscreteStates", NO_EVENT_MODE)) return fmi3Error;
     return forward_fmi3UpdateDiscreteStates(c, discreteStatesNeedUpdate, terminateSimulation, nominalsChanged,
                                             valuesChanged, nextEventTimeDefined, nextEventTime);
 }
@@ -508,14 +546,16 @@ SBF_DESERIALIZE(fmi3Status, fmi3Error, fmi3Warning, fmi3Byte, fmi3DeserializeFMU
 SBF_FORWARD_AS(static, forward_derivatives, fmi3Status, fmi3Error, fmi3Fatal, fmi3GetContinuousStateDerivatives,
                RECOVERABLE, (fmi3Instance c, fmi3Float64 *dx, size_t n), (dx, n))
 
-/* 1 (after a message naming `function`) if `n` is not the number of the instance's event indicators (`indicators`)
- * or continuous states: pythonfmu3 reads or writes `n` values of its lists, past their end (a Python exception
- * left set in the host) or short of it. */
-static int wrong_count(fmi3Instance c, const char *function, size_t n, int indicators)
+/* 1 (after a message naming `function`) if `c` is a co-simulation instance, or if `n` is not the number of the
+ * instance's event indicators (`indicators`) or continuous states: pythonfmu3 reads or writes `n` values of its
+ * lists, past their end (a Python exception left set in the host) or short of it. */
+static int refused_array(fmi3Instance c, const char *function, size_t n, int indicators)
 {
     char why[256];
     size_t count = 0;
-    fmi3Status status = indicators ? fmi3GetNumberOfEventIndicators(c, &count) : fmi3GetNumberOfContinuousStates(c, &count);
+    if (refused_in_co_simulation(c, function, EXCHANGE_FUNCTION)) return 1;
+    fmi3Status status = indicators ? forward_fmi3GetNumberOfEventIndicators(c, &count)
+                                   : forward_fmi3GetNumberOfContinuousStates(c, &count);
     if (!c || status > fmi3Warning || n == count) return 0;
     snprintf(why, sizeof why, "%s: %s = %zu, but this FMU has %zu %s", function,
              indicators ? "nEventIndicators" : "nContinuousStates", n, count,
@@ -524,12 +564,12 @@ static int wrong_count(fmi3Instance c, const char *function, size_t n, int indic
     return 1;
 }
 
-/* The exported model-exchange function `name` with the array `values` of `n` doubles, refused (fmi3Error) when `n`
- * is not the FMU's count (wrong_count) */
+/* The exported model-exchange function `name` with the array `values` of `n` doubles, refused (fmi3Error) for a
+ * co-simulation instance or when `n` is not the FMU's count (refused_array) */
 #define COUNTED(name, indicators, Values)                                                   \
     EXPORT fmi3Status name(fmi3Instance c, Values *values, size_t n)                        \
     {                                                                                       \
-        return wrong_count(c, #name, n, indicators) ? fmi3Error : forward_##name(c, values, n); \
+        return refused_array(c, #name, n, indicators) ? fmi3Error : forward_##name(c, values, n); \
     }
 COUNTED(fmi3SetContinuousStates, 0, const fmi3Float64)
 COUNTED(fmi3GetContinuousStates, 0, fmi3Float64)
@@ -539,7 +579,7 @@ COUNTED(fmi3GetEventIndicators, 1, fmi3Float64)
 
 EXPORT fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 *dx, size_t n)
 {
-    if (wrong_count(c, "fmi3GetContinuousStateDerivatives", n, 0)) return fmi3Error;
+    if (refused_array(c, "fmi3GetContinuousStateDerivatives", n, 0)) return fmi3Error;
     fmi3Status status = forward_derivatives(c, dx, n);
     for (size_t i = 0; i < n && status <= fmi3Warning; i++)
         if (!isfinite(dx[i])) status = fmi3Error;

@@ -522,6 +522,12 @@ static const char *const log_categories[] = {"logStatusWarning", "logStatusDisca
                                              "logStatusFatal", "logAll"};
 #define N_LOG_CATEGORIES (sizeof log_categories / sizeof *log_categories)
 
+size_t sbf_listed_categories(const char *const **names)
+{
+    *names = log_categories;
+    return N_LOG_CATEGORIES;
+}
+
 static int listed_category(const char *name)
 {
     for (size_t k = 0; name && k < N_LOG_CATEGORIES; ++k)

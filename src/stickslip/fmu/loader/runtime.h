@@ -67,6 +67,8 @@ void sbf_set_log_filter(sbf_log_filter *filter, int on, size_t n, const char *co
 /* 1 if each of categories[0..n) is a log category of the model description; else 0, with the message for the
  * host in `why` (naming `function` and the category). */
 int sbf_known_categories(const char *function, size_t n, const char *const *categories, char *why, size_t size);
+/* The <LogCategories> of the model description: their count, the names in *names. */
+size_t sbf_listed_categories(const char *const **names);
 /* Warnings, discards, errors and fatals always; other messages only as the host asked. */
 int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *category);
 
