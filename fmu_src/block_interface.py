@@ -223,10 +223,9 @@ class BlockInterface:
 
     def advance(self, current_time, step_size):
         """``doStep``: hold the inputs and advance the trajectory from ``current_time`` by ``step_size`` s
-        (:meth:`Trajectory.communicate`: the step must start where the last one ended); the outputs after it, in
-        :data:`VARIABLES` order."""
+        (:meth:`Trajectory.communicate`: the step must start where the last one ended)."""
         self.outputs_changed()
-        return self.current_trajectory().communicate(current_time, step_size)
+        self.current_trajectory().communicate(current_time, step_size)
 
     # ---- the C loader's fast path ----------------------------------------------------
 
@@ -253,10 +252,12 @@ class BlockInterface:
             ctypes.CDLL(None).dlclose(ctypes.c_void_p(loader._handle))  # the reference this lookup took; the host holds its own
 
     def fast_step_call(self):
-        """The C loader's call for the next doSteps: the current trajectory's :meth:`Trajectory.communicate`, the
-        inputs set so far applied (the loader asks again after any other call that may change them)."""
+        """The C loader's calls for the next doSteps: the current trajectory's :meth:`Trajectory.communicate` and
+        :meth:`Trajectory.outputs` (every output, in :data:`VARIABLES` order), the inputs set so far applied (the
+        loader asks again after any other call that may change them)."""
         self.outputs_changed()
-        return self.current_trajectory().communicate
+        trajectory = self.current_trajectory()
+        return trajectory.communicate, trajectory.outputs
 
     # ---- FMU state ---------------------------------------------------------------
 

@@ -5,7 +5,7 @@ Usage (the whole contract the FMU slave and the Python API rely on)::
     traj = Trajectory(params, x0, v0, v_drive=0.1, F_ext=0.0, t0=0.0, rtol=1e-10)
     traj.set_inputs(v_drive, F_ext)   # inputs held constant from now on; no-op if unchanged
     traj.advance_to(t)                # t >= traj.t; processes every event up to and at t
-    traj.communicate(t, h)            # a co-simulation step from t == traj.t by h >= 0; the outputs after it
+    traj.communicate(t, h)            # a co-simulation step from t == traj.t by h >= 0; (x, v) after it
     xs, vs = traj.sample(times)       # advance_to each of the increasing times, collecting x and v
     traj.x, traj.v, traj.mode, ...    # state at traj.t (see the properties below)
     snap = traj.snapshot()            # JSON-serializable dict, exact floats
@@ -227,13 +227,14 @@ class Trajectory:
             raise SolverError(f"the state overflowed at t = {grid[bad]!r} s (x = {xs[bad]!r}, v = {vs[bad]!r})")
         return xs, vs
 
-    def communicate(self, current_time: float, step_size: float) -> tuple:
+    def communicate(self, current_time: float, step_size: float) -> tuple[float, float]:
         """A co-simulation step (FMI doStep, inputs held): from ``current_time`` (s), which must be this
-        trajectory's time (:func:`check_step`), to ``current_time + step_size`` (s); the outputs after it
-        (:meth:`outputs`). The FMU's loader calls it directly, once per communication step."""
+        trajectory's time (:func:`check_step`), to ``current_time + step_size`` (s); ``(x, v)`` after it (m, m/s),
+        the first two :meth:`outputs`. The FMU's loader calls it directly, once per communication step, and asks
+        for the other outputs only when a host reads one."""
         check_step(current_time, step_size, self.t)
         self.advance_to(current_time + step_size)
-        return self.outputs()
+        return self._x, self._v
 
     # ------------------------------------------------------------------
     # state and outputs at self.t

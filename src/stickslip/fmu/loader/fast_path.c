@@ -50,6 +50,14 @@ static __thread sbf_fast_path *binding;
 
 void sbf_fast_binding(sbf_fast_path *fast) { binding = fast; }
 
+/* Forget the step and outputs calls (under the GIL) */
+static void drop_step_call(sbf_fast_path *fast)
+{
+    if (fast->step) py.Py_DecRef(fast->step);
+    if (fast->outputs) py.Py_DecRef(fast->outputs);
+    fast->step = fast->outputs = NULL;
+}
+
 /* Called by the slave (through ctypes.PyDLL, the GIL held) while the inner library constructs it on this thread:
  * `slave` is the slave object, `first` the value reference of its first output, `kinds` one letter per output
  * ('r' real, 'i' integer). 1 if bound; 0 if no instance of this library is being made here or the offer is
@@ -59,7 +67,7 @@ __attribute__((visibility("default"))) int sbf_bind_slave(PyObject *slave, unsig
     sbf_fast_path *fast = binding;
     size_t n = kinds ? strlen(kinds) : 0;
     if (!fast || !available || !slave || n == 0 || n > SBF_MAX_OUTPUTS || strspn(kinds, "ri") != n) return 0;
-    if (fast->step) py.Py_DecRef(fast->step);
+    drop_step_call(fast);
     if (fast->slave) py.Py_DecRef(fast->slave);
     py.Py_IncRef(slave);
     *fast = (sbf_fast_path){.slave = slave, .first = first, .n = n};
@@ -84,34 +92,44 @@ static void exception_text(char *why, size_t size)
         if (held[i]) py.Py_DecRef(held[i]);
 }
 
-/* The outputs `result` (a tuple of fast->n numbers) into the buffer; 0 (a Python exception set) if it is not. */
+/* The first outputs `result` (a tuple of 1 to fast->n numbers) into the buffer, `fresh` set to their count; 0 (a
+ * Python exception set, or none if the tuple's length is wrong) if they are not that. */
 static int keep_outputs(sbf_fast_path *fast, PyObject *result)
 {
-    if (py.PyTuple_Size(result) != (ptrdiff_t)fast->n) return 0;
-    for (size_t i = 0; i < fast->n; ++i) {
+    ptrdiff_t k = py.PyTuple_Size(result);
+    fast->fresh = 0;
+    if (k < 1 || k > (ptrdiff_t)fast->n) return 0;
+    for (size_t i = 0; i < (size_t)k; ++i) {
         PyObject *item = py.PyTuple_GetItem(result, (ptrdiff_t)i);
         if (fast->kinds[i] == 'r')
             fast->reals[i] = py.PyFloat_AsDouble(item);
         else
             fast->integers[i] = py.PyLong_AsLong(item);
     }
-    return py.PyErr_Occurred() == NULL;
+    if (py.PyErr_Occurred()) return 0;
+    fast->fresh = (size_t)k;
+    return 1;
 }
 
-/* The slave's step call, asked for if none is kept: 1 if there is one, 0 if the slave has none now (its next
- * step goes the inner library's way), -1 on an exception. Under the GIL. */
+/* The slave's step call and outputs call, asked for (the pair fast_step_call() gives) if none is kept: 1 if there
+ * are, 0 if the slave has none now (its next step goes the inner library's way), -1 on an exception (set, or
+ * none for a malformed answer). Under the GIL. */
 static int have_step_call(sbf_fast_path *fast)
 {
     if (fast->step) return 1;
-    PyObject *step = py.PyObject_CallMethod(fast->slave, "fast_step_call", NULL);
-    if (!step) return -1;
-    if (step == py_none) {
-        py.Py_DecRef(step);
-        return 0;
+    PyObject *pair = py.PyObject_CallMethod(fast->slave, "fast_step_call", NULL);
+    if (!pair) return -1;
+    int found = pair == py_none ? 0 : py.PyTuple_Size(pair) == 2 ? 1 : -1;
+    if (found == 1) {
+        fast->step = py.PyTuple_GetItem(pair, 0);
+        fast->outputs = py.PyTuple_GetItem(pair, 1);
+        py.Py_IncRef(fast->step);
+        py.Py_IncRef(fast->outputs);
     }
-    fast->step = step;
-    return 1;
+    py.Py_DecRef(pair);
+    return found;
 }
+
 
 int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size)
 {
@@ -128,8 +146,8 @@ int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why
             if (size) py.Py_DecRef(size);
         }
         fast->moved = 1; /* a failed step may have moved the state part of the way */
-        fast->fresh = result && keep_outputs(fast, result);
-        outcome = fast->fresh ? 0 : 1;
+        fast->current = result && keep_outputs(fast, result);
+        outcome = fast->current ? 0 : 1;
         if (outcome) exception_text(why, why_size);
         if (result) py.Py_DecRef(result);
     }
@@ -139,7 +157,7 @@ int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why
 
 void sbf_fast_forward(sbf_fast_path *fast, int changes)
 {
-    if (changes) fast->fresh = 0;
+    if (changes) fast->fresh = 0, fast->current = 0;
     if (!fast->moved && !(changes && fast->step)) return;
     int gil = py.PyGILState_Ensure();
     if (fast->moved) {
@@ -150,10 +168,7 @@ void sbf_fast_forward(sbf_fast_path *fast, int changes)
             py.PyErr_Clear();
         fast->moved = 0;
     }
-    if (changes && fast->step) {
-        py.Py_DecRef(fast->step);
-        fast->step = NULL;
-    }
+    if (changes) drop_step_call(fast);
     py.PyGILState_Release(gil);
 }
 
@@ -161,7 +176,7 @@ void sbf_fast_unbind(sbf_fast_path *fast)
 {
     if (fast->slave) {
         int gil = py.PyGILState_Ensure();
-        if (fast->step) py.Py_DecRef(fast->step);
+        drop_step_call(fast);
         py.Py_DecRef(fast->slave);
         py.PyGILState_Release(gil);
     }
@@ -176,24 +191,43 @@ void sbf_fast_rebinding(sbf_fast_path *fast)
 
 /* ---- the reads ---- */
 
-/* 1 if every value reference of vr[0..n) is an output of kind `kind` and the buffer is fresh */
-static int buffered(const sbf_fast_path *fast, char kind, const unsigned *vr, size_t n)
+/* Every output at the current state into the buffer (the outputs call); 0 if that fails (forward the read). */
+static int complete_outputs(sbf_fast_path *fast)
 {
-    if (!fast->fresh || (n && !vr)) return 0;
-    for (size_t i = 0; i < n; ++i)
-        if (vr[i] < fast->first || vr[i] - fast->first >= fast->n || fast->kinds[vr[i] - fast->first] != kind)
-            return 0;
-    return 1;
+    int gil = py.PyGILState_Ensure();
+    PyObject *result = py.PyObject_CallFunctionObjArgs(fast->outputs, NULL);
+    int kept = result && keep_outputs(fast, result) && fast->fresh == fast->n;
+    if (result) py.Py_DecRef(result);
+    if (!kept) {
+        py.PyErr_Clear();
+        fast->current = 0;
+    }
+    py.PyGILState_Release(gil);
+    return kept;
 }
 
-int sbf_fast_reals(const sbf_fast_path *fast, const unsigned *vr, size_t n, double *values)
+/* 1 if every value reference of vr[0..n) is an output of kind `kind` and the buffer holds it at the current state
+ * (asked for if the step left only the first outputs) */
+static int buffered(sbf_fast_path *fast, char kind, const unsigned *vr, size_t n)
+{
+    size_t needed = 0; /* outputs 0..needed-1 hold the ones asked for */
+    if (!fast->current || (n && !vr)) return 0;
+    for (size_t i = 0; i < n; ++i) {
+        if (vr[i] < fast->first || vr[i] - fast->first >= fast->n || fast->kinds[vr[i] - fast->first] != kind)
+            return 0;
+        if (vr[i] - fast->first >= needed) needed = vr[i] - fast->first + 1;
+    }
+    return needed <= fast->fresh || complete_outputs(fast);
+}
+
+int sbf_fast_reals(sbf_fast_path *fast, const unsigned *vr, size_t n, double *values)
 {
     if (!buffered(fast, 'r', vr, n) || (n && !values)) return 0;
     for (size_t i = 0; i < n; ++i) values[i] = fast->reals[vr[i] - fast->first];
     return 1;
 }
 
-int sbf_fast_integers(const sbf_fast_path *fast, const unsigned *vr, size_t n, int *values)
+int sbf_fast_integers(sbf_fast_path *fast, const unsigned *vr, size_t n, int *values)
 {
     if (!buffered(fast, 'i', vr, n) || (n && !values)) return 0;
     for (size_t i = 0; i < n; ++i) values[i] = (int)fast->integers[vr[i] - fast->first];

@@ -5,10 +5,11 @@
  * The slave therefore offers itself to the loader while the inner library constructs it (sbf_bind_slave, called
  * from fmu_src/block_interface.py, offer_to_loader), with the value reference of its first output and the
  * outputs' kinds. The loader then
- *   - takes a communication step by one call of the slave's step call (fast_step_call(): the runtime's compiled
- *     Trajectory.communicate, which checks the step, advances and returns every output in order), and keeps
- *     the outputs it returns in a buffer of its own;
- *   - answers reads of outputs from that buffer, without entering Python;
+ *   - takes a communication step by one call of the slave's step call (the first of the pair fast_step_call()
+ *     gives: the runtime's compiled Trajectory.communicate, which checks the step, advances and returns the
+ *     first outputs, x and v), and keeps them in a buffer of its own;
+ *   - answers reads of outputs from that buffer, without entering Python; a read of another output asks the
+ *     pair's second call (Trajectory.outputs: every output at the current state) once per step;
  *   - before forwarding any other call to the inner library, tells the slave that the state moved (its own
  *     caches of the outputs are stale: outputs_changed()) and, unless the call only reads, forgets the step
  *     call and the buffer: inputs, parameters, a restored state or a reset change what the next step starts
@@ -29,12 +30,14 @@
 typedef struct {
     void *slave;     /* the slave (a PyObject reference held), NULL while none is bound */
     void *step;      /* the slave's step call for the next steps (a reference held), NULL until asked for */
+    void *outputs;   /* with it, the call that gives every output at the current state (a reference held) */
     unsigned first;  /* value reference of the first output; the others follow */
     size_t n;        /* number of outputs */
     char kinds[SBF_MAX_OUTPUTS]; /* 'r' real, 'i' integer, per output */
     double reals[SBF_MAX_OUTPUTS];
     long integers[SBF_MAX_OUTPUTS];
-    int fresh; /* reals/integers hold the outputs at the current state */
+    size_t fresh; /* the first `fresh` outputs in reals/integers hold their values at the current state */
+    int current;  /* the state is the one the last fast step left: the other outputs can be asked for */
     int moved; /* a fast step moved the state since the slave last heard of it */
 } sbf_fast_path;
 
@@ -55,9 +58,10 @@ int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why
 void sbf_fast_forward(sbf_fast_path *fast, int changes);
 
 /* 1 with the `n` values of the outputs `vr` in `values` if the buffer holds them all (each of kind 'r', or 'i'
- * for sbf_fast_integers), else 0 (forward the call). */
-int sbf_fast_reals(const sbf_fast_path *fast, const unsigned *vr, size_t n, double *values);
-int sbf_fast_integers(const sbf_fast_path *fast, const unsigned *vr, size_t n, int *values);
+ * for sbf_fast_integers), after asking for every output if the step left only the first; else 0 (forward the
+ * call). */
+int sbf_fast_reals(sbf_fast_path *fast, const unsigned *vr, size_t n, double *values);
+int sbf_fast_integers(sbf_fast_path *fast, const unsigned *vr, size_t n, int *values);
 
 /* Drop the slave and its step call (freeing the instance). */
 void sbf_fast_unbind(sbf_fast_path *fast);

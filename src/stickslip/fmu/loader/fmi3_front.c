@@ -404,13 +404,13 @@ FORWARDED(FORWARD)
 #undef FORWARD
 
 /* the fast path's readers with FMI 3's count of values: scalars only (n = nvr) */
-static int fast_float64(const sbf_fast_path *fast, const fmi3ValueReference *vr, size_t nvr, fmi3Float64 *values,
+static int fast_float64(sbf_fast_path *fast, const fmi3ValueReference *vr, size_t nvr, fmi3Float64 *values,
                         size_t n)
 {
     return n == nvr && sbf_fast_reals(fast, vr, nvr, values);
 }
 
-static int fast_int32(const sbf_fast_path *fast, const fmi3ValueReference *vr, size_t nvr, fmi3Int32 *values, size_t n)
+static int fast_int32(sbf_fast_path *fast, const fmi3ValueReference *vr, size_t nvr, fmi3Int32 *values, size_t n)
 {
     return n == nvr && sbf_fast_integers(fast, vr, nvr, values);
 }
