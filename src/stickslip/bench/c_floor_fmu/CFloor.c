@@ -98,43 +98,18 @@ EXPORT fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], si
 }
 
 /* no Integer, Boolean or String variables: only empty requests succeed */
-static fmi2Status none(size_t n) { return n == 0 ? fmi2OK : fmi2Error; }
-
-EXPORT fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[])
-{
-    (void)c, (void)vr, (void)v;
-    return none(n);
-}
-
-EXPORT fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[])
-{
-    (void)c, (void)vr, (void)v;
-    return none(n);
-}
-
-EXPORT fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[])
-{
-    (void)c, (void)vr, (void)v;
-    return none(n);
-}
-
-EXPORT fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[])
-{
-    (void)c, (void)vr, (void)v;
-    return none(n);
-}
-
-EXPORT fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[])
-{
-    (void)c, (void)vr, (void)v;
-    return none(n);
-}
-
-EXPORT fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[])
-{
-    (void)c, (void)vr, (void)v;
-    return none(n);
-}
+#define NO_VARIABLES(function, values)                                                              \
+    EXPORT fmi2Status function(fmi2Component c, const fmi2ValueReference vr[], size_t n, values)    \
+    {                                                                                               \
+        (void)c, (void)vr, (void)v;                                                                 \
+        return n == 0 ? fmi2OK : fmi2Error;                                                         \
+    }
+NO_VARIABLES(fmi2GetInteger, fmi2Integer v[])
+NO_VARIABLES(fmi2SetInteger, const fmi2Integer v[])
+NO_VARIABLES(fmi2GetBoolean, fmi2Boolean v[])
+NO_VARIABLES(fmi2SetBoolean, const fmi2Boolean v[])
+NO_VARIABLES(fmi2GetString, fmi2String v[])
+NO_VARIABLES(fmi2SetString, const fmi2String v[])
 
 EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state)
 {
@@ -204,32 +179,15 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolea
 
 EXPORT fmi2Status fmi2CancelStep(fmi2Component c) { return no_op(c); }
 
-EXPORT fmi2Status fmi2GetStatus(fmi2Component c, fmi2StatusKind kind, fmi2Status *value)
-{
-    (void)c, (void)kind, (void)value;
-    return fmi2Discard;
-}
-
-EXPORT fmi2Status fmi2GetRealStatus(fmi2Component c, fmi2StatusKind kind, fmi2Real *value)
-{
-    (void)c, (void)kind, (void)value;
-    return fmi2Discard;
-}
-
-EXPORT fmi2Status fmi2GetIntegerStatus(fmi2Component c, fmi2StatusKind kind, fmi2Integer *value)
-{
-    (void)c, (void)kind, (void)value;
-    return fmi2Discard;
-}
-
-EXPORT fmi2Status fmi2GetBooleanStatus(fmi2Component c, fmi2StatusKind kind, fmi2Boolean *value)
-{
-    (void)c, (void)kind, (void)value;
-    return fmi2Discard;
-}
-
-EXPORT fmi2Status fmi2GetStringStatus(fmi2Component c, fmi2StatusKind kind, fmi2String *value)
-{
-    (void)c, (void)kind, (void)value;
-    return fmi2Discard;
-}
+/* no asynchronous steps: there is no status to ask for */
+#define NO_STATUS(function, type)                                                                   \
+    EXPORT fmi2Status function(fmi2Component c, fmi2StatusKind kind, type *value)                   \
+    {                                                                                               \
+        (void)c, (void)kind, (void)value;                                                           \
+        return fmi2Discard;                                                                         \
+    }
+NO_STATUS(fmi2GetStatus, fmi2Status)
+NO_STATUS(fmi2GetRealStatus, fmi2Real)
+NO_STATUS(fmi2GetIntegerStatus, fmi2Integer)
+NO_STATUS(fmi2GetBooleanStatus, fmi2Boolean)
+NO_STATUS(fmi2GetStringStatus, fmi2String)
