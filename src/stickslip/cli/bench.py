@@ -63,3 +63,45 @@ def run_bench(args):
         plot(out / f"{scene.name}.png", scene, records[scene.name], quick=args.quick)
     print(f"wrote {out / 'bench.json'}, {out / 'bench.md'} and {len(scenes)} plots")
     return 0
+
+
+def add_c_hosts_parser(subparsers):
+    p = subparsers.add_parser("bench-c-hosts", help="issue 21's benchmarks: C hosts per step and start-up, the "
+                                                    "compiled peer at matched error, the .fmu file against DOP853")
+    p.add_argument("--peer", help="the compiled peer, SpringFrictionPendulum1D.fmu of FMIZoo.jl (Dymola 2023x); "
+                                  "without it the peer's columns are left out")
+    p.add_argument("--fmusim", help="fmusim of Reference-FMUs (scripts/build_fmusim.sh); Feedthrough.fmu and "
+                                    "Dahlquist.fmu beside it are measured too")
+    p.add_argument("--out", default="bench-c-hosts", help="output directory (default: bench-c-hosts)")
+    p.add_argument("--fmu", help="our FMI 2 FMU (default: dist/SpringBlockFriction.fmu, built if missing or stale)")
+    p.add_argument("--steps", type=int, default=50_000, help="steps of 0.01 s in a long host run (default: 50000)")
+    p.add_argument("--repeats", type=int, default=5, help="timed runs of each measurement (default: 5)")
+    p.set_defaults(handler=run_c_hosts)
+
+
+def run_c_hosts(args):
+    """Run :func:`stickslip.bench.c_hosts_run.run_all`; write c-hosts.json, .md and .png into ``args.out``."""
+    from pathlib import Path
+
+    from ..bench.c_hosts_report import write
+    from ..bench.c_hosts_run import Inputs, run_all
+    from ..bench.fmus import BUILD_DIR, ensure_floor_fmu
+    from ..fmu import ensure_fmu
+    from ..hosts.c_host import HostBuildError, compile_host
+
+    missing = [path for path in (args.peer, args.fmusim, args.fmu) if path and not Path(path).is_file()]
+    if missing or args.steps < 2 or args.repeats < 1:
+        print(f"stickslip bench-c-hosts: no such file {missing}" if missing else
+              "stickslip bench-c-hosts: --steps must be at least 2 and --repeats at least 1", file=sys.stderr)
+        return 2
+    try:
+        host = compile_host(BUILD_DIR)
+    except HostBuildError as exc:
+        print(f"stickslip bench-c-hosts: {exc}", file=sys.stderr)
+        return 1
+    inputs = Inputs(Path(args.fmu) if args.fmu else ensure_fmu(), ensure_floor_fmu(), host, BUILD_DIR,
+                    args.peer and Path(args.peer).resolve(), args.fmusim and Path(args.fmusim).resolve())
+    results = run_all(inputs, args.steps, args.repeats, lambda text: print(text, file=sys.stderr, flush=True))
+    paths = write(Path(args.out), results)
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return 0

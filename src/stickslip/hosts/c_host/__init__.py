@@ -82,6 +82,26 @@ def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x
     The child gets only ``PATH`` from this process's environment, plus ``env``. ``wrapper``: a command that runs
     the host, e.g. ``["valgrind"]``.
     """
+    command = host_command(host, fmu_folder, mode, stop_time, step, start_values, output, resources)
+    result = subprocess.run([*wrapper, *command], capture_output=True, text=True, env=host_env(env),
+                            timeout=timeout)
+    lines, logs = [], []
+    for line in result.stdout.splitlines():
+        if line.startswith("log "):
+            _, status, instance, text = (line.split(" ", 3) + [""])[:4]
+            logs.append((int(status), instance, text))
+        else:
+            lines.append(line.split())
+    return HostRun(result.returncode, lines, logs, result.stderr)
+
+
+def host_env(env=None):
+    """The environment of a host's child process: only ``PATH`` from this process's, plus ``env``."""
+    return {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), **(env or {})}
+
+
+def host_command(host, fmu_folder, mode, stop_time, step, start_values=(), output="x", resources=None):
+    """The command line of :func:`run_host` (same arguments)."""
     folder = Path(fmu_folder).resolve()
     description = fmpy.read_model_description(str(folder))
     variables = {v.name: v for v in description.modelVariables}
@@ -92,15 +112,5 @@ def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x
     binary = folder / "binaries" / BINARY_FOLDERS[version] / f"{description.coSimulation.modelIdentifier}.so"
     if resources is None:
         resources = (folder / "resources").as_uri() if version == 2 else f"{folder / 'resources'}/"
-    command = [*wrapper, str(host), str(binary), resources, description.guid, mode, repr(stop_time),
-               repr(step), str(variables[output].valueReference), *settings]
-    child_env = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), **(env or {})}
-    result = subprocess.run(command, capture_output=True, text=True, env=child_env, timeout=timeout)
-    lines, logs = [], []
-    for line in result.stdout.splitlines():
-        if line.startswith("log "):
-            _, status, instance, text = (line.split(" ", 3) + [""])[:4]
-            logs.append((int(status), instance, text))
-        else:
-            lines.append(line.split())
-    return HostRun(result.returncode, lines, logs, result.stderr)
+    return [str(host), str(binary), resources, description.guid, mode, repr(stop_time), repr(step),
+            str(variables[output].valueReference), *settings]
