@@ -1,6 +1,7 @@
 """``stickslip system run FILE.toml --master MASTER --out DIR``: a chain of blocks through a master, against the
 chain's reference; ``stickslip system ssp FILE.toml --out DIR``: the chain as an SSP file (docs/systems.md)."""
 
+from ..systems.engines import ENGINES
 from ..systems.masters import MASTERS
 
 
@@ -17,7 +18,7 @@ def add_system(subparsers):
                           "iterated coupling")
     run.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     run.add_argument("--step", type=float, help="zoh: communication step in s (default: the file's output_interval)")
-    run.add_argument("--engine", choices=["fmpy", "libcosim", "ecos"],
+    run.add_argument("--engine", choices=ENGINES,
                      help="zoh: write the system as an SSP file (block and coupling FMUs) and step it in this engine "
                           "(default: FMPy with the coupling computed by the master)")
     run.add_argument("--rtol", type=float, help="me: the solver's relative tolerance (default 1e-10); "
