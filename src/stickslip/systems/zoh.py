@@ -103,11 +103,14 @@ class _Run:
             self.rows.append((x, v, new_mode))
         return new_mode, new_count
 
-    def result(self, count, n_steps, wall_time, settings):
+    def result(self, count, n_steps, wall_time, settings, instances=None):
+        """The :class:`SystemResult` of the rows and events recorded; ``instances``: FMU instances stepped (default:
+        one per block)."""
         xs, vs, modes = (np.array(column) for column in zip(*self.rows))
+        stepped = instances or len(self.blocks)
         return SystemResult(ZohMaster.NAME, self.grid[:len(xs)].copy(), xs, vs, modes, self.events, self.complete,
                             np.array(count), wall_time, settings,
-                            {"communication steps": n_steps, "doStep calls": n_steps * len(self.blocks)})
+                            {"communication steps": n_steps, "doStep calls": n_steps * stepped})
 
     def from_rows(self, first, rows, wall_time, engine):
         """The result of an engine's ``rows`` (:func:`.engines.run_ssp`; ``first``: the values at t = 0)."""
@@ -118,7 +121,7 @@ class _Run:
         for k, values in enumerate(zip(*columns), start=1):
             mode, count = self.sample(k, n_steps, [list(column) for column in values], mode, count)
         settings = {"step (s)": self.h, "engine": f"{engine} (SSP: blocks and coupling FMUs)"}
-        return self.result(count, n_steps, wall_time, settings)
+        return self.result(count, n_steps, wall_time, settings, instances=2 * len(self.blocks))  # and couplings
 
     def _events(self, t_last, mode, new_mode, count, new_count):
         """Record the events of the last step: one per block is known exactly (``t_last_event``)."""
