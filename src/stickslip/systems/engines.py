@@ -13,13 +13,12 @@ same first order, a larger error (docs/systems.md gives both).
 - ``ecos`` (ecospy): ``EcosSimulation(ssp_path=...)``, ``init`` with the SSP's parameter set, ``get_real`` and
   ``get_integer`` after each step; its library needs ``libtbb.so.12`` (Debian's ``libtbb12`` or PyPI's ``tbb``,
   whose ``lib/`` folder is put on ``LD_LIBRARY_PATH``);
-- ``fmpy``: the same components and connections driven here by FMPy in the engines' order (initialization: the
-  values set, the connections transferred once per component, initialization left, one more transfer).
+- ``fmpy``: the same components and connections driven here by FMPy in the engines' order (:func:`run_fmpy`).
 
 libcosim and ecos run in a child process (``python -m stickslip.systems.engines`` reads a JSON spec on stdin and
 prints ``RESULT_MARK + json``): an engine that aborts (libcosim calls ``std::terminate`` on a failure during its
-initialization) or hangs ends as an FMUError naming it, and ecos gets its ``LD_LIBRARY_PATH``. The child leaves
-with ``os._exit`` once its result is printed: libcosimpy 0.0.6 crashes (SIGSEGV) when it destroys an execution
+initialization) or hangs ends as an FMUError naming it, and ecos gets its ``LD_LIBRARY_PATH``. Its executions
+are kept and the child leaves with ``os._exit`` once its result is printed: libcosimpy 0.0.6 crashes (SIGSEGV) when it destroys an execution
 made from an SSP, even one of the block FMUs alone.
 """
 
@@ -33,9 +32,8 @@ import tempfile
 from pathlib import Path
 
 from ..fmu.coupling import ensure_coupling_fmu
-from ..hosts.fmpy_host import FMUError
-from ..stress.cosim import libcosim_last_error
-from ..stress.session import FmuSession
+from ..hosts.fmpy_host import ExtractedFMU, FMUError
+from .master import read_values, references, start_block
 from .ssp import PARAMETER_SET, component_values, connections, write_ssp
 
 ENGINES = ("fmpy", "libcosim", "ecos")
@@ -70,11 +68,10 @@ def run_engine(engine, ssp_path, system, step, coupling_fmu, block_fmu):
                           capture_output=True, text=True, env=engine_environment(engine),
                           timeout=120 + 1e-3 * steps * system.n)
     lines = [line for line in proc.stdout.splitlines() if line.startswith(RESULT_MARK)]
-    if proc.returncode != 0 or not lines:
-        raise FMUError(f"zoh: {engine} ended with exit code {proc.returncode}: {(proc.stdout + proc.stderr)[-2000:]}")
-    result = json.loads(lines[0][len(RESULT_MARK):])
-    if result.get("error"):
-        raise FMUError(f"zoh: {engine}: {result['error']}")
+    result = json.loads(lines[0][len(RESULT_MARK):]) if lines else {}
+    if proc.returncode != 0 or not lines or result.get("error"):
+        raise FMUError(f"zoh: {engine} ended with exit code {proc.returncode}, {result.get('error', 'no result')}: "
+                       f"{proc.stderr[-2000:]}")
     return result
 
 
@@ -97,27 +94,30 @@ def _new_rows():
 
 
 def run_fmpy(system, step, steps, block_fmu, coupling_fmu):
-    """The SSP's components and connections driven by FMPy in the engines' order (see the module text)."""
+    """The SSP's components and connections driven by FMPy in the engines' order (see the module text): each
+    component started with its values and, for a coupling, the positions its connections hand it during the
+    engines' initialization (the start positions); one transfer; then each step, the blocks' rows read before
+    the transfer (as libcosim's observer does)."""
     values, wires = component_values(system), connections(system.n)
+    x_start = {f"b{i}": block["x_start"] for i, block in enumerate(system.blocks, start=1)}
+    for start, out, end, into in wires:
+        if out == "x":
+            values[end][into] = x_start[start]
     rows = _new_rows()
-    with FmuSession(block_fmu) as blocks, FmuSession(coupling_fmu) as couplings:
+    with ExtractedFMU(block_fmu) as blocks, ExtractedFMU(coupling_fmu) as couplings:
         instances = {}
         try:
             for name, start in values.items():
-                extracted = blocks if name.startswith("b") else couplings
-                instance = instances[name] = extracted.new_instance(name=name)
-                instance.enter_initialization(0.0)
-                instance.set_values(start)
-            for _ in instances:
-                _transfer(instances, wires)
-            for instance in instances.values():
-                instance.exit_initialization()
+                extracted, role = (blocks, "block") if name.startswith("b") else (couplings, "coupling")
+                instances[name] = start_block(extracted, name, start, role=role)
+            block_list = [instances[f"b{i}"] for i in range(1, system.n + 1)]
+            reals, integers = references(blocks, REALS), references(blocks, INTEGERS)
             _transfer(instances, wires)
             for k in range(steps):
                 for instance in instances.values():
                     instance.call(instance.fmu.doStep, k * step, step)
-                for name in REALS + INTEGERS:  # read before the transfer, as libcosim's observer does
-                    rows[name].append([_get(instances[f"b{i}"], name) for i in range(1, system.n + 1)])
+                for name, row in zip(REALS + INTEGERS, read_values(block_list, reals, integers)):
+                    rows[name].append(row)
                 _transfer(instances, wires)
         finally:
             for instance in instances.values():
@@ -125,17 +125,16 @@ def run_fmpy(system, step, steps, block_fmu, coupling_fmu):
     return rows
 
 
-def _get(instance, name):
-    variable = instance.extracted.variables[name]
-    getter = instance.fmu.getInteger if variable.type == "Integer" else instance.fmu.getReal
-    return instance.call(getter, [variable.valueReference])[0]
-
-
 def _transfer(instances, wires):
-    """Every connection's source value read first, then every sink set: one transfer of cached outputs."""
-    values = [(end, into, _get(instances[start], out)) for start, out, end, into in wires]
-    for end, into, value in values:
-        instances[end].set_value(into, value)
+    """Every connection's source value read first, then every sink set (all are Real): one transfer of the
+    outputs as they are now."""
+    values = []
+    for start, out, end, into in wires:
+        source, sink = instances[start], instances[end]
+        reference = source.extracted.variables[out].valueReference
+        values.append((sink, sink.extracted.variables[into].valueReference, source.call(source.fmu.getReal, [reference])[0]))
+    for sink, reference, value in values:
+        sink.call(sink.fmu.setReal, [reference], [value])
 
 
 def run_libcosim(spec):
@@ -157,7 +156,7 @@ def run_libcosim(spec):
     rows = _new_rows()
     for _ in range(spec["steps"]):
         if not execution.step(1):
-            return {"error": libcosim_last_error()}
+            return {"error": "a step failed (libcosim's log above)"}
         read = [observer.last_real_values(i, reals) + observer.last_integer_values(i, ints)
                 for i, reals, ints in blocks]
         for column, name in enumerate(REALS + INTEGERS):

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..hosts.fmpy_host import FMUError
 from .engines import ENGINES, INTEGERS, REALS, run_ssp
-from .master import SystemResult, block_instances, new_event, references
+from .master import SystemResult, block_instances, new_event, read_values, references
 
 
 
@@ -73,8 +73,7 @@ class _Run:
 
     def read(self):
         """``(x, v, t_last_event, mode, n_events)`` of every block, each a list over blocks."""
-        values = [b.call(b.fmu.getReal, self.reals) + b.call(b.fmu.getInteger, self.integers) for b in self.blocks]
-        return [list(column) for column in zip(*values)]
+        return read_values(self.blocks, self.reals, self.integers)
 
     def run(self, progress):
         start = time.perf_counter()
