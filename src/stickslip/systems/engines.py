@@ -17,9 +17,9 @@ same first order, a larger error (docs/systems.md gives both).
 
 libcosim and ecos run in a child process (``python -m stickslip.systems.engines`` reads a JSON spec on stdin and
 prints ``RESULT_MARK + json``): an engine that aborts (libcosim calls ``std::terminate`` on a failure during its
-initialization) or hangs ends as an FMUError naming it, and ecos gets its ``LD_LIBRARY_PATH``. Its executions
-are kept and the child leaves with ``os._exit`` once its result is printed: libcosimpy 0.0.6 crashes (SIGSEGV) when it destroys an execution
-made from an SSP, even one of the block FMUs alone.
+initialization) or hangs ends as an FMUError naming it, and ecos gets its ``LD_LIBRARY_PATH``. Its
+executions are kept and the child leaves with ``os._exit`` once its result is printed: libcosimpy 0.0.6 crashes
+(SIGSEGV) when it destroys an execution made from an SSP, even one of the block FMUs alone.
 """
 
 import ctypes.util
