@@ -68,7 +68,8 @@ def test_coupling_fmu_gives_the_springs_force_with_its_sign(coupling_fmu):
 
 def test_coupling_fmu_refuses_a_negative_stiffness(coupling_fmu):
     """In a child process (PythonFMU releases a slave whose method raised): FMPy's run fails naming the value."""
-    script = ("import fmpy, sys\ntry:\n    fmpy.simulate_fmu(sys.argv[1], start_values={'kc_left': -1.0}, stop_time=0.1)\n"
+    script = ("import fmpy, sys\ntry:\n"
+              "    fmpy.simulate_fmu(sys.argv[1], start_values={'kc_left': -1.0}, stop_time=0.1)\n"
               "except Exception as exc:\n    print('failed:', exc)\n")
     proc = subprocess.run([sys.executable, "-c", script, str(coupling_fmu)], capture_output=True, text=True,
                           timeout=60)
@@ -100,7 +101,8 @@ def test_the_ssd_wires_the_springs_of_the_system_file(name):
                 source = wires.get((f"c{i}", port))
                 inputs[port] = position[source[0]] if source else 0.0
             assert wires[(f"b{i}", "F_ext")] == (f"c{i}", "F")
-            forces.append(c["kc_left"] * (inputs["x_left"] - inputs["x"]) + c["kc_right"] * (inputs["x_right"] - inputs["x"]))
+            forces.append(c["kc_left"] * (inputs["x_left"] - inputs["x"])
+                          + c["kc_right"] * (inputs["x_right"] - inputs["x"]))
         assert forces == pytest.approx(system.forces(list(x)), abs=1e-14)
     start = system.forces([b["x_start"] for b in system.blocks])
     for i, block in enumerate(system.blocks, start=1):
@@ -133,7 +135,9 @@ def test_engines_equal_fmpys_run_of_the_ssp(name, engine, fmu_path):
     assert np.abs(mine.x - theirs.x).max() <= 1e-12
     assert np.abs(mine.v - theirs.v).max() <= 2e-12
     assert mine.events_complete and theirs.events_complete and len(mine.events) == len(theirs.events) > 30
-    for a, b in zip(sorted(mine.events, key=lambda e: (e.block, e.t)), sorted(theirs.events, key=lambda e: (e.block, e.t))):
+    def order(e):
+        return e.block, e.t
+    for a, b in zip(sorted(mine.events, key=order), sorted(theirs.events, key=order)):
         assert (a.block, a.kind) == (b.block, b.kind) and abs(a.t - b.t) <= 1e-10
     for k, _ in np.argwhere(mine.mode != theirs.mode):
         assert min(abs(e.t - mine.t[k]) for e in mine.events) <= 1e-9
@@ -195,5 +199,6 @@ def test_command_writes_the_ssp(tmp_path, fmu_path, capsys):
 def test_only_zoh_takes_an_engine():
     with pytest.raises(FMUError, match=r"master 'me' takes no option 'engine' \(the masters \['zoh'\] do\)"):
         make_master("me", engine="ecos")
-    with pytest.raises(FMUError, match=r"zoh: engine = 'omsimulator': allowed is one of \['fmpy', 'libcosim', 'ecos'\]"):
+    allowed = r"zoh: engine = 'omsimulator': allowed is one of \['fmpy', 'libcosim', 'ecos'\]"
+    with pytest.raises(FMUError, match=allowed):
         make_master("zoh", engine="omsimulator")

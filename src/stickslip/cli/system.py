@@ -38,7 +38,8 @@ def add_system(subparsers):
 def _run(args):
     from ..systems.run import run_system
 
-    outcome = run_system(args.file, args.master, args.out, {"step": args.step, "rtol": args.rtol, "engine": args.engine}, args.fmu,
+    options = {"step": args.step, "rtol": args.rtol, "engine": args.engine}
+    outcome = run_system(args.file, args.master, args.out, options, args.fmu,
                          show_progress=not args.quiet)
     print(outcome.summary)
     print(f"report: {outcome.files[1]}")
@@ -55,5 +56,6 @@ def _ssp(args):
 
     system = load_system(args.file)
     step = args.step or system.output_interval
-    print(write_ssp(system, step, args.fmu or ensure_fmu(), ensure_coupling_fmu(), Path(args.out) / f"{system.name}.ssp"))
+    dest = Path(args.out) / f"{system.name}.ssp"
+    print(write_ssp(system, step, args.fmu or ensure_fmu(), ensure_coupling_fmu(), dest))
     return 0

@@ -132,7 +132,8 @@ def _transfer(instances, wires):
     for start, out, end, into in wires:
         source, sink = instances[start], instances[end]
         reference = source.extracted.variables[out].valueReference
-        values.append((sink, sink.extracted.variables[into].valueReference, source.call(source.fmu.getReal, [reference])[0]))
+        value = source.call(source.fmu.getReal, [reference])[0]
+        values.append((sink, sink.extracted.variables[into].valueReference, value))
     for sink, reference, value in values:
         sink.call(sink.fmu.setReal, [reference], [value])
 

@@ -89,7 +89,8 @@ def block_instances(master, system, fmu_path, interface="cs"):
         try:
             forces = system.forces([b["x_start"] for b in system.blocks])
             for i, (values, F) in enumerate(zip(system.blocks, forces)):
-                instances.append(start_block(fmu, f"b{i + 1}", {**values, "v_drive": system.v_drive, "F_ext": F}, interface))
+                start = {**values, "v_drive": system.v_drive, "F_ext": F}
+                instances.append(start_block(fmu, f"b{i + 1}", start, interface))
             yield fmu, instances
         finally:
             for instance in instances:
