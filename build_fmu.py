@@ -1,6 +1,7 @@
-"""Build dist/SpringBlockFriction.fmu (FMI 2.0) and dist/SpringBlockFriction-fmi3.fmu (FMI 3.0) and print their
-paths: ``python build_fmu.py [--out DIR]``, the same as ``stickslip build [--out DIR]``. Needs the package
-installed (``bash scripts/setup.sh`` or ``pip install .``)."""
+"""Build dist/SpringBlockFriction.fmu (FMI 2.0), dist/SpringBlockFriction-fmi3.fmu (FMI 3.0) and
+dist/ChainCoupling.fmu (a chain's coupling springs, FMI 2.0) and print their paths: ``python build_fmu.py
+[--out DIR]``, the same as ``stickslip build [--out DIR]``. Needs the package installed (``bash scripts/setup.sh``
+or ``pip install .``)."""
 
 import sys
 

@@ -80,7 +80,7 @@ def test_the_installed_wheel_builds_both_fmus_in_any_folder(installed, tmp_path,
 
     out = tmp_path / "fmus"
     printed = _run([python.parent / "stickslip", "build", "--out", out], cwd=cwd, env=env).split()
-    assert printed == [str(out / fmu_path.name), str(out / fmu3_path.name)]
+    assert printed == [str(out / fmu_path.name), str(out / fmu3_path.name), str(out / "ChainCoupling.fmu")]
     for built, checkout in ((out / fmu_path.name, fmu_path), (out / fmu3_path.name, fmu3_path)):
         assert built.read_bytes() == checkout.read_bytes(), f"{built.name}: the wheel builds other bytes"
         assert _last_row(built, python, cwd, env) == _last_row(checkout)

@@ -36,8 +36,9 @@ def _run(args):
 
 def add_build(subparsers):
     p = subparsers.add_parser("build", aliases=["build-fmu"],
-                              help="build SpringBlockFriction.fmu (FMI 2) and SpringBlockFriction-fmi3.fmu (FMI 3) "
-                                   "into DIR if missing or stale, and print their paths")
+                              help="build SpringBlockFriction.fmu (FMI 2), SpringBlockFriction-fmi3.fmu (FMI 3) "
+                                   "and ChainCoupling.fmu (a chain's coupling springs, FMI 2) into DIR if missing or "
+                                   "stale, and print their paths")
     p.add_argument("--out", metavar="DIR", help="output folder (default: dist in the current folder, or $STICKSLIP_DIST if set)")
     p.set_defaults(handler=_build)
 
@@ -45,9 +46,12 @@ def add_build(subparsers):
 def _build(args):
     from ..fmu import FILE_NAMES, FMI_VERSIONS, default_fmu_path, ensure_fmu
 
+    from ..fmu.coupling import COUPLING_FILE, ensure_coupling_fmu
+
     for version in FMI_VERSIONS:
         dest = default_fmu_path(version) if args.out is None else Path(args.out).resolve() / FILE_NAMES[version]
         print(ensure_fmu(dest, version))
+    print(ensure_coupling_fmu(None if args.out is None else Path(args.out).resolve() / COUPLING_FILE))
     return 0
 
 

@@ -1,6 +1,7 @@
 """``stickslip system run FILE.toml --master MASTER --out DIR``: a chain of blocks through a master, against the
-chain's reference (docs/systems.md)."""
+chain's reference; ``stickslip system ssp FILE.toml --out DIR``: the chain as an SSP file (docs/systems.md)."""
 
+from ..systems.engines import ENGINES
 from ..systems.masters import MASTERS
 
 
@@ -17,18 +18,44 @@ def add_system(subparsers):
                           "iterated coupling")
     run.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     run.add_argument("--step", type=float, help="zoh: communication step in s (default: the file's output_interval)")
+    run.add_argument("--engine", choices=ENGINES,
+                     help="zoh: write the system as an SSP file (block and coupling FMUs) and step it in this engine "
+                          "(default: FMPy with the coupling computed by the master)")
     run.add_argument("--rtol", type=float, help="me: the solver's relative tolerance (default 1e-10); "
                      "adaptive: error per second as a fraction of the largest F_S/kappa (default 1e-9)")
     run.add_argument("--fmu", help="the FMU to run (default: the built FMU of the master's FMI version)")
     run.add_argument("--quiet", action="store_true", help="no progress bars")
     run.set_defaults(handler=_run)
+    ssp = commands.add_parser("ssp", help="write the system as DIR/<stem>.ssp: the block FMUs, one coupling FMU per "
+                                          "block, their values and connections, the fixed step")
+    ssp.add_argument("file", metavar="FILE.toml", help="system file")
+    ssp.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
+    ssp.add_argument("--step", type=float, help="the fixed step in s (default: the file's output_interval)")
+    ssp.add_argument("--fmu", help="the block FMU (default: the built FMI 2 FMU)")
+    ssp.set_defaults(handler=_ssp)
 
 
 def _run(args):
     from ..systems.run import run_system
 
-    outcome = run_system(args.file, args.master, args.out, {"step": args.step, "rtol": args.rtol}, args.fmu,
+    options = {"step": args.step, "rtol": args.rtol, "engine": args.engine}
+    outcome = run_system(args.file, args.master, args.out, options, args.fmu,
                          show_progress=not args.quiet)
     print(outcome.summary)
     print(f"report: {outcome.files[1]}")
     return 0 if outcome.ok else 1
+
+
+def _ssp(args):
+    from pathlib import Path
+
+    from ..fmu import ensure_fmu
+    from ..fmu.coupling import ensure_coupling_fmu
+    from ..systems import load_system
+    from ..systems.ssp import write_ssp
+
+    system = load_system(args.file)
+    step = args.step or system.output_interval
+    dest = Path(args.out) / f"{system.name}.ssp"
+    print(write_ssp(system, step, args.fmu or ensure_fmu(), ensure_coupling_fmu(), dest))
+    return 0

@@ -89,17 +89,19 @@ def block_instances(master, system, fmu_path, interface="cs"):
         try:
             forces = system.forces([b["x_start"] for b in system.blocks])
             for i, (values, F) in enumerate(zip(system.blocks, forces)):
-                instances.append(start_block(fmu, i + 1, {**values, "v_drive": system.v_drive, "F_ext": F}, interface))
+                start = {**values, "v_drive": system.v_drive, "F_ext": F}
+                instances.append(start_block(fmu, f"b{i + 1}", start, interface))
             yield fmu, instances
         finally:
             for instance in instances:
                 instance.free()
 
 
-def start_block(extracted, number, values, interface="cs"):
-    """An instance of the block ``b<number>`` (1-based) in ``extracted`` (an ExtractedFMU), its parameters and inputs
-    ``values`` (FMU names) set in initialization mode, initialization done. FMUError naming the block if it fails."""
-    instance = extracted.new_instance(name=f"b{number}", interface=interface)
+def start_block(extracted, name, values, interface="cs", role="block"):
+    """An instance named ``name`` (block ``i``, 1-based: ``b<i>``) of ``extracted`` (an ExtractedFMU), its parameters
+    and inputs ``values`` (FMU names) set in initialization mode, initialization done. FMUError naming the
+    ``role`` and ``name`` if it fails."""
+    instance = extracted.new_instance(name=name, interface=interface)
     variables, setters = extracted.variables, _SETTERS[extracted.fmi_version]
     try:
         if extracted.fmi_version == 2:
@@ -114,10 +116,17 @@ def start_block(extracted, number, values, interface="cs"):
         instance.call(instance.fmu.exitInitializationMode)
     except FMUError as exc:
         instance.free()
-        raise FMUError(f"block b{number}: {exc}") from None
+        raise FMUError(f"{role} {name}: {exc}") from None
     return instance
 
 
 def references(extracted, names):
     """Value references of the variables ``names`` of ``extracted``."""
     return [extracted.variables[name].valueReference for name in names]
+
+
+def read_values(instances, reals, integers):
+    """``[[value of each instance] for each variable]``: the Real variables then the Integer variables whose value
+    references are ``reals`` and ``integers``, read now from every instance in ``instances``."""
+    values = [i.call(i.fmu.getReal, reals) + i.call(i.fmu.getInteger, integers) for i in instances]
+    return [list(column) for column in zip(*values)]

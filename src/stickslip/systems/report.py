@@ -24,7 +24,7 @@ def _seconds(value):
 
 def summary_line(system, result, comparison):
     """One line: the file, the master with its settings, the error against the tolerance, the verdict."""
-    settings = ", ".join(f"{k} {v:g}" for k, v in result.settings.items())
+    settings = ", ".join(f"{k} {_shown(v)}" for k, v in result.settings.items())
     verdict = "PASS" if comparison.ok else "FAIL"
     return (f"{system.name}: {result.master} ({settings}): max |dx| {np.max(comparison.max_abs_dx):.3g} m = "
             f"{comparison.max_rel_dx:.3g} of the amplitude {comparison.amplitude:.3g} m (tolerance "
@@ -44,7 +44,7 @@ def write_report(path, system, result, comparison, reference_seconds, figures):
         f"{comparison.max_rel_dx:.3e} of the chain's amplitude {comparison.amplitude:.4g} m (tolerance "
         f"{comparison.tolerance:g}).", "",
         "| | |", "|---|---|",
-        *(f"| {label} | {value:g} |" for label, value in {**result.settings, **result.stats}.items()),
+        *(f"| {label} | {_shown(value)} |" for label, value in {**result.settings, **result.stats}.items()),
         f"| wall time of the master (s) | {result.wall_time:.3f} |",
         f"| wall time of the reference (s) | {reference_seconds:.3f} |", "",
         "| block | max abs(dx) (m) | of the amplitude | events (master / reference) | max event-time error (s) |",
@@ -58,3 +58,8 @@ def write_report(path, system, result, comparison, reference_seconds, figures):
         lines += ["", "Some steps held more than one event of a block: those events are counted, not timed."]
     lines += [""] + [f"![{caption}]({name})" for caption, name in figures.items()]
     path.write_text("\n".join(lines) + "\n")
+
+
+def _shown(value):
+    """A setting or count as the report shows it: a number in ``%g``, text as it is."""
+    return value if isinstance(value, str) else f"{value:g}"

@@ -1,0 +1,76 @@
+"""Build ``ChainCoupling.fmu``: the coupling springs acting on one block of a chain (``fmu_src/ChainCoupling.py``),
+FMI 2 co-simulation, so that an engine wires a chain from FMUs alone (the SSP of :mod:`stickslip.systems.ssp`).
+
+A pure-Python PythonFMU slave; its model description gets units, the stiffnesses' lower bound 0 and a GUID that
+follows from the sources (:func:`coupling_tag`), and its Linux binary becomes the loader of
+:mod:`stickslip.fmu.loader`, as the block's does, so that it also runs in hosts that are not Python processes.
+"""
+
+import hashlib
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+from . import archive, loader, model_description
+from .build import default_fmu_path
+from .python_path import preserved_sys_path
+from .sources import SLAVE_FOLDER
+
+COUPLING_NAME = "ChainCoupling"
+COUPLING_FILE = f"{COUPLING_NAME}.fmu"
+COUPLING_SLAVE = SLAVE_FOLDER / f"{COUPLING_NAME}.py"
+#: variable: unit as model_description.UNITS names it
+UNITS = {"x_left": "m", "x": "m", "x_right": "m", "kc_left": "N/m", "kc_right": "N/m", "F": "N"}
+BOUNDS = {name: ((0.0, None) if name.startswith("kc_") else (None, None)) for name in UNITS}
+
+
+def coupling_tag():
+    """10 hex digits over the slave, this builder and the loader's sources: they decide the FMU's content."""
+    digest = hashlib.sha256()
+    for path in (COUPLING_SLAVE, Path(__file__), *loader.SOURCES):
+        digest.update(Path(path).name.encode() + b"\0" + Path(path).read_bytes() + b"\0")
+    return digest.hexdigest()[:10]
+
+
+def default_coupling_path():
+    """``ChainCoupling.fmu`` beside the block's default FMU (``dist/``, or ``$STICKSLIP_DIST``)."""
+    return default_fmu_path(2).with_name(COUPLING_FILE)
+
+
+def coupling_is_current(path):
+    """True if the coupling FMU at ``path`` exists and was built from the current sources."""
+    path = Path(path)
+    if not path.is_file():
+        return False
+    with zipfile.ZipFile(path) as fmu:
+        guid = ET.fromstring(fmu.read("modelDescription.xml")).get("guid")
+    return guid == archive.identity(COUPLING_NAME, 2, coupling_tag())[0]
+
+
+def ensure_coupling_fmu(path=None):
+    """Build the coupling FMU at ``path`` (default :func:`default_coupling_path`) unless it is current; its path."""
+    path = Path(path or default_coupling_path())
+    if not coupling_is_current(path):
+        build_coupling(path)
+    return path
+
+
+def build_coupling(dest=None):
+    """Build the coupling FMU at ``dest`` (default :func:`default_coupling_path`; replaced atomically); its path."""
+    from pythonfmu import FmuBuilder
+
+    dest = Path(dest or default_coupling_path()).resolve()
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="sbf_coupling_") as tmp:
+        with preserved_sys_path():  # PythonFMU leaves the source folder on sys.path
+            built = FmuBuilder.build_FMU(COUPLING_SLAVE, dest=tmp)
+        entries = archive.read_entries(built)
+        entries["modelDescription.xml"] = model_description.complete(
+            entries["modelDescription.xml"], UNITS, BOUNDS, 2, *archive.identity(COUPLING_NAME, 2, coupling_tag()))
+        partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
+        archive.write_entries(partial, entries)
+        loader.install(partial, COUPLING_NAME)
+        os.replace(partial, dest)
+    return dest
