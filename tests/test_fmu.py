@@ -112,7 +112,7 @@ def test_runtime_is_bundled_under_a_private_name(fmu_path):
         interface = fmu.read(f"resources/sbf_runtime_{tag}/block_interface.py").decode()
         assert fmu.read("resources/slavemodule.txt").decode() == f"springblockfriction_{tag}"
     assert f"resources/sbf_runtime_{tag}/trajectory.py" in names
-    assert f"resources/sbf_runtime_{tag}/__pycache__/trajectory.{sys.implementation.cache_tag}.pyc" in names
+    assert f"resources/sbf_runtime_{tag}/__pycache__/block_interface.{sys.implementation.cache_tag}.pyc" in names
     assert f"from sbf_runtime_{tag}.fmu_slave import SpringBlockFriction" in loader
     assert f"from sbf_runtime_{tag} import" in interface and "stickslip.core" not in interface + slave
     assert f"from sbf_runtime_{tag}.block_interface import" in slave and "from block_interface" not in slave

@@ -1,6 +1,7 @@
 """A cheap start: the FMU's runtime is never compiled on the host, and instantiating leaves nothing behind."""
 
 import gc
+import io
 import os
 import subprocess
 import sys
@@ -8,7 +9,8 @@ import textwrap
 import zipfile
 from pathlib import Path
 
-from stickslip.fmu import source_tag
+from stickslip.fmu import source_tag, trim
+from stickslip.fmu.compile_runtime import COMPILED_MODULES
 
 from fmu_instances import instantiate
 
@@ -31,10 +33,16 @@ def test_runtime_imports_from_the_shipped_bytecode_whatever_the_file_times(unzip
 
 
 def test_shipped_bytecode_is_unchecked_hash_based(fmu_path):
+    """Every module of the runtime's package ships byte-compiled, except those that ship compiled by mypyc."""
     with zipfile.ZipFile(fmu_path) as fmu:
-        pycs = [name for name in fmu.namelist() if name.endswith(".pyc")]
-        assert len(pycs) == len([n for n in fmu.namelist() if n.startswith("resources/sbf_runtime_") and
-                                 n.endswith(".py")])
+        names = fmu.namelist()
+        pycs = [name for name in names if name.endswith(".pyc")]
+        package = f"resources/sbf_runtime_{source_tag()}"
+        compiled = {n.split("/")[-1].split(".")[0] for n in names if n.startswith(package) and n.endswith(".so")}
+        modules = {n.split("/")[-1][:-3] for n in names if n.startswith(f"{package}/") and n.endswith(".py")}
+        assert compiled == set(COMPILED_MODULES)
+        assert sorted(pycs) == sorted(f"{package}/__pycache__/{m}.{sys.implementation.cache_tag}.pyc"
+                                      for m in modules - compiled)
         for name in pycs:
             flags = int.from_bytes(fmu.read(name)[4:8], "little")
             assert flags == 0b01  # hash-based, source not checked (PEP 552)
@@ -56,3 +64,39 @@ def test_many_instances_keep_the_loader_module_intact(unzipped):
         loader = loader or sys.modules[f"springblockfriction_{source_tag()}"]
         counts.append(sys.getrefcount(loader.__dict__))
     assert max(counts[5:]) - min(counts[5:]) <= 1
+
+
+def test_the_fmus_hold_no_file_a_host_does_not_need(fmu_path, fmu3_path):
+    """No module of the FMI library's builder, its package in one archive, no runtime module of the other FMI
+    version; every module of the archive byte-compiled for the building Python beside its source."""
+    for fmu, library, other_version_only in ((fmu_path, "pythonfmu", {"exchange"}), (fmu3_path, "pythonfmu3", set())):
+        with zipfile.ZipFile(fmu) as archive:
+            names = archive.namelist()
+            packed = zipfile.ZipFile(io.BytesIO(archive.read(f"resources/{library}.zip")))
+        assert not [name for name in names if name.startswith(f"resources/{library}/")]
+        modules = {name.rsplit("/", 1)[1].split(".")[0] for name in names if name.startswith("resources/sbf_runtime_")}
+        assert modules & other_version_only == set() and {"trajectory", "fmu_slave"} <= modules
+        inside = packed.namelist()
+        assert sorted(inside) == sorted([*(n for n in inside if n.endswith(".py")), *(n + "c" for n in inside
+                                                                                    if n.endswith(".py"))])
+        assert {f"{library}/{m}.py" for m in trim.BUILD_ONLY_MODULES} & set(inside) == set()
+        assert b"builder" not in packed.read(f"{library}/__init__.py")
+
+
+def test_the_loader_module_imports_the_library_from_its_archive_and_not_its_builder(unzipped, tmp_path):
+    """A Python without site-packages (as in a C host) gets the FMI library from the FMU's archive, and loading the
+    slave imports neither the library's builder nor what only the builder needs."""
+    resources = Path(unzipped[0]) / "resources"
+    probe = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {str(resources)!r})
+        module = __import__("springblockfriction_{source_tag()}")
+        import pythonfmu
+        print(pythonfmu.__file__, module.SpringBlockFriction.__name__,
+              sorted({{"pythonfmu.builder", "argparse", "logging", "inspect", "xml.dom.minidom"}} & set(sys.modules)))
+    """)
+    result = subprocess.run([sys.executable, "-S", "-c", probe], capture_output=True, text=True, check=True,
+                            cwd=tmp_path, timeout=60)
+    library, slave, unwanted = result.stdout.split()
+    assert library.startswith(str(resources / "pythonfmu.zip" / "pythonfmu" / "__init__.py"))  # .py or .pyc
+    assert (slave, unwanted) == ("SpringBlockFriction", "[]")

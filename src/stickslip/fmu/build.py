@@ -7,7 +7,8 @@ through the module ``springblockfriction_<tag>`` (FMI 3: ``springblockfriction3_
 and mypyc-compiled modules: :mod:`stickslip.fmu.staging`); ``<tag>`` is :func:`~stickslip.fmu.sources.source_tag`.
 A host that imported its own ``stickslip``, or another build of this FMU, therefore never hands the FMU a
 different copy of the runtime. The library's model description is then completed
-(:mod:`stickslip.fmu.model_description`) and its Linux binary becomes the loader of
+(:mod:`stickslip.fmu.model_description`), what no host needs left out (:mod:`stickslip.fmu.trim`), and its
+Linux binary becomes the loader of
 :mod:`stickslip.fmu.loader`, so that the FMU also runs in hosts that are not Python processes. Building twice
 from the same sources with the same Python and compiler gives the same bytes (:mod:`stickslip.fmu.archive`).
 """
@@ -19,7 +20,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import archive, loader, model_description
+from . import archive, loader, model_description, trim
 from .sources import MODEL_NAME, RUNTIME, INTERFACE, SLAVES, is_current, source_tag
 from .python_path import preserved_sys_path
 from .staging import LOADERS, stage_runtime
@@ -72,7 +73,7 @@ def build(dest=None, fmi_version=2, pure=False):
     tag = source_tag(fmi_version) + ("p" if pure else "")
     with tempfile.TemporaryDirectory(prefix="sbf_build_") as tmp:
         staged = stage_runtime(Path(tmp), tag, RUNTIME, SLAVES[fmi_version], INTERFACE, MODEL_NAME,
-                               compiled=not pure, loader=LOADERS[fmi_version])
+                               compiled=not pure, loader=LOADERS[fmi_version], library=library.module)
         try:
             with preserved_sys_path():  # the builder, and the import below, put the staging folder on sys.path
                 built = builder.build_FMU(staged.script, dest=Path(tmp) / "out", project_files=staged.project_files(),
@@ -86,6 +87,7 @@ def build(dest=None, fmi_version=2, pure=False):
             entries["modelDescription.xml"], instance.variable_units, instance.variable_bounds, fmi_version,
             *archive.identity(MODEL_NAME, fmi_version, tag))
         staged.add_to(entries)
+        trim.trim(entries, fmi_version, staged.package_dir.name)
         _write_with_loader(dest, entries, fmi_version)
     return dest
 

@@ -23,6 +23,9 @@ _spec = importlib.util.spec_from_file_location("_implementation", HERE.parent / 
 implementation = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(implementation)
 COMPILED_MODULES = implementation.COMPILED_MODULES
+#: what the FMU's compiled files are built with besides Python's flags, after them: no debug information
+#: (``-g0`` overrides Python's ``-g``; GCC's code does not depend on it) and no symbol table (``-s``, the linker)
+SIZE_FLAGS = {"CFLAGS": "-g0", "LDFLAGS": "-s"}
 
 
 class CompileError(RuntimeError):
@@ -75,8 +78,10 @@ def compile_in_place(root, package):
     """Compile ``root/package`` in place; its compiled files (paths), or CompileError saying why not.
 
     The C compiler maps ``root`` to ``.`` and mypyc's C runtime (in the environment's site-packages) to
-    ``mypyc/lib-rt`` in the paths it records (debug information), so that the files do not depend on the folder
-    they were compiled in nor on the environment; mypyc runs with a fixed hash seed (the order of sets).
+    ``mypyc/lib-rt`` in the paths it records, so that the files do not depend on the folder they were compiled in
+    nor on the environment; mypyc runs with a fixed hash seed (the order of sets). The files carry no debug
+    information nor symbol table (:data:`SIZE_FLAGS`; the same machine code): every host extracts them before
+    its first step.
     """
     package_dir = Path(root) / package
     if importlib.util.find_spec("mypyc") is None:
@@ -91,8 +96,9 @@ def compile_in_place(root, package):
     try:
         lib_rt = Path(importlib.util.find_spec("mypyc").submodule_search_locations[0]) / "lib-rt"
         prefix_maps = f"-ffile-prefix-map={Path(root).resolve()}=. -ffile-prefix-map={lib_rt.resolve()}=mypyc/lib-rt"
-        environment = {**os.environ, "CFLAGS": f"{os.environ.get('CFLAGS', '')} {prefix_maps}".strip(),
-                       "PYTHONHASHSEED": "0"}
+        environment = {**os.environ, "PYTHONHASHSEED": "0",
+                       "CFLAGS": f"{os.environ.get('CFLAGS', '')} {prefix_maps} {SIZE_FLAGS['CFLAGS']}".strip(),
+                       "LDFLAGS": f"{os.environ.get('LDFLAGS', '')} {SIZE_FLAGS['LDFLAGS']}".strip()}
         run = subprocess.run([sys.executable, "-c", script], cwd=root, env=environment, capture_output=True,
                              text=True, timeout=1200)
     except (OSError, subprocess.TimeoutExpired) as exc:

@@ -23,7 +23,8 @@ SLAVES = {2: SLAVE_FOLDER / "SpringBlockFriction.py", 3: SLAVE_FOLDER / "SpringB
 MODULE_PREFIXES = {2: "springblockfriction_", 3: "springblockfriction3_"}
 #: the builder modules whose source decides an FMU's content
 BUILDERS = (*(Path(__file__).resolve().with_name(name) for name in
-              ("build.py", "archive.py", "model_description.py", "staging.py", "compile_runtime.py", "sources.py")),
+              ("build.py", "archive.py", "model_description.py", "staging.py", "compile_runtime.py", "sources.py",
+               "trim.py")),
             *loader.SOURCES)
 
 

@@ -17,7 +17,9 @@ In the FMU's ``resources/``:
   ``~/.cache/...``) by package name (the source tag), Python and toolchain (mypy, setuptools, compiler
   and flags);
 - ``springblockfriction_<tag>.py`` (FMI 3: ``springblockfriction3_<tag>.py``): the module PythonFMU
-  (pythonfmu3) loads, a few lines (:data:`FMI2_LOADER`, :data:`FMI3_LOADER`). PythonFMU 0.7.0 compiles
+  (pythonfmu3) loads, a few lines (:data:`FMI2_LOADER`, :data:`FMI3_LOADER`), the first of which put the
+  library's own package, packed into one file (:data:`LIBRARY_ARCHIVE`, :mod:`stickslip.fmu.trim`), on
+  ``sys.path`` beside it. PythonFMU 0.7.0 compiles
   and runs that module's source at every ``fmi2Instantiate`` (to find the slave class by its MRO; with
   the 300-line slave there, that was 2 ms of each instantiation and a leaked copy of the class), so the
   slave's own source, imported once per process, stays out of it.
@@ -43,21 +45,30 @@ COMPILED_ARTIFACTS = ("__pycache__", "*.pyc", "*.so", "*.pyd", "compiled_sources
 @dataclass(frozen=True)
 class LoaderModule:
     """The module the FMI library loads: ``prefix`` of its name (the source tag follows) and its source, a
-    ``template`` formatted with the runtime ``package`` and the slave class ``model_name``."""
+    ``template`` formatted with the runtime ``package``, the slave class ``model_name`` and the name of the
+    library's ``archive``."""
 
     prefix: str
     template: str
 
 
+#: the zip archive in ``resources/`` that holds the FMI library's package (``{library}``: its name), byte-compiled
+LIBRARY_ARCHIVE = "{library}.zip"
+#: the loader modules' first lines: the library's archive goes first on ``sys.path`` (where the library's binary
+#: put ``resources/``), once; ``{archive}``: :data:`LIBRARY_ARCHIVE`
+_LIBRARY_ON_PATH = (
+    "import os\nimport sys\n\n"
+    "_library = os.path.join(os.path.dirname(__file__), {archive!r})  # the FMI library, packed\n"
+    "sys.path[:0] = [] if _library in sys.path else [_library]\n\n")
 #: PythonFMU 0.7.0 compiles and runs this module's source at every fmi2Instantiate in the module's globals, which
 #: it releases once per instance: the slave's module holds them (``hold_loader_namespace``).
-FMI2_LOADER = LoaderModule("springblockfriction_", (
+FMI2_LOADER = LoaderModule("springblockfriction_", _LIBRARY_ON_PATH + (
     "from {package}.fmu_slave import {model_name}, hold_loader_namespace  # noqa: F401\n"
     "hold_loader_namespace(globals())  # PythonFMU releases this module's globals once per instance\n"))
 #: pythonfmu3 0.3.4 imports this module once and takes the slave class by the name in its first line that reads
 #: ``class <name>(... Fmi3SlaveBase ...):`` (a regular expression over the file, in its builder and its binary):
 #: the class is defined here, a subclass adding nothing.
-FMI3_LOADER = LoaderModule("springblockfriction3_", (
+FMI3_LOADER = LoaderModule("springblockfriction3_", _LIBRARY_ON_PATH + (
     "from pythonfmu3 import Fmi3SlaveBase\n\nfrom {package} import fmu_slave\n\n\n"
     "class {model_name}(fmu_slave.{model_name}, Fmi3SlaveBase):\n"
     '    """The slave (fmu_slave), named where pythonfmu3 looks for it."""\n'))
@@ -92,10 +103,11 @@ class StagedRuntime:
             entries.setdefault(arcname, path.read_bytes())
 
 
-def stage_runtime(folder, tag, runtime, slave, interface, model_name, compiled=True, loader=FMI2_LOADER):
+def stage_runtime(folder, tag, runtime, slave, interface, model_name, compiled=True, loader=FMI2_LOADER,
+                  library="pythonfmu"):
     """Stage the runtime folder ``runtime``, the slave source ``slave`` (class ``model_name``), the shared
     variable table ``interface`` and the ``loader`` module in ``folder``; ``compiled``: also compile the
-    runtime's hot modules (if this machine can)."""
+    runtime's hot modules (if this machine can); ``library``: the FMI library's package."""
     package, module = f"sbf_runtime_{tag}", f"{loader.prefix}{tag}"
     package_dir = Path(folder) / package
     shutil.copytree(runtime, package_dir, ignore=shutil.ignore_patterns(*COMPILED_ARTIFACTS))
@@ -107,9 +119,10 @@ def stage_runtime(folder, tag, runtime, slave, interface, model_name, compiled=T
                                "the shared table as 'from block_interface import ...'", slave_code)
     (package_dir / "fmu_slave.py").write_text(slave_code)
     script = Path(folder) / f"{module}.py"
-    script.write_text(loader.template.format(package=package, model_name=model_name))
+    script.write_text(loader.template.format(package=package, model_name=model_name,
+                                             archive=LIBRARY_ARCHIVE.format(library=library)))
     staged = StagedRuntime(script, package_dir, module)
-    staged.extra_files.update(_byte_compile(package_dir))
+    staged.extra_files.update(byte_compile(package_dir))
     if compiled:
         staged.extra_files.update(_compiled(Path(folder), package))
     return staged
@@ -152,7 +165,7 @@ def _compiled(folder, package):
     return out
 
 
-def _byte_compile(package_dir):
+def byte_compile(package_dir):
     """Unchecked-hash ``.pyc`` of every module in ``package_dir``: ``{archive name: path}``.
 
     They name their sources ``<package>/<module>.py``, not the build folder (importing them names the real path).

@@ -1,0 +1,84 @@
+"""Leave out of an FMU the files no host imports or loads, and pack the FMI library's package into one file
+(issue 21: a host extracts every file before the first step, at about 0.2 ms a file here, and imports every
+module at the first instantiation).
+
+- The FMI library's modules that only build or deploy FMUs (:data:`BUILD_ONLY_MODULES`): a host imports the
+  library's slave classes, never its builder, which cannot run from an FMU anyway (its binaries are not there).
+  The library's ``__init__.py`` loses its import of the builder, which took argparse, logging, inspect and
+  xml.dom.minidom into every host process.
+- The rest of the library's package goes into one zip archive (``resources/<library>.zip``,
+  :data:`~stickslip.fmu.staging.LIBRARY_ARCHIVE`), each module with its byte-compiled file for the building
+  Python beside it (zipimport's layout; another Python compiles the source in memory), which the loader
+  module puts on ``sys.path``.
+- The runtime modules that only the other FMI version's slave imports (:data:`OTHER_VERSION_ONLY`).
+- The byte-compiled files of the modules that ship compiled (mypyc): the building Python loads the compiled
+  modules, and another Python cannot use those ``.pyc`` files. The sources stay: another Python or platform
+  runs them, and ``compiled_sources.crc32`` is checked against them.
+"""
+
+import io
+import re
+import tempfile
+from pathlib import Path
+
+from .archive import write_entries
+from .compile_runtime import COMPILED_MODULES, implementation
+from .staging import LIBRARY_ARCHIVE, byte_compile
+
+#: FMI version: the FMI library's package in ``resources/``
+LIBRARY_PACKAGES = {2: "pythonfmu", 3: "pythonfmu3"}
+#: the FMI library's modules that only its builder and command line import
+BUILD_ONLY_MODULES = ("__main__", "builder", "csvbuilder", "deploy", "osutil")
+#: the line of the library's ``__init__.py`` that imports its builder
+BUILDER_IMPORT = re.compile(r"^from \.builder import FmuBuilder\n", re.MULTILINE)
+#: FMI version: the runtime modules that only the slave of the other FMI version imports
+OTHER_VERSION_ONLY = {2: ("exchange",), 3: ()}
+
+
+class TrimError(RuntimeError):
+    """The FMI library's ``__init__.py`` does not import its builder as this module expects."""
+
+
+def trim(entries, fmi_version, package):
+    """Drop from ``entries`` (``{archive name: bytes}``, changed in place) what no host of the FMU needs;
+    ``package``: the runtime's package name (``sbf_runtime_<tag>``)."""
+    library = LIBRARY_PACKAGES[fmi_version]
+    _trim_library(entries, f"resources/{library}")
+    _pack_library(entries, library)
+    runtime = f"resources/{package}"
+    compiled = f"{runtime}/{implementation.STAMP}" in entries  # else pure: its .pyc are what a host loads
+    for name in list(entries):
+        folder, _, file = name.rpartition("/")
+        module = file.split(".")[0]
+        other_version = module in OTHER_VERSION_ONLY[fmi_version] and folder in (runtime, f"{runtime}/__pycache__")
+        unused_pyc = compiled and folder == f"{runtime}/__pycache__" and module in COMPILED_MODULES
+        if other_version or unused_pyc:
+            del entries[name]
+
+
+def _trim_library(entries, library):
+    """Drop the FMI library's build-only modules from ``entries`` and its builder's import from its
+    ``__init__.py``; ``library``: the package's folder in the archive."""
+    for module in BUILD_ONLY_MODULES:
+        entries.pop(f"{library}/{module}.py", None)
+    init = f"{library}/__init__.py"
+    code, count = BUILDER_IMPORT.subn("", entries[init].decode())
+    if count != 1:
+        raise TrimError(f"{init} must import its builder once as 'from .builder import FmuBuilder'")
+    entries[init] = code.encode()
+
+
+def _pack_library(entries, library):
+    """Replace the entries of the package ``library`` by its archive :data:`LIBRARY_ARCHIVE` in ``resources/``."""
+    prefix = f"resources/{library}/"
+    modules = {name[len("resources/"):]: entries.pop(name) for name in sorted(entries) if name.startswith(prefix)}
+    with tempfile.TemporaryDirectory(prefix="sbf_library_") as tmp:
+        for name, data in modules.items():
+            (Path(tmp) / name).parent.mkdir(parents=True, exist_ok=True)
+            (Path(tmp) / name).write_bytes(data)
+        for name, path in byte_compile(Path(tmp) / library).items():
+            module = path.name.split(".")[0]
+            modules[f"{library}/{module}.pyc"] = path.read_bytes()
+    packed = io.BytesIO()
+    write_entries(packed, modules)
+    entries[f"resources/{LIBRARY_ARCHIVE.format(library=library)}"] = packed.getvalue()
