@@ -34,10 +34,12 @@ def timed_child(command, env=None, timeout=600):
 
 @dataclass
 class Timings:
-    """Times (s) of the repeated runs of one length: ``wall`` and ``cpu`` lists."""
+    """Times (s) of the repeated runs of one length: ``wall`` and ``cpu`` lists; ``first``: what a timed call's
+    warm-up returned (:func:`timed_call`)."""
 
     wall: list
     cpu: list
+    first: object = None
 
     def median(self, clock):
         return statistics.median(getattr(self, clock))
@@ -57,11 +59,10 @@ def startup(short, extra=None):
 
 
 def timed_call(call, repeats):
-    """:class:`Timings` of ``repeats`` calls of ``call()`` in this process after one warm-up call, the garbage
-    collector off during each (one collection before them)."""
-    call()
+    """:class:`Timings` of ``repeats`` calls of ``call()`` in this process after one warm-up call (its result in
+    ``first``), the garbage collector off during each (one collection before them)."""
+    timings = Timings([], [], call())
     gc.collect()
-    timings = Timings([], [])
     for _ in range(repeats):
         gc.disable()
         try:

@@ -7,15 +7,14 @@ each call), wall and CPU time. The processes run alternately for ``rounds`` roun
 same machine; the table gives each FMU's medians (ms) and their ratio to the first FMU's.
 """
 
-import gc
 import json
 import statistics
 import subprocess
 import sys
-import time
 
 from ..fmu.variables import START_VALUES
 from .fmus import ExtractedFMU
+from .process_timing import timed_call
 from .scenes import select_scenes
 
 
@@ -36,19 +35,8 @@ def time_fmu(fmu_path, scene_name, comm_step, rtol, repeats):
     scene = select_scenes([scene_name])[0]
     with ExtractedFMU(fmu_path) as fmu:
         start = {name: value for name, value in scene.start_values(rtol).items() if name in fmu.variables}
-        result = fmu.simulate(start, scene.stop_time, comm_step, ("x", "v"))
-        wall, cpu = [], []
-        gc.collect()
-        for _ in range(repeats):
-            gc.disable()
-            try:
-                w0, c0 = time.perf_counter(), time.process_time()
-                fmu.simulate(start, scene.stop_time, comm_step, ("x", "v"))
-                wall.append(time.perf_counter() - w0)
-                cpu.append(time.process_time() - c0)
-            finally:
-                gc.enable()
-    return {"wall": wall, "cpu": cpu, "x_end": float(result["x"][-1])}
+        timings = timed_call(lambda: fmu.simulate(start, scene.stop_time, comm_step, ("x", "v")), repeats)
+    return {"wall": timings.wall, "cpu": timings.cpu, "x_end": float(timings.first["x"][-1])}
 
 
 def run_versus(args):

@@ -6,7 +6,6 @@ follows from the sources (:func:`coupling_tag`), and its Linux binary becomes th
 :mod:`stickslip.fmu.loader`, as the block's does, so that it also runs in hosts that are not Python processes.
 """
 
-import hashlib
 import os
 import tempfile
 import zipfile
@@ -16,7 +15,7 @@ from xml.etree import ElementTree as ET
 from . import archive, loader, model_description
 from .build import default_fmu_path
 from .python_path import preserved_sys_path
-from .sources import SLAVE_FOLDER
+from .sources import SLAVE_FOLDER, files_tag
 
 COUPLING_NAME = "ChainCoupling"
 COUPLING_FILE = f"{COUPLING_NAME}.fmu"
@@ -28,10 +27,7 @@ BOUNDS = {name: ((0.0, None) if name.startswith("kc_") else (None, None)) for na
 
 def coupling_tag():
     """10 hex digits over the slave, this builder and the loader's sources: they decide the FMU's content."""
-    digest = hashlib.sha256()
-    for path in (COUPLING_SLAVE, Path(__file__), *loader.SOURCES):
-        digest.update(Path(path).name.encode() + b"\0" + Path(path).read_bytes() + b"\0")
-    return digest.hexdigest()[:10]
+    return files_tag((COUPLING_SLAVE, Path(__file__), *loader.SOURCES))
 
 
 def default_coupling_path():

@@ -28,13 +28,18 @@ BUILDERS = (*(Path(__file__).resolve().with_name(name) for name in
             *loader.SOURCES)
 
 
+def files_tag(paths):
+    """10 hex digits of a sha256 over the names and contents of the files ``paths``, in that order."""
+    digest = hashlib.sha256()
+    for path in map(Path, paths):
+        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()[:10]
+
+
 def source_tag(fmi_version=2):
     """10 hex digits identifying the runtime, the slave of ``fmi_version``, the shared table and the builders."""
     sources = sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts)
-    digest = hashlib.sha256()
-    for path in [*sources, SLAVES[fmi_version], INTERFACE, *BUILDERS]:
-        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
-    return digest.hexdigest()[:10]
+    return files_tag([*sources, SLAVES[fmi_version], INTERFACE, *BUILDERS])
 
 
 def built_tag(fmu_path, fmi_version=2):

@@ -92,11 +92,12 @@ static void exception_text(char *why, size_t size)
         if (held[i]) py.Py_DecRef(held[i]);
 }
 
-/* The first outputs `result` (a tuple of 1 to fast->n numbers) into the buffer, `fresh` set to their count; 0 (a
- * Python exception set, or none if the tuple's length is wrong) if they are not that. */
+/* The first outputs `result` (a tuple of 1 to fast->n numbers, or NULL after an exception) into the buffer,
+ * `fresh` set to their count; 0 (`fresh` 0; a Python exception set, or none if the tuple's length is wrong) if
+ * they are not that. */
 static int keep_outputs(sbf_fast_path *fast, PyObject *result)
 {
-    ptrdiff_t k = py.PyTuple_Size(result);
+    ptrdiff_t k = result ? py.PyTuple_Size(result) : 0;
     fast->fresh = 0;
     if (k < 1 || k > (ptrdiff_t)fast->n) return 0;
     for (size_t i = 0; i < (size_t)k; ++i) {
@@ -130,7 +131,6 @@ static int have_step_call(sbf_fast_path *fast)
     return found;
 }
 
-
 int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size)
 {
     if (!fast->slave) return -1;
@@ -146,8 +146,7 @@ int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why
             if (size) py.Py_DecRef(size);
         }
         fast->moved = 1; /* a failed step may have moved the state part of the way */
-        fast->current = result && keep_outputs(fast, result);
-        outcome = fast->current ? 0 : 1;
+        outcome = keep_outputs(fast, result) ? 0 : 1;
         if (outcome) exception_text(why, why_size);
         if (result) py.Py_DecRef(result);
     }
@@ -157,7 +156,7 @@ int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why
 
 void sbf_fast_forward(sbf_fast_path *fast, int changes)
 {
-    if (changes) fast->fresh = 0, fast->current = 0;
+    if (changes) fast->fresh = 0;
     if (!fast->moved && !(changes && fast->step)) return;
     int gil = py.PyGILState_Ensure();
     if (fast->moved) {
@@ -196,11 +195,11 @@ static int complete_outputs(sbf_fast_path *fast)
 {
     int gil = py.PyGILState_Ensure();
     PyObject *result = py.PyObject_CallFunctionObjArgs(fast->outputs, NULL);
-    int kept = result && keep_outputs(fast, result) && fast->fresh == fast->n;
+    int kept = keep_outputs(fast, result) && fast->fresh == fast->n;
     if (result) py.Py_DecRef(result);
     if (!kept) {
         py.PyErr_Clear();
-        fast->current = 0;
+        fast->fresh = 0;
     }
     py.PyGILState_Release(gil);
     return kept;
@@ -211,7 +210,7 @@ static int complete_outputs(sbf_fast_path *fast)
 static int buffered(sbf_fast_path *fast, char kind, const unsigned *vr, size_t n)
 {
     size_t needed = 0; /* outputs 0..needed-1 hold the ones asked for */
-    if (!fast->current || (n && !vr)) return 0;
+    if (!fast->fresh || (n && !vr)) return 0;
     for (size_t i = 0; i < n; ++i) {
         if (vr[i] < fast->first || vr[i] - fast->first >= fast->n || fast->kinds[vr[i] - fast->first] != kind)
             return 0;

@@ -36,8 +36,8 @@ typedef struct {
     char kinds[SBF_MAX_OUTPUTS]; /* 'r' real, 'i' integer, per output */
     double reals[SBF_MAX_OUTPUTS];
     long integers[SBF_MAX_OUTPUTS];
-    size_t fresh; /* the first `fresh` outputs in reals/integers hold their values at the current state */
-    int current;  /* the state is the one the last fast step left: the other outputs can be asked for */
+    size_t fresh; /* the first `fresh` outputs in reals/integers hold their values at the current state; 0 unless the
+                   * state is the one the last fast step left (then the other outputs can be asked for) */
     int moved; /* a fast step moved the state since the slave last heard of it */
 } sbf_fast_path;
 
