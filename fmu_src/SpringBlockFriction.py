@@ -27,7 +27,9 @@ import operator
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
-from block_interface import FIRST_OUTPUT, VARIABLES, BlockInterface, balance_release, check_state, serialized_states
+from block_interface import (
+    FIRST_OUTPUT, MAX_OUTPUT_DERIVATIVE_ORDER, VARIABLES, BlockInterface, balance_release, check_state, serialized_states,
+)
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input, "output": Fmi2Causality.output}
 _VARIABILITY = {name: getattr(Fmi2Variability, name) for name in ("fixed", "continuous", "discrete")}
@@ -53,10 +55,13 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         self.offer_to_loader("linux64")
 
     def to_xml(self, model_options=None):
-        """PythonFMU's model description, with the variables registered for it first."""
+        """PythonFMU's model description, with the variables registered for it first, and the input and output
+        derivatives that the C loader answers (canInterpolateInputs, maxOutputDerivativeOrder)."""
         if not self.vars:
             self.register_variables(_KIND, _CAUSALITY, _VARIABILITY)
-        return super().to_xml({} if model_options is None else model_options)
+        root = super().to_xml({**(model_options or {}), "canInterpolateInputs": True})
+        root.find("CoSimulation").set("maxOutputDerivativeOrder", str(MAX_OUTPUT_DERIVATIVE_ORDER))
+        return root
 
     # ---- values of any set of variables ------------------------------------------
 
@@ -136,6 +141,15 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         self.advance(current_time, step_size)
         return True
 
+    def set_real_input_derivatives(self, vrs, orders, values):
+        """fmi2SetRealInputDerivatives (the C loader calls it: PythonFMU has none): see
+        :meth:`BlockInterface.set_input_derivatives`; returns a warning's text or None."""
+        return self.set_input_derivatives(_names(vrs), orders, values)
+
+    def get_real_output_derivatives(self, vrs, orders):
+        """fmi2GetRealOutputDerivatives (the C loader calls it): see :meth:`BlockInterface.output_derivatives`."""
+        return self.output_derivatives(_names(vrs), orders)
+
     def _get_fmu_state(self):
         return self.block_state()
 
@@ -150,6 +164,14 @@ def _check_kind(kind, references):
     if not _REFERENCES[kind].issuperset(references):
         wrong = next(r for r in references if r not in _REFERENCES[kind])
         raise TypeError(f"Variable with valueReference={wrong} is not of type {kind.__name__}!")
+
+
+def _names(references):
+    """The FMU names of the value references (ValueError for one that is no variable)."""
+    if not all(0 <= r < len(VARIABLES) for r in references):
+        wrong = next(r for r in references if not 0 <= r < len(VARIABLES))
+        raise ValueError(f"valueReference={wrong} is no variable of this FMU")
+    return [VARIABLES[r].name for r in references]
 
 
 def hold_loader_namespace(namespace):

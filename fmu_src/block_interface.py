@@ -136,6 +136,15 @@ if tuple(v.attribute for v in VARIABLES[FIRST_OUTPUT:]) != OUTPUT_NAMES:
     raise ImportError("block_interface.VARIABLES must end with the outputs in Trajectory.outputs() order")
 
 
+#: The key of ``BlockInterface.values`` that holds ``der(F_ext)`` (N/s), the first time derivative of ``F_ext`` that an
+#: FMI 2 master set (fmi2SetRealInputDerivatives): F_ext grows at that rate from where it was set, until set again.
+F_EXT_RATE = "der(F_ext)"
+#: The outputs whose time derivatives the FMU gives (fmi2GetRealOutputDerivatives), by order 1, 2: x (v, dv/dt) and v
+#: (dv/dt, d2v/dt2); MAX_OUTPUT_DERIVATIVE_ORDER is the model description's maxOutputDerivativeOrder.
+OUTPUT_DERIVATIVES = {"x": ("v", "a"), "v": ("a", "jerk")}
+MAX_OUTPUT_DERIVATIVE_ORDER = 2
+
+
 class BlockInterface:
     """Parameter and input values by FMU name, and the runtime objects built from them.
 
@@ -147,11 +156,12 @@ class BlockInterface:
 
     def init_block(self):
         self.values = {v.name: v.start for v in VARIABLES if v.causality != "output"}
+        self.values[F_EXT_RATE] = 0.0
         self.variable_units = {v.name: v.unit for v in VARIABLES}
         self.variable_bounds = {v.name: v.bounds for v in VARIABLES}
         self.start_time = 0.0
         self.trajectory = None  # built when initialization ends
-        self._inputs_changed = False  # a value was set since the trajectory last saw the inputs
+        self._inputs_set = set()  # the inputs set since the trajectory last saw them (F_EXT_RATE for der(F_ext))
         self._output_cache = {}  # {output name: value} at the current state, filled as outputs are read
 
     def register_variables(self, classes, causalities, variabilities):
@@ -177,7 +187,9 @@ class BlockInterface:
         if self.trajectory is not None and name in self.values and name not in ("v_drive", "F_ext"):
             raise ParameterError(f"{name} is a fixed parameter: it cannot change after initialization")
         self.values[name] = value
-        self._inputs_changed = True
+        if name == "F_ext":
+            self.values[F_EXT_RATE] = 0.0  # a force set is held, until a rate is set for it
+        self._inputs_set.add(name)
         self._output_cache.clear()
 
     def read_output(self, name, attribute):
@@ -209,17 +221,60 @@ class BlockInterface:
         v = self.values
         return Trajectory(
             self.parameters(), v["x_start"], v["v_start"], v_drive=v["v_drive"], F_ext=v["F_ext"],
-            t0=self.start_time if t0 is None else t0, rtol=v["solver.rtol"],
+            t0=self.start_time if t0 is None else t0, rtol=v["solver.rtol"], F_ext_rate=v[F_EXT_RATE],
         )
 
     def current_trajectory(self):
         """The trajectory with the latest inputs applied (a fresh one during initialization)."""
         if self.trajectory is None:
             return self.new_trajectory()
-        if self._inputs_changed:
-            self.trajectory.set_inputs(self.values["v_drive"], self.values["F_ext"])
-            self._inputs_changed = False
+        if self._inputs_set:
+            trajectory, v = self.trajectory, self.values
+            force = v["F_ext"] if "F_ext" in self._inputs_set else trajectory.F_ext_now  # else F_ext goes on from now
+            trajectory.set_inputs(v["v_drive"], force, v[F_EXT_RATE])
+            self._inputs_set.clear()
         return self.trajectory
+
+    # ---- input and output derivatives (FMI 2) -------------------------------------------
+
+    def set_input_derivatives(self, names, orders, values):
+        """fmi2SetRealInputDerivatives on the inputs ``names``: ``der(F_ext)`` (N/s, order 1) is taken, from the
+        current time on; a derivative the block does not follow (F_ext's of order 2 and more, v_drive's, which is
+        held over a step), is taken only if it is 0, else ignored with the warning returned (None if none)."""
+        ignored = []
+        for name, order, value in zip(names, orders, values):
+            if name not in ("v_drive", "F_ext"):
+                raise ValueError(f"{name} is not an input: input derivatives are set for the inputs v_drive and F_ext")
+            if not order >= 1:
+                raise ValueError(f"the order of der({name}) is {order}: allowed is 1 or more (1: the first derivative)")
+            check(f"der({name}, {order})", value, ANY_FINITE)
+            if name == "F_ext" and order == 1:
+                self.values[F_EXT_RATE] = float(value)
+                self._inputs_set.add(F_EXT_RATE)
+                self._output_cache.clear()
+            elif value != 0.0:
+                ignored.append(f"der({name}, {order}) = {value!r}")
+        if not ignored:
+            return None
+        return (f"fmi2SetRealInputDerivatives: ignored {', '.join(ignored)}: the block follows F_ext to first order "
+                f"(F_ext and der(F_ext) from where they were set) and holds v_drive over a step")
+
+    def output_derivatives(self, names, orders):
+        """fmi2GetRealOutputDerivatives: the derivatives of order 1 or 2 of the outputs ``names`` (x: m/s, m/s^2;
+        v: m/s^2, m/s^3) at the current time, as the mode there continues (see Trajectory.acceleration)."""
+        trajectory = self.current_trajectory()
+        a, jerk = trajectory.acceleration()
+        known = {"v": trajectory.v, "a": a, "jerk": jerk}
+        answers = []
+        for name, order in zip(names, orders):
+            if name not in OUTPUT_DERIVATIVES:
+                raise ValueError(f"no derivatives of {name}: output derivatives are given for "
+                                 f"{' and '.join(OUTPUT_DERIVATIVES)}")
+            if not 1 <= order <= MAX_OUTPUT_DERIVATIVE_ORDER:
+                raise ValueError(f"the order of der({name}) is {order}: allowed is 1 to {MAX_OUTPUT_DERIVATIVE_ORDER} "
+                                 f"(maxOutputDerivativeOrder)")
+            answers.append(known[OUTPUT_DERIVATIVES[name][order - 1]])
+        return tuple(answers)
 
     def advance(self, current_time, step_size):
         """``doStep``: hold the inputs and advance the trajectory from ``current_time`` by ``step_size`` s
@@ -294,7 +349,7 @@ class BlockInterface:
         """Take a state from :meth:`checked_block_state`."""
         values, self.start_time, self.trajectory, _ = checked
         self.values.update(values)
-        self._inputs_changed = False  # the restored trajectory holds the restored inputs
+        self._inputs_set.clear()  # the restored trajectory holds the restored inputs
         self.outputs_changed()
 
 

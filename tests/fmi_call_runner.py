@@ -378,12 +378,13 @@ def fmi2_version(b):
 
 
 def fmi2_derivatives(b):
-    """The derivative calls the model description rules out: directional derivatives (not provided), input
-    derivatives (canInterpolateInputs = false), output derivatives (maxOutputDerivativeOrder = 0)."""
+    """The derivative calls: directional derivatives, which the model description rules out (not provided); input
+    derivatives (canInterpolateInputs: der(F_ext) of order 1) and output derivatives (maxOutputDerivativeOrder = 2;
+    their values: tests/test_input_output_derivatives.py)."""
     c = b.initialized(STUCK)
     seed, out, order = (c_double * 1)(1.0), (c_double * 1)(), (c_int * 1)(1)
     b("fmi2GetDirectionalDerivative", c, b.vrs("x"), 1, b.vrs("v_drive"), 1, seed, out)
-    b("fmi2SetRealInputDerivatives", c, b.vrs("v_drive"), 1, order, seed)
+    b("fmi2SetRealInputDerivatives", c, b.vrs("F_ext"), 1, order, seed)
     b("fmi2GetRealOutputDerivatives", c, b.vrs("x"), 1, order, out)
     b("fmi2FreeInstance", c)
 

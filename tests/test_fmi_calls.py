@@ -53,12 +53,12 @@ FMI2_EXPECTED = {
         "fmi2GetBoolean of none", "fmi2SetBoolean of none", "fmi2GetString of none", "fmi2SetString of none",
         "fmi2DoStep after the refusals", "fmi2GetReal after the refusals",
         "fmi2GetBooleanStatus",  # fmi2Terminated: the slave never asks to terminate (fmi2False)
+        "fmi2SetRealInputDerivatives",  # canInterpolateInputs = true: der(F_ext)
+        "fmi2GetRealOutputDerivatives",  # maxOutputDerivativeOrder = 2: der(x)
     ], "ok"),
     **dict.fromkeys([
         "fmi2GetBoolean of a Real", "fmi2SetBoolean of a Real", "fmi2GetString of a Real", "fmi2SetString of a Real",
         "fmi2GetDirectionalDerivative",  # providesDirectionalDerivative is not set
-        "fmi2SetRealInputDerivatives",  # canInterpolateInputs = false
-        "fmi2GetRealOutputDerivatives",  # maxOutputDerivativeOrder = 0
         "fmi2CancelStep",  # only for an fmi2DoStep that returned fmi2Pending, which this FMU never does
     ], "refused"),
     **dict.fromkeys([

@@ -135,6 +135,13 @@ def check_input_scales(v_drive, F_ext, p):
                        lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, v_drive = {v_drive!r} m/s")
 
 
+def check_rate_scale(F_ext_rate, p):
+    """Raise ParameterError if ``sqrt(M/kappa) |der(F_ext)|``, the force a growing ``F_ext`` adds over the block's
+    time scale, exceeds :data:`MAX_FORCE_SCALE`."""
+    _check_force_scale("sqrt(M/kappa) * |der(F_ext)|", math.sqrt(p.M) / math.sqrt(p.kappa) * abs(F_ext_rate),
+                       lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, der(F_ext) = {F_ext_rate!r} N/s")
+
+
 TIME_RESOLUTION = 1e-8  # the coarsest spacing of floats allowed at a start time, in units of sqrt(M/kappa)
 
 

@@ -4,10 +4,12 @@ Usage (the whole contract the FMU slave and the Python API rely on)::
 
     traj = Trajectory(params, x0, v0, v_drive=0.1, F_ext=0.0, t0=0.0, rtol=1e-10)
     traj.set_inputs(v_drive, F_ext)   # inputs held constant from now on; no-op if unchanged
+    traj.set_inputs(v_drive, F_ext, F_ext_rate)   # F_ext(t) = F_ext + F_ext_rate (t - traj.t) from now on
     traj.advance_to(t)                # t >= traj.t; processes every event up to and at t
     traj.communicate(t, h)            # a co-simulation step from t == traj.t by h >= 0; (x, v) after it
     xs, vs = traj.sample(times)       # advance_to each of the increasing times, collecting x and v
     traj.x, traj.v, traj.mode, ...    # state at traj.t (see the properties below)
+    a, jerk = traj.acceleration()     # dv/dt and d2v/dt2 at traj.t (the FMI output derivatives)
     snap = traj.snapshot()            # JSON-serializable dict, exact floats
     traj = Trajectory.from_snapshot(params, snap)   # continues bit for bit (without the event record)
 
@@ -17,6 +19,15 @@ Runge-Kutta method with dense output. The current segment may reach beyond
 ``traj.t``; values at ``traj.t`` come from its closed form or dense output, so
 the result at a time does not depend on how the caller slices time, only on
 when the inputs change.
+
+An external force that grows linearly, ``F_ext(t) = F_ext + F_ext_rate (t - t_f)``
+from the time ``t_f`` it was set, is exact too: in the frame ``y = x - c (t - t_f)``,
+``c = F_ext_rate / kappa``, the block obeys the model with the constant force
+``F_ext`` on a surface moving at ``v_drive - c`` (the spring force ``kappa c (t - t_f)``
+of the frame's drift cancels the force's growth; sliding speed, holding force and
+indicators are the same in both frames). The segments run in that frame; ``x`` and
+``v`` are turned back at the trajectory's surface. With no rate the frame is the
+block's own and nothing is turned.
 """
 
 from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
@@ -30,6 +41,7 @@ from .model import (
     STUCK,
     check_input_scales,
     check_inputs,
+    check_rate_scale,
     check_scales,
     check_start_time,
     check_state,
@@ -39,6 +51,8 @@ from .model import (
     initial_mode,
     mode_after_input_change,
     mode_after_slip,
+    slip_acceleration,
+    slip_acceleration_slope,
     slip_departs,
     slip_direction,
     z_slip,
@@ -62,7 +76,7 @@ SEGMENTS_RANGE = Range(1, None)
 
 # The fields of :meth:`Trajectory.snapshot` and their kinds (:mod:`.saved_state`)
 _SNAPSHOT_FIELDS = {"t": saved_state.REAL, "v_drive": saved_state.REAL, "F_ext": saved_state.REAL,
-                    "rtol": saved_state.REAL, "counts": saved_state.NESTED, "burst": saved_state.NESTED,
+                    "F_ext_rate": saved_state.REAL, "frame_t": saved_state.REAL, "rtol": saved_state.REAL, "counts": saved_state.NESTED, "burst": saved_state.NESTED,
                     "t_last_event": saved_state.REAL,
                     "stepper": saved_state.NESTED, "segment": saved_state.NESTED}
 _COUNT_FIELDS = tuple((name, saved_state.COUNT) for name in ("n_stick_events", "n_slip_events", "n_overshoots",
@@ -86,7 +100,8 @@ class Trajectory:
     rtol: float
     t: float  # s
     v_drive: float  # m/s
-    F_ext: float  # N
+    F_ext: float  # N, at _frame_t
+    F_ext_rate: float  # N/s: F_ext(t) = F_ext + F_ext_rate (t - _frame_t)
     n_stick_events: int
     n_slip_events: int
     n_overshoots: int
@@ -99,12 +114,16 @@ class Trajectory:
     _burst: int
     _stepper: SlipStepper
     _segment: Segment
-    _x: float  # m, at t
-    _v: float  # m/s, at t
+    _frame_t: float  # s: when the inputs were last set
+    _drift: float  # m/s: F_ext_rate / kappa, the frame's speed; the segments give y = x - _drift (t - _frame_t)
+    _v_frame: float  # m/s: v_drive - _drift, the surface's speed in that frame
+    _x: float  # m: y at t
+    _v: float  # m/s: dy/dt at t
 
     def __init__(self, params, x0, v0, v_drive=0.0, F_ext=0.0, t0=0.0, rtol=1e-10, record_events=False,
-                 reuse_steps=True, max_segments=MAX_SEGMENTS):
-        """``record_events``: keep every mode change as ``(t, mode_before, mode_after)`` in ``self.events``
+                 reuse_steps=True, max_segments=MAX_SEGMENTS, F_ext_rate=0.0):
+        """``F_ext_rate`` (N/s): ``F_ext`` grows at this rate from ``t0`` on (see :meth:`set_inputs`).
+        ``record_events``: keep every mode change as ``(t, mode_before, mode_after)`` in ``self.events``
         (memory grows with the run; otherwise ``self.events`` is None and only the counters are kept).
         ``reuse_steps``: replay remembered Runge-Kutta steps from bit-identical states (the same numbers,
         less work, see :class:`~.numeric_slip.SlipStepper`); False integrates every step.
@@ -113,6 +132,7 @@ class Trajectory:
         params.check()
         check_state(x0, v0)
         check_inputs(v_drive, F_ext)
+        drift = _checked_drift(F_ext_rate, params)
         check("solver.rtol", rtol, RTOL_RANGE)
         check("max_segments", max_segments, SEGMENTS_RANGE)
         check_scales(x0, v0, v_drive, F_ext, params, ("x_start", "v_start"))
@@ -122,6 +142,8 @@ class Trajectory:
         self.t = float(t0)
         self.v_drive = float(v_drive)
         self.F_ext = float(F_ext)
+        self.F_ext_rate = float(F_ext_rate)
+        self._frame_t, self._drift, self._v_frame = self.t, drift, self.v_drive - drift
         self.n_stick_events = 0
         self.n_slip_events = 0
         self.n_overshoots = 0
@@ -133,30 +155,37 @@ class Trajectory:
         self._burst_start, self._burst = self.t, 0
         self._stepper = SlipStepper(self.rtol, memo_size=MEMO_SIZE if reuse_steps else 0)
         mode = initial_mode(x0, v0, self.v_drive, self.F_ext, params)
-        self._segment = self._start_segment(self.t, float(x0), float(v0), mode, 0.0)
+        v_start = self._v_frame if mode == STUCK else float(v0) - drift
+        self._segment = self._start_segment(self.t, float(x0), v_start, mode, 0.0)
         self._x, self._v = self._segment.state(self.t)
 
     # ------------------------------------------------------------------
     # driving
     # ------------------------------------------------------------------
 
-    def set_inputs(self, v_drive, F_ext):
-        """Hold new inputs from ``self.t`` on; a stuck block moves with the new surface speed."""
-        if v_drive == self.v_drive and F_ext == self.F_ext:
+    def set_inputs(self, v_drive, F_ext, F_ext_rate=0.0):
+        """Hold ``v_drive`` (m/s) from ``self.t`` on, and ``F_ext`` (N) there, growing at ``F_ext_rate`` (N/s) from
+        there; a stuck block moves with the new surface speed. A no-op where nothing changes."""
+        if v_drive == self.v_drive and F_ext_rate == self.F_ext_rate and F_ext == (
+                self.F_ext if F_ext_rate == 0.0 else self.F_ext_now):
             return
         check_inputs(v_drive, F_ext)
         check_input_scales(v_drive, F_ext, self.params)
+        drift = _checked_drift(F_ext_rate, self.params)
+        x, v = self.x, self.v
         segment = self._segment
         t_stick = segment.t_stick(self.t)
         old_mode = segment.mode
-        new_mode = mode_after_input_change(old_mode, self._x, self._v, t_stick, v_drive, F_ext, self.params)
-        self.v_drive, self.F_ext = float(v_drive), float(F_ext)
-        v = self.v_drive if new_mode == STUCK or old_mode == STUCK else self._v
+        v_frame = float(v_drive) - drift
+        new_mode = mode_after_input_change(old_mode, x, v, t_stick, v_drive, F_ext, self.params)
+        self.v_drive, self.F_ext, self.F_ext_rate = float(v_drive), float(F_ext), float(F_ext_rate)
+        self._frame_t, self._drift, self._v_frame = self.t, drift, v_frame
         if new_mode != old_mode:
             self._log_event(self.t, old_mode, new_mode)
         if new_mode != STUCK or old_mode != STUCK:
             t_stick = 0.0
-        self._segment = self._start_segment(self.t, self._x, v, new_mode, t_stick)
+        v_start = v_frame if new_mode == STUCK or old_mode == STUCK else v - drift
+        self._segment = self._start_segment(self.t, x, v_start, new_mode, t_stick)
         self._x, self._v = self._segment.state(self.t)
 
     def advance_to(self, t: float) -> None:
@@ -222,10 +251,17 @@ class Trajectory:
                 i += 1
         if xs:
             self.t, self._x, self._v = grid[-1], xs[-1], vs[-1]
+        if self._drift != 0.0:
+            xs, vs = self._unframed(grid, xs, vs)
         if not (all(map(math.isfinite, xs)) and all(map(math.isfinite, vs))):
             bad = next(i for i, (x, v) in enumerate(zip(xs, vs)) if not (math.isfinite(x) and math.isfinite(v)))
             raise SolverError(f"the state overflowed at t = {grid[bad]!r} s (x = {xs[bad]!r}, v = {vs[bad]!r})")
         return xs, vs
+
+    def _unframed(self, grid: list[float], ys: list[float], dys: list[float]) -> tuple[list[float], list[float]]:
+        """``x`` (m) and ``v`` (m/s) at the times ``grid`` (s) from the frame's ``y`` and ``dy/dt`` there."""
+        drift, start = self._drift, self._frame_t
+        return [y + drift * (t - start) for t, y in zip(grid, ys)], [dy + drift for dy in dys]
 
     def communicate(self, current_time: float, step_size: float) -> tuple[float, float]:
         """A co-simulation step (FMI doStep, inputs held): from ``current_time`` (s), which must be this
@@ -234,7 +270,9 @@ class Trajectory:
         for the other outputs only when a host reads one."""
         check_step(current_time, step_size, self.t)
         self.advance_to(current_time + step_size)
-        return self._x, self._v
+        if self._drift == 0.0:
+            return self._x, self._v
+        return self.x, self.v
 
     # ------------------------------------------------------------------
     # state and outputs at self.t
@@ -242,26 +280,50 @@ class Trajectory:
 
     def outputs(self):
         """Every property named in :data:`OUTPUT_NAMES`, in that order, from one evaluation of the state."""
-        segment, x, v, F_ext, p = self._segment, self._x, self._v, self.F_ext, self.params
+        segment, y, dy, F_ext, p = self._segment, self._x, self._v, self.F_ext, self.params
         mode = segment.mode
         t_stick = segment.t_stick(self.t)
-        v_rel = 0.0 if mode == STUCK else self.v_drive - v
+        v_rel = 0.0 if mode == STUCK else self._v_frame - dy
         n_stick, n_slip, n_over = self.n_stick_events, self.n_slip_events, self.n_overshoots
+        x = self.x
         return (
-            x, v, v_rel, friction_force(mode, x, v, self.v_drive, F_ext, p), -p.kappa * x, mode, t_stick,
-            z_slip(x, F_ext, t_stick, p), v_rel, n_stick + n_slip + n_over, n_stick, n_slip, n_over,
+            x, self.v, v_rel, friction_force(mode, y, dy, self._v_frame, F_ext, p), -p.kappa * x, mode, t_stick,
+            z_slip(y, F_ext, t_stick, p), v_rel, n_stick + n_slip + n_over, n_stick, n_slip, n_over,
             self.t_last_event, self._stepper.n_steps,
         )
+
+    def acceleration(self) -> tuple[float, float]:
+        """``(dv/dt, d2v/dt2)`` (m/s^2, m/s^3) at ``self.t``, in the mode there (after an event at ``self.t``): 0 and
+        0 while stuck (the surface's speed is held); while slipping, SPEC's ``M dv/dt = F_ext - kappa x + F`` and
+        its time derivative ``M d2v/dt2 = dF_ext/dt - kappa v + dF/dv_rel (-dv/dt)``."""
+        mode = self._segment.mode
+        if mode == STUCK:
+            return 0.0, 0.0
+        p = self.params
+        a = slip_acceleration(mode, self._x, self._v, self._v_frame, self.F_ext, p)
+        jerk = -p.kappa / p.M * self._v + slip_acceleration_slope(mode, self._v, self._v_frame, p) * a
+        return a, jerk
+
+    @property
+    def F_ext_now(self) -> float:
+        """The external force (N) at ``self.t``."""
+        if self.F_ext_rate == 0.0:
+            return self.F_ext
+        return self.F_ext + self.F_ext_rate * (self.t - self._frame_t)
 
     @property
     def x(self) -> float:
         """Block position (m) from the spring's relaxed length."""
-        return self._x
+        if self._drift == 0.0:
+            return self._x
+        return self._x + self._drift * (self.t - self._frame_t)
 
     @property
     def v(self) -> float:
         """Block velocity (m/s)."""
-        return self._v
+        if self._drift == 0.0:
+            return self._v
+        return self._v + self._drift
 
     @property
     def mode(self) -> int:
@@ -276,21 +338,21 @@ class Trajectory:
     @property
     def v_rel(self) -> float:
         """Relative sliding velocity ``v_drive - v`` (m/s); exactly 0 while stuck."""
-        return 0.0 if self.mode == STUCK else self.v_drive - self._v
+        return 0.0 if self.mode == STUCK else self._v_frame - self._v
 
     @property
     def friction_force(self) -> float:
         """Friction force of the surface on the block (N, + along x)."""
-        return friction_force(self.mode, self._x, self._v, self.v_drive, self.F_ext, self.params)
+        return friction_force(self.mode, self._x, self._v, self._v_frame, self.F_ext, self.params)
 
     @property
     def spring_force(self) -> float:
         """Spring force on the block (N): ``-kappa x``."""
-        return -self.params.kappa * self._x
+        return -self.params.kappa * self.x
 
     @property
     def z_slip(self) -> float:
-        """Stick-to-slip indicator (N): ``F_S(t_stick) - |kappa x - F_ext|``."""
+        """Stick-to-slip indicator (N): ``F_S(t_stick) - |kappa x - F_ext|`` (the same in the frame)."""
         return z_slip(self._x, self.F_ext, self.t_stick, self.params)
 
     @property
@@ -318,6 +380,8 @@ class Trajectory:
             "t": self.t,
             "v_drive": self.v_drive,
             "F_ext": self.F_ext,
+            "F_ext_rate": self.F_ext_rate,
+            "frame_t": self._frame_t,
             "rtol": self.rtol,
             "counts": [self.n_stick_events, self.n_slip_events, self.n_overshoots, self._chain],
             "burst": [self._burst_start, self._burst],
@@ -338,19 +402,22 @@ class Trajectory:
         t = fields["t"]
         check("saved state rtol", fields["rtol"], RTOL_RANGE, error=StateError)
         check_input_scales(fields["v_drive"], fields["F_ext"], params)
+        drift = _checked_drift(fields["F_ext_rate"], params, StateError)
         counts = saved_state.sequence("counts", snap["counts"], _COUNT_FIELDS)
         burst = saved_state.sequence("burst", snap["burst"], _BURST_FIELDS)
         stepper = saved_state.sequence("stepper", snap["stepper"], _STEPPER_FIELDS)
         segment = segment_from_list(snap["segment"], params)
-        if not (segment.t0 <= t <= segment.t1 and fields["t_last_event"] <= t):
+        if not (segment.t0 <= t <= segment.t1 and fields["t_last_event"] <= t and fields["frame_t"] <= t):
             raise StateError(f"saved state t = {t!r} s lies outside its segment [{segment.t0!r}, {segment.t1!r}] s "
-                             f"or before its last event at {fields['t_last_event']!r} s")
+                             f"or before its last event at {fields['t_last_event']!r} s or its inputs' time "
+                             f"{fields['frame_t']!r} s")
         x, v = segment.state(t)
         saved_state.field("x at t", x, saved_state.REAL)
         saved_state.field("v at t", v, saved_state.REAL)
         check_state_scales(x, v, params, ("saved state x", "saved state v"))
         traj = cls(params, 0.0, 0.0, rtol=fields["rtol"])  # at rest: every field is replaced below
-        traj.t, traj.v_drive, traj.F_ext = t, fields["v_drive"], fields["F_ext"]
+        traj.t, traj.v_drive, traj.F_ext, traj.F_ext_rate = t, fields["v_drive"], fields["F_ext"], fields["F_ext_rate"]
+        traj._frame_t, traj._drift, traj._v_frame = fields["frame_t"], drift, fields["v_drive"] - drift
         traj.t_last_event = fields["t_last_event"]
         traj.n_stick_events, traj.n_slip_events, traj.n_overshoots, traj._chain = counts
         traj._burst_start, traj._burst = burst
@@ -371,7 +438,7 @@ class Trajectory:
         mode = segment.mode
         t_stick = segment.t_stick(t1)
         if segment.ends_in_event:
-            p, v_drive, F_ext = self.params, self.v_drive, self.F_ext
+            p, v_drive, F_ext = self.params, self._v_frame, self.F_ext
             resolution = force_resolution(t1, x1, v_drive, F_ext, p)
             new_mode = (
                 slip_direction(x1, v_drive, F_ext, p, resolution)
@@ -391,20 +458,21 @@ class Trajectory:
             # a constant F_S gives the breakaway in closed form; an aging one is searched piecewise
             aging = not p.static.is_constant()
             horizon = _STUCK_HORIZON_PERIODS * math.sqrt(p.M / p.kappa) if aging else math.inf
-            delay = breakaway_delay(x0, self.v_drive, self.F_ext, t_stick, p, horizon)
+            delay = breakaway_delay(x0, self._v_frame, self.F_ext, t_stick, p, horizon)
             replayable = p.kinetic.affine() is None  # the slip after it is numeric (see StuckSegment)
             if delay is not None:
-                return StuckSegment(t0, delay, True, x0, self.v_drive, t_stick, replayable)
-            return StuckSegment(t0, horizon, False, x0, self.v_drive, t_stick, replayable)
-        if v0 == self.v_drive and not slip_departs(mode, x0, self.v_drive, self.F_ext, p,
-                                                   force_resolution(t0, x0, self.v_drive, self.F_ext, p)):
+                return StuckSegment(t0, delay, True, x0, self._v_frame, t_stick, replayable)
+            return StuckSegment(t0, horizon, False, x0, self._v_frame, t_stick, replayable)
+        v_frame = self._v_frame  # the surface's speed in the frame the segments run in
+        if v0 == v_frame and not slip_departs(mode, x0, v_frame, self.F_ext, p,
+                                              force_resolution(t0, x0, v_frame, self.F_ext, p)):
             return StepSegment.instant(t0, mode, x0, v0)  # v_rel cannot leave 0 this way: decide again now
         if p.kinetic.affine() is not None:
-            return HarmonicSegment.start(t0, mode, x0, v0, self.v_drive, self.F_ext, p)
+            return HarmonicSegment.start(t0, mode, x0, v0, v_frame, self.F_ext, p)
         if not continues:
             self._stepper.restart()
-        step, ends_in_event = self._stepper.step(t0, x0, v0, mode, self.v_drive, self.F_ext, p)
-        return StepSegment.from_step(t0, mode, step, ends_in_event, self.v_drive)
+        step, ends_in_event = self._stepper.step(t0, x0, v0, mode, v_frame, self.F_ext, p)
+        return StepSegment.from_step(t0, mode, step, ends_in_event, v_frame)
 
     def _log_event(self, t: float, old_mode: int, new_mode: int) -> None:
         self.t_last_event = t
@@ -469,6 +537,14 @@ def check_step(current_time: float, step_size: float, t: float) -> None:
             f"the end of the last step): {kind} of {abs(current_time - t):.6g} s between communication points; "
             f"a step starts where the last ended (restore a saved FMU state to go back)"
         )
+
+
+def _checked_drift(F_ext_rate, p, error=ParameterError):
+    """``F_ext_rate / kappa`` (m/s), the frame's speed for a growing ``F_ext`` (see the module's docstring), after
+    checking the rate ``der(F_ext)`` (N/s): finite, and within the force scale over the block's time scale."""
+    check("der(F_ext)", F_ext_rate, ANY_FINITE, "N/s", error=error)
+    check_rate_scale(F_ext_rate, p)
+    return float(F_ext_rate) / p.kappa
 
 
 def _finite(value: float) -> bool:

@@ -15,6 +15,9 @@ static struct {
     PyObject *(*PyObject_CallMethod)(PyObject *, const char *, const char *, ...);
     PyObject *(*PyObject_CallFunctionObjArgs)(PyObject *, ...);
     PyObject *(*PyFloat_FromDouble)(double);
+    PyObject *(*PyLong_FromLong)(long);
+    PyObject *(*PyTuple_New)(ptrdiff_t);
+    int (*PyTuple_SetItem)(PyObject *, ptrdiff_t, PyObject *);
     double (*PyFloat_AsDouble)(PyObject *);
     long (*PyLong_AsLong)(PyObject *);
     ptrdiff_t (*PyTuple_Size)(PyObject *);
@@ -29,15 +32,17 @@ static struct {
     const char *(*PyUnicode_AsUTF8)(PyObject *);
 } py;
 static PyObject *py_none; /* Py_None */
-static int available;     /* every function above was found */
+static int available;     /* every function above was found: slaves can bind */
+static int stepping;      /* and steps and reads take the fast path (not turned off by SBF_FAST_PATH=0) */
 
 void sbf_fast_resolve(void *lib)
 {
     const char *setting = getenv(SBF_FAST_PATH_VARIABLE);
-    if (setting && strcmp(setting, "0") == 0) return; /* off: every call goes the inner library's way */
+    stepping = !(setting && strcmp(setting, "0") == 0); /* off: steps and reads go the inner library's way */
 #define RESOLVE(symbol) (*(void **)&py.symbol = dlsym(lib, #symbol)) != NULL
     available = RESOLVE(PyGILState_Ensure) && RESOLVE(PyGILState_Release) && RESOLVE(PyObject_CallMethod) &&
                 RESOLVE(PyObject_CallFunctionObjArgs) && RESOLVE(PyFloat_FromDouble) && RESOLVE(PyFloat_AsDouble) &&
+                RESOLVE(PyLong_FromLong) && RESOLVE(PyTuple_New) && RESOLVE(PyTuple_SetItem) &&
                 RESOLVE(PyLong_AsLong) && RESOLVE(PyTuple_Size) && RESOLVE(PyTuple_GetItem) && RESOLVE(Py_IncRef) &&
                 RESOLVE(Py_DecRef) && RESOLVE(PyErr_Occurred) && RESOLVE(PyErr_Fetch) &&
                 RESOLVE(PyErr_NormalizeException) && RESOLVE(PyErr_Clear) && RESOLVE(PyObject_Repr) &&
@@ -77,15 +82,15 @@ __attribute__((visibility("default"))) int sbf_bind_slave(PyObject *slave, unsig
 
 /* ---- the step ---- */
 
-/* The pending Python exception as "[doStep] <repr>" in `why`, cleared. */
-static void exception_text(char *why, size_t size)
+/* The pending Python exception as "[<call>] <repr>" in `why`, cleared. */
+static void exception_text(const char *call, char *why, size_t size)
 {
     PyObject *type = NULL, *value = NULL, *traceback = NULL;
     py.PyErr_Fetch(&type, &value, &traceback);
     py.PyErr_NormalizeException(&type, &value, &traceback);
     PyObject *repr = value ? py.PyObject_Repr(value) : NULL;
     const char *text = repr ? py.PyUnicode_AsUTF8(repr) : NULL;
-    snprintf(why, size, "[doStep] %s", text ? text : "unknown error");
+    snprintf(why, size, "[%s] %s", call, text ? text : "unknown error");
     py.PyErr_Clear();
     PyObject *held[] = {repr, type, value, traceback};
     for (size_t i = 0; i < sizeof held / sizeof *held; ++i)
@@ -133,7 +138,7 @@ static int have_step_call(sbf_fast_path *fast)
 
 int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size)
 {
-    if (!fast->slave) return -1;
+    if (!fast->slave || !stepping) return -1;
     int gil = py.PyGILState_Ensure();
     int outcome = -1;
     int found = have_step_call(fast);
@@ -147,7 +152,7 @@ int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why
         }
         fast->moved = 1; /* a failed step may have moved the state part of the way */
         outcome = keep_outputs(fast, result) ? 0 : 1;
-        if (outcome) exception_text(why, why_size);
+        if (outcome) exception_text("doStep", why, why_size);
         if (result) py.Py_DecRef(result);
     }
     py.PyGILState_Release(gil);
@@ -210,7 +215,7 @@ static int complete_outputs(sbf_fast_path *fast)
 static int buffered(sbf_fast_path *fast, char kind, const unsigned *vr, size_t n)
 {
     size_t needed = 0; /* outputs 0..needed-1 hold the ones asked for */
-    if (!fast->fresh || (n && !vr)) return 0;
+    if (!stepping || !fast->fresh || (n && !vr)) return 0;
     for (size_t i = 0; i < n; ++i) {
         if (vr[i] < fast->first || vr[i] - fast->first >= fast->n || fast->kinds[vr[i] - fast->first] != kind)
             return 0;
@@ -231,4 +236,70 @@ int sbf_fast_integers(sbf_fast_path *fast, const unsigned *vr, size_t n, int *va
     if (!buffered(fast, 'i', vr, n) || (n && !values)) return 0;
     for (size_t i = 0; i < n; ++i) values[i] = (int)fast->integers[vr[i] - fast->first];
     return 1;
+}
+
+/* ---- the derivatives ---- */
+
+/* A tuple of the `n` numbers `value(i)`, or NULL (an exception set) */
+#define NEW_TUPLE(tuple, n, value)                                                                                 \
+    do {                                                                                                           \
+        tuple = py.PyTuple_New((ptrdiff_t)(n));                                                                    \
+        for (size_t i_ = 0; tuple && i_ < (n); ++i_) {                                                             \
+            PyObject *item_ = value(i_);                                                                           \
+            if (!item_ || py.PyTuple_SetItem(tuple, (ptrdiff_t)i_, item_) != 0) {                                  \
+                py.Py_DecRef(tuple);                                                                               \
+                tuple = NULL;                                                                                      \
+            }                                                                                                      \
+        }                                                                                                          \
+    } while (0)
+
+/* The slave's answer `result` to `function`'s call: for a read, `n` numbers into `values`; for a write, None or a warning's
+ * text into `why`. The outcome as sbf_slave_derivatives gives it. */
+static int derivatives_answer(PyObject *result, const char *function, size_t n, double *values, int writes, char *why,
+                              size_t why_size)
+{
+    if (!result) return 1;
+    if (writes) {
+        const char *text = result == py_none ? NULL : py.PyUnicode_AsUTF8(result);
+        if (text) snprintf(why, why_size, "%s", text);
+        return text ? 2 : result == py_none ? 0 : 1;
+    }
+    if (py.PyTuple_Size(result) != (ptrdiff_t)n) {
+        snprintf(why, why_size, "[%s] the slave answered %zd values for %zu asked for", function,
+                 py.PyTuple_Size(result), n);
+        return 3;
+    }
+    for (size_t i = 0; i < n; ++i) values[i] = py.PyFloat_AsDouble(py.PyTuple_GetItem(result, (ptrdiff_t)i));
+    return py.PyErr_Occurred() ? 1 : 0;
+}
+
+int sbf_slave_derivatives(sbf_fast_path *fast, const char *function, const char *method, const unsigned *vr, size_t n,
+                          const int *order, double *values, int writes, char *why, size_t why_size)
+{
+    if (!fast->slave) {
+        snprintf(why, why_size, "%s: not available: the slave did not bind to this library (a CPython without the "
+                 "functions the loader calls, or the inner library's own binary)", function);
+        return 1;
+    }
+    int gil = py.PyGILState_Ensure();
+    PyObject *references, *orders, *given = NULL, *result = NULL;
+#define REFERENCE(i) py.PyLong_FromLong((long)vr[i])
+#define ORDER(i) py.PyLong_FromLong((long)order[i])
+#define VALUE(i) py.PyFloat_FromDouble(values[i])
+    NEW_TUPLE(references, n, REFERENCE);
+    NEW_TUPLE(orders, n, ORDER);
+    if (writes) NEW_TUPLE(given, n, VALUE);
+#undef REFERENCE
+#undef ORDER
+#undef VALUE
+    if (references && orders && (given || !writes))
+        result = py.PyObject_CallMethod(fast->slave, method, writes ? "(OOO)" : "(OO)", references, orders, given);
+    int outcome = derivatives_answer(result, function, n, values, writes, why, why_size);
+    if (outcome == 1) exception_text(function, why, why_size);
+    if (outcome == 3) outcome = 1;
+    PyObject *held[] = {references, orders, given, result};
+    for (size_t i = 0; i < sizeof held / sizeof *held; ++i)
+        if (held[i]) py.Py_DecRef(held[i]);
+    py.PyGILState_Release(gil);
+    return outcome;
 }

@@ -16,8 +16,9 @@
  *     from, and the slave gives a new step call for it.
  * The outputs are the very values the slave's getters answer (the same conversions as the inner library's),
  * so results do not depend on which path a call takes. Where the slave offers nothing (a pythonfmu binary
- * without this loader's symbol, a CPython without the functions below, SBF_FAST_PATH=0 in the environment), every
- * call goes the inner library's way.
+ * without this loader's symbol, a CPython without the functions below) or SBF_FAST_PATH=0 is in the environment,
+ * every step and read goes the inner library's way. The input and output derivatives, which the inner library
+ * lacks, go to the bound slave's methods either way (sbf_slave_derivatives).
  */
 #ifndef SBF_FAST_PATH_H
 #define SBF_FAST_PATH_H
@@ -62,6 +63,13 @@ void sbf_fast_forward(sbf_fast_path *fast, int changes);
  * call). */
 int sbf_fast_reals(sbf_fast_path *fast, const unsigned *vr, size_t n, double *values);
 int sbf_fast_integers(sbf_fast_path *fast, const unsigned *vr, size_t n, int *values);
+
+/* The FMI function `function` answered by the slave's `method` (set_real_input_derivatives or
+ * get_real_output_derivatives, fmu_src/SpringBlockFriction.py) on the value references vr[0..n) and their derivatives' orders: for a write (`writes`), with values[0..n); else the
+ * values into values[0..n). 0 if done, 2 if done with a warning (its text in `why`), 1 if refused (the slave's
+ * exception as "[<function>] <repr>" in `why`). Needs a bound slave, whether or not the fast path steps. */
+int sbf_slave_derivatives(sbf_fast_path *fast, const char *function, const char *method, const unsigned *vr, size_t n,
+                          const int *order, double *values, int writes, char *why, size_t why_size);
 
 /* Drop the slave and its step call (freeing the instance). */
 void sbf_fast_unbind(sbf_fast_path *fast);

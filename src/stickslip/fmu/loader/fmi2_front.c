@@ -58,11 +58,6 @@ typedef struct {
       (fmi2Component c, const fmi2ValueReference *u, size_t nu, const fmi2ValueReference *k, size_t nk,            \
        const fmi2Real *dk, fmi2Real *du),                                                                          \
       (u, nu, k, nk, dk, du))                                                                                      \
-    X(fmi2SetRealInputDerivatives, KEPT,                                                                           \
-      (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *o, const fmi2Real *x),           \
-      (v, n, o, x))                                                                                                \
-    X(fmi2GetRealOutputDerivatives, KEPT,                                                                          \
-      (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *o, fmi2Real *x), (v, n, o, x))   \
     X(fmi2CancelStep, KEPT, (fmi2Component c), ())                                                                 \
     X(fmi2GetIntegerStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Integer *x), (k, x))               \
     X(fmi2GetBooleanStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Boolean *x), (k, x))               \
@@ -349,6 +344,46 @@ EXPORT fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi
         return fmi2OK;
     }
     return forward_fmi2GetRealStatus(c, s, value);
+}
+
+/* The input and output derivatives (canInterpolateInputs, maxOutputDerivativeOrder), which PythonFMU lacks: answered
+ * by the slave's `method` through its binding (fast_path.h); `writes`: the call sets inputs. */
+static fmi2Status derivatives(fmi2Component c, const char *function, const char *method, const fmi2ValueReference *vr,
+                              size_t n, const fmi2Integer *order, fmi2Real *values, int writes)
+{
+    char why[4096];
+    Instance *inst = c;
+    if (!inst) return fmi2Error;
+    if (n && (!vr || !order || !values)) {
+        snprintf(why, sizeof why, "%s: a NULL array for %zu variables", function, n);
+        host_log(c, fmi2Error, why);
+        return fmi2Error;
+    }
+    if (inst->mode == SBF_TERMINATED) {
+        snprintf(why, sizeof why, "%s: not allowed after fmi2Terminate", function);
+        host_log(c, fmi2Error, why);
+        return fmi2Error;
+    }
+    sbf_keep_thread_state();
+    sbf_fast_forward(&inst->fast, writes);
+    switch (sbf_slave_derivatives(&inst->fast, function, method, vr, n, order, values, writes, why, sizeof why)) {
+    case 0: return fmi2OK;
+    case 2: host_log(c, fmi2Warning, why); return fmi2Warning;
+    default: host_log(c, fmi2Error, why); return fmi2Error;
+    }
+}
+
+EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference *vr, size_t n,
+                                              const fmi2Integer *order, const fmi2Real *values)
+{
+    return derivatives(c, "fmi2SetRealInputDerivatives", "set_real_input_derivatives", vr, n, order,
+                       (fmi2Real *)values, 1);
+}
+
+EXPORT fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference *vr, size_t n,
+                                               const fmi2Integer *order, fmi2Real *values)
+{
+    return derivatives(c, "fmi2GetRealOutputDerivatives", "get_real_output_derivatives", vr, n, order, values, 0);
 }
 
 SBF_DESERIALIZE(fmi2Status, fmi2Error, fmi2Warning, fmi2Byte, fmi2DeSerializeFMUstate, forward_fmi2DeSerializeFMUstate,
