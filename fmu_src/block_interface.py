@@ -13,8 +13,9 @@ import copy
 import ctypes
 import functools
 import json
-import os
 from collections import namedtuple
+
+from stickslip.fmu_src.loader_binding import offer_to_loader
 
 from stickslip.core import (
     ANY_FINITE, KINETIC_LAWS, OUTPUT_NAMES, POSITIVE, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, StateError,
@@ -162,6 +163,7 @@ class BlockInterface:
         self.start_time = 0.0
         self.trajectory = None  # built when initialization ends
         self._inputs_set = set()  # the inputs set since the trajectory last saw them (F_EXT_RATE for der(F_ext))
+        self._ignored_derivatives = set()  # (input, order) of the derivatives ignored so far (warned about once)
         self._output_cache = {}  # {output name: value} at the current state, filled as outputs are read
 
     def register_variables(self, classes, causalities, variabilities):
@@ -240,7 +242,8 @@ class BlockInterface:
     def set_input_derivatives(self, names, orders, values):
         """fmi2SetRealInputDerivatives on the inputs ``names``: ``der(F_ext)`` (N/s, order 1) is taken, from the
         current time on; a derivative the block does not follow (F_ext's of order 2 and more, v_drive's, which is
-        held over a step), is taken only if it is 0, else ignored with the warning returned (None if none)."""
+        held over a step) is ignored, with a warning returned the first time one of its name and order is not 0
+        (None if none: a master that sets them at every step is told once)."""
         ignored = []
         for name, order, value in zip(names, orders, values):
             if name not in ("v_drive", "F_ext"):
@@ -252,12 +255,14 @@ class BlockInterface:
                 self.values[F_EXT_RATE] = float(value)
                 self._inputs_set.add(F_EXT_RATE)
                 self._output_cache.clear()
-            elif value != 0.0:
+            elif value != 0.0 and (name, order) not in self._ignored_derivatives:
+                self._ignored_derivatives.add((name, order))
                 ignored.append(f"der({name}, {order}) = {value!r}")
         if not ignored:
             return None
         return (f"fmi2SetRealInputDerivatives: ignored {', '.join(ignored)}: the block follows F_ext to first order "
-                f"(F_ext and der(F_ext) from where they were set) and holds v_drive over a step")
+                f"(F_ext and der(F_ext) from where they were set) and holds v_drive over a step (said once for each "
+                f"derivative)")
 
     def output_derivatives(self, names, orders):
         """fmi2GetRealOutputDerivatives: the derivatives of order 1 or 2 of the outputs ``names`` (x: m/s, m/s^2;
@@ -285,26 +290,10 @@ class BlockInterface:
     # ---- the C loader's fast path ----------------------------------------------------
 
     def offer_to_loader(self, platform):
-        """Offer this slave to the FMU's C loader that is instantiating it (``binaries/<platform>/<model>.so`` beside
-        the resources folder), which then takes each doStep through :meth:`fast_step_call` and answers reads of the
-        outputs (value references from :data:`FIRST_OUTPUT`, kinds :data:`OUTPUT_KINDS`) itself. Nothing happens
-        where that library is not loaded in this process (a slave made in Python, the builder) or has no fast
-        path."""
-        if self.resources is None or not hasattr(os, "RTLD_NOLOAD"):
-            return
-        folder = os.path.dirname(os.path.abspath(self.resources))
-        path = os.path.join(folder, "binaries", platform, f"{type(self).__name__}.so")
-        try:
-            loader = ctypes.PyDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_LOCAL)  # the GIL stays held in the call
-        except OSError:
-            return
-        try:
-            bind = getattr(loader, "sbf_bind_slave", None)
-            if bind is not None:
-                bind.argtypes, bind.restype = (ctypes.py_object, ctypes.c_uint, ctypes.c_char_p), ctypes.c_int
-                bind(self, FIRST_OUTPUT, OUTPUT_KINDS.encode("ascii"))
-        finally:
-            ctypes.CDLL(None).dlclose(ctypes.c_void_p(loader._handle))  # the reference this lookup took; the host holds its own
+        """Offer this slave to the FMU's C loader (:func:`loader_binding.offer_to_loader`), which then takes each doStep
+        through :meth:`fast_step_call`, answers reads of the outputs (value references from :data:`FIRST_OUTPUT`,
+        kinds :data:`OUTPUT_KINDS`) itself and the FMI 2 derivatives through the slave's methods."""
+        offer_to_loader(self, self.resources, platform, FIRST_OUTPUT, OUTPUT_KINDS)
 
     def fast_step_call(self):
         """The C loader's calls for the next doSteps: the current trajectory's :meth:`Trajectory.communicate` and

@@ -52,6 +52,7 @@ def _refusals(b, vr):
     fmu = b.fmu
     calls = {
         "der(F_ext) of order 2": (fmu.setRealInputDerivatives, [vr["F_ext"]], [2], [1.0]),
+        "der(F_ext) of order 2 again": (fmu.setRealInputDerivatives, [vr["F_ext"]], [2], [2.0]),
         "der(F_ext) of order 2 = 0": (fmu.setRealInputDerivatives, [vr["F_ext"]], [2], [0.0]),
         "der(v_drive)": (fmu.setRealInputDerivatives, [vr["v_drive"]], [1], [0.1]),
         "der(x) set": (fmu.setRealInputDerivatives, [vr["x"]], [1], [0.1]),

@@ -16,7 +16,7 @@ import pytest
 
 from stickslip.cli import main
 from stickslip.fmu.coupling import ensure_coupling_fmu
-from stickslip.hosts.fmpy_host import ExtractedFMU, FMUError
+from stickslip.hosts.fmpy_host import ExtractedFMU, FMUError, log_mark
 from stickslip.systems import load_system, make_master
 from stickslip.systems.engines import engine_environment
 from stickslip.systems.master import block_instances
@@ -62,6 +62,37 @@ def test_coupling_fmu_gives_the_springs_force_with_its_sign(coupling_fmu):
             instance.fmu.doStep(0.0, 0.1)
             instance.fmu.setReal([refs["x"]], [1.0])  # pulled back by the right spring only
             assert instance.fmu.getReal([refs["F"]]) == [pytest.approx(-0.25 * 1.3, abs=1e-15)]
+        finally:
+            instance.free()
+
+
+def test_coupling_fmu_passes_the_positions_derivatives_on_to_the_force(coupling_fmu):
+    """canInterpolateInputs, maxOutputDerivativeOrder = 2: d^k F/dt^k = kc_left (x_left^(k) - x^(k)) + kc_right
+    (x_right^(k) - x^(k)) from the derivatives set, a position's cleared when its value is set; others refused."""
+    with ExtractedFMU(coupling_fmu) as fmu:
+        assert fmu.model_description.coSimulation.canInterpolateInputs
+        assert fmu.model_description.coSimulation.maxOutputDerivativeOrder == 2
+        instance = fmu.new_instance("c")
+        refs = {name: v.valueReference for name, v in fmu.variables.items()}
+        f = instance.fmu
+        try:
+            f.setupExperiment(startTime=0.0)
+            f.enterInitializationMode()
+            f.setReal([refs["kc_left"], refs["kc_right"]], [0.5, 2.0])
+            f.exitInitializationMode()
+            f.setRealInputDerivatives([refs["x_left"], refs["x"], refs["x_right"], refs["x"]], [1, 1, 1, 2],
+                                      [0.1, 0.2, 0.3, 0.5])
+            assert f.getRealOutputDerivatives([refs["F"]] * 2, [1, 2]) == pytest.approx(
+                [0.5 * (0.1 - 0.2) + 2.0 * (0.3 - 0.2), -(0.5 + 2.0) * 0.5], abs=1e-15)
+            f.doStep(0.0, 0.1)
+            f.setReal([refs["x"]], [0.5])
+            assert f.getRealOutputDerivatives([refs["F"]] * 2, [1, 2]) == pytest.approx([0.5 * 0.1 + 2.0 * 0.3, 0.0])
+            for call, args, text in ((f.getRealOutputDerivatives, ([refs["x"]], [1]), "no derivative of order 1 of x"),
+                                     (f.setRealInputDerivatives, ([refs["F"]], [1], [1.0]), "is not an input")):
+                first = log_mark()
+                with pytest.raises(Exception, match="failed with status 3"):
+                    call(*args)
+                assert any(text in m for m in instance.messages(first)), instance.messages(first)
         finally:
             instance.free()
 

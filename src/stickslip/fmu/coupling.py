@@ -7,6 +7,7 @@ follows from the sources (:func:`coupling_tag`), and its Linux binary becomes th
 """
 
 import os
+import shutil
 import tempfile
 import zipfile
 from pathlib import Path
@@ -15,7 +16,8 @@ from xml.etree import ElementTree as ET
 from . import archive, loader, model_description
 from .build import default_fmu_path
 from .python_path import preserved_sys_path
-from .sources import SLAVE_FOLDER, files_tag
+from .sources import LOADER_BINDING, SLAVE_FOLDER, files_tag
+from .staging import rewrite_once
 
 COUPLING_NAME = "ChainCoupling"
 COUPLING_FILE = f"{COUPLING_NAME}.fmu"
@@ -26,8 +28,25 @@ BOUNDS = {name: ((0.0, None) if name.startswith("kc_") else (None, None)) for na
 
 
 def coupling_tag():
-    """10 hex digits over the slave, this builder and the loader's sources: they decide the FMU's content."""
-    return files_tag((COUPLING_SLAVE, Path(__file__), *loader.SOURCES))
+    """10 hex digits over the slave, the loader binding, this builder and the loader's sources: they decide the FMU's
+    content."""
+    return files_tag((COUPLING_SLAVE, LOADER_BINDING, Path(__file__), *loader.SOURCES))
+
+
+def _binding_module():
+    """The name of the loader binding's module in the coupling FMU: one only this build of it uses."""
+    return f"chaincoupling_binding_{coupling_tag()}"
+
+
+def _staged_slave(folder):
+    """The slave's source in ``folder``, beside the loader binding under :func:`_binding_module`'s name, which its
+    import is renamed to; the slave's path."""
+    script = folder / COUPLING_SLAVE.name
+    script.write_text(rewrite_once(COUPLING_SLAVE, r"\bfrom loader_binding import\b",
+                                   f"from {_binding_module()} import",
+                                   "the loader binding as 'from loader_binding import ...'"))
+    shutil.copyfile(LOADER_BINDING, folder / f"{_binding_module()}.py")
+    return script
 
 
 def default_coupling_path():
@@ -60,8 +79,10 @@ def build_coupling(dest=None):
     dest = Path(dest or default_coupling_path()).resolve()
     dest.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="sbf_coupling_") as tmp:
+        script = _staged_slave(Path(tmp))
         with preserved_sys_path():  # PythonFMU leaves the source folder on sys.path
-            built = FmuBuilder.build_FMU(COUPLING_SLAVE, dest=tmp)
+            built = FmuBuilder.build_FMU(script, dest=Path(tmp) / "out", project_files=[script.with_name(
+                _binding_module() + ".py")])
         entries = archive.read_entries(built)
         entries["modelDescription.xml"] = model_description.complete(
             entries["modelDescription.xml"], UNITS, BOUNDS, 2, *archive.identity(COUPLING_NAME, 2, coupling_tag()))

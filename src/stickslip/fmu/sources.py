@@ -17,6 +17,8 @@ MODEL_NAME = "SpringBlockFriction"
 SLAVE_FOLDER = Path(fmu_src.__file__).resolve().parent
 RUNTIME = Path(__file__).resolve().parents[1] / "core"
 INTERFACE = SLAVE_FOLDER / "block_interface.py"
+#: how a slave offers itself to the C loader (the block's FMUs and the coupling FMU bundle it)
+LOADER_BINDING = SLAVE_FOLDER / "loader_binding.py"
 #: FMI version: the slave's source
 SLAVES = {2: SLAVE_FOLDER / "SpringBlockFriction.py", 3: SLAVE_FOLDER / "SpringBlockFriction_fmi3.py"}
 #: FMI version: the prefix of the module the FMI library loads (the tag follows)
@@ -39,7 +41,7 @@ def files_tag(paths):
 def source_tag(fmi_version=2):
     """10 hex digits identifying the runtime, the slave of ``fmi_version``, the shared table and the builders."""
     sources = sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts)
-    return files_tag([*sources, SLAVES[fmi_version], INTERFACE, *BUILDERS])
+    return files_tag([*sources, SLAVES[fmi_version], INTERFACE, LOADER_BINDING, *BUILDERS])
 
 
 def built_tag(fmu_path, fmi_version=2):

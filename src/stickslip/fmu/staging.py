@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .compile_runtime import COMPILED_MODULES, CompileError, compile_in_place, toolchain_tag
+from .sources import LOADER_BINDING
 
 CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stickslip" / "fmu-runtime"
 #: files of an in-place compiled ``stickslip/core`` (pip install -e) that never go into an FMU's copy
@@ -111,8 +112,12 @@ def stage_runtime(folder, tag, runtime, slave, interface, model_name, compiled=T
     package, module = f"sbf_runtime_{tag}", f"{loader.prefix}{tag}"
     package_dir = Path(folder) / package
     shutil.copytree(runtime, package_dir, ignore=shutil.ignore_patterns(*COMPILED_ARTIFACTS))
+    interface_code = rewrite_once(interface, r"\bstickslip\.core\b", package,
+                                  "the runtime as 'from stickslip.core import ...'")
     (package_dir / "block_interface.py").write_text(
-        rewrite_once(interface, r"\bstickslip\.core\b", package, "the runtime as 'from stickslip.core import ...'"))
+        rewrite_once(interface, r"\bstickslip\.fmu_src\.loader_binding\b", f"{package}.loader_binding",
+                     "the loader binding as 'from stickslip.fmu_src.loader_binding import ...'", interface_code))
+    shutil.copyfile(LOADER_BINDING, package_dir / LOADER_BINDING.name)
     slave_code = rewrite_once(slave, r"\bstickslip\.core\b", package, "the runtime as 'from stickslip.core import ...'",
                               optional=True)
     slave_code = rewrite_once(slave, r"\bfrom block_interface import\b", f"from {package}.block_interface import",
