@@ -10,10 +10,13 @@ position is then unused); output: ``F`` (N), the springs' force on the block, po
 inputs gets the force at those positions. The step does nothing.
 
 Derivatives (FMI 2, answered through the C loader, which PythonFMU lacks; canInterpolateInputs,
-maxOutputDerivativeOrder = 2): the derivatives of the positions that a master sets (fmi2SetRealInputDerivatives, any
+maxOutputDerivativeOrder = 1): the derivatives of the positions that a master sets (fmi2SetRealInputDerivatives, any
 order; setting a position's value clears its derivatives) give ``F``'s, ``d^k F/dt^k = kc_left (x_left^(k) - x^(k))
 + kc_right (x_right^(k) - x^(k))`` (fmi2GetRealOutputDerivatives), so that a master that extrapolates inputs from
-output derivatives (OMSimulator's) passes the neighbours' velocities on to the block's ``F_ext``.
+output derivatives passes the neighbours' velocities on to the block's ``F_ext``. The order declared is 1, the one
+the block takes: OMSimulator asks for the declared order only (never the lower ones) and passes it on as is. The
+FMU state (the inputs, the stiffnesses and the derivatives set) can be saved and restored, so that a master can
+redo a step.
 """
 
 import functools
@@ -28,7 +31,7 @@ POSITIONS = {"x_left": "position of the left neighbour (m)", "x": "position of t
 STIFFNESSES = {"kc_left": "stiffness of the spring to the left neighbour (N/m, >= 0)",
                "kc_right": "stiffness of the spring to the right neighbour (N/m, >= 0)"}
 NAMES = (*POSITIONS, *STIFFNESSES, "F")  # in the order registered: the value references
-MAX_OUTPUT_DERIVATIVE_ORDER = 2
+MAX_OUTPUT_DERIVATIVE_ORDER = 1
 
 
 class ChainCoupling(Fmi2Slave):
@@ -64,6 +67,16 @@ class ChainCoupling(Fmi2Slave):
         """The springs' force on the block (N, +x), or its derivative of ``order`` (N/s^order) from the positions'."""
         x = {name: (getattr(self, name) if order == 0 else self.rates[name].get(order, 0.0)) for name in POSITIONS}
         return self.kc_left * (x["x_left"] - x["x"]) + self.kc_right * (x["x_right"] - x["x"])
+
+    def _get_fmu_state(self):
+        """PythonFMU's state (every variable's value) and the derivatives set, as ``[order, value]`` pairs."""
+        return {**super()._get_fmu_state(), "rates": {name: sorted(r.items()) for name, r in self.rates.items()}}
+
+    def _set_fmu_state(self, state):
+        values = dict(state)
+        rates = values.pop("rates")
+        super()._set_fmu_state(values)  # setting the positions clears their derivatives: restored after
+        self.rates = {name: {int(order): float(value) for order, value in pairs} for name, pairs in rates.items()}
 
     def exit_initialization_mode(self):
         for name in STIFFNESSES:

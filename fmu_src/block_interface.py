@@ -144,6 +144,10 @@ F_EXT_RATE = "der(F_ext)"
 #: (dv/dt, d2v/dt2); MAX_OUTPUT_DERIVATIVE_ORDER is the model description's maxOutputDerivativeOrder.
 OUTPUT_DERIVATIVES = {"x": ("v", "a"), "v": ("a", "jerk")}
 MAX_OUTPUT_DERIVATIVE_ORDER = 2
+#: The outputs that depend directly on fewer inputs than all (the model description's dependencies): the position and
+#: the spring force move only with time; the velocity jumps with v_drive while the block sticks. An engine can then
+#: tell that a block in a loop of couplings is no algebraic loop.
+OUTPUT_DEPENDENCIES = {"x": (), "F_spring": (), "v": ("v_drive",)}
 
 
 class BlockInterface:
@@ -160,6 +164,7 @@ class BlockInterface:
         self.values[F_EXT_RATE] = 0.0
         self.variable_units = {v.name: v.unit for v in VARIABLES}
         self.variable_bounds = {v.name: v.bounds for v in VARIABLES}
+        self.output_dependencies = OUTPUT_DEPENDENCIES
         self.start_time = 0.0
         self.trajectory = None  # built when initialization ends
         self._inputs_set = set()  # the inputs set since the trajectory last saw them (F_EXT_RATE for der(F_ext))

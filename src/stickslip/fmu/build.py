@@ -85,7 +85,7 @@ def build(dest=None, fmi_version=2, pure=False):
         entries = archive.read_entries(built)
         entries["modelDescription.xml"] = model_description.complete(
             entries["modelDescription.xml"], instance.variable_units, instance.variable_bounds, fmi_version,
-            *archive.identity(MODEL_NAME, fmi_version, tag))
+            *archive.identity(MODEL_NAME, fmi_version, tag), dependencies=instance.output_dependencies)
         staged.add_to(entries)
         trim.trim(entries, fmi_version, staged.package_dir.name)
         _write_with_loader(dest, entries, fmi_version)

@@ -82,7 +82,7 @@ def build_coupling(dest=None):
         script = _staged_slave(Path(tmp))
         with preserved_sys_path():  # PythonFMU leaves the source folder on sys.path
             built = FmuBuilder.build_FMU(script, dest=Path(tmp) / "out", project_files=[script.with_name(
-                _binding_module() + ".py")])
+                _binding_module() + ".py")], canGetAndSetFMUstate=True, canSerializeFMUstate=True)
         entries = archive.read_entries(built)
         entries["modelDescription.xml"] = model_description.complete(
             entries["modelDescription.xml"], UNITS, BOUNDS, 2, *archive.identity(COUPLING_NAME, 2, coupling_tag()))

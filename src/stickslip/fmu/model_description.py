@@ -32,10 +32,11 @@ class ModelDescriptionError(RuntimeError):
 GUID_ATTRIBUTES = {2: "guid", 3: "instantiationToken"}
 
 
-def complete(xml, units, bounds, fmi_version, guid, generated=None):
+def complete(xml, units, bounds, fmi_version, guid, generated=None, dependencies=None):
     """``xml`` (the library's model description, bytes) completed; ``units``/``bounds``: {variable name: unit
     as the slave states it / (min, max) with None for an open end}; ``guid``: the GUID (FMI 3: instantiation
-    token); ``generated``: generationDateAndTime (ISO 8601 text), or None to leave it out."""
+    token); ``generated``: generationDateAndTime (ISO 8601 text), or None to leave it out; ``dependencies``
+    (FMI 2): {output name: the inputs it depends on directly}, for the outputs that depend on fewer than all."""
     root = ET.fromstring(xml)
     root.set(GUID_ATTRIBUTES[fmi_version], guid)
     root.attrib.pop("generationDateAndTime", None)
@@ -45,7 +46,7 @@ def complete(xml, units, bounds, fmi_version, guid, generated=None):
     if fmi_version == 2:
         used = _annotate(variables, units, bounds, lambda variable: variable[0])
         _insert_definitions(root, used, _add_simple_type)
-        _fmi2_structure(root.find("ModelStructure"), variables)
+        _fmi2_structure(root.find("ModelStructure"), variables, dependencies or {})
     else:
         used = _annotate(variables, units, bounds, lambda variable: variable)
         for old in root.findall("UnitDefinitions") + root.findall("TypeDefinitions"):
@@ -101,12 +102,15 @@ def _add_float64_type(type_definitions, declared, fmi_unit):
     ET.SubElement(type_definitions, "Float64Type", name=declared, quantity=declared, unit=fmi_unit)
 
 
-def _fmi2_structure(structure, variables):
-    """FMI 2's ModelStructure: every output in Outputs and InitialUnknowns (dependencies omitted: an output may
-    depend on every input)."""
+def _fmi2_structure(structure, variables, dependencies):
+    """FMI 2's ModelStructure: every output in Outputs and InitialUnknowns; its direct dependencies on inputs in
+    Outputs where ``dependencies`` names them, else omitted (it may depend on every input)."""
     structure.clear()
-    outputs = [str(i) for i, v in enumerate(variables, start=1) if v.get("causality") == "output"]
+    index = {v.get("name"): str(i) for i, v in enumerate(variables, start=1)}
+    outputs = [v.get("name") for v in variables if v.get("causality") == "output"]
     for section in ("Outputs", "InitialUnknowns"):
         node = ET.SubElement(structure, section)
-        for index in outputs:
-            ET.SubElement(node, "Unknown", index=index)
+        for name in outputs:
+            unknown = ET.SubElement(node, "Unknown", index=index[name])
+            if section == "Outputs" and name in dependencies:
+                unknown.set("dependencies", " ".join(index[source] for source in dependencies[name]))
