@@ -50,6 +50,10 @@ text = re.sub(r"## Sundials\n.*?(?=#+\n## zlib)", lambda _: block, text, count=1
 text = re.sub(r"\nadd_library\(oms::3rd::sundials::\w+ ALIAS sundials_\w+_static\)", "", text)
 open(path, "w").write(text)
 EOF
+# OMSimulator's bug: SystemWC::initialize sets a local mav_doDoubleStep that shadows the member, which stays
+# uninitialized, so oms-mav may step as oms-mav2 and fail ("We shouldn't be doing double stepping ..."): set the member.
+sed -i 's/^\( *\)bool mav_doDoubleStep = (solverMethod/\1mav_doDoubleStep = (solverMethod/' \
+    "$out/src/OMSimulatorLib/SystemWC.cpp"
 cmake -S "$out" -B "$out/build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH="$prefix" \
     -DCMAKE_INSTALL_PREFIX="$out/install" > "$out/cmake.log"
 nice cmake --build "$out/build" -j "$jobs" --target install > "$out/build.log"

@@ -10,7 +10,9 @@ per run: error (max |dx| of any block over the amplitude), events, wall time.
 The SSP is `stickslip system ssp`'s (stickslip.systems.ssp.write_ssp, FMUs from `stickslip build`) with
 OMSimulator's vendor annotation added to its system, which names the master and its step sizes: without it
 OMSimulator refuses the system ("[NewSystem] internal error"), and it overrides the command line's --stepSize,
---initialStepSize and --minimumStepSize. --tolerance (the variable-step masters' relative tolerance) is also the
+--initialStepSize and --minimumStepSize. The block FMU in it declares its output x independent of its inputs
+(x_independent: an FMI 2 co-simulation output is, at a communication point), without which oms-mav stops after one
+step. --tolerance (the variable-step masters' relative tolerance) is also the
 tolerance of OMSimulator's KINSOL solve of the algebraic loop it finds in the chain (no FMU declares that its output
 does not depend on its inputs): oms-ma runs at 1e-12, where it equals the `zoh` master in FMPy (printed), whose
 force F(x(t_k)) has no delay, unlike the SSP engines' (docs/systems.md). Results come from OMSimulator's MAT file
@@ -20,6 +22,8 @@ reference is evaluated.
 """
 
 import argparse
+import io
+import re
 import subprocess
 import sys
 import tempfile
@@ -35,7 +39,7 @@ from stickslip.fmu.coupling import ensure_coupling_fmu
 from stickslip.reference import simulate_chain
 from stickslip.systems.compare import compare
 from stickslip.systems.master import SystemResult
-from stickslip.systems.ssp import SSD, write_ssp
+from stickslip.systems.ssp import BLOCK_FILE, SSD, write_ssp
 from stickslip.systems.system_file import load_system
 from stickslip.systems.zoh import ZohMaster, step_events
 
@@ -71,9 +75,32 @@ def oms_ssp(system, master, steps, dest):
                                              f'<ssd:SystemStructureDescription xmlns:oms="{OMS_NAMESPACE}" ', 1)
                 end = text.rindex("</ssd:System>")
                 data = (text[:end] + master_annotation(master, steps) + text[end:]).encode()
+            elif entry.filename == f"resources/{BLOCK_FILE}":
+                data = x_independent(data)
             archive.writestr(entry, data)
     plain.unlink()
     return Path(dest)
+
+
+def x_independent(fmu):
+    """The FMU archive ``fmu`` (bytes) with its output ``x`` declared independent of the inputs at a communication
+    point (``dependencies=""``, as it is in co-simulation: ``F_ext`` acts in ``doStep``), unless the model
+    description declares its dependencies already. Without it FMI 2 means "depends on every input", OMSimulator
+    sees an algebraic loop through the coupling FMUs, and oms-mav stops after its first step with no message."""
+    source, out = zipfile.ZipFile(io.BytesIO(fmu)), io.BytesIO()
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as archive:
+        for entry in source.infolist():
+            data = source.read(entry.filename)
+            if entry.filename == "modelDescription.xml":
+                text = data.decode()
+                names = re.findall(r'<ScalarVariable name="([^"]+)"', text)
+                index = names.index("x") + 1
+                outputs = re.search(r"<Outputs>.*?</Outputs>", text, re.S)
+                part = outputs.group(0).replace(f'<Unknown index="{index}" />',
+                                                f'<Unknown index="{index}" dependencies="" />')
+                data = (text[:outputs.start()] + part + text[outputs.end():]).encode()
+            archive.writestr(entry, data)
+    return out.getvalue()
 
 
 def run_omsimulator(omsimulator, ssp, system, tolerance, input_extrapolation):
@@ -131,6 +158,8 @@ def to_result(master, columns, grid, wall_time):
         found, whole = step_events(columns["t_last_event"][k], mode[k - 1], mode[k], count[k - 1], count[k])
         events, complete = events + found, complete and whole
     t = columns["time"]
+    if t[-1] < grid[-1] - 1e-9:
+        raise RuntimeError(f"{master} stopped at t = {float(t[-1])!r} s, before the stop time {float(grid[-1])!r} s")
     rows = np.searchsorted(t, np.asarray(grid) - 1e-9)
     on_grid = bool(np.all(rows < t.size)) and np.allclose(t[np.minimum(rows, t.size - 1)], grid, rtol=0, atol=1e-9)
     rows = rows if on_grid else np.arange(t.size)
@@ -182,10 +211,21 @@ def main(argv=None):
     folder.mkdir(parents=True, exist_ok=True)
     for k, (master, setting, steps, tolerance) in enumerate(runs(args, system)):
         ssp = oms_ssp(system, master, steps, folder / f"{system.name}-{master}-{k}.ssp")
-        mat, wall = run_omsimulator(args.omsimulator, ssp, system, tolerance, args.input_extrapolation)
-        result = to_result(f"oms-{master}", block_columns(read_mat(mat), system.n), system.times(), wall)
+        try:
+            mat, wall = run_omsimulator(args.omsimulator, ssp, system, tolerance, args.input_extrapolation)
+            result = to_result(f"oms-{master}", block_columns(read_mat(mat), system.n), system.times(), wall)
+        except RuntimeError as exc:
+            print(f"| oms-{master} | {setting} | failed: {_first_error(str(exc))} | | | | |", flush=True)
+            continue
         extra = f"{zoh_difference(system, result, steps['stepSize']):.2g}" if master == "ma" and args.check else ""
         print(row(f"oms-{master}", setting, measure(system, result), result, extra), flush=True)
+
+
+def _first_error(text):
+    """The first ``error:`` line of OMSimulator's output in ``text``, else its last line."""
+    lines = [line for line in text.splitlines() if line.strip()]
+    errors = [line for line in lines if line.startswith("error:")]
+    return (errors or lines[-1:] or ["?"])[0].strip()
 
 
 def floats(text):
