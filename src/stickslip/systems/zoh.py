@@ -123,9 +123,20 @@ class _Run:
         return self.result(count, n_steps, wall_time, settings, instances=2 * len(self.blocks))  # and couplings
 
     def _events(self, t_last, mode, new_mode, count, new_count):
-        """Record the events of the last step: one per block is known exactly (``t_last_event``)."""
-        for i, (before, after, n0, n1) in enumerate(zip(mode, new_mode, count, new_count)):
-            if n1 == n0 + 1:
-                self.events.append(new_event(t_last[i], i, before, after))
-            elif n1 > n0:
-                self.complete = False
+        """Record the events of the last step."""
+        events, complete = step_events(t_last, mode, new_mode, count, new_count)
+        self.events += events
+        self.complete = self.complete and complete
+
+
+def step_events(t_last, mode, new_mode, count, new_count):
+    """``(events, complete)`` of one communication step from each block's (lists over blocks) ``t_last_event``
+    (s), mode and ``n_events`` before and after it: one event per block is known exactly, more only by count
+    (``complete`` False)."""
+    events, complete = [], True
+    for i, (before, after, n0, n1) in enumerate(zip(mode, new_mode, count, new_count)):
+        if n1 == n0 + 1:
+            events.append(new_event(t_last[i], i, before, after))
+        elif n1 > n0:
+            complete = False
+    return events, complete
