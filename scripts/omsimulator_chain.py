@@ -10,12 +10,11 @@ per run: error (max |dx| of any block over the amplitude), events, wall time.
 The SSP is `stickslip system ssp`'s (stickslip.systems.ssp.write_ssp, FMUs from `stickslip build`) with
 OMSimulator's vendor annotation added to its system, which names the master and its step sizes: without it
 OMSimulator refuses the system ("[NewSystem] internal error"), and it overrides the command line's --stepSize,
---initialStepSize and --minimumStepSize. The block FMU in it declares its output x independent of its inputs
-(x_independent: an FMI 2 co-simulation output is, at a communication point), without which oms-mav stops after one
-step. --tolerance (the variable-step masters' relative tolerance) is also the
-tolerance of OMSimulator's KINSOL solve of the algebraic loop it finds in the chain (no FMU declares that its output
-does not depend on its inputs): oms-ma runs at 1e-12, where it equals the `zoh` master in FMPy (printed), whose
-force F(x(t_k)) has no delay, unlike the SSP engines' (docs/systems.md). Results come from OMSimulator's MAT file
+--initialStepSize and --minimumStepSize. The block FMU declares its output x independent of its inputs (without
+that OMSimulator finds an algebraic loop through the coupling FMUs and oms-mav stops after one step), so oms-ma
+sets each force from the positions of the same communication point and equals the `zoh` master in FMPy (printed),
+whose force F(x(t_k)) has no delay, unlike the SSP engines' (docs/systems.md). --block-order declares the block's
+maxOutputDerivativeOrder in the SSP's copy (see declared_output_order). Results come from OMSimulator's MAT file
 (its CSV has 12 digits), every communication point (the default logging interval 0, --emitEvents=false); oms-ma is
 sampled on the system's output grid, the variable-step masters on their own communication points, where the
 reference is evaluated.
@@ -49,7 +48,7 @@ MASTERS = {"ma": ("oms-ma", "FixedStepMaster"), "mav": ("oms-mav", "VariableStep
            "mav2": ("oms-mav2", "VariableStepMaster")}
 #: the block's columns read from the result file
 COLUMNS = ("x", "v", "mode", "n_events", "t_last_event")
-MA_TOLERANCE = 1e-12
+MA_TOLERANCE = 1e-12  # OMSimulator's --tolerance for oms-ma
 
 
 def master_annotation(master, steps):
@@ -62,9 +61,10 @@ def master_annotation(master, steps):
             f'</ssc:Annotation></ssd:Annotations>')
 
 
-def oms_ssp(system, master, steps, dest):
+def oms_ssp(system, master, steps, dest, block_order=None):
     """The system's SSP (fixed step: the largest of ``steps``) written to ``dest`` with ``master_annotation`` added
-    as the system's last element; its path."""
+    as the system's last element, the block's ``maxOutputDerivativeOrder`` declared ``block_order`` unless None; its
+    path."""
     plain = write_ssp(system, max(steps.values()), ensure_fmu(fmi_version=2), ensure_coupling_fmu(),
                       Path(dest).with_suffix(".plain.ssp"))
     with zipfile.ZipFile(plain) as source, zipfile.ZipFile(dest, "w", zipfile.ZIP_DEFLATED) as archive:
@@ -75,30 +75,28 @@ def oms_ssp(system, master, steps, dest):
                                              f'<ssd:SystemStructureDescription xmlns:oms="{OMS_NAMESPACE}" ', 1)
                 end = text.rindex("</ssd:System>")
                 data = (text[:end] + master_annotation(master, steps) + text[end:]).encode()
-            elif entry.filename == f"resources/{BLOCK_FILE}":
-                data = x_independent(data)
+            elif entry.filename == f"resources/{BLOCK_FILE}" and block_order is not None:
+                data = declared_output_order(data, block_order)
             archive.writestr(entry, data)
     plain.unlink()
     return Path(dest)
 
 
-def x_independent(fmu):
-    """The FMU archive ``fmu`` (bytes) with its output ``x`` declared independent of the inputs at a communication
-    point (``dependencies=""``, as it is in co-simulation: ``F_ext`` acts in ``doStep``), unless the model
-    description declares its dependencies already. Without it FMI 2 means "depends on every input", OMSimulator
-    sees an algebraic loop through the coupling FMUs, and oms-mav stops after its first step with no message."""
+def declared_output_order(fmu, order):
+    """The FMU archive ``fmu`` (bytes) with ``maxOutputDerivativeOrder`` declared ``order``. OMSimulator asks an FMU
+    for the derivative of its declared order only, never the lower ones (``fmi2GetRealOutputDerivatives`` with one
+    order for one variable, and ``fmi2SetRealInputDerivatives`` with it as is); with the block's order 2 its
+    coupling inputs get accelerations and no velocities, so the coupling's ``dF/dt`` stays 0. The block answers
+    order 1 as it is (``v``)."""
     source, out = zipfile.ZipFile(io.BytesIO(fmu)), io.BytesIO()
     with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as archive:
         for entry in source.infolist():
             data = source.read(entry.filename)
             if entry.filename == "modelDescription.xml":
-                text = data.decode()
-                names = re.findall(r'<ScalarVariable name="([^"]+)"', text)
-                index = names.index("x") + 1
-                outputs = re.search(r"<Outputs>.*?</Outputs>", text, re.S)
-                part = outputs.group(0).replace(f'<Unknown index="{index}" />',
-                                                f'<Unknown index="{index}" dependencies="" />')
-                data = (text[:outputs.start()] + part + text[outputs.end():]).encode()
+                data, count = re.subn(rb'maxOutputDerivativeOrder="\d+"', f'maxOutputDerivativeOrder="{order}"'.encode(),
+                                      data)
+                if count != 1:
+                    raise ValueError("the block's model description declares no maxOutputDerivativeOrder")
             archive.writestr(entry, data)
     return out.getvalue()
 
@@ -204,13 +202,14 @@ def runs(args, system):
 def main(argv=None):
     args = parse(argv)
     system = load_system(args.system)
-    print(f"{system.name} in {args.omsimulator}, input extrapolation {'on' if args.input_extrapolation else 'off'}")
+    print(f"{system.name} in {args.omsimulator}, input extrapolation {'on' if args.input_extrapolation else 'off'}"
+          + ("" if args.block_order is None else f", the block's declared output derivative order {args.block_order}"))
     print("| master | step / tolerance | max abs(dx) / amplitude | events (master / reference) "
           "| communication points | wall (s) | ma - zoh in FMPy (m) |\n|---|---|---|---|---|---|---|")
     folder = Path(args.out or tempfile.mkdtemp(prefix="oms_chain_"))
     folder.mkdir(parents=True, exist_ok=True)
     for k, (master, setting, steps, tolerance) in enumerate(runs(args, system)):
-        ssp = oms_ssp(system, master, steps, folder / f"{system.name}-{master}-{k}.ssp")
+        ssp = oms_ssp(system, master, steps, folder / f"{system.name}-{master}-{k}.ssp", args.block_order)
         try:
             mat, wall = run_omsimulator(args.omsimulator, ssp, system, tolerance, args.input_extrapolation)
             result = to_result(f"oms-{master}", block_columns(read_mat(mat), system.n), system.times(), wall)
@@ -244,6 +243,8 @@ def parse(argv):
     parser.add_argument("--min-step", type=float, default=1e-8, help="oms-mav's smallest step (s)")
     parser.add_argument("--input-extrapolation", action="store_true",
                         help="OMSimulator's --inputExtrapolation (needs the FMUs' derivatives)")
+    parser.add_argument("--block-order", type=int, help="declare the block's maxOutputDerivativeOrder this in the SSP's "
+                        "copy (OMSimulator asks for the declared order only; default: as built, 2)")
     parser.add_argument("--no-check", dest="check", action="store_false", help="skip oms-ma against zoh in FMPy")
     parser.add_argument("--out", help="folder for the SSP and result files (default: a new temporary folder)")
     args = parser.parse_args(argv)
