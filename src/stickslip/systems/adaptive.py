@@ -23,6 +23,7 @@ within ``EVENT_TOL`` s before the step's end (after ``MAX_REDOS`` tries the last
 communication point of the output grid is one.
 """
 
+import dataclasses
 import math
 import time
 
@@ -36,6 +37,7 @@ CELLS = 4  # cells per communication step while a block slips (1 while all are s
 STEPS_PER_PERIOD = 8  # longest step: this fraction of the shortest free period
 MAX_SWEEPS = 12
 MAX_REDOS = 60
+BLOCK_RTOL_FACTOR = 1e-4  # each block's solver.rtol: at most this times the master's rtol (and >= 1e-14)
 _GAUSS_U, _GAUSS_W = (np.array([0.5 - math.sqrt(0.15), 0.5, 0.5 + math.sqrt(0.15)]), np.array([5, 8, 5]) / 18.0)
 _READ_CELL = ("x", "v", "F_friction", "F_spring")
 _READ_END = ("z_slip", "z_stick", "t_last_event")
@@ -54,8 +56,19 @@ class AdaptiveMaster:
         self.rtol = checked_rtol("adaptive", rtol, default=1e-9, lowest=1e-14)
 
     def run(self, system, fmu_path, progress=lambda t: None):
+        system = block_tolerances(system, self.rtol)
         with block_instances(self, system, fmu_path) as (fmu, instances):
             return _Run(system, _Blocks(fmu, instances), self.rtol, progress).run()
+
+
+def block_tolerances(system, rtol):
+    """``system`` with each block's ``solver.rtol`` (its FMU's own integration tolerance) at most
+    ``BLOCK_RTOL_FACTOR * rtol``: a block slipping with a numeric law is cut into many short ``doStep`` calls,
+    each starting its Runge-Kutta integration anew, and its errors at the FMU's default 1e-10 add up to more
+    than the coupling's."""
+    cap = max(1e-14, BLOCK_RTOL_FACTOR * rtol)
+    blocks = tuple({**b, "solver.rtol": min(b["solver.rtol"], cap)} for b in system.blocks)
+    return dataclasses.replace(system, blocks=blocks)
 
 
 def hermite(u, x0, v0, x1, v1, delta):
@@ -335,10 +348,11 @@ class _Run:
         for _ in range(MAX_REDOS):
             if attempt.T == hi and (own is not None and hi - own <= EVENT_TOL or own is None and hi - lo <= EVENT_TOL):
                 return attempt
-            if attempt.T == lo and own is not None and own - lo <= EVENT_TOL:
-                return attempt
-            T = hi if hi - lo <= EVENT_TOL else min(max((lo * psi_hi - hi * psi_lo) / (psi_hi - psi_lo),
-                                                        lo + 0.25 * EVENT_TOL), hi - 0.25 * EVENT_TOL)
+            if hi - lo <= EVENT_TOL:  # the event's far side (a step before it would end on a stale mode)
+                T = hi if hi > lo else lo + 0.5 * EVENT_TOL
+            else:
+                T = min(max((lo * psi_hi - hi * psi_lo) / (psi_hi - psi_lo), lo + 0.25 * EVENT_TOL),
+                        hi - 0.25 * EVENT_TOL)
             attempt = self._attempt(T, CELLS if np.any(self.end[3] != 0) else 1)
             self.stats["event redos"] += 1
             found = self._crossing(attempt)
