@@ -91,14 +91,17 @@ def coupling_matrix(system):
 
 
 class _Blocks:
-    """The instances: their saved states, inputs, steps and outputs."""
+    """The instances: their saved states, inputs, steps and outputs. A block is restored only if it was stepped
+    since its state was saved or last restored."""
 
     def __init__(self, fmu, instances):
         self.instances = instances
         self.cell_refs, self.end_refs = references(fmu, _READ_CELL), references(fmu, _READ_END)
         self.int_refs, self.F_ext = references(fmu, _READ_INT), references(fmu, ("F_ext",))
+        self.n_events_ref = references(fmu, ("n_events",))
         self.states = [None] * len(instances)
-        self.do_steps = 0
+        self.moved = [False] * len(instances)  # stepped since the save or the last restore
+        self.do_steps = self.restores = 0
 
     def save(self):
         """Save every block's FMU state (the previous one freed)."""
@@ -106,10 +109,15 @@ class _Blocks:
             if self.states[i] is not None:
                 b.call(b.fmu.freeFMUState, self.states[i])
             self.states[i] = b.call(b.fmu.getFMUState)
+        self.moved = [False] * len(self.instances)
 
-    def restore(self):
-        for b, state in zip(self.instances, self.states):
-            b.call(b.fmu.setFMUState, state)
+    def restore(self, i):
+        """Block ``i`` back to its saved state (no call if it is there)."""
+        if self.moved[i]:
+            b = self.instances[i]
+            b.call(b.fmu.setFMUState, self.states[i])
+            self.moved[i] = False
+            self.restores += 1
 
     def free(self):
         for b, state in zip(self.instances, self.states):
@@ -122,6 +130,7 @@ class _Blocks:
         b = self.instances[i]
         b.call(b.fmu.setReal, self.F_ext, [float(force)])
         b.call(b.fmu.doStep, t, h)
+        self.moved[i] = True
         self.do_steps += 1
 
     def cell(self, i):
@@ -129,9 +138,10 @@ class _Blocks:
         b = self.instances[i]
         return b.call(b.fmu.getReal, self.cell_refs)
 
-    def set_force(self, i, force):
+    def n_events(self, i):
+        """Block ``i``'s ``n_events``."""
         b = self.instances[i]
-        b.call(b.fmu.setReal, self.F_ext, [float(force)])
+        return b.call(b.fmu.getInteger, self.n_events_ref)[0]
 
     def end(self):
         """``(z_slip, z_stick, t_last_event, mode, n_events)`` of every block, each an array over blocks."""
@@ -176,6 +186,7 @@ class _Run:
         self.x, self.v = first[:, 0], first[:, 1]
         self.a = (first[:, 3] + first[:, 2] + self.K @ self.x) / self.M
         self.end = blocks.end()
+        self.margin = self.end[0]  # N: each block's true z_slip at t (F_ext set from the positions there)
         self.rows = [(self.x.copy(), self.v.copy(), self.end[3].copy())]
         self.events, self.complete = [], True
         self.h = self.h_slip / 4.0
@@ -192,6 +203,7 @@ class _Run:
             self.blocks.free()
         xs, vs, modes = (np.array(column) for column in zip(*self.rows))
         self.stats["doStep calls"] = self.blocks.do_steps
+        self.stats["state restores"] = self.blocks.restores
         return SystemResult(AdaptiveMaster.NAME, self.grid[:len(xs)].copy(), xs, vs, modes, self.events,
                             self.complete, np.array(self.end[4]), time.perf_counter() - start,
                             {"rtol": self.tol / max(b["static.F0"] / b["kappa"] for b in self.system.blocks),
@@ -236,12 +248,15 @@ class _Run:
                            self.v[:, None] + self.a[:, None] * tau)
         slipping = self.end[3] != 0
         floor = max(0.01 * self.tol * (T - self.t), 1e-14 * (1.0 + float(np.max(np.abs(self.x)))))
+        settled = np.zeros(self.system.n, bool)  # stuck at t and still stuck, without an event, after a sweep
         while attempt.sweeps < MAX_SWEEPS and not attempt.converged:
             c1, c2, f_start, residual = self._forces(attempt)
-            self.blocks.restore()
             X, V = attempt.X.copy(), attempt.V.copy()
-            for i in range(self.system.n):
+            for i in np.flatnonzero(~settled):
+                self.blocks.restore(i)
                 self._sweep_block(i, attempt, c1[i], c2[i] if slipping[i] else f_start[i], slipping[i])
+                if not slipping[i]:  # its motion does not depend on the force: stepped again only after an event
+                    settled[i] = self.blocks.n_events(i) == self.end[4][i]
             delta = times[1] - times[0]
             change = max(float(np.max(np.abs(attempt.X - X))), float(np.max(np.abs(attempt.V - V))) * delta)
             attempt.sweeps += 1
@@ -305,7 +320,7 @@ class _Run:
                 self.events.append(new_event(end[2][i], i, before[3][i], end[3][i]))
             else:
                 self.complete = False
-        self.t, self.end = attempt.T, end
+        self.t, self.end, self.margin = attempt.T, end, self._held_margin(attempt)
         self.x, self.v = attempt.X[:, -1].copy(), attempt.V[:, -1].copy()
         self.a = (attempt.spring + attempt.friction[:, -1] + self.K @ self.x) / self.M
         self.stats["communication steps"] += 1
@@ -330,23 +345,34 @@ class _Run:
         return (int(np.argmin(margin)), None) if np.min(margin) < 0.0 else None
 
     def _indicator(self, attempt, block):
-        """Block ``block``'s indicator at the end of ``attempt`` (``self`` at ``t``: None), positive while its mode
-        at ``t`` lasts: the true ``z_slip`` while stuck, ``mode * v_rel`` while slipping."""
+        """Block ``block``'s indicator at the end of ``attempt`` (None: at ``t``), positive while its mode at ``t``
+        lasts: the true ``z_slip`` (with the coupling force at that point) while stuck, ``mode * v_rel`` while
+        slipping."""
         mode = self.end[3][block]
-        if attempt is None:
-            return float(self.end[0][block] if mode == 0 else mode * self.end[1][block])
-        return float(self._held_margin(attempt)[block] if mode == 0 else mode * attempt.end[1][block])
+        if mode != 0:
+            return float(mode * (self.end if attempt is None else attempt.end)[1][block])
+        return float(self.margin[block] if attempt is None else self._held_margin(attempt)[block])
+
+    def _bracket(self, lo_attempt, attempt, crossing):
+        """``(psi_lo, psi_hi, rate)``: the indicator of the crossing's block at the end of ``lo_attempt`` (None:
+        ``t``) and of ``attempt``; past a block's own event at ``t_e`` the latter is ``-(T - t_e) * rate``, with the
+        indicator's mean rate from ``lo`` to ``t_e`` (its value there is of the new mode)."""
+        block, t_e = crossing
+        lo = self.t if lo_attempt is None else lo_attempt.T
+        psi_lo = max(self._indicator(lo_attempt, block), 1e-300)
+        if t_e is None:
+            return psi_lo, min(self._indicator(attempt, block), -1e-300), None
+        rate = psi_lo / max(t_e - lo, EVENT_TOL)
+        return psi_lo, -(attempt.T - t_e) * rate, rate
 
     def _land(self, attempt, crossing):
-        """The step redone to end on its first event: Illinois on the event block's indicator (past a block's own
-        event: minus the time since it, times the indicator's mean rate over the first try)."""
-        block, t_e = crossing
-        lo, psi_lo = self.t, max(self._indicator(None, block), 1e-300)
-        psi_hi = self._indicator(attempt, block) if t_e is None else -psi_lo / max(t_e - self.t, EVENT_TOL)
-        rate = (psi_lo - psi_hi) / (attempt.T - self.t) if t_e is None else -psi_hi
-        hi, psi_hi, side, own = attempt.T, (psi_hi if t_e is None else -(attempt.T - t_e) * rate), 0, t_e
+        """The step redone to end on its first event, just past it: Illinois on the indicator of the block whose
+        event comes first (:meth:`_bracket`; a redo that shows another block's event first brackets that one)."""
+        lo_attempt, lo, hi, side = None, self.t, attempt.T, 0
+        psi_lo, psi_hi, rate = self._bracket(None, attempt, crossing)
         for _ in range(MAX_REDOS):
-            if attempt.T == hi and (own is not None and hi - own <= EVENT_TOL or own is None and hi - lo <= EVENT_TOL):
+            own = crossing[1]
+            if attempt.T == hi and hi - (lo if own is None else own) <= EVENT_TOL:
                 return attempt
             if hi - lo <= EVENT_TOL:  # the event's far side (a step before it would end on a stale mode)
                 T = hi if hi > lo else lo + 0.5 * EVENT_TOL
@@ -356,13 +382,16 @@ class _Run:
             attempt = self._attempt(T, CELLS if np.any(self.end[3] != 0) else 1)
             self.stats["event redos"] += 1
             found = self._crossing(attempt)
-            if found is not None:
-                own = found[1]
-                psi = -(T - own) * rate if own is not None else min(self._indicator(attempt, block), -1e-300)
-                hi, psi_hi = T, psi
-                psi_lo, side = (psi_lo * 0.5 if side == 1 else psi_lo), 1
-            else:
-                lo, psi_lo = T, max(self._indicator(attempt, block), 1e-300)
+            if found is None:
+                lo_attempt, lo, psi_lo = attempt, T, max(self._indicator(attempt, crossing[0]), 1e-300)
                 psi_hi, side = (psi_hi * 0.5 if side == -1 else psi_hi), -1
+            elif found[0] != crossing[0] or (found[1] is None) != (own is None):
+                crossing, hi, side = found, T, 0
+                psi_lo, psi_hi, rate = self._bracket(lo_attempt, attempt, crossing)
+            else:
+                crossing, hi = found, T
+                psi_hi = -(T - found[1]) * rate if found[1] is not None else min(self._indicator(attempt, found[0]),
+                                                                                 -1e-300)
+                psi_lo, side = (psi_lo * 0.5 if side == 1 else psi_lo), 1
         self.stats["events not landed"] += 1  # events that keep moving (triggering each other): the last try
         return attempt
