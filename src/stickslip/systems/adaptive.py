@@ -9,18 +9,24 @@ by cubic Hermite polynomials through ``x`` and ``v`` at the cell ends; the state
 (``fmi2SetFMUstate``) before every new sweep, until the cell-end positions change by less than a hundredth of
 the step's tolerance. The FMU holds its input over a ``doStep``, so a slipping block steps each cell in two
 halves whose constant forces carry the interpolated force's impulse and first moment over the cell (the
-block's end state is then exact to ``omega^2 delta^4`` for a cell of length ``delta``, third order in all); a
-stuck block, whose motion ``F_ext`` does not change, gets the force at each cell's end, so its ``z_slip`` there
-is the true one.
+block's end state is then exact to ``omega^2 delta^4`` for a cell of length ``delta``, third order in all). A
+block stuck at ``t``, whose motion ``F_ext`` does not change, is stepped over the whole step in one ``doStep`` with
+the force at ``t`` in the first sweep only (its cell ends on the line between its ends); if its FMU had an event,
+it is stepped again cell by cell with the force at each cell's start (a block is restored only if it was stepped).
+Each block's ``solver.rtol`` (its own integration tolerance) is lowered to ``BLOCK_RTOL_FACTOR`` times ``rtol``:
+a block slipping with a numeric law restarts its integration at every ``doStep``.
 
 Step control: the leading error term of each cell (the force's residual against the two constants, weighted by
 ``(T - s)^2``, times ``omega^2 + (dF_friction/dv / M)^2`` from the block's own outputs) summed over the step
 must stay below ``rtol`` times the chain's length scale (largest ``F_S/kappa``) per second; else the step is
-redone shorter. Events: when a block's ``n_events`` moves within a step, the step is redone with its end on
-the event, located by the Illinois method on the block's indicator (``z_slip`` stuck, ``mode * z_stick``
-slipping; past the event: minus the time since it, scaled by the indicator's rate) until the event lies
-within ``EVENT_TOL`` s before the step's end (after ``MAX_REDOS`` tries the last one is kept and counted). Every
-communication point of the output grid is one.
+redone shorter. Events: when a block's ``n_events`` moves within a step, or a block stuck at ``t`` ends it with
+its true ``z_slip`` (with the coupling force at the step's end) below zero, the step is redone to end just past
+the event, located by the Illinois method on the block's indicator (the true ``z_slip`` stuck, ``mode * z_stick``
+slipping; past a block's own event: minus the time since it, scaled by the indicator's rate; a redo that shows
+another block's event first brackets that one) until the event lies within ``EVENT_TOL`` s before the step's end
+(after ``MAX_REDOS`` tries the last one is kept and counted). A step never ends just before an event: a slipping
+block whose ``v_rel`` has crossed zero by less than its FMU's event location would start the next step on the
+wrong side (a spurious overshoot). Every communication point of the output grid is one.
 """
 
 import dataclasses
@@ -254,9 +260,10 @@ class _Run:
             X, V = attempt.X.copy(), attempt.V.copy()
             for i in np.flatnonzero(~settled):
                 self.blocks.restore(i)
-                self._sweep_block(i, attempt, c1[i], c2[i] if slipping[i] else f_start[i], slipping[i])
-                if not slipping[i]:  # its motion does not depend on the force: stepped again only after an event
-                    settled[i] = self.blocks.n_events(i) == self.end[4][i]
+                if slipping[i] or attempt.sweeps > 0:
+                    self._sweep_block(i, attempt, c1[i], c2[i] if slipping[i] else f_start[i], slipping[i])
+                else:  # its motion does not depend on the force: stepped again only after an event
+                    settled[i] = self._hold_block(i, attempt, f_start[i, 0])
             delta = times[1] - times[0]
             change = max(float(np.max(np.abs(attempt.X - X))), float(np.max(np.abs(attempt.V - V))) * delta)
             attempt.sweeps += 1
@@ -267,6 +274,17 @@ class _Run:
         self.stats["sweeps"] += attempt.sweeps
         attempt.end = self.blocks.end()
         return attempt
+
+    def _hold_block(self, i, attempt, force):
+        """Step block ``i``, stuck at ``t``, over the whole of ``attempt`` in one ``doStep`` with ``F_ext = force``
+        (N); True if it stayed stuck: its cell ends are then on the line from its start to its end (it moves with
+        the surface)."""
+        self.blocks.step(i, self.t, attempt.T - self.t, force)
+        x, v, friction, spring = self.blocks.cell(i)
+        u = (attempt.times[1:] - self.t) / (attempt.T - self.t)
+        attempt.X[i, 1:], attempt.V[i, 1:] = self.x[i] + u * (x - self.x[i]), v
+        attempt.friction[i, 1:], attempt.spring[i], attempt.held[i] = friction, spring, force
+        return self.blocks.n_events(i) == self.end[4][i]
 
     def _sweep_block(self, i, attempt, first, second, slipping):
         """Step block ``i`` over every cell of ``attempt``: two halves with ``first[k]``, ``second[k]`` while it
@@ -332,17 +350,20 @@ class _Run:
         return attempt.end[0] + np.abs(kx - attempt.held) - np.abs(kx - self.K @ attempt.X[:, -1])
 
     def _crossing(self, attempt):
-        """``(block, t_e)`` of the first event in ``attempt``: a block's own (``n_events`` moved; ``t_e`` its time,
-        or the step's middle for two or more), else a stuck block whose true margin at the end is negative
-        (``t_e`` None); None if neither."""
-        moved = np.flatnonzero(attempt.end[4] != self.end[4])
-        if moved.size:
-            times = [attempt.end[2][i] if attempt.end[4][i] == self.end[4][i] + 1 else 0.5 * (self.t + attempt.T)
-                     for i in moved]
-            j = int(np.argmin(times))
-            return int(moved[j]), float(times[j])
-        margin = np.where(self.end[3] == 0, self._held_margin(attempt), math.inf)
-        return (int(np.argmin(margin)), None) if np.min(margin) < 0.0 else None
+        """``(block, t_e)`` of the first event in ``attempt``, None if none: a block's own (``n_events`` moved; ``t_e``
+        its time, or the step's middle for two or more) or a block stuck at ``t`` whose true margin at the end is
+        negative (``t_e`` None; its time, for the order, on the line between its margins at ``t`` and the end)."""
+        moved = attempt.end[4] != self.end[4]
+        found = [(attempt.end[2][i] if attempt.end[4][i] == self.end[4][i] + 1 else 0.5 * (self.t + attempt.T),
+                  int(i), True) for i in np.flatnonzero(moved)]
+        margin = self._held_margin(attempt)
+        for i in np.flatnonzero((self.end[3] == 0) & ~moved & (margin < 0.0)):
+            share = self.margin[i] / max(self.margin[i] - margin[i], 1e-300)
+            found.append((self.t + min(max(share, 0.0), 1.0) * (attempt.T - self.t), int(i), False))
+        if not found:
+            return None
+        t_e, block, own = min(found)
+        return block, (float(t_e) if own else None)
 
     def _indicator(self, attempt, block):
         """Block ``block``'s indicator at the end of ``attempt`` (None: at ``t``), positive while its mode at ``t``
