@@ -227,6 +227,14 @@ def test_adaptive_lands_the_event_a_redo_shows_first(fmu_path):
     assert result.stats["events not landed"] == 0
 
 
+def test_adaptive_takes_a_step_of_a_few_ulp(fmu_path):
+    """The Burridge-Knopoff chain at rtol 1e-7: at 92.5 s an event lands a few ulp before a grid point, and the
+    step to it (too short to cut into cells) is taken whole. Before, its cells collapsed and the forces were NaN."""
+    system = dataclasses.replace(scene("bk10-velocity-weakening")[0], stop_time=93.0)
+    result = make_master("adaptive", rtol=1e-7).run(system, fmu_path)
+    assert result.t[-1] == pytest.approx(93.0) and np.all(np.isfinite(result.x))
+
+
 def test_adaptive_refuses_a_bad_rtol():
     with pytest.raises(FMUError, match=r"adaptive: rtol = 0.5: allowed is \[1e-14, 0.01\]"):
         make_master("adaptive", rtol=0.5)

@@ -250,6 +250,8 @@ class _Run:
     def _attempt(self, T, cells):
         """The step ``[t, T]`` in ``cells`` cells, swept until the waveforms converge (or ``MAX_SWEEPS``)."""
         times = np.linspace(self.t, T, cells + 1)
+        if not np.all(np.diff(times) > 0.0):  # a step of a few ulp (an event landed just before a grid point)
+            times = np.array([self.t, T])
         tau = times - self.t
         attempt = _Attempt(times, self.x[:, None] + self.v[:, None] * tau + 0.5 * self.a[:, None] * tau ** 2,
                            self.v[:, None] + self.a[:, None] * tau)
@@ -289,12 +291,13 @@ class _Run:
 
     def _sweep_block(self, i, attempt, first, second, slipping):
         """Step block ``i`` over every cell of ``attempt``: two halves with ``first[k]``, ``second[k]`` while it
-        slips, one step with ``second[k]`` (the force at the cell's start) while it sticks; read the cell ends."""
+        slips, one step with ``second[k]`` (the force at the cell's start) while it sticks (or over a cell too
+        short to halve); read the cell ends."""
         times = attempt.times
         for k in range(times.size - 1):
             t0, t1 = float(times[k]), float(times[k + 1])
-            if slipping:
-                mid = 0.5 * (t0 + t1)
+            mid = 0.5 * (t0 + t1)
+            if slipping and t0 < mid < t1:
                 self.blocks.step(i, t0, mid - t0, first[k])
                 self.blocks.step(i, mid, t1 - mid, second[k])
             else:
