@@ -20,7 +20,7 @@ ALLOWED = {
     "systems": {"core", "reference", "fmu", "hosts"},  # chains of blocks: beside suite
     "analysis": {"core", "reference"},
     "stress": {"core", "reference", "fmu", "hosts", "suite"},
-    "bench": {"core", "reference", "fmu", "hosts", "suite"},
+    "bench": {"core", "reference", "fmu", "hosts", "suite", "systems"},  # bench-systems times the masters
     "cli": {"core", "reference", "fmu", "hosts", "suite", "systems", "analysis", "stress", "bench"},
     "(top)": {"core"},
 }

@@ -11,7 +11,7 @@ from pathlib import Path
 from ..bench.versus import add_versus_parser
 from ..core.errors import StickSlipError
 from .analysis import add_bifurcation, add_chart, add_map, add_slow_manifold, add_vc
-from .bench import add_bench_parser, add_c_hosts_parser
+from .bench import add_bench_parser, add_c_hosts_parser, add_systems_parser
 from .stress import add_stress_parser
 from .system import add_system
 
@@ -55,7 +55,7 @@ def _build(args):
     return 0
 
 
-COMMANDS = (add_run, add_build, add_bench_parser, add_c_hosts_parser, add_versus_parser,
+COMMANDS = (add_run, add_build, add_bench_parser, add_c_hosts_parser, add_systems_parser, add_versus_parser,
             add_bifurcation, add_vc, add_map, add_slow_manifold, add_chart, add_stress_parser, add_system)
 
 

@@ -105,3 +105,54 @@ def run_c_hosts(args):
     paths = write(Path(args.out), results)
     print("wrote " + ", ".join(str(p) for p in paths))
     return 0
+
+
+def add_systems_parser(subparsers):
+    from ..bench.systems_bench import ADAPTIVE_RTOLS, ME_RTOLS, ZOH_STEPS
+
+    p = subparsers.add_parser("bench-systems", help="issue 19's masters on chain scenes: error against wall time, "
+                                                    "orders, zoh's wall against adaptive's at matched error")
+    p.add_argument("files", nargs="+", metavar="FILE.toml", help="system files (e.g. systems/chain2-coulomb.toml)")
+    p.add_argument("--out", default="bench-systems", help="output directory (default: bench-systems)")
+    p.add_argument("--stop-time", type=float, help="simulate this long instead of each file's stop_time (s; a "
+                                                   "multiple of its output_interval)")
+    p.add_argument("--zoh-steps", type=float, nargs="*", default=list(ZOH_STEPS), metavar="H",
+                   help=f"zoh's steps in s, each dividing the output interval (default: {ZOH_STEPS})")
+    p.add_argument("--adaptive-rtols", type=float, nargs="*", default=list(ADAPTIVE_RTOLS), metavar="RTOL",
+                   help=f"adaptive's rtol values (default: {ADAPTIVE_RTOLS})")
+    p.add_argument("--me-rtols", type=float, nargs="*", default=list(ME_RTOLS), metavar="RTOL",
+                   help=f"me's rtol values (default: {ME_RTOLS})")
+    p.set_defaults(handler=run_systems)
+
+
+def run_systems(args):
+    """Run :func:`stickslip.bench.systems_bench.bench_system` on each file; write systems.json, .md and .png into
+    ``args.out``; progress on stderr. Exit code."""
+    import datetime
+    import os
+    import platform
+    from pathlib import Path
+
+    from ..bench.systems_bench import bench_system, with_stop_time
+    from ..bench.systems_bench_report import write
+    from ..fmu import ensure_fmu
+    from ..systems import load_system
+
+    systems = [with_stop_time(load_system(path), args.stop_time) for path in args.files]
+    bad = [s.name for s in systems if abs(round(s.stop_time / s.output_interval) * s.output_interval
+                                          - s.stop_time) > 1e-9 * s.stop_time]
+    if bad or (args.stop_time is not None and args.stop_time <= 0.0):
+        print(f"stickslip bench-systems: --stop-time {args.stop_time} is not a positive multiple of the output "
+              f"interval of {bad}", file=sys.stderr)
+        return 2
+    settings = {master: values for master, values in
+                (("zoh", args.zoh_steps), ("adaptive", args.adaptive_rtols), ("me", args.me_rtols)) if values}
+    meta = {"date": datetime.datetime.now().isoformat(timespec="seconds"),
+            "machine": f"{platform.platform()}, {os.cpu_count()} CPUs",
+            "load_start": [round(x, 2) for x in os.getloadavg()], "settings": settings}
+    fmu_paths = {2: ensure_fmu(), 3: ensure_fmu(fmi_version=3)}
+    records = [bench_system(system, fmu_paths, settings, lambda text: print(text, file=sys.stderr, flush=True))
+               for system in systems]
+    meta["load_end"] = [round(x, 2) for x in os.getloadavg()]
+    print("wrote " + ", ".join(str(p) for p in write(Path(args.out), meta, records)))
+    return 0

@@ -22,7 +22,7 @@ def add_system(subparsers):
                      help="zoh: write the system as an SSP file (block and coupling FMUs) and step it in this engine "
                           "(default: FMPy with the coupling computed by the master)")
     run.add_argument("--rtol", type=float, help="me: the solver's relative tolerance (default 1e-10); "
-                     "adaptive: error per second as a fraction of the largest F_S/kappa (default 1e-9)")
+                     "adaptive: error per second as a fraction of the largest F_S/kappa (default 3e-10)")
     run.add_argument("--fmu", help="the FMU to run (default: the built FMU of the master's FMI version)")
     run.add_argument("--quiet", action="store_true", help="no progress bars")
     run.set_defaults(handler=_run)

@@ -9,20 +9,27 @@ by cubic Hermite polynomials through ``x`` and ``v`` at the cell ends; the state
 (``fmi2SetFMUstate``) before every new sweep, until the cell-end positions change by less than a hundredth of
 the step's tolerance. The FMU holds its input over a ``doStep``, so a slipping block steps each cell in two
 halves whose constant forces carry the interpolated force's impulse and first moment over the cell (the
-block's end state is then exact to ``omega^2 delta^4`` for a cell of length ``delta``, third order in all); a
-stuck block, whose motion ``F_ext`` does not change, gets the force at each cell's end, so its ``z_slip`` there
-is the true one.
+block's end state is then exact to ``omega^2 delta^4`` for a cell of length ``delta``, third order in all). A
+block stuck at ``t``, whose motion ``F_ext`` does not change, is stepped over the whole step in one ``doStep`` with
+the force at ``t`` in the first sweep only (its cell ends on the line between its ends); if its FMU had an event,
+it is stepped again cell by cell with the force at each cell's start (a block is restored only if it was stepped).
+Each block's ``solver.rtol`` (its own integration tolerance) is lowered to ``BLOCK_RTOL_FACTOR`` times ``rtol``:
+a block slipping with a numeric law restarts its integration at every ``doStep``.
 
 Step control: the leading error term of each cell (the force's residual against the two constants, weighted by
 ``(T - s)^2``, times ``omega^2 + (dF_friction/dv / M)^2`` from the block's own outputs) summed over the step
 must stay below ``rtol`` times the chain's length scale (largest ``F_S/kappa``) per second; else the step is
-redone shorter. Events: when a block's ``n_events`` moves within a step, the step is redone with its end on
-the event, located by the Illinois method on the block's indicator (``z_slip`` stuck, ``mode * z_stick``
-slipping; past the event: minus the time since it, scaled by the indicator's rate) until the event lies
-within ``EVENT_TOL`` s before the step's end (after ``MAX_REDOS`` tries the last one is kept and counted). Every
-communication point of the output grid is one.
+redone shorter. Events: when a block's ``n_events`` moves within a step, or a block stuck at ``t`` ends it with
+its true ``z_slip`` (with the coupling force at the step's end) below zero, the step is redone to end just past
+the event, located by the Illinois method on the block's indicator (the true ``z_slip`` stuck, ``mode * z_stick``
+slipping; past a block's own event: minus the time since it, scaled by the indicator's rate; a redo that shows
+another block's event first brackets that one) until the event lies within ``EVENT_TOL`` s before the step's end
+(after ``MAX_REDOS`` tries the last one is kept and counted). A step never ends just before an event: a slipping
+block whose ``v_rel`` has crossed zero by less than its FMU's event location would start the next step on the
+wrong side (a spurious overshoot). Every communication point of the output grid is one.
 """
 
+import dataclasses
 import math
 import time
 
@@ -31,11 +38,13 @@ import numpy as np
 from ..hosts.fmpy_host import FMUError
 from .master import SystemResult, block_instances, checked_rtol, new_event, references
 
+DEFAULT_RTOL = 3e-10  # keeps the 2- and 3-block chains' event times within 1e-8 s (issue 19; 1e-9: 4e-8 s)
 EVENT_TOL = 1e-10  # s: an event this close before a step's end has landed on it
 CELLS = 4  # cells per communication step while a block slips (1 while all are stuck)
 STEPS_PER_PERIOD = 8  # longest step: this fraction of the shortest free period
 MAX_SWEEPS = 12
 MAX_REDOS = 60
+BLOCK_RTOL_FACTOR = 1e-4  # each block's solver.rtol: at most this times the master's rtol (and >= 1e-14)
 _GAUSS_U, _GAUSS_W = (np.array([0.5 - math.sqrt(0.15), 0.5, 0.5 + math.sqrt(0.15)]), np.array([5, 8, 5]) / 18.0)
 _READ_CELL = ("x", "v", "F_friction", "F_spring")
 _READ_END = ("z_slip", "z_stick", "t_last_event")
@@ -43,19 +52,30 @@ _READ_INT = ("mode", "n_events")
 
 
 class AdaptiveMaster:
-    """Tolerance ``rtol`` (default 1e-9): the estimated error per second of simulated time, as a fraction of the
-    chain's length scale (largest ``F_S / kappa`` of its blocks)."""
+    """Tolerance ``rtol`` (default ``DEFAULT_RTOL``): the estimated error per second of simulated time, as a
+    fraction of the chain's length scale (largest ``F_S / kappa`` of its blocks)."""
 
     NAME = "adaptive"
     FMI_VERSION = 2
     OPTIONS = ("rtol",)
 
     def __init__(self, rtol=None):
-        self.rtol = checked_rtol("adaptive", rtol, default=1e-9, lowest=1e-14)
+        self.rtol = checked_rtol("adaptive", rtol, default=DEFAULT_RTOL, lowest=1e-14)
 
     def run(self, system, fmu_path, progress=lambda t: None):
+        system = block_tolerances(system, self.rtol)
         with block_instances(self, system, fmu_path) as (fmu, instances):
             return _Run(system, _Blocks(fmu, instances), self.rtol, progress).run()
+
+
+def block_tolerances(system, rtol):
+    """``system`` with each block's ``solver.rtol`` (its FMU's own integration tolerance) at most
+    ``BLOCK_RTOL_FACTOR * rtol``: a block slipping with a numeric law is cut into many short ``doStep`` calls,
+    each starting its Runge-Kutta integration anew, and its errors at the FMU's default 1e-10 add up to more
+    than the coupling's."""
+    cap = max(1e-14, BLOCK_RTOL_FACTOR * rtol)
+    blocks = tuple({**b, "solver.rtol": min(b["solver.rtol"], cap)} for b in system.blocks)
+    return dataclasses.replace(system, blocks=blocks)
 
 
 def hermite(u, x0, v0, x1, v1, delta):
@@ -78,14 +98,17 @@ def coupling_matrix(system):
 
 
 class _Blocks:
-    """The instances: their saved states, inputs, steps and outputs."""
+    """The instances: their saved states, inputs, steps and outputs. A block is restored only if it was stepped
+    since its state was saved or last restored."""
 
     def __init__(self, fmu, instances):
         self.instances = instances
         self.cell_refs, self.end_refs = references(fmu, _READ_CELL), references(fmu, _READ_END)
         self.int_refs, self.F_ext = references(fmu, _READ_INT), references(fmu, ("F_ext",))
+        self.n_events_ref = references(fmu, ("n_events",))
         self.states = [None] * len(instances)
-        self.do_steps = 0
+        self.moved = [False] * len(instances)  # stepped since the save or the last restore
+        self.do_steps = self.restores = 0
 
     def save(self):
         """Save every block's FMU state (the previous one freed)."""
@@ -93,10 +116,15 @@ class _Blocks:
             if self.states[i] is not None:
                 b.call(b.fmu.freeFMUState, self.states[i])
             self.states[i] = b.call(b.fmu.getFMUState)
+        self.moved = [False] * len(self.instances)
 
-    def restore(self):
-        for b, state in zip(self.instances, self.states):
-            b.call(b.fmu.setFMUState, state)
+    def restore(self, i):
+        """Block ``i`` back to its saved state (no call if it is there)."""
+        if self.moved[i]:
+            b = self.instances[i]
+            b.call(b.fmu.setFMUState, self.states[i])
+            self.moved[i] = False
+            self.restores += 1
 
     def free(self):
         for b, state in zip(self.instances, self.states):
@@ -109,6 +137,7 @@ class _Blocks:
         b = self.instances[i]
         b.call(b.fmu.setReal, self.F_ext, [float(force)])
         b.call(b.fmu.doStep, t, h)
+        self.moved[i] = True
         self.do_steps += 1
 
     def cell(self, i):
@@ -116,9 +145,10 @@ class _Blocks:
         b = self.instances[i]
         return b.call(b.fmu.getReal, self.cell_refs)
 
-    def set_force(self, i, force):
+    def n_events(self, i):
+        """Block ``i``'s ``n_events``."""
         b = self.instances[i]
-        b.call(b.fmu.setReal, self.F_ext, [float(force)])
+        return b.call(b.fmu.getInteger, self.n_events_ref)[0]
 
     def end(self):
         """``(z_slip, z_stick, t_last_event, mode, n_events)`` of every block, each an array over blocks."""
@@ -163,6 +193,7 @@ class _Run:
         self.x, self.v = first[:, 0], first[:, 1]
         self.a = (first[:, 3] + first[:, 2] + self.K @ self.x) / self.M
         self.end = blocks.end()
+        self.margin = self.end[0]  # N: each block's true z_slip at t (F_ext set from the positions there)
         self.rows = [(self.x.copy(), self.v.copy(), self.end[3].copy())]
         self.events, self.complete = [], True
         self.h = self.h_slip / 4.0
@@ -179,6 +210,7 @@ class _Run:
             self.blocks.free()
         xs, vs, modes = (np.array(column) for column in zip(*self.rows))
         self.stats["doStep calls"] = self.blocks.do_steps
+        self.stats["state restores"] = self.blocks.restores
         return SystemResult(AdaptiveMaster.NAME, self.grid[:len(xs)].copy(), xs, vs, modes, self.events,
                             self.complete, np.array(self.end[4]), time.perf_counter() - start,
                             {"rtol": self.tol / max(b["static.F0"] / b["kappa"] for b in self.system.blocks),
@@ -218,17 +250,23 @@ class _Run:
     def _attempt(self, T, cells):
         """The step ``[t, T]`` in ``cells`` cells, swept until the waveforms converge (or ``MAX_SWEEPS``)."""
         times = np.linspace(self.t, T, cells + 1)
+        if not np.all(np.diff(times) > 0.0):  # a step of a few ulp (an event landed just before a grid point)
+            times = np.array([self.t, T])
         tau = times - self.t
         attempt = _Attempt(times, self.x[:, None] + self.v[:, None] * tau + 0.5 * self.a[:, None] * tau ** 2,
                            self.v[:, None] + self.a[:, None] * tau)
         slipping = self.end[3] != 0
         floor = max(0.01 * self.tol * (T - self.t), 1e-14 * (1.0 + float(np.max(np.abs(self.x)))))
+        settled = np.zeros(self.system.n, bool)  # stuck at t and still stuck, without an event, after a sweep
         while attempt.sweeps < MAX_SWEEPS and not attempt.converged:
             c1, c2, f_start, residual = self._forces(attempt)
-            self.blocks.restore()
             X, V = attempt.X.copy(), attempt.V.copy()
-            for i in range(self.system.n):
-                self._sweep_block(i, attempt, c1[i], c2[i] if slipping[i] else f_start[i], slipping[i])
+            for i in np.flatnonzero(~settled):
+                self.blocks.restore(i)
+                if slipping[i] or attempt.sweeps > 0:
+                    self._sweep_block(i, attempt, c1[i], c2[i] if slipping[i] else f_start[i], slipping[i])
+                else:  # its motion does not depend on the force: stepped again only after an event
+                    settled[i] = self._hold_block(i, attempt, f_start[i, 0])
             delta = times[1] - times[0]
             change = max(float(np.max(np.abs(attempt.X - X))), float(np.max(np.abs(attempt.V - V))) * delta)
             attempt.sweeps += 1
@@ -240,14 +278,26 @@ class _Run:
         attempt.end = self.blocks.end()
         return attempt
 
+    def _hold_block(self, i, attempt, force):
+        """Step block ``i``, stuck at ``t``, over the whole of ``attempt`` in one ``doStep`` with ``F_ext = force``
+        (N); True if it stayed stuck: its cell ends are then on the line from its start to its end (it moves with
+        the surface)."""
+        self.blocks.step(i, self.t, attempt.T - self.t, force)
+        x, v, friction, spring = self.blocks.cell(i)
+        u = (attempt.times[1:] - self.t) / (attempt.T - self.t)
+        attempt.X[i, 1:], attempt.V[i, 1:] = self.x[i] + u * (x - self.x[i]), v
+        attempt.friction[i, 1:], attempt.spring[i], attempt.held[i] = friction, spring, force
+        return self.blocks.n_events(i) == self.end[4][i]
+
     def _sweep_block(self, i, attempt, first, second, slipping):
         """Step block ``i`` over every cell of ``attempt``: two halves with ``first[k]``, ``second[k]`` while it
-        slips, one step with ``second[k]`` (the force at the cell's start) while it sticks; read the cell ends."""
+        slips, one step with ``second[k]`` (the force at the cell's start) while it sticks (or over a cell too
+        short to halve); read the cell ends."""
         times = attempt.times
         for k in range(times.size - 1):
             t0, t1 = float(times[k]), float(times[k + 1])
-            if slipping:
-                mid = 0.5 * (t0 + t1)
+            mid = 0.5 * (t0 + t1)
+            if slipping and t0 < mid < t1:
                 self.blocks.step(i, t0, mid - t0, first[k])
                 self.blocks.step(i, mid, t1 - mid, second[k])
             else:
@@ -292,7 +342,7 @@ class _Run:
                 self.events.append(new_event(end[2][i], i, before[3][i], end[3][i]))
             else:
                 self.complete = False
-        self.t, self.end = attempt.T, end
+        self.t, self.end, self.margin = attempt.T, end, self._held_margin(attempt)
         self.x, self.v = attempt.X[:, -1].copy(), attempt.V[:, -1].copy()
         self.a = (attempt.spring + attempt.friction[:, -1] + self.K @ self.x) / self.M
         self.stats["communication steps"] += 1
@@ -304,51 +354,69 @@ class _Run:
         return attempt.end[0] + np.abs(kx - attempt.held) - np.abs(kx - self.K @ attempt.X[:, -1])
 
     def _crossing(self, attempt):
-        """``(block, t_e)`` of the first event in ``attempt``: a block's own (``n_events`` moved; ``t_e`` its time,
-        or the step's middle for two or more), else a stuck block whose true margin at the end is negative
-        (``t_e`` None); None if neither."""
-        moved = np.flatnonzero(attempt.end[4] != self.end[4])
-        if moved.size:
-            times = [attempt.end[2][i] if attempt.end[4][i] == self.end[4][i] + 1 else 0.5 * (self.t + attempt.T)
-                     for i in moved]
-            j = int(np.argmin(times))
-            return int(moved[j]), float(times[j])
-        margin = np.where(self.end[3] == 0, self._held_margin(attempt), math.inf)
-        return (int(np.argmin(margin)), None) if np.min(margin) < 0.0 else None
+        """``(block, t_e)`` of the first event in ``attempt``, None if none: a block's own (``n_events`` moved; ``t_e``
+        its time, or the step's middle for two or more) or a block stuck at ``t`` whose true margin at the end is
+        negative (``t_e`` None; its time, for the order, on the line between its margins at ``t`` and the end)."""
+        moved = attempt.end[4] != self.end[4]
+        found = [(attempt.end[2][i] if attempt.end[4][i] == self.end[4][i] + 1 else 0.5 * (self.t + attempt.T),
+                  int(i), True) for i in np.flatnonzero(moved)]
+        margin = self._held_margin(attempt)
+        for i in np.flatnonzero((self.end[3] == 0) & ~moved & (margin < 0.0)):
+            share = self.margin[i] / max(self.margin[i] - margin[i], 1e-300)
+            found.append((self.t + min(max(share, 0.0), 1.0) * (attempt.T - self.t), int(i), False))
+        if not found:
+            return None
+        t_e, block, own = min(found)
+        return block, (float(t_e) if own else None)
 
     def _indicator(self, attempt, block):
-        """Block ``block``'s indicator at the end of ``attempt`` (``self`` at ``t``: None), positive while its mode
-        at ``t`` lasts: the true ``z_slip`` while stuck, ``mode * v_rel`` while slipping."""
+        """Block ``block``'s indicator at the end of ``attempt`` (None: at ``t``), positive while its mode at ``t``
+        lasts: the true ``z_slip`` (with the coupling force at that point) while stuck, ``mode * v_rel`` while
+        slipping."""
         mode = self.end[3][block]
-        if attempt is None:
-            return float(self.end[0][block] if mode == 0 else mode * self.end[1][block])
-        return float(self._held_margin(attempt)[block] if mode == 0 else mode * attempt.end[1][block])
+        if mode != 0:
+            return float(mode * (self.end if attempt is None else attempt.end)[1][block])
+        return float(self.margin[block] if attempt is None else self._held_margin(attempt)[block])
+
+    def _bracket(self, lo_attempt, attempt, crossing):
+        """``(psi_lo, psi_hi, rate)``: the indicator of the crossing's block at the end of ``lo_attempt`` (None:
+        ``t``) and of ``attempt``; past a block's own event at ``t_e`` the latter is ``-(T - t_e) * rate``, with the
+        indicator's mean rate from ``lo`` to ``t_e`` (its value there is of the new mode)."""
+        block, t_e = crossing
+        lo = self.t if lo_attempt is None else lo_attempt.T
+        psi_lo = max(self._indicator(lo_attempt, block), 1e-300)
+        if t_e is None:
+            return psi_lo, min(self._indicator(attempt, block), -1e-300), None
+        rate = psi_lo / max(t_e - lo, EVENT_TOL)
+        return psi_lo, -(attempt.T - t_e) * rate, rate
 
     def _land(self, attempt, crossing):
-        """The step redone to end on its first event: Illinois on the event block's indicator (past a block's own
-        event: minus the time since it, times the indicator's mean rate over the first try)."""
-        block, t_e = crossing
-        lo, psi_lo = self.t, max(self._indicator(None, block), 1e-300)
-        psi_hi = self._indicator(attempt, block) if t_e is None else -psi_lo / max(t_e - self.t, EVENT_TOL)
-        rate = (psi_lo - psi_hi) / (attempt.T - self.t) if t_e is None else -psi_hi
-        hi, psi_hi, side, own = attempt.T, (psi_hi if t_e is None else -(attempt.T - t_e) * rate), 0, t_e
+        """The step redone to end on its first event, just past it: Illinois on the indicator of the block whose
+        event comes first (:meth:`_bracket`; a redo that shows another block's event first brackets that one)."""
+        lo_attempt, lo, hi, side = None, self.t, attempt.T, 0
+        psi_lo, psi_hi, rate = self._bracket(None, attempt, crossing)
         for _ in range(MAX_REDOS):
-            if attempt.T == hi and (own is not None and hi - own <= EVENT_TOL or own is None and hi - lo <= EVENT_TOL):
+            own = crossing[1]
+            if attempt.T == hi and hi - (lo if own is None else own) <= EVENT_TOL:
                 return attempt
-            if attempt.T == lo and own is not None and own - lo <= EVENT_TOL:
-                return attempt
-            T = hi if hi - lo <= EVENT_TOL else min(max((lo * psi_hi - hi * psi_lo) / (psi_hi - psi_lo),
-                                                        lo + 0.25 * EVENT_TOL), hi - 0.25 * EVENT_TOL)
+            if hi - lo <= EVENT_TOL:  # the event's far side (a step before it would end on a stale mode)
+                T = hi if hi > lo else lo + 0.5 * EVENT_TOL
+            else:
+                T = min(max((lo * psi_hi - hi * psi_lo) / (psi_hi - psi_lo), lo + 0.25 * EVENT_TOL),
+                        hi - 0.25 * EVENT_TOL)
             attempt = self._attempt(T, CELLS if np.any(self.end[3] != 0) else 1)
             self.stats["event redos"] += 1
             found = self._crossing(attempt)
-            if found is not None:
-                own = found[1]
-                psi = -(T - own) * rate if own is not None else min(self._indicator(attempt, block), -1e-300)
-                hi, psi_hi = T, psi
-                psi_lo, side = (psi_lo * 0.5 if side == 1 else psi_lo), 1
-            else:
-                lo, psi_lo = T, max(self._indicator(attempt, block), 1e-300)
+            if found is None:
+                lo_attempt, lo, psi_lo = attempt, T, max(self._indicator(attempt, crossing[0]), 1e-300)
                 psi_hi, side = (psi_hi * 0.5 if side == -1 else psi_hi), -1
+            elif found[0] != crossing[0] or (found[1] is None) != (own is None):
+                crossing, hi, side = found, T, 0
+                psi_lo, psi_hi, rate = self._bracket(lo_attempt, attempt, crossing)
+            else:
+                crossing, hi = found, T
+                psi_hi = -(T - found[1]) * rate if found[1] is not None else min(self._indicator(attempt, found[0]),
+                                                                                 -1e-300)
+                psi_lo, side = (psi_lo * 0.5 if side == 1 else psi_lo), 1
         self.stats["events not landed"] += 1  # events that keep moving (triggering each other): the last try
         return attempt
