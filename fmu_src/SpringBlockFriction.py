@@ -28,7 +28,8 @@ import operator
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
 from block_interface import (
-    FIRST_OUTPUT, MAX_OUTPUT_DERIVATIVE_ORDER, VARIABLES, BlockInterface, balance_release, check_state, serialized_states,
+    FIRST_OUTPUT, MAX_OUTPUT_DERIVATIVE_ORDER, VARIABLES, BlockInterface, balance_release, check_state,
+    serialized_states,
 )
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input, "output": Fmi2Causality.output}

@@ -27,4 +27,5 @@ def offer_to_loader(slave, resources, platform, first_output, output_kinds):
             bind.argtypes, bind.restype = (ctypes.py_object, ctypes.c_uint, ctypes.c_char_p), ctypes.c_int
             bind(slave, first_output, output_kinds.encode("ascii"))
     finally:
-        ctypes.CDLL(None).dlclose(ctypes.c_void_p(loader._handle))  # the reference this lookup took; the host holds its own
+        # the reference this lookup took; the host holds its own
+        ctypes.CDLL(None).dlclose(ctypes.c_void_p(loader._handle))

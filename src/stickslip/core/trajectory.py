@@ -76,8 +76,8 @@ SEGMENTS_RANGE = Range(1, None)
 
 # The fields of :meth:`Trajectory.snapshot` and their kinds (:mod:`.saved_state`)
 _SNAPSHOT_FIELDS = {"t": saved_state.REAL, "v_drive": saved_state.REAL, "F_ext": saved_state.REAL,
-                    "F_ext_rate": saved_state.REAL, "frame_t": saved_state.REAL, "rtol": saved_state.REAL, "counts": saved_state.NESTED, "burst": saved_state.NESTED,
-                    "t_last_event": saved_state.REAL,
+                    "F_ext_rate": saved_state.REAL, "frame_t": saved_state.REAL, "rtol": saved_state.REAL,
+                    "counts": saved_state.NESTED, "burst": saved_state.NESTED, "t_last_event": saved_state.REAL,
                     "stepper": saved_state.NESTED, "segment": saved_state.NESTED}
 _COUNT_FIELDS = tuple((name, saved_state.COUNT) for name in ("n_stick_events", "n_slip_events", "n_overshoots",
                                                                "chain"))
