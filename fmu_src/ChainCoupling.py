@@ -63,10 +63,9 @@ class ChainCoupling(Fmi2Slave):
         setattr(self, name, value)
         self.rates[name].clear()
 
-    def force(self, order=0):
-        """The springs' force on the block (N, +x), or its derivative of ``order`` (N/s^order) from the positions'."""
-        x = {name: (getattr(self, name) if order == 0 else self.rates[name].get(order, 0.0)) for name in POSITIONS}
-        return self.kc_left * (x["x_left"] - x["x"]) + self.kc_right * (x["x_right"] - x["x"])
+    def force(self):
+        """The springs' force on the block (N, +x)."""
+        return springs(self.kc_left, self.kc_right, self.x_left, self.x, self.x_right)
 
     def _get_fmu_state(self):
         """PythonFMU's state (every variable's value) and the derivatives set, as ``[order, value]`` pairs."""
@@ -117,5 +116,12 @@ class ChainCoupling(Fmi2Slave):
                 name = NAMES[reference] if 0 <= reference < len(NAMES) else f"valueReference={reference}"
                 raise ValueError(f"no derivative of order {order} of {name}: output derivatives are given for F, of "
                                  f"order 1 to {MAX_OUTPUT_DERIVATIVE_ORDER}")
-            answers.append(self.force(order))
+            answers.append(springs(self.kc_left, self.kc_right,
+                                   *(self.rates[name].get(order, 0.0) for name in POSITIONS)))
         return tuple(answers)
+
+
+def springs(kc_left, kc_right, left, middle, right):
+    """``kc_left (left - middle) + kc_right (right - middle)``: the force (N) at the positions (m), or its time
+    derivative of order k (N/s^k) at the positions' derivatives of order k (m/s^k): it is linear in them."""
+    return kc_left * (left - middle) + kc_right * (right - middle)

@@ -37,10 +37,10 @@ from stickslip.fmu import ensure_fmu
 from stickslip.fmu.coupling import ensure_coupling_fmu
 from stickslip.reference import simulate_chain
 from stickslip.systems.compare import compare
-from stickslip.systems.master import SystemResult
+from stickslip.systems.master import SystemResult, step_events
 from stickslip.systems.ssp import BLOCK_FILE, SSD, write_ssp
 from stickslip.systems.system_file import load_system
-from stickslip.systems.zoh import ZohMaster, step_events
+from stickslip.systems.zoh import ZohMaster
 
 OMS_NAMESPACE = "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd"
 #: the masters: (OMSimulator's name, its annotation element)

@@ -33,20 +33,15 @@ def coupling_tag():
     return files_tag((COUPLING_SLAVE, LOADER_BINDING, Path(__file__), *loader.SOURCES))
 
 
-def _binding_module():
-    """The name of the loader binding's module in the coupling FMU: one only this build of it uses."""
-    return f"chaincoupling_binding_{coupling_tag()}"
-
-
-def _staged_slave(folder):
-    """The slave's source in ``folder``, beside the loader binding under :func:`_binding_module`'s name, which its
-    import is renamed to; the slave's path."""
-    script = folder / COUPLING_SLAVE.name
-    script.write_text(rewrite_once(COUPLING_SLAVE, r"\bfrom loader_binding import\b",
-                                   f"from {_binding_module()} import",
+def _staged_slave(folder, tag):
+    """The slave's source in ``folder`` and beside it the loader binding as ``chaincoupling_binding_<tag>``, a module
+    name only this build uses, which the slave's import is renamed to: ``(slave's path, binding's path)``."""
+    module = f"chaincoupling_binding_{tag}"
+    script, binding = folder / COUPLING_SLAVE.name, folder / f"{module}.py"
+    script.write_text(rewrite_once(COUPLING_SLAVE, r"\bfrom loader_binding import\b", f"from {module} import",
                                    "the loader binding as 'from loader_binding import ...'"))
-    shutil.copyfile(LOADER_BINDING, folder / f"{_binding_module()}.py")
-    return script
+    shutil.copyfile(LOADER_BINDING, binding)
+    return script, binding
 
 
 def default_coupling_path():
@@ -78,14 +73,15 @@ def build_coupling(dest=None):
 
     dest = Path(dest or default_coupling_path()).resolve()
     dest.parent.mkdir(parents=True, exist_ok=True)
+    tag = coupling_tag()
     with tempfile.TemporaryDirectory(prefix="sbf_coupling_") as tmp:
-        script = _staged_slave(Path(tmp))
+        script, binding = _staged_slave(Path(tmp), tag)
         with preserved_sys_path():  # PythonFMU leaves the source folder on sys.path
-            built = FmuBuilder.build_FMU(script, dest=Path(tmp) / "out", project_files=[script.with_name(
-                _binding_module() + ".py")], canGetAndSetFMUstate=True, canSerializeFMUstate=True)
+            built = FmuBuilder.build_FMU(script, dest=Path(tmp) / "out", project_files=[binding],
+                                         canGetAndSetFMUstate=True, canSerializeFMUstate=True)
         entries = archive.read_entries(built)
         entries["modelDescription.xml"] = model_description.complete(
-            entries["modelDescription.xml"], UNITS, BOUNDS, 2, *archive.identity(COUPLING_NAME, 2, coupling_tag()))
+            entries["modelDescription.xml"], UNITS, BOUNDS, 2, *archive.identity(COUPLING_NAME, 2, tag))
         partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
         archive.write_entries(partial, entries)
         loader.install(partial, COUPLING_NAME)

@@ -36,7 +36,7 @@ import time
 import numpy as np
 
 from ..hosts.fmpy_host import FMUError
-from .master import SystemResult, block_instances, checked_rtol, new_event, references
+from .master import SystemResult, block_instances, checked_rtol, read_values, references, step_events
 
 DEFAULT_RTOL = 3e-10  # keeps the 2- and 3-block chains' event times within 1e-8 s (issue 19; 1e-9: 4e-8 s)
 EVENT_TOL = 1e-10  # s: an event this close before a step's end has landed on it
@@ -152,9 +152,7 @@ class _Blocks:
 
     def end(self):
         """``(z_slip, z_stick, t_last_event, mode, n_events)`` of every block, each an array over blocks."""
-        rows = [b.call(b.fmu.getReal, self.end_refs) + b.call(b.fmu.getInteger, self.int_refs)
-                for b in self.instances]
-        return [np.array(column) for column in zip(*rows)]
+        return [np.array(column) for column in read_values(self.instances, self.end_refs, self.int_refs)]
 
 
 class _Attempt:
@@ -337,11 +335,9 @@ class _Run:
     def _accept(self, attempt):
         """Make ``attempt`` the new communication point; record its events."""
         before, end = self.end, attempt.end
-        for i in np.flatnonzero(end[4] != before[4]):
-            if end[4][i] == before[4][i] + 1:
-                self.events.append(new_event(end[2][i], i, before[3][i], end[3][i]))
-            else:
-                self.complete = False
+        events, complete = step_events(end[2], before[3], end[3], before[4], end[4])
+        self.events += events
+        self.complete = self.complete and complete
         self.t, self.end, self.margin = attempt.T, end, self._held_margin(attempt)
         self.x, self.v = attempt.X[:, -1].copy(), attempt.V[:, -1].copy()
         self.a = (attempt.spring + attempt.friction[:, -1] + self.K @ self.x) / self.M

@@ -76,6 +76,19 @@ def new_event(t, block, before, after):
     return ChainEvent(float(t), int(block), event_kind(before, after), int(before), int(after))
 
 
+def step_events(t_last, mode, new_mode, count, new_count):
+    """``(events, complete)`` of one communication step from each block's (lists over blocks) ``t_last_event``
+    (s), mode and ``n_events`` before and after it: one event per block is known exactly, more only by count
+    (``complete`` False)."""
+    events, complete = [], True
+    for i, (before, after, n0, n1) in enumerate(zip(mode, new_mode, count, new_count)):
+        if n1 == n0 + 1:
+            events.append(new_event(t_last[i], i, before, after))
+        elif n1 > n0:
+            complete = False
+    return events, complete
+
+
 @contextlib.contextmanager
 def block_instances(master, system, fmu_path, interface="cs"):
     """``(extracted FMU, [an initialized instance per block])`` for ``master`` (its ``NAME`` and ``FMI_VERSION``):

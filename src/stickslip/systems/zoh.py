@@ -20,7 +20,7 @@ import numpy as np
 
 from ..hosts.fmpy_host import FMUError
 from .engines import ENGINES, INTEGERS, REALS, run_ssp
-from .master import SystemResult, block_instances, new_event, read_values, references
+from .master import SystemResult, block_instances, read_values, references, step_events
 
 
 
@@ -127,16 +127,3 @@ class _Run:
         events, complete = step_events(t_last, mode, new_mode, count, new_count)
         self.events += events
         self.complete = self.complete and complete
-
-
-def step_events(t_last, mode, new_mode, count, new_count):
-    """``(events, complete)`` of one communication step from each block's (lists over blocks) ``t_last_event``
-    (s), mode and ``n_events`` before and after it: one event per block is known exactly, more only by count
-    (``complete`` False)."""
-    events, complete = [], True
-    for i, (before, after, n0, n1) in enumerate(zip(mode, new_mode, count, new_count)):
-        if n1 == n0 + 1:
-            events.append(new_event(t_last[i], i, before, after))
-        elif n1 > n0:
-            complete = False
-    return events, complete

@@ -253,24 +253,31 @@ int sbf_fast_integers(sbf_fast_path *fast, const unsigned *vr, size_t n, int *va
         }                                                                                                          \
     } while (0)
 
-/* The slave's answer `result` to `function`'s call: for a read, `n` numbers into `values`; for a write, None or a warning's
- * text into `why`. The outcome as sbf_slave_derivatives gives it. */
+/* The slave's answer `result` to `function`'s call: for a read, `n` numbers into `values`; for a write, None or a
+ * warning's text into `why`. The outcome as sbf_slave_derivatives gives it; on a refusal `why` says why and no
+ * Python exception is left pending. */
 static int derivatives_answer(PyObject *result, const char *function, size_t n, double *values, int writes, char *why,
                               size_t why_size)
 {
-    if (!result) return 1;
-    if (writes) {
-        const char *text = result == py_none ? NULL : py.PyUnicode_AsUTF8(result);
-        if (text) snprintf(why, why_size, "%s", text);
-        return text ? 2 : result == py_none ? 0 : 1;
+    if (result && writes) {
+        if (result == py_none) return 0;
+        const char *text = py.PyUnicode_AsUTF8(result);
+        if (text) {
+            snprintf(why, why_size, "%s", text);
+            return 2;
+        }
+    } else if (result) {
+        ptrdiff_t k = py.PyTuple_Size(result);
+        if (k == (ptrdiff_t)n) {
+            for (size_t i = 0; i < n; ++i) values[i] = py.PyFloat_AsDouble(py.PyTuple_GetItem(result, (ptrdiff_t)i));
+            if (!py.PyErr_Occurred()) return 0;
+        } else if (k >= 0) {
+            snprintf(why, why_size, "[%s] the slave answered %zd values for %zu asked for", function, k, n);
+            return 1;
+        }
     }
-    if (py.PyTuple_Size(result) != (ptrdiff_t)n) {
-        snprintf(why, why_size, "[%s] the slave answered %zd values for %zu asked for", function,
-                 py.PyTuple_Size(result), n);
-        return 3;
-    }
-    for (size_t i = 0; i < n; ++i) values[i] = py.PyFloat_AsDouble(py.PyTuple_GetItem(result, (ptrdiff_t)i));
-    return py.PyErr_Occurred() ? 1 : 0;
+    exception_text(function, why, why_size); /* the exception pending */
+    return 1;
 }
 
 int sbf_slave_derivatives(sbf_fast_path *fast, const char *function, const char *method, const unsigned *vr, size_t n,
@@ -295,8 +302,6 @@ int sbf_slave_derivatives(sbf_fast_path *fast, const char *function, const char 
     if (references && orders && (given || !writes))
         result = py.PyObject_CallMethod(fast->slave, method, writes ? "(OOO)" : "(OO)", references, orders, given);
     int outcome = derivatives_answer(result, function, n, values, writes, why, why_size);
-    if (outcome == 1) exception_text(function, why, why_size);
-    if (outcome == 3) outcome = 1;
     PyObject *held[] = {references, orders, given, result};
     for (size_t i = 0; i < sizeof held / sizeof *held; ++i)
         if (held[i]) py.Py_DecRef(held[i]);
