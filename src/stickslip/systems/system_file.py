@@ -220,12 +220,13 @@ def _check_scales(f, system, params):
     """The runtime's checks of what the values combine into (the FMU's own at its initialization): each block's
     scales with the system's ``v_drive`` (:func:`stickslip.core.check_scales`), then the coupling force it starts
     with (its ``F_ext``, the runtime's input check)."""
-    forces = system.forces([b["x_start"] for b in system.blocks])
-    for i, (block, p, force) in enumerate(zip(system.blocks, params, forces), start=1):
+    for i, (block, p) in enumerate(zip(system.blocks, params), start=1):
         try:
             check_scales(block["x_start"], block["v_start"], system.v_drive, 0.0, p, ("x_start", "v_start"))
         except ParameterError as exc:
             raise SystemFileError(f"{f.path}: block b{i}: {exc}") from None
+    forces = system.forces([b["x_start"] for b in system.blocks])
+    for i, (p, force) in enumerate(zip(params, forces), start=1):
         try:
             check_input_scales(0.0, force, p)
         except ParameterError as exc:
