@@ -5,9 +5,12 @@
 values by the FMU's names (``M``, ``kappa``, ``"kinetic.law"``, ...; a missing one takes the FMU's start
 value); an optional ``[tolerance.<master>]`` table sets ``max_rel_dx``, the largest error of that master
 against the chain's reference, as a fraction of the chain's amplitude. Names, kinds and law codes come from
-the FMU's variable table (:mod:`stickslip.fmu.variables`), value ranges from the runtime's own checks (the
-FMU checks them again). A malformed file raises :class:`SystemFileError` naming the file, the key and what
-is allowed; block ``i`` (1-based) is ``b<i>`` in messages and in the result's columns.
+the FMU's variable table (:mod:`stickslip.fmu.variables`), value ranges from the FMU's own checks: the ranges of
+that table, the runtime's checks of the parameters and of the scales they combine into with the system's
+``v_drive`` and each block's starting coupling force (what the FMU would refuse at its initialization). A run
+that would not finish is refused too (:mod:`stickslip.hosts.run_limits`). A malformed file raises
+:class:`SystemFileError` naming the file, the key (or the block and its values) and what is allowed; block ``i``
+(1-based) is ``b<i>`` in messages and in the result's columns.
 """
 
 import tomllib
