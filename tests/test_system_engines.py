@@ -20,9 +20,10 @@ from stickslip.hosts.fmpy_host import ExtractedFMU, FMUError, log_mark
 from stickslip.systems import load_system, make_master
 from stickslip.systems.engines import engine_environment
 from stickslip.systems.master import block_instances
-from stickslip.systems.ssp import NAMESPACES, system_description
+from stickslip.systems.ssp import NAMESPACES, component_values, write_ssp
 
 from stickslip.systems.compare import compare
+from cli_child import STICKSLIP
 from test_systems import CHAIN2, SYSTEMS, scene
 
 CHAINS = ("chain2-coulomb", "chain3-coulomb")
@@ -116,35 +117,54 @@ def test_coupling_fmu_refuses_a_negative_stiffness(coupling_fmu):
 
 
 @pytest.mark.parametrize("name", ["chain3-coulomb", "bk10-velocity-weakening"])
-def test_the_ssd_wires_the_springs_of_the_system_file(name):
+def test_the_ssd_wires_the_springs_of_the_system_file(name, fmu_path, coupling_fmu, tmp_path):
     """The SSD's connections and stiffnesses, read back as a user's engine reads them, give SPEC's F_ext_i at any
     positions; each block carries its file values, v_drive and F_ext at the start positions."""
     system = load_system(SYSTEMS / f"{name}.toml")
-    root = ET.fromstring(system_description(system, 0.01))
-    ns = {k: v for k, v in NAMESPACES.items()}
-    values = {}
-    for component in root.iter(f"{{{ns['ssd']}}}Component"):
-        values[component.get("name")] = {p.get("name"): float(p[0].get("value"))
-                                         for p in component.iter(f"{{{ns['ssv']}}}Parameter")}
+    ssp = write_ssp(system, 0.01, fmu_path, coupling_fmu, tmp_path / "s.ssp")
+    with zipfile.ZipFile(ssp) as archive:
+        root = ET.fromstring(archive.read("SystemStructure.ssd"))
+        values = {}
+        for component in root.iter(f"{{{NAMESPACES['ssd']}}}Component"):
+            assert not list(component.iter(f"{{{NAMESPACES['ssv']}}}Parameter"))  # no value inline
+            binding = component.find(f"{{{NAMESPACES['ssd']}}}ParameterBindings/{{{NAMESPACES['ssd']}}}ParameterBinding")
+            parameters = ET.fromstring(archive.read(binding.get("source")))
+            assert parameters.get("name") == "initialValues"
+            values[component.get("name")] = {p.get("name"): float(p[0].get("value"))
+                                             for p in parameters.iter(f"{{{NAMESPACES['ssv']}}}Parameter")}
     wires = {(c.get("endElement"), c.get("endConnector")): (c.get("startElement"), c.get("startConnector"))
-             for c in root.iter(f"{{{ns['ssd']}}}Connection")}
+             for c in root.iter(f"{{{NAMESPACES['ssd']}}}Connection")}
+    b, c = ([f"{kind}{i:0{len(str(system.n))}d}" for i in range(1, system.n + 1)] for kind in "bc")
+    assert sorted(values) == sorted(b + c) and all(not x.startswith(y) for x in values for y in values if x != y)
     rng = np.random.default_rng(19)
     for x in rng.normal(size=(5, system.n)):
-        position = {f"b{i + 1}": xi for i, xi in enumerate(x)}
+        position = dict(zip(b, x))
         forces = []
-        for i in range(1, system.n + 1):
-            c, inputs = values[f"c{i}"], {}
+        for i in range(system.n):
+            inputs = {}
             for port in ("x_left", "x", "x_right"):
-                source = wires.get((f"c{i}", port))
+                source = wires.get((c[i], port))
                 inputs[port] = position[source[0]] if source else 0.0
-            assert wires[(f"b{i}", "F_ext")] == (f"c{i}", "F")
-            forces.append(c["kc_left"] * (inputs["x_left"] - inputs["x"])
-                          + c["kc_right"] * (inputs["x_right"] - inputs["x"]))
+            assert wires[(b[i], "F_ext")] == (c[i], "F")
+            forces.append(values[c[i]]["kc_left"] * (inputs["x_left"] - inputs["x"])
+                          + values[c[i]]["kc_right"] * (inputs["x_right"] - inputs["x"]))
         assert forces == pytest.approx(system.forces(list(x)), abs=1e-14)
-    start = system.forces([b["x_start"] for b in system.blocks])
-    for i, block in enumerate(system.blocks, start=1):
-        assert values[f"b{i}"]["F_ext"] == start[i - 1] and values[f"b{i}"]["v_drive"] == system.v_drive
-        assert all(values[f"b{i}"][key] == float(value) for key, value in block.items())
+    start = system.forces([block["x_start"] for block in system.blocks])
+    for i, block in enumerate(system.blocks):
+        assert values[b[i]]["F_ext"] == start[i] and values[b[i]]["v_drive"] == system.v_drive
+        assert all(values[b[i]][key] == float(value) for key, value in block.items())
+
+
+@pytest.mark.parametrize("name", ["chain2-coulomb", "bk10-velocity-weakening"])
+def test_fmpys_ssp_reader_finds_every_components_values(name, fmu_path, coupling_fmu, tmp_path):
+    """FMPy reads each component's parameter set from its ParameterBinding's .ssv (inline values it read as none)."""
+    from fmpy.ssp.ssd import read_ssd
+
+    system = load_system(SYSTEMS / f"{name}.toml")
+    ssp = write_ssp(system, 0.1, fmu_path, coupling_fmu, tmp_path / "s.ssp")
+    found = {element.name: {p.name: float(p.value) for b in element.parameterBindings for s in b.parameterValues
+                            for p in s.parameters} for element in read_ssd(str(ssp)).system.elements}
+    assert found == component_values(system)
 
 
 # ---------------------------------------------------------------- the engines
@@ -162,12 +182,12 @@ def engine_run(name, engine, fmu_path, step=0.1):
     return _RUNS[key]
 
 
-@pytest.mark.parametrize("name, engine", list(itertools.product(CHAINS, ["libcosim", "ecos"])))
+@pytest.mark.parametrize("name, engine", list(itertools.product(CHAINS, ["libcosim", "ecos", "fmpy-ssp"])))
 def test_engines_equal_fmpys_run_of_the_ssp(name, engine, fmu_path):
-    """libcosim and ecos step the SSP as FMPy does at h = 0.1 s: x within 1e-12 m (measured: libcosim 6e-14 m, ecos
-    8.4e-13 m: its communication points are sums of steps, 1e-11 s off k h at 100 s, and FMPy at those points
-    equals ecos bit for bit), the same events at the same times; a sample's mode differs only where an event
-    falls on the sample (a breakaway at a step's start, when the held force jumps)."""
+    """libcosim, ecos and FMPy's SSP simulator step the SSP as FMPy does at h = 0.1 s: x within 1e-12 m (measured:
+    libcosim 4.3e-14 m, ecos 8.4e-13 m, FMPy's SSP simulator 8.2e-13 m: both sum their steps, 1e-11 s off k h at
+    100 s, and FMPy at ecos's points equals ecos bit for bit), the same events at the same times; a sample's mode
+    differs only where an event falls on the sample (a breakaway at a step's start, when the held force jumps)."""
     mine, theirs = engine_run(name, "fmpy", fmu_path), engine_run(name, engine, fmu_path)
     assert np.abs(mine.x - theirs.x).max() <= 1e-12
     assert np.abs(mine.v - theirs.v).max() <= 2e-12
@@ -229,13 +249,27 @@ def test_command_writes_the_ssp(tmp_path, fmu_path, capsys):
     assert main(["system", "ssp", str(CHAIN2), "--out", str(tmp_path), "--fmu", str(fmu_path), "--step", "0.01"]) == 0
     with zipfile.ZipFile(tmp_path / "chain2-coulomb.ssp") as ssp:
         assert sorted(ssp.namelist()) == ["SystemStructure.ssd", "resources/ChainCoupling.fmu",
-                                          "resources/SpringBlockFriction.fmu"]
+                                          "resources/SpringBlockFriction.fmu", "resources/b1.ssv", "resources/b2.ssv",
+                                          "resources/c1.ssv", "resources/c2.ssv"]
         assert b'baseStepSize="0.01"' in ssp.read("SystemStructure.ssd")
 
 
 def test_only_zoh_takes_an_engine():
     with pytest.raises(FMUError, match=r"master 'me' takes no option 'engine' \(the masters \['zoh'\] do\)"):
         make_master("me", engine="ecos")
-    allowed = r"zoh: engine = 'omsimulator': allowed is one of \['fmpy', 'libcosim', 'ecos'\]"
+    allowed = r"zoh: engine = 'omsimulator': allowed is one of \['fmpy', 'libcosim', 'ecos', 'fmpy-ssp'\]"
     with pytest.raises(FMUError, match=allowed):
         make_master("zoh", engine="omsimulator")
+
+
+@pytest.mark.parametrize("step", ["-1", "nan", "inf", "0", "x"])
+@pytest.mark.parametrize("command", ["ssp", "run"])
+def test_a_step_out_of_range_is_refused_naming_the_option(tmp_path, command, step):
+    """``--step`` -1, nan, inf, 0: a usage error (exit 2) naming the option and the allowed range; nothing written
+    (0 used to become the output interval)."""
+    extra = ["--master", "zoh", "--quiet"] if command == "run" else []
+    proc = subprocess.run([*STICKSLIP, "system", command, str(CHAIN2), "--step", step, "--out", str(tmp_path), *extra],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert f"error: argument --step: allowed is a finite step > 0 s, got '{step}'" in proc.stderr
+    assert not list(tmp_path.iterdir())

@@ -15,6 +15,7 @@ from stickslip.hosts.fmpy_host import FMUError
 from stickslip.reference import simulate_chain
 from stickslip.systems import SystemFileError, load_system, make_master
 from stickslip.systems.compare import compare
+from stickslip.systems.master import SystemResult
 
 SYSTEMS = Path(__file__).resolve().parents[1] / "systems"
 CHAIN2 = SYSTEMS / "chain2-coulomb.toml"
@@ -301,3 +302,95 @@ def test_a_master_refuses_the_other_fmi_versions_fmu(fmu_path, fmu3_path):
         make_master("me").run(system, fmu_path)
     with pytest.raises(FMUError, match=r"zoh: .* is an FMI 3 FMU; the master runs the FMI 2 FMU"):
         make_master("zoh").run(system, fmu3_path)
+
+
+# ---------------------------------------------------------------- what the FMU or a run cannot take, refused at load
+
+
+@pytest.mark.parametrize("change, message", [
+    (("M = 1.0", "M = 1e-300"), r"block b2: kappa / M = .* \(kappa = 1.0 N/m, M = 1e-300 kg\) is out of range: "
+                                r"allowed is \[1e-100, 1e\+100\] 1/s\^2"),
+    (("M = 1.0", "M = 1e300"), r"block b2: kappa / M = 1e-300 1/s\^2 .* is out of range"),
+    (("kappa = 1.0", "kappa = 1e-300"), r"block b2: kappa / M = 1e-300 1/s\^2 \(kappa = 1e-300 N/m"),
+    (("x_start = 0.0", "x_start = 1e300"), r"block b2: the force scale kappa \* \|x_start\| = 1e\+300 N "
+                                           r"\(kappa = 1.0 N/m, x_start = 1e\+300 m\) is out of range"),
+    (("v_start = 0.1", "v_start = 1e200"), r"block b2: the force scale sqrt\(kappa M\) \* \|v_start\| = 1e\+200 N"),
+])
+def test_values_the_fmu_refuses_are_refused_at_load_naming_file_block_and_keys(tmp_path, change, message):
+    """The FMU's own scale checks (stickslip.core.model.check_scales) run at load, with the file and the block."""
+    path = write(tmp_path, system_text(blocks=(BLOCK, BLOCK.replace(*change))))
+    with pytest.raises(SystemFileError, match=f"^{path}: " + message):
+        load_system(path)
+
+
+@pytest.mark.parametrize("system, message", [
+    ("v_drive = 1e151\ncoupling = [0.5]", r"block b1: the force scale sqrt\(kappa M\) \* \|v_drive\| = 1e\+151 N"),
+    ("v_drive = 0.1\ncoupling = [1e200]", r"key 'system.coupling': block b1 starts with the coupling force "
+                                          r"F_ext = 2e\+199 N: the force scale \|F_ext\| = 2e\+199 N"),
+])
+def test_system_values_the_fmu_refuses_are_refused_at_load(tmp_path, system, message):
+    shifted = BLOCK.replace("x_start = 0.0", "x_start = 0.2")
+    with pytest.raises(SystemFileError, match=message):
+        load_system(write(tmp_path, system_text(f"stop_time = 10.0\noutput_interval = 0.1\n{system}",
+                                                blocks=(BLOCK, shifted))))
+
+
+def test_a_value_the_fmu_refuses_names_the_block_not_a_variable(fmu_path):
+    """A block the FMU refuses at initialization is named by its instance (b2), not by the last variable set."""
+    system = load_system(CHAIN2)
+    bad = dataclasses.replace(system, blocks=(system.blocks[0], {**system.blocks[1], "M": 1e-300}))
+    with pytest.raises(FMUError, match=r"^block b2: fmi2ExitInitializationMode failed .*\n.*kappa / M"):
+        make_master("zoh").run(bad, fmu_path)
+
+
+@pytest.mark.parametrize("system, message", [
+    ("stop_time = 1e12\noutput_interval = 0.1", r"key 'system.output_interval': stop_time / output_interval = "
+                                                r"1e\+13 output points: allowed is at most 1e\+06"),
+    ("stop_time = 1e12\noutput_interval = 1e7", r"key 'system.stop_time': the run is 4.5e\+11 free periods long "
+                                                r"\(.*, times 2 blocks\): allowed is at most 100000"),
+    ("stop_time = 100.0\noutput_interval = 0.1\ncoupling_ = 1", r"key 'system.stop_time': the run is 1.42e\+06 free"),
+])
+def test_a_run_that_cannot_finish_is_refused_at_load(tmp_path, system, message):
+    """Output points (the masters' and the reference's arrays) and periods of the fastest oscillation times the
+    blocks (coupling 1e9 N/m: a period of 1.4e-4 s) are bounded; the files in systems/ are far inside."""
+    coupling = "coupling = [1e9]" if "coupling_" in system else "coupling = [0.5]"
+    text = system_text(system.replace("\ncoupling_ = 1", "") + f"\nv_drive = 0.1\n{coupling}")
+    with pytest.raises(SystemFileError, match=message):
+        load_system(write(tmp_path, text))
+    for path in SYSTEMS.glob("*.toml"):
+        system = load_system(path)
+        assert system.n * system.stop_time / system.shortest_period() < 0.03 * 1e5
+
+
+def test_zoh_refuses_a_step_that_cannot_finish(fmu_path):
+    with pytest.raises(FMUError, match=r"zoh: step = 1e-09 s: 2e\+11 doStep calls .*: allowed is at most 1e\+07"):
+        make_master("zoh", step=1e-9).run(load_system(CHAIN2), fmu_path)
+
+
+@pytest.mark.parametrize("master", ["zoh", "me", "adaptive"])
+def test_a_chain_at_rest_passes(tmp_path, master, capsys):
+    """v_drive = 0, every block stuck at rest: amplitude 0; the master equals the reference exactly and passes
+    (its error is a fraction of the floor, 1e-6 of the largest F_S/kappa); a master that moved would fail."""
+    still = BLOCK.replace("v_start = 0.1", "v_start = 0.0")
+    path = write(tmp_path, system_text("stop_time = 10.0\noutput_interval = 0.1\nv_drive = 0.0\ncoupling = [0.5]",
+                                       blocks=(still, still)))
+    assert main(["system", "run", str(path), "--master", master, "--out", str(tmp_path), "--quiet"]) == 0
+    line = capsys.readouterr().out
+    assert f"max |dx| 0 m = 0 of the floor 1e-06 m (the amplitude is 0 m)" in line and ": PASS" in line
+    system = load_system(path)
+    reference = simulate_chain(system.chain_blocks(), system.coupling, 0.0, system.times())
+    moved = SystemResult(master, reference.t, reference.x + 2e-7, reference.v, reference.mode, [], True,
+                         np.zeros(2, int), 0.0)
+    assert compare(moved, reference, 0.1, floor=1e-6).max_rel_dx == pytest.approx(0.2)
+    assert not compare(moved, reference, 0.1, floor=1e-6).ok
+
+
+def test_the_adaptive_master_does_not_advise_changing_the_tolerance_it_sets():
+    """The FMU's advice 'lower solver.rtol' on a block whose solver.rtol the master set becomes advice on its rtol."""
+    from stickslip.systems.adaptive import own_tolerance_advice
+    message = ("fmi2DoStep failed with status 3 (error)\n[doStep] SolverError('more than 1000 mode changes ...: the "
+               "kinetic law is too steep for this tolerance (F0 = 0.5): lower solver.rtol')")
+    text = own_tolerance_advice(message, 3e-10)
+    assert "lower solver.rtol" not in text
+    assert "sets each block's solver.rtol to at most 3e-14 (0.0001 times its rtol, at least 1e-14): lower its " \
+           "rtol (--rtol)" in text

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from ..bench.versus import add_versus_parser
 from ..core.errors import StickSlipError
+from ..hosts import interrupts
 from .analysis import add_bifurcation, add_chart, add_map, add_slow_manifold, add_vc
 from .bench import add_bench_parser, add_c_hosts_parser, add_systems_parser
 from .stress import add_stress_parser
@@ -59,8 +60,13 @@ COMMANDS = (add_run, add_build, add_bench_parser, add_c_hosts_parser, add_system
             add_bifurcation, add_vc, add_map, add_slow_manifold, add_chart, add_stress_parser, add_system)
 
 
+#: the exit code after Ctrl-C (128 + SIGINT, as a shell reports a process that SIGINT ended)
+INTERRUPTED = 130
+
+
 def main(argv=None):
-    """Entry point of the ``stickslip`` script; returns the exit code (0 success, 1 failure, 2 usage)."""
+    """Entry point of the ``stickslip`` script; returns the exit code (0 success, 1 failure, 2 usage,
+    :data:`INTERRUPTED` after Ctrl-C)."""
     parser = argparse.ArgumentParser(
         prog="stickslip", description="Spring-block dry friction: FMU, reference integrator and scenario suite.")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -68,8 +74,12 @@ def main(argv=None):
         add(subparsers)
     args = parser.parse_args(argv)
     try:
-        return args.handler(args)
-    except StickSlipError as exc:
+        with interrupts.counting():
+            return args.handler(args)
+    except KeyboardInterrupt as exc:  # Ctrl-C: one line, the shell's status for SIGINT
+        print(f"stickslip {args.command}: interrupted" + (f" ({exc})" if str(exc) else ""), file=sys.stderr)
+        return INTERRUPTED
+    except (StickSlipError, OSError) as exc:
         print(f"stickslip {args.command}: {exc}", file=sys.stderr)
         return 1
 

@@ -1,6 +1,9 @@
 """``stickslip system run FILE.toml --master MASTER --out DIR``: a chain of blocks through a master, against the
 chain's reference; ``stickslip system ssp FILE.toml --out DIR``: the chain as an SSP file (docs/systems.md)."""
 
+import argparse
+import math
+
 from ..systems.engines import ENGINES
 from ..systems.masters import MASTERS
 
@@ -17,7 +20,8 @@ def add_system(subparsers):
                           "blocks in one solver; adaptive: FMI 2 co-simulation with events landed, step rejection and "
                           "iterated coupling")
     run.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
-    run.add_argument("--step", type=float, help="zoh: communication step in s (default: the file's output_interval)")
+    run.add_argument("--step", type=step_seconds,
+                     help="zoh: communication step in s (default: the file's output_interval)")
     run.add_argument("--engine", choices=ENGINES,
                      help="zoh: write the system as an SSP file (block and coupling FMUs) and step it in this engine "
                           "(default: FMPy with the coupling computed by the master)")
@@ -30,9 +34,20 @@ def add_system(subparsers):
                                           "block, their values and connections, the fixed step")
     ssp.add_argument("file", metavar="FILE.toml", help="system file")
     ssp.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
-    ssp.add_argument("--step", type=float, help="the fixed step in s (default: the file's output_interval)")
+    ssp.add_argument("--step", type=step_seconds, help="the fixed step in s (default: the file's output_interval)")
     ssp.add_argument("--fmu", help="the block FMU (default: the built FMI 2 FMU)")
     ssp.set_defaults(handler=_ssp)
+
+
+def step_seconds(text):
+    """The value of a ``--step`` option: a finite time step > 0 (s); argparse names the option if not."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(f"allowed is a finite step > 0 s, got {text!r}")
+    return value
 
 
 def _run(args):
@@ -47,15 +62,18 @@ def _run(args):
 
 
 def _ssp(args):
-    from pathlib import Path
-
     from ..fmu import ensure_fmu
     from ..fmu.coupling import ensure_coupling_fmu
+    from ..fmu.variables import START_VALUES
+    from ..hosts.fmpy_host import read_model_description
+    from ..hosts.run_limits import output_folder
     from ..systems import load_system
     from ..systems.ssp import write_ssp
 
     system = load_system(args.file)
-    step = args.step or system.output_interval
-    dest = Path(args.out) / f"{system.name}.ssp"
+    step = system.output_interval if args.step is None else args.step
+    if args.fmu is not None:
+        read_model_description(args.fmu, needs=START_VALUES)
+    dest = output_folder(args.out, [f"{system.name}.ssp"]) / f"{system.name}.ssp"
     print(write_ssp(system, step, args.fmu or ensure_fmu(), ensure_coupling_fmu(), dest))
     return 0

@@ -1,10 +1,12 @@
 """The FMU's variables as the code around the FMU needs them: names by causality and kind, units and start values,
-all read from the one variable table, :data:`stickslip.fmu_src.block_interface.VARIABLES` (SPEC section 4).
+all read from the one variable table, :data:`stickslip.fmu_src.block_interface.VARIABLES` (SPEC section 4), and
+the FMU's range check of its parameters and inputs by that table, ``check_values(values)`` (ParameterError naming
+the first value out of its range).
 
 The runtime keeps its own list (``stickslip.core.OUTPUT_NAMES``): it stays independent of the FMU's glue.
 """
 
-from ..fmu_src.block_interface import VARIABLES
+from ..fmu_src.block_interface import VARIABLES, check_values
 
 
 def names(causality, kind=None):

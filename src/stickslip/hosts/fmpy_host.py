@@ -38,6 +38,7 @@ from fmpy.logging import addLoggerProxy
 
 from ..core.errors import StickSlipError
 from ..fmu.python_path import preserved_sys_path
+from .interrupts import count as interrupt_count
 
 #: interface: (FMPy's fmi_type, the model description's attribute, FMI 2 class, FMI 3 class)
 INTERFACES = {"cs": ("CoSimulation", "coSimulation", FMU2Slave, FMU3Slave),
@@ -122,14 +123,22 @@ class Instance:
 
     def call(self, method, *args, **kwargs):
         """``method(*args, **kwargs)``, a method of :attr:`fmu` (or anything that makes FMI calls on it);
-        :class:`FmuCallError` with this instance's new log messages if an FMI call fails."""
-        first = log_mark()
+        :class:`FmuCallError` with this instance's new log messages if an FMI call fails; KeyboardInterrupt if a
+        SIGINT arrived during it (:mod:`.interrupts`), whatever the call returned."""
+        first, interrupts = log_mark(), interrupt_count()
         try:
-            return method(*args, **kwargs)
-        except FMICallException as error:
-            if error.status == FATAL[self.extracted.fmi_version]:  # the library released the slave
-                self.fatal = True
+            result = method(*args, **kwargs)
+        except Exception as error:
+            if isinstance(error, FMICallException) and error.status == FATAL[self.extracted.fmi_version]:
+                self.fatal = True  # the library released the slave
+            if interrupt_count() != interrupts:  # Ctrl-C, which the FMU's library reported as its own error
+                raise KeyboardInterrupt from None
+            if not isinstance(error, FMICallException):
+                raise
             raise FmuCallError(error.function, error.status, self.messages(first)) from None
+        if interrupt_count() != interrupts:  # Ctrl-C that a callback swallowed (FMPy's solver calls Python)
+            raise KeyboardInterrupt
+        return result
 
     def messages(self, first=0):
         """Log messages (status >= warning) of this instance since ``first`` (a :func:`log_mark`)."""
@@ -157,16 +166,35 @@ class Instance:
         self.free()
 
 
+def read_model_description(fmu_path, needs=()):
+    """FMPy's model description of the FMU file ``fmu_path``; FMUError naming the file if it is missing, is not an
+    FMU that FMPy reads, or has no variable of one of the names ``needs``."""
+    try:
+        description = fmpy.read_model_description(str(fmu_path))
+    except OSError as exc:
+        raise FMUError(f"{fmu_path}: cannot read the FMU: {exc.strerror or exc}") from None
+    except Exception as exc:  # FMPy's: a zip error, a missing or malformed modelDescription.xml, ...
+        text = str(exc).strip().splitlines()
+        raise FMUError(f"{fmu_path}: not an FMU ({type(exc).__name__}: {text[0] if text else ''})") from None
+    names = {v.name for v in description.modelVariables}
+    missing = [name for name in needs if name not in names]
+    if missing:
+        raise FMUError(f"{fmu_path}: the FMU {description.modelName} has no variable {missing[0]!r}: it is not "
+                       f"a SpringBlockFriction FMU")
+    return description
+
+
 class ExtractedFMU:
-    """The FMU at ``fmu_path`` read (``model_description``, FMPy's) and extracted to a temporary ``folder`` once;
-    ``variables``: its model variables by name. Use as a context manager (the folder is removed at the end)."""
+    """The FMU at ``fmu_path`` read (``model_description``, FMPy's; FMUError as :func:`read_model_description`, which
+    checks that it has the variables ``needs``) and extracted to a temporary ``folder`` once; ``variables``: its
+    model variables by name. Use as a context manager (the folder is removed at the end)."""
 
     #: the class :meth:`new_instance` makes
     instance_type = Instance
 
-    def __init__(self, fmu_path):
+    def __init__(self, fmu_path, needs=()):
         self.path = str(fmu_path)
-        self.model_description = fmpy.read_model_description(self.path)
+        self.model_description = read_model_description(self.path, needs)
         self.folder = fmpy.extract(self.path)
         self.variables = {v.name: v for v in self.model_description.modelVariables}
         self.fmi_version = int(self.model_description.fmiVersion[0])

@@ -7,19 +7,20 @@ the reference on the FMU's output grid with the inputs the FMU actually saw,
 ``OUT/<name>.png`` and finally ``OUT/report.md``.
 """
 
+import signal
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
 from multiprocessing import get_context
 from pathlib import Path
 
-import fmpy
 from tqdm import tqdm
 
 from .compare import compare
 from ..core.errors import StickSlipError
 from ..fmu import ensure_fmu, variables
-from ..hosts.fmpy_host import run_fmu
+from ..hosts import interrupts
+from ..hosts.fmpy_host import read_model_description, run_fmu
+from ..hosts.run_limits import output_folder
 from .inputs import held_input_table
 from .scenario_plots import plot_scenario
 from ..reference import ReferenceFailure, parameters_from_values, simulate_reference
@@ -105,8 +106,10 @@ def run_suite(paths, out_dir, jobs=2, fmu_path=None, interface=None):
 
     Writes the per-scenario files and ``report.md`` into ``out_dir``, prints a summary
     within 100 columns (:func:`~stickslip.suite.report.console_summary`), and returns a :class:`SuiteResult` (``.ok`` is False if any
-    scenario missed its tolerance or its attractor). A malformed scenario file
-    raises :class:`~stickslip.suite.scenario.ScenarioError` before anything runs.
+    scenario missed its tolerance or its attractor). A malformed scenario file, an FMU that is not a
+    SpringBlockFriction FMU and an output folder that cannot take the files raise a StickSlipError before anything
+    runs; the previous run's ``report.md`` is removed then (it is written last: a run that stops, e.g. on
+    Ctrl-C, which raises KeyboardInterrupt saying how far it got, leaves none).
     """
     start = time.perf_counter()
     scenarios = load_scenarios(paths)
@@ -114,31 +117,57 @@ def run_suite(paths, out_dir, jobs=2, fmu_path=None, interface=None):
     if interface == "me":
         for scenario in scenarios:
             model_exchange(scenario)
+    out_dir = output_folder(out_dir, ["report.md", *(f"{s.name}{suffix}" for s in scenarios for suffix in
+                                                     (".csv", ".png"))])
+    (out_dir / "report.md").unlink(missing_ok=True)
     if fmu_path is None:
         fmu_path = ensure_fmu(fmi_version=2 if interface is None else 3)
     fmu_path = Path(fmu_path)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     progress = tqdm(total=len(scenarios), desc="scenarios", unit="scenario")
-    if jobs <= 1:
-        outcomes = []
-        for s in scenarios:
-            outcomes.append(run_scenario(s, fmu_path, out_dir, interface))
-            progress.update()
-    else:
-        with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
-            futures = {pool.submit(run_scenario, s, fmu_path, out_dir, interface): i for i, s in enumerate(scenarios)}
-            outcomes = [None] * len(scenarios)
-            for future in as_completed(futures):
-                outcomes[futures[future]] = future.result()
-                progress.update()
-    progress.close()
+    try:
+        outcomes = _run_all(scenarios, fmu_path, out_dir, interface, jobs, progress.update)
+    except KeyboardInterrupt:
+        raise KeyboardInterrupt(f"{progress.n} of {len(scenarios)} scenarios finished, no report written") from None
+    finally:
+        progress.close()
     result = SuiteResult(tuple(outcomes), time.perf_counter() - start)
     write_report(out_dir / "report.md", result.outcomes, result.seconds)
     print(console_summary(result.outcomes))
     print(f"{sum(o.passed for o in result.outcomes)}/{len(result.outcomes)} passed in {result.seconds:.1f} s")
     print(f"report: {out_dir / 'report.md'}")
     return result
+
+
+def _run_all(scenarios, fmu_path, out_dir, interface, jobs, done):
+    """The outcomes of :func:`run_scenario` in scenario order, run here (``jobs`` <= 1) or by ``jobs`` spawned
+    worker processes; ``done()`` is called after each scenario.
+
+    The workers ignore SIGINT (Ctrl-C reaches the whole process group): this process handles it, and ends them at
+    once (``terminate``) instead of letting them run the scenarios still queued.
+    """
+    if jobs <= 1:
+        outcomes = []
+        for scenario in scenarios:
+            outcomes.append(run_scenario(scenario, fmu_path, out_dir, interface))
+            done()
+        return outcomes
+    outcomes = [None] * len(scenarios)
+    with interrupts.ignored():
+        pool = get_context("spawn").Pool(jobs, initializer=signal.signal, initargs=(signal.SIGINT, signal.SIG_IGN))
+    try:
+        tasks = [(i, scenario, fmu_path, out_dir, interface) for i, scenario in enumerate(scenarios)]
+        for i, outcome in pool.imap_unordered(_run_task, tasks):
+            outcomes[i] = outcome
+            done()
+    finally:
+        pool.terminate()  # idle workers once every outcome is in; on Ctrl-C or an error, the ones still running
+        pool.join()
+    return outcomes
+
+
+def _run_task(task):
+    """``(index, outcome)`` of ``task``, :func:`run_scenario`'s arguments after the scenario's index."""
+    return task[0], run_scenario(*task[1:])
 
 
 def interface_of(fmu_path, interface):
@@ -148,7 +177,7 @@ def interface_of(fmu_path, interface):
     """
     if fmu_path is None:
         return interface
-    if fmpy.read_model_description(str(fmu_path)).fmiVersion.startswith("3"):
+    if read_model_description(fmu_path, needs=(*OUTPUTS, *variables.START_VALUES)).fmiVersion.startswith("3"):
         return interface or "cs"
     if interface == "me":
         raise StickSlipError(f"{fmu_path} is an FMI 2 co-simulation FMU: it has no model exchange")

@@ -13,6 +13,7 @@ from ..core import KINETIC_LAWS, RTOL_RANGE, STATIC_LAWS, Parameters
 from ..core.errors import ParameterError, StickSlipError
 from ..core.ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, Range
 from ..fmu.variables import START_VALUES
+from ..hosts.run_limits import free_period, too_many_periods, too_many_points
 from .inputs import INPUT_NAMES, Signal, input_table, zoh_breakpoints
 
 ATTRACTORS = ("continuous-sliding", "oscillatory-sliding", "stick-slip", "rest")
@@ -30,7 +31,7 @@ START_TIME = 0.0
 
 _TOP_KEYS = {"name", "description", "expected_attractor", "preset", "model", "initial", "kinetic",
              "static", "inputs", "simulation", "tolerance", "model_exchange"}
-_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
 
 
 class ScenarioError(StickSlipError, ValueError):
@@ -153,13 +154,13 @@ def load_scenario(path):
         raise f.error(unknown[0], f"one of the keys {sorted(_TOP_KEYS)}", data[unknown[0]])
     name = f.string(data, "name")
     if not _NAME.match(name):
-        raise f.error("name", "letters, digits, '.', '_' or '-' (it names the output files)", name)
+        raise f.error("name", "at most 100 letters, digits, '.', '_' or '-' (it names the output files)", name)
     preset = PRESETS[f.string(data, "preset", choices=PRESETS)] if "preset" in data else {}
     simulation = f.table(data, "simulation", {"stop_time", "output_interval", "rtol", "tail"})
-    stop_time = f.number(simulation, "simulation.stop_time", POSITIVE)
-    up_to_stop = Range(0.0, stop_time, low_open=True)
     initial = f.table(data, "initial", {"x", "v"})
     params, law_values = _parameters(f, data, preset)
+    stop_time, output_interval = _run_length(f, simulation, params)
+    up_to_stop = Range(0.0, stop_time, low_open=True)
     return Scenario(
         path=Path(path),
         name=name,
@@ -171,13 +172,25 @@ def load_scenario(path):
         v0=f.number(initial, "initial.v"),
         signals=_signals(f, data),
         stop_time=stop_time,
-        output_interval=f.number(simulation, "simulation.output_interval", up_to_stop),
+        output_interval=output_interval,
         rtol=f.number(simulation, "simulation.rtol", RTOL_RANGE,
                       default=START_VALUES["solver.rtol"]),
         tail=f.number(simulation, "simulation.tail", up_to_stop, default=stop_time / 3.0),
         tolerance=_tolerance(f, data),
         model_exchange=_model_exchange(f, data),
     )
+
+
+def _run_length(f, simulation, params):
+    """``(stop_time, output_interval)`` (s) of [simulation], refused if the run would not finish
+    (:mod:`stickslip.hosts.run_limits`: output points, periods ``2 pi sqrt(M/kappa)`` of the block)."""
+    stop_time = f.number(simulation, "simulation.stop_time", POSITIVE)
+    output_interval = f.number(simulation, "simulation.output_interval", Range(0.0, stop_time, low_open=True))
+    for key, why in (("simulation.output_interval", too_many_points(stop_time, output_interval)),
+                     ("simulation.stop_time", too_many_periods(stop_time, free_period(params.M, params.kappa)))):
+        if why:
+            raise ScenarioError(f"{f.path}: key '{key}': {why}")
+    return stop_time, output_interval
 
 
 def load_scenarios(paths):

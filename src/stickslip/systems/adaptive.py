@@ -35,7 +35,7 @@ import time
 
 import numpy as np
 
-from ..hosts.fmpy_host import FMUError
+from ..hosts.fmpy_host import FmuCallError, FMUError
 from .master import SystemResult, block_instances, checked_rtol, read_values, references, step_events
 
 DEFAULT_RTOL = 3e-10  # keeps the 2- and 3-block chains' event times within 1e-8 s (issue 19; 1e-9: 4e-8 s)
@@ -64,8 +64,19 @@ class AdaptiveMaster:
 
     def run(self, system, fmu_path, progress=lambda t: None):
         system = block_tolerances(system, self.rtol)
-        with block_instances(self, system, fmu_path) as (fmu, instances):
-            return _Run(system, _Blocks(fmu, instances), self.rtol, progress).run()
+        try:
+            with block_instances(self, system, fmu_path) as (fmu, instances):
+                return _Run(system, _Blocks(fmu, instances), self.rtol, progress).run()
+        except FmuCallError as exc:
+            raise FMUError(f"adaptive: {own_tolerance_advice(str(exc), self.rtol)}") from None
+
+
+def own_tolerance_advice(message, rtol):
+    """A block's error ``message`` with the FMU's advice to lower ``solver.rtol``, a value this master sets (to at
+    most ``BLOCK_RTOL_FACTOR`` times its ``rtol``), turned into advice on the master's own ``rtol``."""
+    cap = max(1e-14, BLOCK_RTOL_FACTOR * rtol)
+    return message.replace("lower solver.rtol", f"the adaptive master sets each block's solver.rtol to at most {cap:g} "
+                           f"({BLOCK_RTOL_FACTOR:g} times its rtol, at least 1e-14): lower its rtol (--rtol)")
 
 
 def block_tolerances(system, rtol):
@@ -180,11 +191,8 @@ class _Run:
         self.K = coupling_matrix(system)
         self.M = np.array([b["M"] for b in system.blocks])
         self.omega2 = np.array([b["kappa"] / b["M"] for b in system.blocks])
-        scale = max(b["static.F0"] / b["kappa"] for b in system.blocks)
-        self.tol = rtol * scale  # m per s
-        side = [0.0, *system.coupling, 0.0]
-        w2 = max((b["kappa"] + 2.0 * (side[i] + side[i + 1])) / b["M"] for i, b in enumerate(system.blocks))
-        self.h_slip = 2.0 * math.pi / math.sqrt(w2) / STEPS_PER_PERIOD
+        self.tol = rtol * system.length_scale  # m per s
+        self.h_slip = system.shortest_period() / STEPS_PER_PERIOD
         self.grid = system.times()
         self.t = 0.0
         first = np.array([blocks.cell(i) for i in range(system.n)])
@@ -211,7 +219,7 @@ class _Run:
         self.stats["state restores"] = self.blocks.restores
         return SystemResult(AdaptiveMaster.NAME, self.grid[:len(xs)].copy(), xs, vs, modes, self.events,
                             self.complete, np.array(self.end[4]), time.perf_counter() - start,
-                            {"rtol": self.tol / max(b["static.F0"] / b["kappa"] for b in self.system.blocks),
+                            {"rtol": self.tol / self.system.length_scale,
                              "event tolerance (s)": EVENT_TOL}, self.stats)
 
     def _advance(self):

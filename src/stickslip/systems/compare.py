@@ -1,9 +1,17 @@
-"""A master's run against the chain's reference on the same grid: position errors and events, per block."""
+"""A master's run against the chain's reference on the same grid: position errors and events, per block.
+
+Errors are judged as a fraction of the chain's amplitude, or of a floor where the chain hardly moves:
+:data:`AMPLITUDE_FLOOR` times its length scale (the largest ``F_S(0) / kappa``). A chain at rest (amplitude 0)
+passes when the master's positions are within the tolerance times that floor of the reference's.
+"""
 
 import math
 from dataclasses import dataclass
 
 import numpy as np
+
+#: the smallest amplitude (m) an error is measured against, as a fraction of the chain's length scale
+AMPLITUDE_FLOOR = 1e-6
 
 
 @dataclass(frozen=True)
@@ -11,7 +19,8 @@ class Comparison:
     """``amplitude`` (m): the reference's largest range of any block's ``x``; per block (arrays over blocks):
     ``max_abs_dx`` (m), the master's and the reference's event counts, and ``max_event_dt`` (s, NaN where the
     events cannot be paired: the counts or kinds differ, or the master does not know every event's time);
-    ``tolerance``: the largest allowed ``max_rel_dx``."""
+    ``tolerance``: the largest allowed ``max_rel_dx``; ``floor`` (m): the smallest amplitude an error is measured
+    against."""
 
     amplitude: float
     max_abs_dx: np.ndarray
@@ -19,20 +28,36 @@ class Comparison:
     reference_events: np.ndarray
     max_event_dt: np.ndarray
     tolerance: float
+    floor: float = 0.0
+
+    @property
+    def scale(self):
+        """What errors are a fraction of (m): the amplitude, at least the floor."""
+        return max(self.amplitude, self.floor)
 
     @property
     def max_rel_dx(self):
-        """The largest ``max |dx|`` of any block as a fraction of the amplitude."""
-        return float(np.max(self.max_abs_dx)) / self.amplitude if self.amplitude > 0.0 else math.inf
+        """The largest ``max |dx|`` of any block as a fraction of :attr:`scale` (0 where both are 0)."""
+        largest = float(np.max(self.max_abs_dx))
+        if self.scale > 0.0:
+            return largest / self.scale
+        return 0.0 if largest == 0.0 else math.inf
 
     @property
     def ok(self):
         return bool(self.max_rel_dx <= self.tolerance)
 
 
-def compare(result, reference, tolerance):
+def amplitude_floor(system):
+    """The floor (m) of the amplitude for :func:`compare`: :data:`AMPLITUDE_FLOOR` times the system's length
+    scale."""
+    return AMPLITUDE_FLOOR * system.length_scale
+
+
+def compare(result, reference, tolerance, floor=0.0):
     """Compare a :class:`~.master.SystemResult` with a :class:`~stickslip.reference.ChainResult` on the same grid;
-    ``tolerance``: the largest allowed ``max |dx|`` as a fraction of the amplitude."""
+    ``tolerance``: the largest allowed ``max |dx|`` as a fraction of the amplitude, or of ``floor`` (m) if that is
+    larger (:func:`amplitude_floor`)."""
     if result.x.shape != reference.x.shape or not np.allclose(result.t, reference.t, rtol=1e-12, atol=0.0):
         raise ValueError(f"the master's grid ({result.x.shape}) is not the reference's ({reference.x.shape})")
     n = reference.x.shape[1]
@@ -41,7 +66,7 @@ def compare(result, reference, tolerance):
     reference_events = np.array([sum(e.block == i for e in reference.events) for i in range(n)])
     dt = np.array([_event_dt(result, reference, i) for i in range(n)])
     return Comparison(reference.amplitude(), max_abs_dx, np.asarray(result.event_counts), reference_events, dt,
-                      tolerance)
+                      tolerance, floor)
 
 
 def _event_dt(result, reference, block):

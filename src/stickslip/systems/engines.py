@@ -1,4 +1,5 @@
-"""The ``zoh`` master's engines: the system's SSP (:mod:`.ssp`) stepped with a fixed step by libcosim, ecos or FMPy.
+"""The ``zoh`` master's engines: the system's SSP (:mod:`.ssp`) stepped with a fixed step by libcosim, ecos, FMPy's
+SSP simulator or FMPy driven here.
 
 Every engine here couples FMUs the same way (a Jacobi scheme with one data transfer per step): all instances
 step from ``t_k`` to ``t_(k+1)`` with the inputs they hold, then each connection copies its source's output, as
@@ -13,9 +14,12 @@ same first order, a larger error (docs/systems.md gives both).
 - ``ecos`` (ecospy): ``EcosSimulation(ssp_path=...)``, ``init`` with the SSP's parameter set, ``get_real`` and
   ``get_integer`` after each step; its library needs ``libtbb.so.12`` (Debian's ``libtbb12`` or PyPI's ``tbb``,
   whose ``lib/`` folder is put on ``LD_LIBRARY_PATH``);
+- ``fmpy-ssp``: FMPy's SSP simulator, ``fmpy.ssp.simulation.simulate_ssp`` (:func:`run_fmpy_ssp`): it starts every
+  connection at 0 (each block holds ``F_ext = 0`` over the first two steps, not the force at the start positions)
+  and sums its step times, as ecos does;
 - ``fmpy``: the same components and connections driven here by FMPy in the engines' order (:func:`run_fmpy`).
 
-libcosim and ecos run in a child process (``python -m stickslip.systems.engines`` reads a JSON spec on stdin and
+libcosim, ecos and FMPy's SSP simulator run in a child process (``python -m stickslip.systems.engines`` reads a JSON spec on stdin and
 prints ``RESULT_MARK + json``): an engine that aborts (libcosim calls ``std::terminate`` on a failure during its
 initialization) or hangs ends as an FMUError naming it, and ecos gets its ``LD_LIBRARY_PATH``. Its
 executions are kept and the child leaves with ``os._exit`` once its result is printed: libcosimpy 0.0.6 crashes
@@ -34,14 +38,14 @@ from pathlib import Path
 from ..fmu.coupling import ensure_coupling_fmu
 from ..hosts.fmpy_host import ExtractedFMU, FMUError
 from .master import read_values, references, start_block
-from .ssp import PARAMETER_SET, component_values, connections, write_ssp
+from .ssp import PARAMETER_SET, component, component_values, connections, write_ssp
 
-ENGINES = ("fmpy", "libcosim", "ecos")
+ENGINES = ("fmpy", "libcosim", "ecos", "fmpy-ssp")
 RESULT_MARK = "@@ssp-engine-result@@"
 #: what each block's row holds after a step: Real outputs, then Integer outputs
 REALS, INTEGERS = ("x", "v", "t_last_event"), ("mode", "n_events")
 #: the Python package each engine needs
-PACKAGES = {"libcosim": "libcosimpy", "ecos": "ecospy"}
+PACKAGES = {"libcosim": "libcosimpy", "ecos": "ecospy", "fmpy-ssp": "fmpy"}
 #: the child's libcosim executions, never destroyed (see the module text)
 _KEPT = []
 
@@ -89,6 +93,11 @@ def engine_environment(engine):
     return env
 
 
+def _blocks(n):
+    """The SSP's block components of a chain of ``n`` blocks, in order."""
+    return [component("b", i, n) for i in range(1, n + 1)]
+
+
 def _new_rows():
     return {name: [] for name in REALS + INTEGERS}
 
@@ -98,20 +107,20 @@ def run_fmpy(system, step, steps, block_fmu, coupling_fmu):
     component started with its values and, for a coupling, the positions its connections hand it during the
     engines' initialization (the start positions); one transfer; then each step, the blocks' rows read before
     the transfer (as libcosim's observer does)."""
-    values, wires = component_values(system), connections(system.n)
-    x_start = {f"b{i}": block["x_start"] for i, block in enumerate(system.blocks, start=1)}
+    values, wires, blocks = component_values(system), connections(system.n), _blocks(system.n)
+    x_start = {name: block["x_start"] for name, block in zip(blocks, system.blocks)}
     for start, out, end, into in wires:
         if out == "x":
             values[end][into] = x_start[start]
     rows = _new_rows()
-    with ExtractedFMU(block_fmu) as blocks, ExtractedFMU(coupling_fmu) as couplings:
+    with ExtractedFMU(block_fmu) as block_fmu, ExtractedFMU(coupling_fmu) as couplings:
         instances = {}
         try:
             for name, start in values.items():
-                extracted, role = (blocks, "block") if name.startswith("b") else (couplings, "coupling")
+                extracted, role = (block_fmu, "block") if name.startswith("b") else (couplings, "coupling")
                 instances[name] = start_block(extracted, name, start, role=role)
-            block_list = [instances[f"b{i}"] for i in range(1, system.n + 1)]
-            reals, integers = references(blocks, REALS), references(blocks, INTEGERS)
+            block_list = [instances[name] for name in blocks]
+            reals, integers = references(block_fmu, REALS), references(block_fmu, INTEGERS)
             _transfer(instances, wires)
             for k in range(steps):
                 for instance in instances.values():
@@ -150,8 +159,8 @@ def run_libcosim(spec):
     execution.add_observer(observer)
     _KEPT.append((execution, observer))
     blocks = []
-    for i in range(1, spec["blocks"] + 1):
-        index = execution.slave_index_from_instance_name(f"b{i}")
+    for name in _blocks(spec["blocks"]):
+        index = execution.slave_index_from_instance_name(name)
         references = {v.name.decode(): v.reference for v in execution.slave_variables(index)}
         blocks.append((index, [references[n] for n in REALS], [references[n] for n in INTEGERS]))
     rows = _new_rows()
@@ -177,13 +186,35 @@ def run_ecos(spec):
             simulation.step()
             for name in REALS + INTEGERS:
                 get = simulation.get_integer if name in INTEGERS else simulation.get_real
-                rows[name].append([get(f"b{i}::{name}") for i in range(1, spec["blocks"] + 1)])
+                rows[name].append([get(f"{block}::{name}") for block in _blocks(spec["blocks"])])
         simulation.terminate()
     return rows
 
 
+def run_fmpy_ssp(spec):
+    """The SSP in FMPy's SSP simulator (in this process), one row per step. FMPy reads each component's parameter
+    set (its ParameterBinding's ``.ssv``); its simulator applies one set to all components by their names, so the
+    components' sets go to it with each parameter's name behind its component's. It sums its step times, and
+    steps while the sum is below the stop time: half a step short of the last step's end gives ``steps`` steps."""
+    from fmpy.ssp.simulation import simulate_ssp
+    from fmpy.ssp.ssd import Parameter, ParameterSet, read_ssd
+
+    parameters = ParameterSet(name=PARAMETER_SET)
+    for element in read_ssd(spec["ssp"]).system.elements:
+        for binding in element.parameterBindings:
+            for values in binding.parameterValues:
+                parameters.parameters += [Parameter(name=f"{element.name}.{p.name}", type=p.type, value=p.value)
+                                          for p in values.parameters]
+    result = simulate_ssp(spec["ssp"], stop_time=(spec["steps"] - 0.5) * spec["step"], step_size=spec["step"],
+                          parameter_set=parameters)
+    blocks = _blocks(spec["blocks"])
+    return {name: [[row[f"{block}.{name}"].item() for block in blocks] for row in result]
+            for name in REALS + INTEGERS}
+
+
 if __name__ == "__main__":
     job = json.loads(sys.stdin.read())
-    print(RESULT_MARK + json.dumps({"libcosim": run_libcosim, "ecos": run_ecos}[job["engine"]](job)), flush=True)
+    run = {"libcosim": run_libcosim, "ecos": run_ecos, "fmpy-ssp": run_fmpy_ssp}[job["engine"]]
+    print(RESULT_MARK + json.dumps(run(job)), flush=True)
     sys.stderr.flush()
     os._exit(0)  # libcosimpy 0.0.6 crashes destroying an execution made from an SSP (the block FMUs alone too)

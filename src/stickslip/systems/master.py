@@ -18,6 +18,7 @@ from typing import Callable, ClassVar, Protocol
 import numpy as np
 
 from ..fmu import FILE_NAMES
+from ..fmu.variables import START_VALUES
 from ..hosts.fmpy_host import ExtractedFMU, FMUError
 from ..reference import ChainEvent
 
@@ -93,8 +94,9 @@ def step_events(t_last, mode, new_mode, count, new_count):
 def block_instances(master, system, fmu_path, interface="cs"):
     """``(extracted FMU, [an initialized instance per block])`` for ``master`` (its ``NAME`` and ``FMI_VERSION``):
     the FMU at ``fmu_path`` extracted once, each block's parameters, ``v_drive`` and its ``F_ext`` at the start
-    positions set. The instances are freed and the folder removed at the end."""
-    with ExtractedFMU(fmu_path) as fmu:
+    positions set. The instances are freed and the folder removed at the end. FMUError naming the file if it is no
+    SpringBlockFriction FMU of the master's FMI version."""
+    with ExtractedFMU(fmu_path, needs=START_VALUES) as fmu:
         if fmu.fmi_version != master.FMI_VERSION:
             raise FMUError(f"{master.NAME}: {fmu_path} is an FMI {fmu.fmi_version} FMU; the master runs the FMI "
                            f"{master.FMI_VERSION} FMU ({FILE_NAMES[master.FMI_VERSION]})")
@@ -122,8 +124,8 @@ def start_block(extracted, name, values, interface="cs", role="block"):
             instance.call(instance.fmu.enterInitializationMode)
         else:
             instance.call(instance.fmu.enterInitializationMode, startTime=0.0)
-        for name, value in values.items():
-            variable = variables[name]
+        for variable_name, value in values.items():
+            variable = variables[variable_name]
             cast = float if variable.type in ("Real", "Float64") else int
             instance.call(getattr(instance.fmu, setters[variable.type]), [variable.valueReference], [cast(value)])
         instance.call(instance.fmu.exitInitializationMode)

@@ -47,10 +47,9 @@ class MeMaster:
 
 
 def max_step(system):
-    """A twentieth of the shortest free period's bound ``2 pi / omega_max`` (Gershgorin on ``M^-1 K``), s."""
-    side = [0.0, *system.coupling, 0.0]
-    w2 = max((b["kappa"] + 2.0 * (side[i] + side[i + 1])) / b["M"] for i, b in enumerate(system.blocks))
-    return 2.0 * math.pi / math.sqrt(w2) / STEPS_PER_PERIOD
+    """A twentieth of the bound on the chain's shortest free period (:meth:`~.system_file.System.shortest_period`),
+    s."""
+    return system.shortest_period() / STEPS_PER_PERIOD
 
 
 class _Run:

@@ -6,13 +6,12 @@ Writes ``<out>/<stem>.csv`` (the master's samples), ``<out>/<stem>.md`` (the rep
 
 import time
 from dataclasses import dataclass
-from pathlib import Path
-
 from tqdm import tqdm
 
 from ..fmu import ensure_fmu
 from ..reference import simulate_chain
-from .compare import Comparison, compare
+from ..hosts.run_limits import output_folder
+from .compare import Comparison, amplitude_floor, compare
 from .master import SystemResult
 from .masters import make_master
 from .plots import plot_positions, plot_space_time
@@ -42,6 +41,7 @@ def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress
     """
     system = load_system(path)
     runner = make_master(master, **(options or {}))
+    files = output_files(out_dir, system.name)
     fmu_path = fmu_path or ensure_fmu(fmi_version=runner.FMI_VERSION)
     with _progress(f"{system.name} {master}", system.stop_time, show_progress) as step:
         result = runner.run(system, fmu_path, step)
@@ -50,11 +50,7 @@ def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress
         reference = simulate_chain(system.chain_blocks(), system.coupling, system.v_drive, system.times(),
                                    progress=step)
     reference_seconds = time.perf_counter() - start
-    comparison = compare(result, reference, system.tolerances[master])
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    files = {kind: out / f"{system.name}{suffix}" for kind, suffix in
-             (("csv", ".csv"), ("report", ".md"), ("positions", ".png"), ("space-time", "-spacetime.png"))}
+    comparison = compare(result, reference, system.tolerances[master], amplitude_floor(system))
     write_csv(files["csv"], result)
     title = f"{system.name} ({result.master})"
     plot_positions(files["positions"], title, result, reference)
@@ -63,6 +59,17 @@ def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress
                "which block slips when": files["space-time"].name}
     write_report(files["report"], system, result, comparison, reference_seconds, figures)
     return SystemOutcome(result, comparison, summary_line(system, result, comparison), tuple(files.values()))
+
+
+def output_files(out_dir, name):
+    """``{kind: path}`` of the files a run of the system ``name`` writes into ``out_dir``: checked before the run
+    (the folder made, the names fit), the previous run's report removed (it is written last: a run that stops
+    leaves none)."""
+    suffixes = {"csv": ".csv", "report": ".md", "positions": ".png", "space-time": "-spacetime.png"}
+    out = output_folder(out_dir, [name + suffix for suffix in suffixes.values()])
+    files = {kind: out / f"{name}{suffix}" for kind, suffix in suffixes.items()}
+    files["report"].unlink(missing_ok=True)
+    return files
 
 
 class _progress:

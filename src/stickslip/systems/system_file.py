@@ -5,9 +5,12 @@
 values by the FMU's names (``M``, ``kappa``, ``"kinetic.law"``, ...; a missing one takes the FMU's start
 value); an optional ``[tolerance.<master>]`` table sets ``max_rel_dx``, the largest error of that master
 against the chain's reference, as a fraction of the chain's amplitude. Names, kinds and law codes come from
-the FMU's variable table (:mod:`stickslip.fmu.variables`), value ranges from the runtime's own checks (the
-FMU checks them again). A malformed file raises :class:`SystemFileError` naming the file, the key and what
-is allowed; block ``i`` (1-based) is ``b<i>`` in messages and in the result's columns.
+the FMU's variable table (:mod:`stickslip.fmu.variables`), value ranges from the FMU's own checks: the ranges of
+that table, the runtime's checks of the parameters and of the scales they combine into with the system's
+``v_drive`` and each block's starting coupling force (what the FMU would refuse at its initialization). A run
+that would not finish is refused too (:mod:`stickslip.hosts.run_limits`). A malformed file raises
+:class:`SystemFileError` naming the file, the key (or the block and its values) and what is allowed; block ``i``
+(1-based) is ``b<i>`` in messages and in the result's columns.
 """
 
 import tomllib
@@ -16,10 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core import KINETIC_LAWS, RTOL_RANGE, STATIC_LAWS, Parameters, kinetic_law, static_law
+from ..core import KINETIC_LAWS, STATIC_LAWS, Parameters, kinetic_law, static_law
 from ..core.errors import ParameterError, StickSlipError
-from ..core.ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, Range, check
-from ..fmu.variables import START_VALUES, VARIABLES
+from ..core.model import check_input_scales, check_scales
+from ..core.ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, Range
+from ..fmu.variables import INPUTS, START_VALUES, VARIABLES, check_values
+from ..hosts.run_limits import free_period, too_many_periods, too_many_points
 from ..reference import ChainBlock, parameters_from_values
 
 #: {master: default max |dx| against the reference as a fraction of the chain's amplitude}, see docs/systems.md
@@ -65,6 +70,18 @@ class System:
     def times(self):
         """The output grid (s): ``k output_interval`` for ``k = 0 .. stop_time / output_interval``."""
         return np.arange(round(self.stop_time / self.output_interval) + 1) * self.output_interval
+
+    @property
+    def length_scale(self):
+        """The chain's length scale (m): the largest ``F_S(0) / kappa`` of its blocks (the stretch of a block's own
+        spring at breakaway)."""
+        return max(b["static.F0"] / b["kappa"] for b in self.blocks)
+
+    def shortest_period(self):
+        """A lower bound (s) on the chain's free periods: ``2 pi / omega_max``, ``omega_max^2`` the largest
+        ``(kappa + 2 (kc_left + kc_right)) / M`` of its blocks (Gershgorin on ``M^-1 K``)."""
+        side = [0.0, *self.coupling, 0.0]
+        return min(free_period(b["M"], b["kappa"] + 2.0 * (side[i] + side[i + 1])) for i, b in enumerate(self.blocks))
 
     def forces(self, x):
         """The coupling forces ``F_ext_i`` (N) at the positions ``x`` (m), SPEC section 5."""
@@ -126,16 +143,20 @@ def load_system(path):
     description = system.get("description", "")
     if not isinstance(description, str):
         raise f.error("system.description", "a string", description)
-    return System(
+    checked = [_block(f, i + 1, b) for i, b in enumerate(blocks)]
+    result = System(
         path=Path(path),
         stop_time=stop_time,
         output_interval=output_interval,
         v_drive=f.number(system.get("v_drive"), "system.v_drive"),
         coupling=_coupling(f, system.get("coupling"), len(blocks)),
-        blocks=tuple(_block(f, i + 1, b) for i, b in enumerate(blocks)),
+        blocks=tuple(values for values, _ in checked),
         tolerances=_tolerances(f, data),
         description=description,
     )
+    _check_scales(f, result, [params for _, params in checked])
+    _check_run_length(f, result)
+    return result
 
 
 def _coupling(f, value, n):
@@ -171,12 +192,13 @@ def _block(f, number, table):
         else:
             f.number(value, f"{label}.{name}")
     values = {name: START_VALUES[name] for name in PARAMETERS} | given
-    _check_parameters(f, label, values, given)
-    return {name: (int(v) if PARAMETERS[name].kind == "integer" else float(v)) for name, v in values.items()}
+    params = _check_parameters(f, label, values, given)
+    return {name: (int(v) if PARAMETERS[name].kind == "integer" else float(v)) for name, v in values.items()}, params
 
 
 def _check_parameters(f, label, values, given):
-    """The runtime's range checks of the block (the FMU's own); parameters of a law not selected are refused."""
+    """The block's runtime Parameters after the runtime's range checks (the FMU's own); parameters of a law not
+    selected are refused."""
     laws = []
     for kind, table in _LAWS.items():
         cls = table[values[f"{kind}.law"]]
@@ -188,13 +210,41 @@ def _check_parameters(f, label, values, given):
                           given[unused[0]])
         build = kinetic_law if kind == "kinetic" else static_law
         laws.append(build(cls.CODE, **{p: values[f"{kind}.{p}"] for p in cls.PARAMETERS}))
+    params = Parameters(values["M"], values["kappa"], *laws)
     try:
-        Parameters(values["M"], values["kappa"], *laws).check()
-        check("x_start", values["x_start"], ANY_FINITE, "m")
-        check("v_start", values["v_start"], ANY_FINITE, "m/s")
-        check("solver.rtol", values["solver.rtol"], RTOL_RANGE)
+        params.check()
+        check_values(values | {name: START_VALUES[name] for name in INPUTS})
     except ParameterError as exc:
         raise SystemFileError(f"{f.path}: block {label}: {exc}") from None
+    return params
+
+
+def _check_scales(f, system, params):
+    """The runtime's checks of what the values combine into (the FMU's own at its initialization): each block's
+    scales with the system's ``v_drive`` (:func:`stickslip.core.check_scales`), then the coupling force it starts
+    with (its ``F_ext``, the runtime's input check)."""
+    for i, (block, p) in enumerate(zip(system.blocks, params), start=1):
+        try:
+            check_scales(block["x_start"], block["v_start"], system.v_drive, 0.0, p, ("x_start", "v_start"))
+        except ParameterError as exc:
+            raise SystemFileError(f"{f.path}: block b{i}: {exc}") from None
+    forces = system.forces([b["x_start"] for b in system.blocks])
+    for i, (p, force) in enumerate(zip(params, forces), start=1):
+        try:
+            check_input_scales(0.0, force, p)
+        except ParameterError as exc:
+            raise SystemFileError(f"{f.path}: key 'system.coupling': block b{i} starts with the coupling force "
+                                  f"F_ext = {force!r} N: {exc}") from None
+
+
+def _check_run_length(f, system):
+    """Refuse a run that would not finish (:mod:`stickslip.hosts.run_limits`): too many output points, or too many
+    periods of the chain's fastest oscillation, summed over its blocks."""
+    checks = (("system.output_interval", too_many_points(system.stop_time, system.output_interval)),
+              ("system.stop_time", too_many_periods(system.stop_time, system.shortest_period(), system.n)))
+    for key, why in checks:
+        if why:
+            raise SystemFileError(f"{f.path}: key '{key}': {why}")
 
 
 def _tolerances(f, data):

@@ -19,6 +19,7 @@ import time
 import numpy as np
 
 from ..hosts.fmpy_host import FMUError
+from ..hosts.run_limits import too_many_steps
 from .engines import ENGINES, INTEGERS, REALS, run_ssp
 from .master import SystemResult, block_instances, read_values, references, step_events
 
@@ -46,6 +47,9 @@ class ZohMaster:
         if per_output < 1 or abs(ratio - per_output) > 1e-9 * ratio:
             raise FMUError(f"zoh: step = {h!r} s: allowed is output_interval ({system.output_interval!r} s) "
                            f"divided by a whole number")
+        why = too_many_steps(system.stop_time, h, system.n)
+        if why:
+            raise FMUError(f"zoh: step = {h!r} s: {why}")
         return h, per_output
 
     def run(self, system, fmu_path, progress=lambda t: None):

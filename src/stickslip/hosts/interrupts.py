@@ -1,0 +1,55 @@
+"""Ctrl-C told apart from an FMU's failure.
+
+Python runs its SIGINT handler in the main thread, wherever the interpreter is: also inside an FMU's Python slave
+during an FMI call. The KeyboardInterrupt it raises there is caught by the FMU's library (PythonFMU, pythonfmu3),
+which reports it as the call's error status ("[doStep] KeyboardInterrupt()"). Within :func:`counting`, SIGINT
+raises KeyboardInterrupt as Python's default handler does and is counted (:func:`count`), so that a failed FMI call
+during which one arrived is re-raised as KeyboardInterrupt (:meth:`stickslip.hosts.fmpy_host.Instance.call`), not
+reported as the FMU's error.
+"""
+
+import contextlib
+import signal
+import threading
+
+_count = 0  # SIGINTs received within counting()
+
+
+def count():
+    """The number of SIGINTs received so far within :func:`counting` (compare two readings)."""
+    return _count
+
+
+def _count_and_raise(signum, frame):
+    global _count
+    _count += 1
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def counting():
+    """SIGINT counted and raised as KeyboardInterrupt while the context lasts; nothing changes outside the main
+    thread (only it can set signal handlers) or where SIGINT is not Python's default handler (a caller's own)."""
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield
+        return
+    signal.signal(signal.SIGINT, _count_and_raise)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+@contextlib.contextmanager
+def ignored():
+    """SIGINT ignored while the context lasts (in the main thread): processes started then inherit it ignored (a
+    pool's workers, which the process that handles Ctrl-C ends itself)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
