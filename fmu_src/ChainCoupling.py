@@ -24,7 +24,6 @@ it is set, the values of a call checked before any is taken; a force (or derivat
 read; bytes or a state that hold no state of this FMU, when they are deserialized or restored.
 """
 
-import functools
 import math
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
@@ -70,7 +69,8 @@ class ChainCoupling(Fmi2Slave):
     def set_real(self, vrs, values):
         """Set positions (m, at any time) and stiffnesses (N/m, until initialization ends); every value is checked
         before any is taken, so a refused call changes nothing. Setting a position clears its derivatives."""
-        changes = [(_settable(reference), value) for reference, value in zip(vrs, values)]
+        changes = [(_name_in(reference, ALLOWED, "cannot be set: the settable variables are"), value)
+                   for reference, value in zip(vrs, values)]
         for name, value in changes:
             if name in STIFFNESSES and self.initialized:
                 raise ValueError(f"{name} is a fixed parameter: it cannot change after initialization")
@@ -118,7 +118,8 @@ class ChainCoupling(Fmi2Slave):
     def set_real_input_derivatives(self, references, orders, values):
         """fmi2SetRealInputDerivatives: the derivatives of the positions (m/s^order), kept until the value is set;
         every one is checked before any is taken."""
-        changes = [(_position(reference), order, value) for reference, order, value in zip(references, orders, values)]
+        changes = [(_name_in(reference, POSITIONS, "is not an input: input derivatives are set for"), order, value)
+                   for reference, order, value in zip(references, orders, values)]
         for name, order, value in changes:
             if not (order >= 1 and math.isfinite(value)):
                 raise ValueError(f"der({name}, {order}) = {value!r} is out of range: allowed is a finite value, of "
@@ -140,26 +141,18 @@ class ChainCoupling(Fmi2Slave):
         return tuple(answers)
 
 
-def _settable(reference):
-    """The name of the position or stiffness with value reference ``reference`` (ValueError for another)."""
+def _name_in(reference, names, refusal):
+    """The name of the variable with value reference ``reference`` if it is one of ``names``, else a ValueError
+    naming it, with the text ``refusal`` and ``names`` after it."""
     name = NAMES[reference] if 0 <= reference < len(NAMES) else None
-    if name not in ALLOWED:
-        raise ValueError(f"valueReference={reference}{f' ({name})' if name else ''} cannot be set: the settable "
-                         f"variables are {', '.join(ALLOWED)}")
-    return name
-
-
-def _position(reference):
-    """The name of the position with value reference ``reference`` (ValueError for another)."""
-    name = NAMES[reference] if 0 <= reference < len(NAMES) else None
-    if name not in POSITIONS:
-        raise ValueError(f"valueReference={reference} is not an input: input derivatives are set for "
-                         f"{', '.join(POSITIONS)}")
+    if name not in names:
+        raise ValueError(f"valueReference={reference}{f' ({name})' if name else ''} {refusal} {', '.join(names)}")
     return name
 
 
 def check_value(name, value):
-    """Raise ValueError naming ``name`` (a position or a stiffness) unless ``value`` is in its range (:data:`ALLOWED`)."""
+    """Raise ValueError naming ``name`` (a position or a stiffness) unless ``value`` is in its range
+    (:data:`ALLOWED`)."""
     unit, lowest, text = ALLOWED[name]
     if not (isinstance(value, (int, float)) and math.isfinite(value) and (lowest is None or value >= lowest)):
         raise ValueError(f"{name} = {value!r} {unit} is out of range: allowed is a finite value in {text}")

@@ -48,7 +48,8 @@ REFUSALS = {
 }
 #: name: (the stiffnesses set during initialization, the message's text)
 PARAMETER_REFUSALS = {
-    "kc_left negative": ({"kc_left": -1.0}, "kc_left = -1.0 N/m is out of range: allowed is a finite value in [0, inf)"),
+    "kc_left negative": ({"kc_left": -1.0},
+                         "kc_left = -1.0 N/m is out of range: allowed is a finite value in [0, inf)"),
     "kc_right nan": ({"kc_right": NAN}, "kc_right = nan N/m is out of range: allowed is a finite value in [0, inf)"),
     "kc_left inf": ({"kc_left": INF}, "kc_left = inf N/m is out of range"),
 }
@@ -117,3 +118,22 @@ def test_a_stiffness_of_zero_leaves_its_neighbour_unused(unzipped_coupling):
     """)
     assert run["exit"] == [0] and run["set"] == [0]
     assert run["F"] == [0, 2.0 * ((-1.7e308 + 4e292) - -1.7e308)]
+
+
+def test_a_huge_stiffness_with_neighbours_20_m_apart_is_an_error_naming_the_values(unzipped_coupling):
+    """kc_left = 1e308 N/m and x_left - x = 20 m: F overflowed to inf with fmi2OK; now reading it is an error naming
+    the values, and F reads again once the positions give a finite force."""
+    run = probe(unzipped_coupling[0], """
+        c = instantiate()
+        say("exit", initialized(c, kc_left=1e308))
+        say("set", put(c, x_left=10.0, x=-10.0))
+        say("F", *get(c, "F"))
+        say("closer", put(c, x_left=0.5, x=0.0), *get(c, "F"))
+        call("fmi2FreeInstance", c)
+    """)
+    assert run["exit"] == [0] and run["set"] == [0]
+    assert run["F"] == [ERROR, 0.0]
+    [message] = errors(run)
+    assert "F = inf N is not finite: the springs' force overflows at kc_left = 1e+308 N/m" in message
+    assert "x_left, x, x_right = 10.0, -10.0, 0.0" in message
+    assert run["closer"] == [0, 0, 0.5e308]

@@ -413,6 +413,13 @@ FOUND = {
     "fmi3EnterInitializationMode with tolerance = -inf": (
         "fmi3-me", [MODEL_EXCHANGE, ["enter_initialization", True, -math.inf, 0.0, False, 0.0]],
         "fmi3EnterInitializationMode", ERROR, "tolerance = -inf; allowed: a finite value"),
+    "ChainCoupling: x_left = nan (F = nan with OK)": (
+        "coupling-cs", [INSTANCE, *INITIALIZED, ["set", "x_left", math.nan], ["get", ["F"]]], "fmi2SetReal", ERROR,
+        "x_left = nan m is out of range: allowed is a finite value in (-inf, inf)"),
+    "ChainCoupling: kc_left = 1e308 with the positions 20 m apart (F = inf with OK)": (
+        "coupling-cs", [INSTANCE, ["enter_initialization"], ["set", "kc_left", 1e308], ["exit_initialization"],
+                        ["set", "x_left", 10.0], ["set", "x", -10.0], ["get", ["F"]]], "fmi2GetReal", ERROR,
+        "F = inf N is not finite"),
     "fmi3GetFloat64 of der(x) and an indicator before initialization (AttributeError of None)": (
         "fmi3-cs", [INSTANCE, ["get", ["der(x)", "der(v)", "indicator.breakaway"]]], "fmi3GetFloat64", OK, None),
 }
