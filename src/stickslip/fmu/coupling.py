@@ -10,14 +10,13 @@ refusals as fmi2Error with the instance going on (the slave balances PythonFMU's
 
 import os
 import shutil
-import sys
 import tempfile
 import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from . import archive, loader, model_description, trim
-from .build import default_fmu_path
+from .build import default_fmu_path, forget_modules
 from .python_path import preserved_sys_path
 from .sources import BUILDERS, LOADER_BINDING, SLAVE_FOLDER, files_tag
 from .staging import FMI2_TEMPLATE, LIBRARY_ARCHIVE, byte_compile, rewrite_once
@@ -92,8 +91,7 @@ def build_coupling(dest=None):
                 built = FmuBuilder.build_FMU(script, dest=Path(tmp) / "out", project_files=[package],
                                              canGetAndSetFMUstate=True, canSerializeFMUstate=True)
         finally:  # the builder imported the staged modules
-            for name in [m for m in sys.modules if m.split(".")[0] == package.name]:
-                del sys.modules[name]
+            forget_modules(tag, script.stem)
         entries = archive.read_entries(built)
         entries["modelDescription.xml"] = model_description.complete(
             entries["modelDescription.xml"], UNITS, BOUNDS, 2, *archive.identity(COUPLING_NAME, 2, tag))
