@@ -17,14 +17,18 @@ output derivatives passes the neighbours' velocities on to the block's ``F_ext``
 the block takes: OMSimulator asks for the declared order only (never the lower ones) and passes it on as is. The
 FMU state (the inputs, the stiffnesses and the derivatives set) can be saved and restored, so that a master can
 redo a step.
+
+Refusals (fmi2Error through the C loader, with a message naming the value and the allowed range; the instance goes
+on): a position that is not finite, a stiffness that is not finite and >= 0 (or is set after initialization), when
+it is set, the values of a call checked before any is taken; a force (or derivative) that overflows, when it is
+read; bytes or a state that hold no state of this FMU, when they are deserialized or restored.
 """
 
-import functools
 import math
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 
-from loader_binding import offer_to_loader
+from loader_binding import PYTHONFMU_ENTRY_POINTS, balance_release, offer_to_loader, refusal, serialized_states
 
 POSITIONS = {"x_left": "position of the left neighbour (m)", "x": "position of the block (m)",
              "x_right": "position of the right neighbour (m)"}
@@ -32,6 +36,9 @@ STIFFNESSES = {"kc_left": "stiffness of the spring to the left neighbour (N/m, >
                "kc_right": "stiffness of the spring to the right neighbour (N/m, >= 0)"}
 NAMES = (*POSITIONS, *STIFFNESSES, "F")  # in the order registered: the value references
 MAX_OUTPUT_DERIVATIVE_ORDER = 1
+#: what a position or a stiffness may be, as the refusals state it: (unit, lowest value or None, range's text)
+ALLOWED = {**{name: ("m", None, "(-inf, inf)") for name in POSITIONS},
+           **{name: ("N/m", 0.0, "[0, inf)") for name in STIFFNESSES}}
 
 
 class ChainCoupling(Fmi2Slave):
@@ -41,10 +48,10 @@ class ChainCoupling(Fmi2Slave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.rates = {name: {} for name in POSITIONS}  # position: {order: value} set since its value
+        self.initialized = False  # initialization ended: the stiffnesses are fixed
         for name, text in POSITIONS.items():
             setattr(self, name, 0.0)
-            self.register_variable(Real(name, causality=Fmi2Causality.input, description=text,
-                                        setter=functools.partial(self._set_position, name)))
+            self.register_variable(Real(name, causality=Fmi2Causality.input, description=text))
         for name, text in STIFFNESSES.items():
             setattr(self, name, 0.0)
             self.register_variable(Real(name, causality=Fmi2Causality.parameter,
@@ -59,30 +66,42 @@ class ChainCoupling(Fmi2Slave):
         root.find("CoSimulation").set("maxOutputDerivativeOrder", str(MAX_OUTPUT_DERIVATIVE_ORDER))
         return root
 
-    def _set_position(self, name, value):
-        setattr(self, name, value)
-        self.rates[name].clear()
+    def set_real(self, vrs, values):
+        """Set positions (m, at any time) and stiffnesses (N/m, until initialization ends); every value is checked
+        before any is taken, so a refused call changes nothing. Setting a position clears its derivatives."""
+        changes = [(_name_in(reference, ALLOWED, "cannot be set: the settable variables are"), value)
+                   for reference, value in zip(vrs, values)]
+        for name, value in changes:
+            if name in STIFFNESSES and self.initialized:
+                raise ValueError(f"{name} is a fixed parameter: it cannot change after initialization")
+            check_value(name, value)
+        for name, value in changes:
+            setattr(self, name, float(value))
+            if name in POSITIONS:
+                self.rates[name].clear()
 
     def force(self):
-        """The springs' force on the block (N, +x)."""
-        return springs(self.kc_left, self.kc_right, self.x_left, self.x, self.x_right)
+        """The springs' force on the block (N, +x); ValueError naming the values where it overflows."""
+        return checked_springs(0, self.kc_left, self.kc_right, self.x_left, self.x, self.x_right)
 
     def _get_fmu_state(self):
-        """PythonFMU's state (every variable's value) and the derivatives set, as ``[order, value]`` pairs."""
-        return {**super()._get_fmu_state(), "rates": {name: sorted(r.items()) for name, r in self.rates.items()}}
+        """The positions and stiffnesses, and the derivatives set as ``[order, value]`` pairs (no output)."""
+        return {"values": {name: getattr(self, name) for name in ALLOWED},
+                "rates": {name: [[order, r[order]] for order in sorted(r)] for name, r in self.rates.items()}}
 
     def _set_fmu_state(self, state):
-        values = dict(state)
-        rates = values.pop("rates")
-        super()._set_fmu_state(values)  # setting the positions clears their derivatives: restored after
-        self.rates = {name: {int(order): float(value) for order, value in pairs} for name, pairs in rates.items()}
+        """Undo to a state from :meth:`_get_fmu_state`, every field checked before any is taken (ValueError naming
+        the first out of place or range; bytes that were no state: their reason)."""
+        reason = refusal(state)
+        if reason is not None:
+            raise ValueError(reason)
+        values, rates = checked_state(state)
+        for name, value in values.items():
+            setattr(self, name, value)
+        self.rates = rates
 
     def exit_initialization_mode(self):
-        for name in STIFFNESSES:
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"{name} = {value!r} N/m is out of range: allowed is a finite value in [0, inf)")
-        return True
+        self.initialized = True
 
     def do_step(self, current_time, step_size):
         return True
@@ -97,31 +116,92 @@ class ChainCoupling(Fmi2Slave):
         """Nothing is cached."""
 
     def set_real_input_derivatives(self, references, orders, values):
-        """fmi2SetRealInputDerivatives: the derivatives of the positions (m/s^order), kept until the value is set."""
-        for reference, order, value in zip(references, orders, values):
-            name = NAMES[reference] if 0 <= reference < len(NAMES) else None
-            if name not in POSITIONS:
-                raise ValueError(f"valueReference={reference} is not an input: input derivatives are set for "
-                                 f"{', '.join(POSITIONS)}")
+        """fmi2SetRealInputDerivatives: the derivatives of the positions (m/s^order), kept until the value is set;
+        every one is checked before any is taken."""
+        changes = [(_name_in(reference, POSITIONS, "is not an input: input derivatives are set for"), order, value)
+                   for reference, order, value in zip(references, orders, values)]
+        for name, order, value in changes:
             if not (order >= 1 and math.isfinite(value)):
                 raise ValueError(f"der({name}, {order}) = {value!r} is out of range: allowed is a finite value, of "
                                  f"order 1 or more")
+        for name, order, value in changes:
             self.rates[name][order] = float(value)
 
     def get_real_output_derivatives(self, references, orders):
-        """fmi2GetRealOutputDerivatives: ``F``'s derivatives of order 1 to 2 (N/s^order)."""
+        """fmi2GetRealOutputDerivatives: ``F``'s derivatives of order 1 to :data:`MAX_OUTPUT_DERIVATIVE_ORDER`
+        (N/s^order); ValueError naming the values where one overflows."""
         answers = []
         for reference, order in zip(references, orders):
             if reference != NAMES.index("F") or not 1 <= order <= MAX_OUTPUT_DERIVATIVE_ORDER:
                 name = NAMES[reference] if 0 <= reference < len(NAMES) else f"valueReference={reference}"
                 raise ValueError(f"no derivative of order {order} of {name}: output derivatives are given for F, of "
                                  f"order 1 to {MAX_OUTPUT_DERIVATIVE_ORDER}")
-            answers.append(springs(self.kc_left, self.kc_right,
-                                   *(self.rates[name].get(order, 0.0) for name in POSITIONS)))
+            answers.append(checked_springs(order, self.kc_left, self.kc_right,
+                                           *(self.rates[name].get(order, 0.0) for name in POSITIONS)))
         return tuple(answers)
+
+
+def _name_in(reference, names, refusal):
+    """The name of the variable with value reference ``reference`` if it is one of ``names``, else a ValueError
+    naming it, with the text ``refusal`` and ``names`` after it."""
+    name = NAMES[reference] if 0 <= reference < len(NAMES) else None
+    if name not in names:
+        raise ValueError(f"valueReference={reference}{f' ({name})' if name else ''} {refusal} {', '.join(names)}")
+    return name
+
+
+def check_value(name, value):
+    """Raise ValueError naming ``name`` (a position or a stiffness) unless ``value`` is in its range
+    (:data:`ALLOWED`)."""
+    unit, lowest, text = ALLOWED[name]
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and (lowest is None or value >= lowest)):
+        raise ValueError(f"{name} = {value!r} {unit} is out of range: allowed is a finite value in {text}")
+
+
+def checked_state(state):
+    """``(values, rates)`` of a state from :meth:`ChainCoupling._get_fmu_state`, every field checked (ValueError
+    naming the first out of place or range)."""
+    values, rates = state["values"], state["rates"]
+    if not (isinstance(values, dict) and set(values) == set(ALLOWED)):
+        raise ValueError(f"saved state values = {values!r}: allowed is a dict with the keys {', '.join(ALLOWED)}")
+    for name, value in values.items():
+        check_value(name, value)
+    if not (isinstance(rates, dict) and set(rates) == set(POSITIONS)):
+        raise ValueError(f"saved state rates = {rates!r}: allowed is a dict with the keys {', '.join(POSITIONS)}")
+    taken = {}
+    for name, pairs in rates.items():
+        if not (isinstance(pairs, list) and all(_rate_pair(pair) for pair in pairs)):
+            raise ValueError(f"saved state rates of {name} = {pairs!r}: allowed is a list of [order, value] pairs, "
+                             f"each an order >= 1 and a finite value")
+        taken[name] = {int(order): float(value) for order, value in pairs}
+    return {name: float(value) for name, value in values.items()}, taken
+
+
+def _rate_pair(pair):
+    """Whether ``pair`` is ``[order, value]`` of a derivative set: an integer order >= 1, a finite value."""
+    return (isinstance(pair, list) and len(pair) == 2 and isinstance(pair[0], int) and pair[0] >= 1
+            and isinstance(pair[1], (int, float)) and math.isfinite(pair[1]))
 
 
 def springs(kc_left, kc_right, left, middle, right):
     """``kc_left (left - middle) + kc_right (right - middle)``: the force (N) at the positions (m), or its time
-    derivative of order k (N/s^k) at the positions' derivatives of order k (m/s^k): it is linear in them."""
-    return kc_left * (left - middle) + kc_right * (right - middle)
+    derivative of order k (N/s^k) at the positions' derivatives of order k (m/s^k): it is linear in them. A spring of
+    stiffness 0 adds nothing, whatever its neighbour's position."""
+    return (kc_left * (left - middle) if kc_left else 0.0) + (kc_right * (right - middle) if kc_right else 0.0)
+
+
+def checked_springs(order, kc_left, kc_right, left, middle, right):
+    """:func:`springs` of the positions' derivatives of order ``order`` (0: the positions), with a ValueError naming
+    the values where it is not finite."""
+    value = springs(kc_left, kc_right, left, middle, right)
+    if not math.isfinite(value):
+        name, unit = ("F", "N") if order == 0 else (f"der(F, {order})", f"N/s^{order}")
+        inputs = ", ".join(name if order == 0 else f"der({name}, {order})" for name in POSITIONS)
+        raise ValueError(f"{name} = {value!r} {unit} is not finite: the springs' force overflows at kc_left = "
+                         f"{kc_left!r} N/m, kc_right = {kc_right!r} N/m and {inputs} = {left!r}, {middle!r}, "
+                         f"{right!r}; allowed are values whose force is a finite value in (-inf, inf)")
+    return value
+
+
+balance_release(ChainCoupling, PYTHONFMU_ENTRY_POINTS)
+serialized_states(ChainCoupling, ("values", "rates"))  # the keys of _get_fmu_state()

@@ -22,14 +22,13 @@ here (``balance_release``): an importer that terminates and frees the
 instance after the error, as libcosim does, does not crash.
 """
 
-import ctypes
 import operator
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
 from block_interface import (
-    FIRST_OUTPUT, MAX_OUTPUT_DERIVATIVE_ORDER, VARIABLES, BlockInterface, balance_release, check_state,
-    serialized_states,
+    FIRST_OUTPUT, MAX_OUTPUT_DERIVATIVE_ORDER, PYTHONFMU_ENTRY_POINTS, VARIABLES, BlockInterface, balance_release,
+    check_state, serialized_states,
 )
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input, "output": Fmi2Causality.output}
@@ -175,22 +174,5 @@ def _names(references):
     return [VARIABLES[r].name for r in references]
 
 
-def hold_loader_namespace(namespace):
-    """Take one reference to ``namespace``, the globals of the module PythonFMU loads the slave from.
-
-    PythonFMU 0.7.0 (``findClass`` in its fmi2Instantiate) runs that module's source again in its globals,
-    which it gets from ``PyModule_GetDict`` (a borrowed reference) and then releases, once per instance.
-    A module whose source creates nothing that keeps its globals (a one-line import, see
-    stickslip.fmu.staging) loses its namespace after a few instances unless each run takes that reference.
-    """
-    ctypes.pythonapi.Py_IncRef(ctypes.py_object(namespace))
-
-
-# The methods PythonFMU's C++ wrapper calls on the slave (PyObject_CallMethod(pInstance_, ...) in PySlaveInstance.cpp)
-ENTRY_POINTS = (
-    "setup_experiment", "enter_initialization_mode", "exit_initialization_mode", "do_step", "terminate",
-    "get_real", "get_integer", "get_boolean", "get_string", "set_real", "set_integer", "set_boolean", "set_string",
-    "_get_fmu_state", "_set_fmu_state",
-)
-balance_release(SpringBlockFriction, ENTRY_POINTS)
+balance_release(SpringBlockFriction, PYTHONFMU_ENTRY_POINTS)
 serialized_states(SpringBlockFriction, ("values", "start_time", "trajectory"))  # the keys of block_state()

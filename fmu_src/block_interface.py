@@ -10,12 +10,12 @@ their FMU uses (they rewrite the import below).
 """
 
 import copy
-import ctypes
 import functools
-import json
 from collections import namedtuple
 
-from stickslip.fmu_src.loader_binding import offer_to_loader
+from stickslip.fmu_src.loader_binding import (  # the slaves take these from here (one import of this module)
+    PYTHONFMU_ENTRY_POINTS, balance_release, offer_to_loader, refusal, serialized_states,
+)
 
 from stickslip.core import (
     ANY_FINITE, KINETIC_LAWS, OUTPUT_NAMES, POSITIVE, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, StateError,
@@ -347,49 +347,11 @@ class BlockInterface:
         self.outputs_changed()
 
 
-# ---- serialized FMU states ----------------------------------------------------------
-
-#: How a refused state (:func:`state_from_bytes`) serializes: this prefix, then the reason as UTF-8. The FMUs' loader
-#: (``fmi2DeSerializeFMUstate``/``fmi3DeserializeFMUState`` in ``src/stickslip/fmu/loader``) looks for it.
-REFUSED_STATE = b"refused FMU state: "
-
-
-def serialized_states(cls, keys):
-    """Give the slave class ``cls`` (whose states are dicts with the keys ``keys``) the library's (de)serializers
-    of FMU states, :func:`state_from_bytes` and :func:`state_to_bytes`."""
-    cls._fmu_state_from_bytes = staticmethod(functools.partial(state_from_bytes, keys=frozenset(keys)))
-    cls._fmu_state_to_bytes = staticmethod(state_to_bytes)
-
-
-def state_from_bytes(data, keys):
-    """The FMU state serialized in ``data`` (JSON of a dict with the keys ``keys``), or, for bytes that are none, a
-    refused state ``{"refused": why}``: never an exception. PythonFMU and pythonfmu3 call this on the slave's
-    class, and an exception would release the calling instance's slave unbalanced (:func:`balance_release`),
-    which crashed the host at its next call; the loader refuses the bytes instead, with the reason, and
-    :func:`check_state` refuses the state in hosts without the loader."""
-    try:
-        state = json.loads(bytes(data).decode("utf-8"))
-    except Exception as error:  # noqa: BLE001 - any failure is a refusal, see the docstring
-        return {"refused": f"the {len(data)} bytes are not a serialized FMU state of this FMU: {error!r}"}
-    if not isinstance(state, dict) or set(state) != keys:
-        found = sorted(state) if isinstance(state, dict) else type(state).__name__
-        return {"refused": f"the {len(data)} bytes are not a serialized FMU state of this FMU: they hold {found}, "
-                           f"not a dict with the keys {sorted(keys)}"}
-    return state
-
-
-def state_to_bytes(state):
-    """The bytes of an FMU state (JSON, as the libraries write it); for a refused state, :data:`REFUSED_STATE`
-    and the reason."""
-    if "refused" in state:
-        return REFUSED_STATE + state["refused"].encode("utf-8")
-    return json.dumps(state).encode("utf-8")
-
-
 def check_state(state):
-    """Raise :class:`StateError` with the reason for a refused state (from :func:`state_from_bytes`)."""
-    if "refused" in state:
-        raise StateError(state["refused"])
+    """Raise :class:`StateError` with the reason for a refused state (:func:`loader_binding.refusal`)."""
+    reason = refusal(state)
+    if reason is not None:
+        raise StateError(reason)
 
 
 _BLOCK_STATE_KINDS = {"values": saved_state.NESTED, "start_time": saved_state.REAL, "trajectory": saved_state.NESTED}
@@ -409,45 +371,3 @@ def check_values(values):
     for variable in VARIABLES:
         if variable.allowed is not None:
             check(variable.name, values[variable.name], variable.allowed, variable.unit)
-
-
-# ---- PythonFMU's release of the slave on an exception -----------------------------
-
-
-def balance_release(cls, entry_points):
-    """Wrap the methods ``entry_points`` of ``cls`` with :func:`_survives_release`.
-
-    ``entry_points``: the methods the library's C++ wrapper calls on the slave
-    (``PyObject_CallMethod(pInstance_, ...)`` in its PySlaveInstance.cpp). Not covered: the static
-    ``_fmu_state_to_bytes``/``_fmu_state_from_bytes``, called on the class; an exception there (a corrupt
-    serialized state) still releases the slave unbalanced.
-    """
-    for name in entry_points:
-        setattr(cls, name, _survives_release(getattr(cls, name)))
-
-
-def _survives_release(method):
-    """``method``, which on an exception first takes the references that the wrapper will drop once too often.
-
-    PythonFMU 0.7.0 and pythonfmu3 0.3.4 (PySlaveInstance.cpp) turn an exception into a fatal status in
-    ``handle_py_exception``, which calls ``cleanPyObject``: that releases the wrapper's references to the
-    slave (``pInstance_``), its class (``pClass_``, ``type(slave)``) and its log queue (``pMessages_``) but
-    keeps the pointers, and freeing the instance (the destructor) releases them a second time. Each failed
-    instance that is then freed takes one reference too many from the slave and from the class, and the
-    process crashes once the garbage collector frees them while they are in use (libcosim, which terminates
-    and frees every instance, died with SIGSEGV after a few failed runs). One extra reference to each, taken
-    here before the exception leaves the slave, balances the release: the slave stays usable until it is
-    freed and is freed exactly then. An importer that never frees an instance after a fatal status
-    (stickslip's FMPy hosts) leaves that slave allocated until the process ends.
-    """
-
-    @functools.wraps(method)
-    def entry_point(self, *args, **kwargs):
-        try:
-            return method(self, *args, **kwargs)
-        except BaseException:
-            for reference in (self, type(self), self.log_queue):
-                ctypes.pythonapi.Py_IncRef(ctypes.py_object(reference))
-            raise
-
-    return entry_point

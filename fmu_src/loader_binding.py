@@ -1,11 +1,29 @@
-"""A slave offers itself to its FMU's C loader (``src/stickslip/fmu/loader/fast_path.h``), which then calls the
-slave's methods directly: the block's steps and output reads (the fast path), and the input and output derivatives
-that the FMI libraries lack. No imports beyond the standard library: the block's FMUs bundle this module in their
-runtime package, the coupling FMU beside its slave.
+"""What every slave does for the FMU's binaries, the C loader (``src/stickslip/fmu/loader``) in front of the FMI
+library's binary (PythonFMU's or pythonfmu3's). No imports beyond the standard library: the block's FMUs bundle
+this module in their runtime package, the coupling FMU in its own.
+
+- :func:`offer_to_loader`: the slave offers itself to the loader, which then calls the slave's methods directly:
+  the block's steps and output reads (the fast path), and the input and output derivatives that the FMI libraries
+  lack.
+- :func:`balance_release`: an exception of the slave leaves it usable, so that the loader (built with
+  ``slave_survives_release``) reports the call's failure as an error status and the instance goes on.
+- :func:`serialized_states`: bytes that are no FMU state of the slave are refused with the reason, never with an
+  exception; the loader looks for :data:`REFUSED_STATE`.
+- :func:`hold_loader_namespace`: the module PythonFMU loads the slave from keeps its globals.
 """
 
 import ctypes
+import functools
+import json
 import os
+
+#: The methods PythonFMU's C++ wrapper calls on an FMI 2 slave (``PyObject_CallMethod(pInstance_, ...)`` in its
+#: PySlaveInstance.cpp): the entry points :func:`balance_release` wraps.
+PYTHONFMU_ENTRY_POINTS = (
+    "setup_experiment", "enter_initialization_mode", "exit_initialization_mode", "do_step", "terminate",
+    "get_real", "get_integer", "get_boolean", "get_string", "set_real", "set_integer", "set_boolean", "set_string",
+    "_get_fmu_state", "_set_fmu_state",
+)
 
 
 def offer_to_loader(slave, resources, platform, first_output, output_kinds):
@@ -29,3 +47,99 @@ def offer_to_loader(slave, resources, platform, first_output, output_kinds):
     finally:
         # the reference this lookup took; the host holds its own
         ctypes.CDLL(None).dlclose(ctypes.c_void_p(loader._handle))
+
+
+# ---- the library's release of the slave on an exception ------------------------------------------------------
+
+
+def balance_release(cls, entry_points):
+    """Wrap the methods ``entry_points`` of ``cls`` with :func:`_survives_release`.
+
+    ``entry_points``: the methods the library's C++ wrapper calls on the slave (:data:`PYTHONFMU_ENTRY_POINTS`
+    for PythonFMU). Not covered: the static ``_fmu_state_to_bytes``/``_fmu_state_from_bytes``, called on the class;
+    they must not raise (:func:`serialized_states`).
+    """
+    for name in entry_points:
+        setattr(cls, name, _survives_release(getattr(cls, name)))
+
+
+def _survives_release(method):
+    """``method``, which on an exception first takes the references that the wrapper will drop once too often.
+
+    PythonFMU 0.7.0 and pythonfmu3 0.3.4 (PySlaveInstance.cpp) turn an exception into a fatal status in
+    ``handle_py_exception``, which calls ``cleanPyObject``: that releases the wrapper's references to the
+    slave (``pInstance_``), its class (``pClass_``, ``type(slave)``) and its log queue (``pMessages_``) but
+    keeps the pointers, and freeing the instance (the destructor) releases them a second time. Each failed
+    instance that is then freed takes one reference too many from the slave and from the class, and the
+    process crashes once the garbage collector frees them while they are in use (libcosim, which terminates
+    and frees every instance, died with SIGSEGV after a few failed runs). One extra reference to each, taken
+    here before the exception leaves the slave, balances the release: the slave stays usable until it is
+    freed and is freed exactly then. An importer that never frees an instance after a fatal status
+    (stickslip's FMPy hosts) leaves that slave allocated until the process ends.
+    """
+
+    @functools.wraps(method)
+    def entry_point(self, *args, **kwargs):
+        try:
+            return method(self, *args, **kwargs)
+        except BaseException:
+            for reference in (self, type(self), self.log_queue):
+                ctypes.pythonapi.Py_IncRef(ctypes.py_object(reference))
+            raise
+
+    return entry_point
+
+
+def hold_loader_namespace(namespace):
+    """Take one reference to ``namespace``, the globals of the module PythonFMU loads the slave from.
+
+    PythonFMU 0.7.0 (``findClass`` in its fmi2Instantiate) runs that module's source again in its globals,
+    which it gets from ``PyModule_GetDict`` (a borrowed reference) and then releases, once per instance.
+    A module whose source creates nothing that keeps its globals (a one-line import, see
+    stickslip.fmu.staging) loses its namespace after a few instances unless each run takes that reference.
+    """
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(namespace))
+
+
+# ---- serialized FMU states -----------------------------------------------------------------------------------
+
+#: How a refused state (:func:`state_from_bytes`) serializes: this prefix, then the reason as UTF-8. The FMUs' loader
+#: (``fmi2DeSerializeFMUstate``/``fmi3DeserializeFMUState`` in ``src/stickslip/fmu/loader``) looks for it.
+REFUSED_STATE = b"refused FMU state: "
+
+
+def serialized_states(cls, keys):
+    """Give the slave class ``cls`` (whose states are dicts with the keys ``keys``) the library's (de)serializers
+    of FMU states, :func:`state_from_bytes` and :func:`state_to_bytes`."""
+    cls._fmu_state_from_bytes = staticmethod(functools.partial(state_from_bytes, keys=frozenset(keys)))
+    cls._fmu_state_to_bytes = staticmethod(state_to_bytes)
+
+
+def state_from_bytes(data, keys):
+    """The FMU state serialized in ``data`` (JSON of a dict with the keys ``keys``), or, for bytes that are none, a
+    refused state ``{"refused": why}``: never an exception. PythonFMU and pythonfmu3 call this on the slave's
+    class, and an exception would release the calling instance's slave unbalanced (:func:`balance_release`),
+    which crashed the host at its next call; the loader refuses the bytes instead, with the reason, and the
+    slave's restore refuses the state in hosts without the loader (:func:`refusal`)."""
+    try:
+        state = json.loads(bytes(data).decode("utf-8"))
+    except Exception as error:  # noqa: BLE001 - any failure is a refusal, see the docstring
+        return {"refused": f"the {len(data)} bytes are not a serialized FMU state of this FMU: {error!r}"}
+    if not isinstance(state, dict) or set(state) != keys:
+        found = sorted(state) if isinstance(state, dict) else type(state).__name__
+        return {"refused": f"the {len(data)} bytes are not a serialized FMU state of this FMU: they hold {found}, "
+                           f"not a dict with the keys {sorted(keys)}"}
+    return state
+
+
+def state_to_bytes(state):
+    """The bytes of an FMU state (JSON, as the libraries write it); for a refused state, :data:`REFUSED_STATE`
+    and the reason."""
+    if "refused" in state:
+        return REFUSED_STATE + state["refused"].encode("utf-8")
+    return json.dumps(state).encode("utf-8")
+
+
+def refusal(state):
+    """The reason why ``state`` (from :func:`state_from_bytes`) is refused, or None for a state to restore."""
+    return state.get("refused")

@@ -1,6 +1,6 @@
-"""Shared fixtures: the FMUs (FMI 2 and FMI 3) built once per test session from the current sources, a folder
-of the session's own for the FMUs built at the default path (the main job's ``dist/`` stays as it is), and
-the FMI 3 C host."""
+"""Shared fixtures: the FMUs (FMI 2 and FMI 3, and the coupling FMU) built once per test session from the current
+sources, a folder of the session's own for the FMUs built at the default path (the main job's ``dist/`` stays as
+it is), and the C hosts."""
 
 import shutil
 from pathlib import Path
@@ -9,6 +9,7 @@ import fmpy
 import pytest
 
 from stickslip.fmu import build
+from stickslip.fmu.coupling import build_coupling
 from stickslip.hosts.c_host import HostBuildError, compile_host
 
 import machine_needs
@@ -48,6 +49,12 @@ def fmu3_path(tmp_path_factory):
     return build(fmi_version=3, dest=tmp_path_factory.mktemp("fmu3") / "SpringBlockFriction-fmi3.fmu")
 
 
+@pytest.fixture(scope="session")
+def coupling_path(tmp_path_factory):
+    """Path of a ChainCoupling.fmu freshly built from the working tree."""
+    return build_coupling(tmp_path_factory.mktemp("coupling") / "ChainCoupling.fmu")
+
+
 def _extracted(path):
     """(extracted folder, model description, {name: variable}) of the FMU at ``path``; removes the folder after."""
     folder = fmpy.extract(str(path))
@@ -66,6 +73,12 @@ def unzipped(fmu_path):
 def unzipped3(fmu3_path):
     """The same for the session's FMI 3 FMU."""
     yield from _extracted(fmu3_path)
+
+
+@pytest.fixture(scope="session")
+def unzipped_coupling(coupling_path):
+    """The same for the session's coupling FMU."""
+    yield from _extracted(coupling_path)
 
 
 def _c_host(tmp_path_factory, fmi_version):

@@ -1,6 +1,9 @@
 """Child process of ``tests/test_fuzz_fmi.py``: runs fuzzed sequences of FMI calls on an extracted FMU's Linux
 binary, through the ctypes bindings of ``fmi_call_runner.py`` (the standard's signatures).
 
+Run as ``python fuzz_runner.py cycles {2|3} FOLDER``, it runs the load / instantiate / step / free / unload cycles of
+one case read from stdin (:func:`run_cycles`) and prints their results as ``{"cycles": [...]}``.
+
 Run as ``python fuzz_runner.py {2|3} FOLDER``; it reads one sequence per line on stdin, JSON
 ``{"id": n, "calls": [[operation, *arguments], ...]}`` (operations: :data:`OPERATIONS`), and prints
 ``{"start": n}`` before it and ``{"id": n, "calls": [...]}`` after it: every call made (label, function, result,
@@ -10,9 +13,11 @@ instantiation and ends with fmi<N>FreeInstance of its instance, whatever its cal
 instantiation the rest of the sequence is skipped (there is no instance to call).
 """
 
+import _ctypes
 import ctypes
 import json
 import sys
+import threading
 from ctypes import byref, c_bool, c_char_p, c_double, c_size_t, c_void_p
 
 from fmi_call_runner import Fmi2, Fmi3
@@ -139,6 +144,19 @@ def edited(data, edit):
     return data
 
 
+def set_input_derivatives(s, names, orders, values):
+    """fmi2SetRealInputDerivatives of ``names`` (any variables) at ``orders``."""
+    s.call("SetRealInputDerivatives", s.b.vrs(*names), len(names), (ctypes.c_int * len(names))(*orders),
+           (c_double * len(names))(*values))
+
+
+def get_output_derivatives(s, names, orders):
+    """fmi2GetRealOutputDerivatives of ``names`` (any variables) at ``orders``; the values written and past them."""
+    buffer = (c_double * (len(names) + SLACK))(*[SENTINEL] * (len(names) + SLACK))
+    s.call("GetRealOutputDerivatives", s.b.vrs(*names), len(names), (ctypes.c_int * len(names))(*orders), buffer)
+    s.record({"values": list(buffer[:len(names)]), "past the end": [v for v in buffer[len(names):] if v != SENTINEL]})
+
+
 def set_debug_logging(s, on, categories):
     names = (c_char_p * len(categories))(*(name.encode() for name in categories)) if categories else None
     s.call("SetDebugLogging", on, len(categories), names)
@@ -191,6 +209,8 @@ OPERATIONS = {
     "get_state": get_state, "set_state": set_state, "free_state": free_state, "serialize": serialize,
     "deserialize": deserialize, "reset": plain("Reset"), "terminate": plain("Terminate"),
     "debug_logging": set_debug_logging,
+    # FMI 2
+    "set_input_derivatives": set_input_derivatives, "get_output_derivatives": get_output_derivatives,
     # FMI 3
     "set_time": set_time, "set_states": set_states, "counts": counts, "update": update, "completed": completed,
     "enter_event_mode": plain("EnterEventMode"), "enter_continuous_time_mode": plain("EnterContinuousTimeMode"),
@@ -220,7 +240,49 @@ def run_sequence(binary, calls, trace=False):
     return binary.calls
 
 
-def main(version, folder, trace=""):
+# ---- load / instantiate / step on threads / free / unload / reload ------------------------------------------
+
+
+def run_cycles(version, folder, case):
+    """The cycles of ``case`` (``{"values": start values, "output": a Real output, "cycles": [...]}``), each
+    ``{"instances": n, "steps": k, "threads": bool, "free": order, "unload": bool}``: load the binary (again, if the
+    last cycle unloaded it), make and initialize n instances, step each k times by 0.1 s (each on its own thread, all
+    at once, if "threads"), read the output, free the instances in the order "free" (indices) and unload the binary
+    if "unload". Returns per cycle the output of each instance and the calls that did not return OK."""
+    binary, results = None, []
+    for cycle in case["cycles"]:
+        binary = binary or (Fmi2(folder) if version == "2" else Fmi3(folder))
+        binary.calls = []
+        instances = [binary.initialized(case["values"]) for _ in range(cycle["instances"])]
+        steppers = [threading.Thread(target=_steps, args=(binary, c, cycle["steps"])) for c in instances]
+        for stepper in steppers:
+            stepper.start()
+            if not cycle["threads"]:
+                stepper.join()  # one after the other
+        for stepper in steppers:
+            stepper.join()
+        outputs = [binary.get(c, binary.REAL, case["output"])[0] for c in instances]
+        for index in cycle["free"]:
+            binary(binary.fn("FreeInstance"), instances[index])
+        failed = [call for call in binary.calls if call["result"] not in (0, "instance", None)]
+        results.append({"outputs": outputs, "failed": failed})
+        if cycle["unload"]:
+            _ctypes.dlclose(binary.lib._handle)
+            binary = None
+    return results
+
+
+def _steps(binary, c, count):
+    for n in range(count):
+        binary.do_step(c, 0.1 * n, 0.1)
+
+
+def main(*arguments):
+    if arguments[0] == "cycles":
+        _, version, folder = arguments
+        print(json.dumps({"cycles": run_cycles(version, folder, json.loads(sys.stdin.read()))}), flush=True)
+        return 0
+    version, folder, trace = (*arguments, "")[:3]
     binary = Fmi2(folder) if version == "2" else Fmi3(folder)
     for line in sys.stdin:
         sequence = json.loads(line)

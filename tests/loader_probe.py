@@ -16,6 +16,7 @@ at once, so a case that crashes or hangs still shows how far it got; every messa
   instance (interface "cs", "me" or an FMI 2 fmuType number), or None;
 - ``start(c, **values)``: set up (start time 0) and enter initialization mode, set the Real ``values``;
 - ``initialized(c, **values)``: :func:`start`, then exit initialization mode; returns that status;
+- ``put(c, **values)``: the status of setting the Real (FMI 3: Float64) ``values`` in one call;
 - ``get(c, name)``: (status, value) of a Real (FMI 3: Float64) variable;
 - ``step(c, t, h)``: the status of one communication step from ``t`` by ``h`` s;
 - ``serialized(c)``: the bytes of the current state.
@@ -42,7 +43,8 @@ guid = _root.get("guid" if fmi == 2 else "instantiationToken").encode()
 vr = {v.get("name"): int(v.get("valueReference")) for v in _root.iter() if v.get("valueReference") is not None}
 uri = (folder / "resources").as_uri().encode()
 path = f"{folder / 'resources'}/".encode()
-_binary = folder / "binaries" / ("linux64" if fmi == 2 else "x86_64-linux") / "SpringBlockFriction.so"
+_identifier = next(_root.iter("CoSimulation")).get("modelIdentifier")
+_binary = folder / "binaries" / ("linux64" if fmi == 2 else "x86_64-linux") / f"{_identifier}.so"
 _lib = ctypes.CDLL(str(_binary))
 
 if fmi == 2:
@@ -62,6 +64,8 @@ if fmi == 2:
         "fmi2SetupExperiment": (c_int, (c_void_p, c_int, c_double, c_double, c_int, c_double)),
         "fmi2DoStep": (c_int, (c_void_p, c_double, c_double, c_int)),
         "fmi2GetReal": (c_int, _REALS), "fmi2SetReal": (c_int, _REALS),
+        **dict.fromkeys(("fmi2SetRealInputDerivatives", "fmi2GetRealOutputDerivatives"),
+                        (c_int, (c_void_p, POINTER(c_uint), c_size_t, POINTER(c_int), POINTER(c_double)))),
         "fmi2FreeInstance": (None, (c_void_p,)),
     }
 else:
@@ -124,10 +128,15 @@ def start(c, **values):
     else:
         call("fmi3EnterInitializationMode", c, False, 0.0, 0.0, False, 0.0)
     if values:
-        numbers = (c_double * len(values))(*values.values())
-        status = call(f"fmi{fmi}Set{'Real' if fmi == 2 else 'Float64'}", c, _vrs(list(values)), len(values),
-                      numbers, *(() if fmi == 2 else (len(values),)))
+        status = put(c, **values)
         assert status == 0, status
+
+
+def put(c, **values):
+    """The status of setting the Real (FMI 3: Float64) ``values`` in one call."""
+    numbers = (c_double * len(values))(*values.values())
+    return call(f"fmi{fmi}Set{'Real' if fmi == 2 else 'Float64'}", c, _vrs(list(values)), len(values), numbers,
+                *(() if fmi == 2 else (len(values),)))
 
 
 def initialized(c, **values):

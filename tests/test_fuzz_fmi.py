@@ -1,6 +1,7 @@
 """A fuzzer of FMI call sequences and values (issue 20): hypothesis draws sequences of FMI calls, in legal and
 illegal orders, with values from the variables' ranges and edge values (0, +-tiny, subnormals, +-huge, nan,
-inf), for the FMI 2 co-simulation FMU and the FMI 3 FMU's co-simulation and model exchange.
+inf), for the FMI 2 co-simulation FMU (with its input and output derivatives), the FMI 3 FMU's co-simulation and
+model exchange, and the coupling FMU (``ChainCoupling.fmu``).
 
 The sequences run in a child process (``fuzz_runner.py``, ctypes with the standard's signatures), one child per
 interface kept for many sequences; a sequence that crashes or hangs it is run again alone in a new child (with
@@ -12,7 +13,11 @@ every call traced), so each failure is the failing sequence's own. Every sequenc
 - every Error or Fatal status (and a NULL instance) comes with a logged message of that status or worse that
   names a cause: a variable of the model, an FMI function, a value reference or a range;
 - the instance, whatever its calls returned, is freed by fmi<N>FreeInstance without a crash (every sequence
-  ends so).
+  ends so), and the child ends with exit status 0 when its input ends.
+
+Hypothesis also draws cycles of load / instantiate / step on threads / free / unload / reload (:func:`cycles`), each
+case in a child process of its own, which must end with exit status 0 after every call returned OK with the
+outputs of an independent reference.
 
 The CI run is derandomized (:data:`EXAMPLES` sequences per interface); ``STICKSLIP_FUZZ_EXAMPLES=5000`` runs
 that many per interface with a random seed.
@@ -87,18 +92,23 @@ class Worker:
 
     def _failed(self, what, traced):
         """The failure of the child, which is ended (the next sequence starts a new one)."""
-        code = self.close()
+        code = self.close(kill=True)
         how = f"signal {-code}" if code < 0 else f"exit {code}"
         return {"failure": f"the host {what} ({how}); stderr: {self.stderr[-3000:]}", "traced": traced}
 
-    def close(self):
-        """End the child (killed if it still runs); its exit code, its stderr in ``stderr``."""
+    def close(self, kill=False):
+        """End the child: its input ends, and it must end within the time limit (else, or if ``kill``, it is
+        killed); its exit code (None if none was started), its stderr in ``stderr``."""
         proc, self.proc = self.proc, None
         if proc is None:
             return None
-        if proc.poll() is None:
+        if kill and proc.poll() is None:
             proc.kill()
         proc.stdin.close()
+        try:
+            proc.wait(timeout=self.timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
         self.stderr = proc.stderr.read()
         return proc.wait()
 
@@ -187,6 +197,7 @@ class Model:
         self.starts = {v.name: _number(v.start) for v in variables}
         self.settable = [v.name for v in variables if v.causality in ("parameter", "input")]
         self.inputs = [v.name for v in variables if v.causality == "input"]
+        self.outputs = [v.name for v in variables if v.causality == "output"]
         self.names = [v.name for v in variables]
         self.folder = folder
 
@@ -232,7 +243,8 @@ def state_call():
     edit = st.one_of(st.just(["none"]), st.tuples(st.just("truncate"), st.integers(0, 400)).map(list),
                      st.tuples(st.just("flip"), st.integers(0, 4000), st.integers(1, 255)).map(list),
                      st.tuples(st.just("json"), st.sampled_from([["time"], ["block", "start_time"],
-                                                                 ["block", "values", "M"], ["stepped"]]),
+                                                                 ["block", "values", "M"], ["stepped"],
+                                                                 ["values", "kc_left"], ["rates", "x"]]),
                                st.sampled_from([1e300, -1.0, None, "text", [], 0])).map(list),
                      st.binary(max_size=40).map(lambda raw: ["raw", raw.decode("latin-1")]))
     return st.one_of(slot.map(lambda s: ["get_state", s]), slot.map(lambda s: ["set_state", s]),
@@ -264,6 +276,20 @@ def me_call(now):
         st.sampled_from([["update"], ["enter_event_mode"], ["enter_continuous_time_mode"], ["counts"]]))
 
 
+def derivative_call(model):
+    """fmi2SetRealInputDerivatives or fmi2GetRealOutputDerivatives of a few variables (mostly inputs or outputs), at
+    orders mostly 1 or 2, with values from the edges or near 0."""
+    names = st.lists(st.one_of(st.sampled_from(model.inputs or model.names), st.sampled_from(model.outputs),
+                               st.sampled_from(model.names)), min_size=1, max_size=3)
+    order = st.sampled_from((1, 1, 1, 2, 3, 0, -1))
+    value = st.one_of(st.floats(-10.0, 10.0), st.sampled_from(EDGES))
+    set_call = names.flatmap(lambda n: st.tuples(st.just(n), st.lists(order, min_size=len(n), max_size=len(n)),
+                                                 st.lists(value, min_size=len(n), max_size=len(n))))
+    get_call = names.flatmap(lambda n: st.tuples(st.just(n), st.lists(order, min_size=len(n), max_size=len(n))))
+    return st.one_of(set_call.map(lambda a: ["set_input_derivatives", *a]),
+                     get_call.map(lambda a: ["get_output_derivatives", *a]))
+
+
 def any_call(model, version, now):
     """Any call of the operations of ``fuzz_runner``, legal where it is made or not."""
     plain = [["exit_initialization"], ["reset"], ["terminate"]]
@@ -272,7 +298,7 @@ def any_call(model, version, now):
                  lambda a: ["debug_logging", *a]),
              model.set_call(model.names), model.get_call(), state_call()]
     if version == 2:
-        calls.append(start_arguments().map(lambda a: ["setup_experiment", *a]))
+        calls += [start_arguments().map(lambda a: ["setup_experiment", *a]), derivative_call(model)]
     else:
         calls.append(me_call(now))
     return st.one_of(calls)
@@ -281,6 +307,8 @@ def any_call(model, version, now):
 def running_call(model, version, interface, now):
     """A call of a running instance: mostly steps (co-simulation) or model-exchange calls, inputs and outputs."""
     usual = [model.set_call(model.inputs), model.get_call(), state_call()]
+    if version == 2:
+        usual.append(derivative_call(model))
     if interface == "me":
         usual += [me_call(now)] * 3
     else:
@@ -312,19 +340,22 @@ def sequences(draw, model, version, interface):
 
 # ---- the test ------------------------------------------------------------------------------------------------
 
-TARGETS = {"fmi2-cs": (2, "cs"), "fmi3-cs": (3, "cs"), "fmi3-me": (3, "me")}
+#: target: (FMI version, interface, the session's fixture of the FMU extracted)
+TARGETS = {"fmi2-cs": (2, "cs", "unzipped"), "fmi3-cs": (3, "cs", "unzipped3"), "fmi3-me": (3, "me", "unzipped3"),
+           "coupling-cs": (2, "cs", "unzipped_coupling")}
 
 
 @pytest.fixture(scope="module")
-def targets(unzipped, unzipped3):
-    """``{target: (FMI version, interface, folder, Model, Worker)}``; the workers end with the module."""
+def targets(request):
+    """``{target: (FMI version, interface, folder, Model, Worker)}``; the workers end with the module, each with exit
+    status 0 (a child that started)."""
     made = {}
-    for key, (version, interface) in TARGETS.items():
-        folder = (unzipped if version == 2 else unzipped3)[0]
+    for key, (version, interface, fixture) in TARGETS.items():
+        folder = request.getfixturevalue(fixture)[0]
         made[key] = (version, interface, folder, Model(folder), Worker(version, folder))
     yield made
-    for *_, worker in made.values():
-        worker.close()
+    ends = {key: worker.close() for key, (*_, worker) in made.items()}
+    assert set(ends.values()) <= {0, None}, f"the fuzzer's children ended with {ends}"
 
 
 @pytest.mark.parametrize("target", TARGETS)
@@ -382,6 +413,13 @@ FOUND = {
     "fmi3EnterInitializationMode with tolerance = -inf": (
         "fmi3-me", [MODEL_EXCHANGE, ["enter_initialization", True, -math.inf, 0.0, False, 0.0]],
         "fmi3EnterInitializationMode", ERROR, "tolerance = -inf; allowed: a finite value"),
+    "ChainCoupling: x_left = nan (F = nan with OK)": (
+        "coupling-cs", [INSTANCE, *INITIALIZED, ["set", "x_left", math.nan], ["get", ["F"]]], "fmi2SetReal", ERROR,
+        "x_left = nan m is out of range: allowed is a finite value in (-inf, inf)"),
+    "ChainCoupling: kc_left = 1e308 with the positions 20 m apart (F = inf with OK)": (
+        "coupling-cs", [INSTANCE, ["enter_initialization"], ["set", "kc_left", 1e308], ["exit_initialization"],
+                        ["set", "x_left", 10.0], ["set", "x", -10.0], ["get", ["F"]]], "fmi2GetReal", ERROR,
+        "F = inf N is not finite"),
     "fmi3GetFloat64 of der(x) and an indicator before initialization (AttributeError of None)": (
         "fmi3-cs", [INSTANCE, ["get", ["der(x)", "der(v)", "indicator.breakaway"]]], "fmi3GetFloat64", OK, None),
 }
@@ -419,3 +457,48 @@ def test_a_step_to_a_huge_time_ends_with_an_error_naming_the_time_resolution(tar
     spacing = f"{1e300 * 2.0 ** -52:.3g} s"
     assert any("1e+300 s: time resolution lost" in text and spacing in text for _, _, text in huge["messages"]), huge
     assert violations(said["calls"], model) == []
+
+
+# ---- load / instantiate / step on threads / free / unload / reload -------------------------------------------
+
+CYCLE_EXAMPLES = int(BY_HAND or 4)
+STEP = 0.1  # s, fuzz_runner's communication step in the cycles
+#: target: (start values, the output read, its value after n steps of STEP from t = 0): the block stuck to the surface
+#: (x = v_drive t, v_drive = 0.1 m/s), the coupling's springs at fixed positions (F = 2 (0.5 - 0) N)
+CYCLED = {"fmi2-cs": ({"v_start": 0.1}, "x", lambda n: 0.1 * STEP * n),
+          "fmi3-cs": ({"v_start": 0.1}, "x", lambda n: 0.1 * STEP * n),
+          "coupling-cs": ({"kc_left": 2.0, "x_left": 0.5}, "F", lambda n: 1.0)}
+
+
+def cycle():
+    """One cycle of ``fuzz_runner.run_cycles``: 1 to 3 instances, each stepped 0 to 4 times (on threads of their own
+    at once, or one after the other), freed in any order, the binary unloaded or not."""
+    return st.integers(1, 3).flatmap(lambda n: st.fixed_dictionaries({
+        "instances": st.just(n), "steps": st.integers(0, 4), "threads": st.booleans(),
+        "free": st.permutations(range(n)), "unload": st.booleans()}))
+
+
+def run_cycles(folder, version, case):
+    """The results of ``fuzz_runner.py cycles`` on ``case`` in a child process of its own, which must end with exit
+    status 0 within the time limit."""
+    try:
+        proc = subprocess.run([sys.executable, str(RUNNER), "cycles", str(version), str(folder)],
+                              input=json.dumps(case), capture_output=True, text=True, timeout=TIMEOUT,
+                              cwd=RUNNER.parent)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"the host hung ({TIMEOUT} s) in the cycles {case}")
+    assert proc.returncode == 0, f"the host ended with {proc.returncode} in the cycles {case}: {proc.stderr[-3000:]}"
+    return json.loads(proc.stdout.splitlines()[-1])["cycles"]
+
+
+@pytest.mark.parametrize("target", CYCLED)
+@settings(max_examples=CYCLE_EXAMPLES, derandomize=not BY_HAND, database=None, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(cycles=st.lists(cycle(), min_size=1, max_size=3))
+def test_load_instantiate_step_on_threads_free_unload_reload(targets, target, cycles):
+    version, _, folder, _, _ = targets[target]
+    values, output, expected = CYCLED[target]
+    results = run_cycles(folder, version, {"values": values, "output": output, "cycles": cycles})
+    assert [result["failed"] for result in results] == [[]] * len(cycles)
+    assert [result["outputs"] for result in results] == [
+        [pytest.approx(expected(c["steps"]), rel=1e-12, abs=1e-15)] * c["instances"] for c in cycles]

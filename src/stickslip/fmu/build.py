@@ -81,7 +81,7 @@ def build(dest=None, fmi_version=2, pure=False):
                 sys.path.insert(0, tmp)
                 instance = getattr(importlib.import_module(staged.module), MODEL_NAME)(instance_name="build")
         finally:  # ... and the modules imported
-            _forget_modules(tag, staged.module)
+            forget_modules(tag, staged.module)
         entries = archive.read_entries(built)
         entries["modelDescription.xml"] = model_description.complete(
             entries["modelDescription.xml"], instance.variable_units, instance.variable_bounds, fmi_version,
@@ -92,8 +92,9 @@ def build(dest=None, fmi_version=2, pure=False):
     return dest
 
 
-def _forget_modules(tag, module):
-    """Drop the bundled modules that building imported into this process."""
+def forget_modules(tag, module):
+    """Drop the bundled modules that building imported into this process: ``module`` (the one the FMI library loads)
+    and the packages whose names end in ``_<tag>``."""
     for name in [m for m in sys.modules if m == module or m.split(".")[0].endswith(f"_{tag}")]:
         del sys.modules[name]
 

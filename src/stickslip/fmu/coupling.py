@@ -1,9 +1,11 @@
 """Build ``ChainCoupling.fmu``: the coupling springs acting on one block of a chain (``fmu_src/ChainCoupling.py``),
 FMI 2 co-simulation, so that an engine wires a chain from FMUs alone (the SSP of :mod:`stickslip.systems.ssp`).
 
-A pure-Python PythonFMU slave; its model description gets units, the stiffnesses' lower bound 0 and a GUID that
+A pure-Python PythonFMU slave, laid out, trimmed and fronted as the block's (:mod:`stickslip.fmu.staging`,
+:mod:`stickslip.fmu.trim`): its model description gets units, the stiffnesses' lower bound 0 and a GUID that
 follows from the sources (:func:`coupling_tag`), and its Linux binary becomes the loader of
-:mod:`stickslip.fmu.loader`, as the block's does, so that it also runs in hosts that are not Python processes.
+:mod:`stickslip.fmu.loader`, so that it also runs in hosts that are not Python processes, and reports the slave's
+refusals as fmi2Error with the instance going on (the slave balances PythonFMU's release of it).
 """
 
 import os
@@ -13,11 +15,11 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from . import archive, loader, model_description
-from .build import default_fmu_path
+from . import archive, loader, model_description, trim
+from .build import default_fmu_path, forget_modules
 from .python_path import preserved_sys_path
-from .sources import LOADER_BINDING, SLAVE_FOLDER, files_tag
-from .staging import rewrite_once
+from .sources import BUILDERS, LOADER_BINDING, SLAVE_FOLDER, files_tag
+from .staging import FMI2_TEMPLATE, LIBRARY_ARCHIVE, byte_compile, rewrite_once
 
 COUPLING_NAME = "ChainCoupling"
 COUPLING_FILE = f"{COUPLING_NAME}.fmu"
@@ -28,20 +30,27 @@ BOUNDS = {name: ((0.0, None) if name.startswith("kc_") else (None, None)) for na
 
 
 def coupling_tag():
-    """10 hex digits over the slave, the loader binding, this builder and the loader's sources: they decide the FMU's
-    content."""
-    return files_tag((COUPLING_SLAVE, LOADER_BINDING, Path(__file__), *loader.SOURCES))
+    """10 hex digits over the slave, the loader binding, this builder and the other builder modules (staging, trim,
+    the loader's sources...): they decide the FMU's content."""
+    return files_tag((COUPLING_SLAVE, LOADER_BINDING, Path(__file__), *BUILDERS))
 
 
 def _staged_slave(folder, tag):
-    """The slave's source in ``folder`` and beside it the loader binding as ``chaincoupling_binding_<tag>``, a module
-    name only this build uses, which the slave's import is renamed to: ``(slave's path, binding's path)``."""
-    module = f"chaincoupling_binding_{tag}"
-    script, binding = folder / COUPLING_SLAVE.name, folder / f"{module}.py"
-    script.write_text(rewrite_once(COUPLING_SLAVE, r"\bfrom loader_binding import\b", f"from {module} import",
-                                   "the loader binding as 'from loader_binding import ...'"))
-    shutil.copyfile(LOADER_BINDING, binding)
-    return script, binding
+    """Lay out the slave in ``folder`` as the block's is (:mod:`stickslip.fmu.staging`): the package
+    ``sbf_coupling_<tag>`` (a name only this build uses) with the slave as ``fmu_slave`` and the loader binding
+    beside it, and the module PythonFMU loads, ``chaincoupling_<tag>.py``, which imports the slave's class (once per
+    process) from the package. ``(that module's path, the package's folder)``."""
+    package = folder / f"sbf_coupling_{tag}"
+    package.mkdir()
+    (package / "__init__.py").write_text('"""The ChainCoupling FMU\'s slave and its loader binding."""\n')
+    (package / "fmu_slave.py").write_text(rewrite_once(COUPLING_SLAVE, r"\bfrom loader_binding import\b",
+                                                       f"from {package.name}.loader_binding import",
+                                                       "the loader binding as 'from loader_binding import ...'"))
+    shutil.copyfile(LOADER_BINDING, package / LOADER_BINDING.name)
+    script = folder / f"chaincoupling_{tag}.py"
+    script.write_text(FMI2_TEMPLATE.format(package=package.name, model_name=COUPLING_NAME,
+                                           archive=LIBRARY_ARCHIVE.format(library="pythonfmu")))
+    return script, package
 
 
 def default_coupling_path():
@@ -75,15 +84,22 @@ def build_coupling(dest=None):
     dest.parent.mkdir(parents=True, exist_ok=True)
     tag = coupling_tag()
     with tempfile.TemporaryDirectory(prefix="sbf_coupling_") as tmp:
-        script, binding = _staged_slave(Path(tmp), tag)
-        with preserved_sys_path():  # PythonFMU leaves the source folder on sys.path
-            built = FmuBuilder.build_FMU(script, dest=Path(tmp) / "out", project_files=[binding],
-                                         canGetAndSetFMUstate=True, canSerializeFMUstate=True)
+        script, package = _staged_slave(Path(tmp), tag)
+        compiled = byte_compile(package)
+        try:
+            with preserved_sys_path():  # PythonFMU leaves the source folder on sys.path
+                built = FmuBuilder.build_FMU(script, dest=Path(tmp) / "out", project_files=[package],
+                                             canGetAndSetFMUstate=True, canSerializeFMUstate=True)
+        finally:  # the builder imported the staged modules
+            forget_modules(tag, script.stem)
         entries = archive.read_entries(built)
         entries["modelDescription.xml"] = model_description.complete(
             entries["modelDescription.xml"], UNITS, BOUNDS, 2, *archive.identity(COUPLING_NAME, 2, tag))
+        for name, path in compiled.items():
+            entries.setdefault(name, path.read_bytes())
+        trim.trim(entries, 2, package.name)
         partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
         archive.write_entries(partial, entries)
-        loader.install(partial, COUPLING_NAME)
+        loader.install(partial, COUPLING_NAME, slave_survives_release=True)
         os.replace(partial, dest)
     return dest

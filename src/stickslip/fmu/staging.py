@@ -62,10 +62,14 @@ _LIBRARY_ON_PATH = (
     "_library = os.path.join(os.path.dirname(__file__), {archive!r})  # the FMI library, packed\n"
     "sys.path[:0] = [] if _library in sys.path else [_library]\n\n")
 #: PythonFMU 0.7.0 compiles and runs this module's source at every fmi2Instantiate in the module's globals, which
-#: it releases once per instance: the slave's module holds them (``hold_loader_namespace``).
-FMI2_LOADER = LoaderModule("springblockfriction_", _LIBRARY_ON_PATH + (
-    "from {package}.fmu_slave import {model_name}, hold_loader_namespace  # noqa: F401\n"
-    "hold_loader_namespace(globals())  # PythonFMU releases this module's globals once per instance\n"))
+#: it releases once per instance: the loader binding holds them (``hold_loader_namespace``). The slave's class is
+#: imported, once per process: a class defined here would be made again at every instantiation, and PythonFMU keeps
+#: each copy (25 kB per instance).
+FMI2_TEMPLATE = _LIBRARY_ON_PATH + (
+    "from {package}.fmu_slave import {model_name}  # noqa: F401\n"
+    "from {package}.loader_binding import hold_loader_namespace\n\n"
+    "hold_loader_namespace(globals())  # PythonFMU releases this module's globals once per instance\n")
+FMI2_LOADER = LoaderModule("springblockfriction_", FMI2_TEMPLATE)
 #: pythonfmu3 0.3.4 imports this module once and takes the slave class by the name in its first line that reads
 #: ``class <name>(... Fmi3SlaveBase ...):`` (a regular expression over the file, in its builder and its binary):
 #: the class is defined here, a subclass adding nothing.

@@ -146,7 +146,7 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
 
 /* ---- for the fronts: the exported deserialization of FMU states ----
  * The slaves answer bytes that are no FMU state of theirs with a state that serializes as SBF_REFUSED_STATE and
- * the reason (fmu_src/block_interface.py, state_from_bytes): an exception there would make the inner library
+ * the reason (fmu_src/loader_binding.py, state_from_bytes): an exception there would make the inner library
  * release the slave unbalanced, and the host crashed at its next call. The exported function `name` forwards to
  * the inner library (by `forward`, an SBF_FORWARD_AS function) and serializes the state it got (through the inner
  * library's `size_of` and `serialize`); a refused one is freed (`free_state`) and refused with `error` and the

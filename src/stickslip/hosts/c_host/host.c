@@ -18,7 +18,8 @@
  *        to STOP ("x" lines), restores the state and runs on again ("r" lines), then
  *        restores the deserialized state and runs on again ("d" lines)
  * cycles N instantiate / run / terminate / free N times (N = $HOST_CYCLES): "c I T X"
- *        at the end of each cycle
+ *        at the end of each cycle; the resident memory before cycle N/10 and at the end
+ *        ("rss_kb_warm K", "rss_kb_end K")
  * bench  one run; prints "cpu_us_per_step U": process CPU time of fmi2DoStep + one
  *        fmi2GetReal per step, averaged over the steps
  * thread_steps  one instance, each fmi2DoStep from a new thread: prints the resident memory
@@ -243,6 +244,7 @@ static void mode_cycles(void)
     const char *count = getenv("HOST_CYCLES");
     int cycles = count ? atoi(count) : 50;
     for (int i = 0; i < cycles; ++i) {
+        if (i == cycles / 10) say("rss_kb_warm %ld\n", resident_kb());
         Component c = instantiate("cycle");
         check("fmi2ExitInitializationMode", initialize(c, n_settings));
         double t = 0.0;
@@ -250,6 +252,7 @@ static void mode_cycles(void)
         say("c %d %.17g %.17g\n", i, t, read_output(c));
         finish(c);
     }
+    say("rss_kb_end %ld\n", resident_kb());
 }
 
 static void mode_bench(void)
