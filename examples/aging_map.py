@@ -18,8 +18,8 @@ writes DIR/aging_map.png (default DIR: results/examples) and prints the fixed po
 import argparse
 from pathlib import Path
 
-import matplotlib
 import numpy as np
+from matplotlib.figure import Figure
 
 from stickslip.analysis import StickSlipMap, map_orbit, saddle_nodes
 from stickslip.analysis.aging_map import fixed_points_scan
@@ -29,11 +29,10 @@ parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 parser.add_argument("--quick", action="store_true", help="coarser saddle-nodes (for the tests)")
 parser.add_argument("--out", default="results/examples", help="output folder (default results/examples)")
 args = parser.parse_args()
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402  (after choosing the headless back end)
 
 params = Parameters(M=1.0, kappa=1.0, kinetic=Coulomb(F0=0.5), static=Sigmoid(F0=0.8, F_inf=1.5, tau=5.0, n=4.0))
-fig, (law, cobweb, branches) = plt.subplots(1, 3, figsize=(15, 4.8), layout="constrained")
+fig = Figure(figsize=(15, 4.8), layout="constrained")
+law, cobweb, branches = fig.subplots(1, 3)
 t_stick = np.linspace(0.0, 20.0, 200)
 law.plot(t_stick, [params.static.force(t) for t in t_stick])
 law.set(xlabel="time stuck t_stick (s)", ylabel="static friction F_S (N)", title="sigmoid aging")

@@ -19,8 +19,10 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-import matplotlib
 import numpy as np
+from matplotlib import colormaps
+from matplotlib.colors import LogNorm
+from matplotlib.figure import Figure
 
 from stickslip.fmu import ensure_fmu
 from stickslip.reference import simulate_chain
@@ -31,10 +33,6 @@ parser.add_argument("--quick", action="store_true", help="a shorter run (for the
 parser.add_argument("--fmu", help="the FMI 3 FMU (default: dist/SpringBlockFriction-fmi3.fmu, built if needed)")
 parser.add_argument("--out", default="results/examples", help="output folder (default results/examples)")
 args = parser.parse_args()
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402  (after choosing the headless back end)
-from matplotlib import colormaps  # noqa: E402
-from matplotlib.colors import LogNorm  # noqa: E402
 
 system = load_system(Path(__file__).resolve().parents[1] / "systems" / "bk10-velocity-weakening.toml")
 if args.quick:
@@ -46,7 +44,8 @@ slips = [sum(1 for e in reference.events if e.block == i and e.kind == "slip") f
 print(f"{system.n} blocks over {system.stop_time:g} s: me master {result.wall_time:.1f} s; slips per block "
       f"(reference): {slips}; max |x_me - x_ref| = {error.max():.2e} m")
 
-fig, (top, bottom) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, height_ratios=(3, 1), layout="constrained")
+fig = Figure(figsize=(11, 6.5), layout="constrained")
+top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(3, 1))
 edges = np.append(result.t, result.t[-1] + system.output_interval)
 slip_speed = np.abs(system.v_drive - result.v.T)  # |v_rel| (m/s): 0 while stuck
 image = top.pcolormesh(edges, np.arange(system.n + 1) + 0.5, slip_speed, cmap=colormaps["viridis"].with_extremes(

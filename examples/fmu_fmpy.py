@@ -14,9 +14,9 @@ writes DIR/fmu_fmpy.png (default DIR: results/examples). --quick: 250 s instead 
 import argparse
 from pathlib import Path
 
-import matplotlib
 import numpy as np
 from fmpy import simulate_fmu
+from matplotlib.figure import Figure
 
 from stickslip.fmu import ensure_fmu
 from stickslip.reference import parameters_from_values, simulate_reference
@@ -26,8 +26,6 @@ parser.add_argument("--quick", action="store_true", help="a shorter run (for the
 parser.add_argument("--fmu", help="the FMI 2 FMU to run (default: dist/SpringBlockFriction.fmu, built if needed)")
 parser.add_argument("--out", default="results/examples", help="output folder (default results/examples)")
 args = parser.parse_args()
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402  (after choosing the headless back end)
 
 stop_time = 250.0 if args.quick else 400.0
 table = np.array([(0.0, 0.1, 0.0), (200.0, 0.1, 0.0), (200.0, 0.3, 0.0), (stop_time, 0.3, 0.0)],
@@ -45,7 +43,8 @@ dx = np.abs(fmu_rows["x"] - reference.x)
 print(f"{fmu}: {result['n_events'][-1]} events; reference: {len(reference.events)}; max |x_FMU - x_ref| = "
       f"{dx.max():.2e} m over {t[-1]:g} s")
 
-fig, axes = plt.subplots(4, 1, figsize=(11, 9), sharex=True, layout="constrained")
+fig = Figure(figsize=(11, 9), layout="constrained")
+axes = fig.subplots(4, 1, sharex=True)
 for ax, name, unit in zip(axes, ("x", "v", "mode"), ("m", "m/s", "")):
     ax.plot(t, fmu_rows[name], lw=1.2, label="FMU (FMPy)")
     ax.plot(t, getattr(reference, name), "--", lw=0.9, label="reference")

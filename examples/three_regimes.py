@@ -15,8 +15,8 @@ writes DIR/three_regimes.png (default DIR: results/examples) and prints each run
 import argparse
 from pathlib import Path
 
-import matplotlib
 import numpy as np
+from matplotlib.figure import Figure
 
 from stickslip.analysis import classify_samples
 from stickslip.core import Constant, Lubricated, Parameters, Trajectory
@@ -25,13 +25,12 @@ parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 parser.add_argument("--quick", action="store_true", help="short runs (for the tests)")
 parser.add_argument("--out", default="results/examples", help="output folder (default results/examples)")
 args = parser.parse_args()
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402  (after choosing the headless back end)
 
 params = Parameters(M=40.0, kappa=1.0, kinetic=Lubricated(gamma1=3.0, gamma2=0.1, v_tilde=0.2, dv=0.05),
                     static=Constant(F0=1.0))
 runs = {0.1: 300.0, 0.07: 400.0, 1.0: 1000.0}  # v_drive (m/s): run time (s)
-fig, axes = plt.subplots(2, 3, figsize=(15, 8), layout="constrained")
+fig = Figure(figsize=(15, 8), layout="constrained")
+axes = fig.subplots(2, 3)
 for column, (v_drive, t_end) in enumerate(runs.items()):
     t_end = 100.0 if args.quick else t_end
     trajectory = Trajectory(params, x0=0.0, v0=v_drive, v_drive=v_drive, rtol=1e-10, record_events=True)

@@ -10,7 +10,7 @@ import shlex
 
 import pytest
 
-from test_docs import DOCUMENTS, FENCE, INLINE_CODE, REPO, SHELL_BLOCK, command_parsers, ignored_folders
+from test_docs import DOCUMENTS, FENCE, INLINE_CODE, REPO, SHELL_BLOCK, _label, command_parsers, ignored_folders
 
 
 def _default_outs():
@@ -124,12 +124,11 @@ def unactivated_commands(text):
     return bare
 
 
-@pytest.mark.parametrize("document", DOCUMENTS, ids=lambda document: document.relative_to(REPO).as_posix())
+@pytest.mark.parametrize("document", DOCUMENTS, ids=_label)
 def test_shown_commands_parse(document):
-    text = document.read_text()
-    refused, unknown = refused_commands(text), unknown_options(text)
-    assert not refused, f"the command line refuses these commands of {document.name}: {refused}"
-    assert not unknown, f"options that the commands of {document.name} do not have: {unknown}"
+    refused, unknown = refused_commands(document.read_text()), unknown_options(document.read_text())
+    assert not refused, f"the command line refuses these commands of {_label(document)}: {refused}"
+    assert not unknown, f"options that the commands of {_label(document)} do not have: {unknown}"
 
 
 def test_readme_commands_run_as_written():
