@@ -1,7 +1,7 @@
 """The documents name only what exists, and the README stays a front door (issue 18).
 
-Checked in README.md, docs/*.md and benchmarks/README.md: every repository path they name (in inline code
-or as a link), every ``stickslip <command>``, every ``python -m <module>`` and every ``stickslip.<name>``
+Checked in README.md, docs/*.md, benchmarks/README.md and examples/README.md: every repository path they name
+(in inline code or as a link), every ``stickslip <command>``, every ``python -m <module>`` and every ``stickslip.<name>``
 in code; every scenario file is in the table of docs/scenarios.md and the table names no other.
 """
 
@@ -19,7 +19,8 @@ import pytest
 from stickslip.cli import COMMANDS
 
 REPO = Path(__file__).resolve().parents[1]
-DOCUMENTS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md")), REPO / "benchmarks" / "README.md"]
+DOCUMENTS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md")), REPO / "benchmarks" / "README.md",
+             REPO / "examples" / "README.md"]
 README_MAX_LINES = 200
 #: a name in inline code is taken for a repository path if it ends in one of these, or in "/" (a folder), or
 #: starts with a top-level entry of the repository (``.ci/run``); so ``F_K/kappa`` is a formula, not a path

@@ -1,5 +1,7 @@
 """Scenario files: the shipped ones load; each kind of malformed file gives a ScenarioError naming file and key."""
 
+import re
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -153,3 +155,37 @@ def test_grazing_scenario_drive_is_a_relative_1e_7_below_the_critical_velocity()
 def test_every_scenario_runs_under_model_exchange_too(path):
     """`stickslip run --interface me scenarios/` needs a [model_exchange] section in every file."""
     assert load_scenario(path).model_exchange is not None
+
+
+#: "period 39.9 s", "period about 44 s": the stick-slip period a scenario's description states
+STATED_PERIOD = re.compile(r"period (about )?(\d+(?:\.\d+)?) s\b")
+
+
+def _constant_inputs(path):
+    """``(v_drive, F_ext)`` of a scenario file whose inputs are constants (m/s, N), else None."""
+    inputs = tomllib.loads(path.read_text()).get("inputs", {})
+    constant = {name: table.get("constant") for name, table in inputs.items()}
+    if set(constant) - {"v_drive", "F_ext"} or None in constant.values():
+        return None
+    return constant.get("v_drive"), constant.get("F_ext", 0.0)
+
+
+def test_stated_stick_slip_periods_hold():
+    """Where a stick-slip scenario with constant inputs and a constant static law states its cycle's period, the
+    stick-slip cycle has that period (to 1%, or to the last digit given)."""
+    from stickslip.analysis import stick_slip_cycles
+
+    checked = []
+    for path in sorted(SCENARIO_DIR.glob("*.toml")):
+        scenario, inputs = load_scenario(path), _constant_inputs(path)
+        stated = STATED_PERIOD.search(" ".join(scenario.description.split()))
+        if scenario.expected_attractor != "stick-slip" or not inputs or not scenario.params.static.is_constant() \
+                or stated is None:
+            continue
+        cycle = stick_slip_cycles(scenario.params, [inputs[0]], inputs[1])[0]
+        text = stated.group(2)
+        digit = 10.0 ** -len(text.partition(".")[2])
+        assert cycle.exists and abs(cycle.period - float(text)) <= max(0.01 * cycle.period, digit), \
+            f"{path.name}: states period {text} s, the stick-slip cycle's is {cycle.period:.4g} s"
+        checked.append(path.stem)
+    assert {"elmer-fig3-v0.03", "elmer-fig3-v0.1", "elmer-fig3-v0.3"} <= set(checked)
