@@ -40,9 +40,17 @@ def test_fixed_point_of_logarithmic_aging_with_coulomb_kinetics(v_drive):
         math.log(fp.slope), abs=1e-3)
 
 
-def test_saddle_nodes_of_sigmoid_aging():
-    q = Parameters(1.0, 1.0, Coulomb(F0=0.5), Sigmoid(F0=0.8, F_inf=1.5, tau=5.0, n=4.0))
-    sn = aging_map.saddle_nodes(q, 0.2, 0.3, n=21)
+SIGMOID_AGING = Parameters(1.0, 1.0, Coulomb(F0=0.5), Sigmoid(F0=0.8, F_inf=1.5, tau=5.0, n=4.0))
+
+
+@pytest.mark.parametrize("v_min, v_max, n", [(0.2, 0.3, 21), (0.016, 1.6, 60), (0.016, 1.6, 40)],
+                         ids=["fine", "coarse-60", "coarse-40"])
+def test_saddle_nodes_of_sigmoid_aging(v_min, v_max, n):
+    """On a fine grid and on the coarse grids of ``stickslip map`` (one or two velocities between the two
+    saddle-nodes, where the window of the born pair's extremum reached the surviving fixed point): the fixed
+    points appear and vanish in pairs within 2e-6 m/s of each saddle-node found."""
+    q = SIGMOID_AGING
+    sn = aging_map.saddle_nodes(q, v_min, v_max, n=n)
     assert len(sn) == 2
     (v1, x1), (v2, x2) = sn
     assert 0.24 < v1 < 0.25 and 0.255 < v2 < 0.265

@@ -261,44 +261,74 @@ def saddle_nodes(params, v_min, v_max, n=60, F_ext=0.0, tol=1e-8, n_x=120, rtol=
     Where the number of fixed points changes by two between neighbouring grid
     velocities, the pair is born at the extremum of ``g = T(x) - x`` that lies
     between them; that extremum's value is a smooth function of ``v_drive``
-    whose root (secant method) is the saddle-node. ``grid`` and ``fps`` (from
-    :func:`fixed_points_scan`) may be given instead of being computed.
+    whose root is the saddle-node (:func:`_saddle_node`). ``grid`` and ``fps``
+    (from :func:`fixed_points_scan`) may be given instead of being computed.
     """
     if grid is None:
         grid = np.linspace(v_min, v_max, n)
-    n = len(grid)
     if fps is None:
         fps = fixed_points_scan(params, grid, F_ext, n_x, rtol=rtol)
     out = []
-    for k in range(n - 1):
-        a, b = fps[k], fps[k + 1]
-        if abs(len(a) - len(b)) != 2:
-            continue
-        many, few = (a, b) if len(a) > len(b) else (b, a)
-        # the colliding pair: neighbours with slopes on both sides of 1, farthest from the survivors
-        pair, best = None, -1.0
-        for p0, p1 in zip(many, many[1:]):
-            if (p0.slope - 1.0) * (p1.slope - 1.0) < 0.0:
-                mid = 0.5 * (p0.x + p1.x)
-                dist = min((abs(mid - q.x) for q in few), default=math.inf)
-                if dist > best:
-                    pair, best = (p0, p1), dist
-        if pair is None:
-            continue
-        kind = "max" if pair[0].slope > 1.0 else "min"  # g rises then falls: a maximum between them
-        width = 2.0 * (pair[1].x - pair[0].x) + 1e-6
-        centre = 0.5 * (pair[0].x + pair[1].x)
-
-        def e(v, centre=centre, width=width, kind=kind):
-            x, g = _extremum(params, v, centre - width, centre + width, F_ext, rtol, kind)
-            return g if kind == "max" else -g
-
-        lo, hi = sorted((grid[k], grid[k + 1]))
-        found = refine(lambda vv: e(vv), [(lo, hi, *e(np.array([lo, hi])))], tol=tol)
-        for root, *_ in found:
-            x, _ = _extremum(params, root, centre - width, centre + width, F_ext, rtol, kind)
-            out.append((float(root), float(x[0])))
+    for k in range(len(grid) - 1):
+        if abs(len(fps[k]) - len(fps[k + 1])) == 2:
+            out.extend(_saddle_node(params, (grid[k], fps[k]), (grid[k + 1], fps[k + 1]), F_ext, tol, n_x, rtol))
     return out
+
+
+def _fold_extremum(params, a, b, F_ext, rtol):
+    """``(e, window, kind)`` for the fixed-point pair that exists at one of the drive velocities ``a`` and ``b``
+    (each ``(v_drive, fixed points)``) and not at the other: ``e(v)`` is the extremum of ``g = T(x) - x`` over
+    ``window`` (m), signed so that it is negative where the pair exists; None if no such pair is found. The
+    window lies between the pair's neighbouring fixed points at both velocities, so that it holds the
+    extremum the pair is born from and no other fixed point's zero of ``g``."""
+    many, few = (a[1], b[1]) if len(a[1]) > len(b[1]) else (b[1], a[1])
+    # the colliding pair: neighbours with slopes on both sides of 1, farthest from the survivors
+    pair, best = None, -1.0
+    for p0, p1 in zip(many, many[1:]):
+        if (p0.slope - 1.0) * (p1.slope - 1.0) < 0.0:
+            dist = min((abs(0.5 * (p0.x + p1.x) - q.x) for q in few), default=math.inf)
+            if dist > best:
+                pair, best = (p0, p1), dist
+    if pair is None:
+        return None
+    kind = "max" if pair[0].slope > 1.0 else "min"  # g rises then falls: a maximum between them
+    width = 2.0 * (pair[1].x - pair[0].x) + 1e-6
+    others = [q.x for q in few] + [q.x for q in many if q not in pair]
+    below = max((x for x in others if x < pair[0].x), default=-math.inf)
+    above = min((x for x in others if x > pair[1].x), default=math.inf)
+    window = (max(pair[0].x - width, 0.5 * (below + pair[0].x)), min(pair[1].x + width, 0.5 * (above + pair[1].x)))
+
+    def e(v):
+        _, g = _extremum(params, v, window[0], window[1], F_ext, rtol, kind)
+        return g if kind == "max" else -g
+
+    return e, window, kind
+
+
+def _saddle_node(params, a, b, F_ext, tol, n_x, rtol, halvings=12):
+    """The saddle-node ``[(v_drive, x)]`` between the drive velocities of ``a`` and ``b`` (each ``(v_drive,
+    fixed points)``, their counts two apart), or ``[]``. Where the extremum of :func:`_fold_extremum` does not
+    change sign between them (a coarse grid), the interval is halved by fixed-point counts until it does."""
+    for _ in range(halvings + 1):
+        found = _fold_extremum(params, a, b, F_ext, rtol)
+        if found is None:
+            return []
+        e, window, kind = found
+        (lo, hi) = sorted((a[0], b[0]))
+        ends = e(np.array([lo, hi]))
+        if ends[0] * ends[1] < 0.0:
+            root = refine(e, [(lo, hi, *ends)], tol=tol)[0][0]
+            x, _ = _extremum(params, root, window[0], window[1], F_ext, rtol, kind)
+            return [(float(root), float(x[0]))]
+        middle = 0.5 * (a[0] + b[0])
+        fps = fixed_points_scan(params, [middle], F_ext, n_x, rtol=rtol)[0]
+        if len(fps) == len(a[1]):
+            a = (middle, fps)
+        elif len(fps) == len(b[1]):
+            b = (middle, fps)
+        else:
+            return []  # a count neither side has: other bifurcations inside
+    return []
 
 
 def _track(params, x0, vs, F_ext, rtol, iterations=30):
