@@ -27,8 +27,8 @@ import operator
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
 from block_interface import (
-    FIRST_OUTPUT, MAX_OUTPUT_DERIVATIVE_ORDER, PYTHONFMU_ENTRY_POINTS, VARIABLES, BlockInterface, balance_release,
-    check_state, serialized_states,
+    BLOCK_STATE_KEYS, FIRST_OUTPUT, MAX_OUTPUT_DERIVATIVE_ORDER, PYTHONFMU_ENTRY_POINTS, VARIABLES, BlockInterface,
+    balance_release, check_state, serialized_states,
 )
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input, "output": Fmi2Causality.output}
@@ -92,12 +92,13 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         return plan
 
     def _write(self, kind, references, values):
+        """Set the variables ``references`` of type ``kind`` to ``values``, all or nothing (TypeError for another type
+        or an output, :meth:`BlockInterface.set_values` for the values)."""
         _check_kind(kind, references)
-        for reference, value in zip(references, values):
-            if reference >= FIRST_OUTPUT:
-                raise TypeError(f"{VARIABLES[reference].name} (valueReference={reference}) is an output: it cannot "
-                                f"be set")
-            self.set_variable(VARIABLES[reference].name, value)
+        if max(references, default=-1) >= FIRST_OUTPUT:
+            reference = next(r for r in references if r >= FIRST_OUTPUT)
+            raise TypeError(f"{VARIABLES[reference].name} (valueReference={reference}) is an output: it cannot be set")
+        self.set_values([VARIABLES[r].name for r in references], values)
 
     def set_variable(self, name, value):
         """Set a parameter (before initialization ends) or an input: the outputs follow at the next read."""
@@ -175,4 +176,4 @@ def _names(references):
 
 
 balance_release(SpringBlockFriction, PYTHONFMU_ENTRY_POINTS)
-serialized_states(SpringBlockFriction, ("values", "start_time", "trajectory"))  # the keys of block_state()
+serialized_states(SpringBlockFriction, BLOCK_STATE_KEYS)

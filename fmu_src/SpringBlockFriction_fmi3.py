@@ -21,8 +21,8 @@ from collections import namedtuple
 from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, Fmi3Variability, Float64, Int32,
                         ModelExchange)
 
-from block_interface import BlockInterface, balance_release, check_state, saved_state, serialized_states
-from stickslip.core.exchange import INDICATORS, ExchangeBlock, check_inputs  # one import of the runtime (staging)
+from block_interface import INPUTS, BlockInterface, balance_release, check_state, saved_state, serialized_states
+from stickslip.core.exchange import INDICATORS, ExchangeBlock  # one import of the runtime (staging)
 
 _CAUSALITY = {"parameter": Fmi3Causality.parameter, "input": Fmi3Causality.input, "output": Fmi3Causality.output}
 _VARIABILITY = {name: getattr(Fmi3Variability, name) for name in ("fixed", "continuous", "discrete")}
@@ -81,18 +81,20 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         )
 
     def set_float64(self, vrs, values):
-        """Set Float64 parameters (before initialization ends) or inputs; TypeError naming any other variable."""
-        self._check_settable(vrs)
+        """Set Float64 parameters (before initialization ends) or inputs, all or nothing (:meth:`_check_setting_all`)."""
+        self._check_setting_all(Float64, vrs, values)
         super().set_float64(vrs, values)
 
     def set_int32(self, vrs, values):
-        """Set Int32 parameters (before initialization ends); TypeError naming any other variable."""
-        self._check_settable(vrs)
+        """Set Int32 parameters (before initialization ends), all or nothing (:meth:`_check_setting_all`)."""
+        self._check_setting_all(Int32, vrs, values)
         super().set_int32(vrs, values)
 
-    def _check_settable(self, references):
-        """TypeError unless each value reference is a parameter or an input (pythonfmu3 would call an output's
-        missing setter, "'NoneType' object is not callable", and set ``time`` through the slave's attribute)."""
+    def _check_setting_all(self, kind, references, values):
+        """Check a set of ``values`` of the variables ``references`` of type ``kind`` before any is taken: TypeError
+        unless each is a parameter or an input of that type (pythonfmu3 would call an output's missing setter,
+        "'NoneType' object is not callable", and set ``time`` through the slave's attribute); then each value
+        (:meth:`BlockInterface.check_setting`: ParameterError naming it and its range)."""
         for reference in references:
             variable = self.vars.get(reference)
             if variable is None:
@@ -100,18 +102,18 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
             if variable.causality not in (Fmi3Causality.parameter, Fmi3Causality.input):
                 raise TypeError(f"{variable.name} (valueReference={reference}) is of causality "
                                 f"{variable.causality.name}: only parameters and inputs can be set")
+            if not isinstance(variable, kind):
+                raise TypeError(f"Variable with valueReference={reference} is not of type {kind.__name__}!")
+        for reference, value in zip(references, values):
+            self.check_setting(self.vars[reference].name, value)
 
     def set_variable(self, name, value):
-        """A parameter or an input. An input is checked first, as the runtime checks it (ParameterError naming
-        it and its range: fmi3Error, the value kept): finite in every mode, and after initialization within the
-        force scales of the parameters, then, both interfaces alike, also held by the model-exchange block."""
-        if name in ("v_drive", "F_ext"):
-            inputs = {"v_drive": self.values["v_drive"], "F_ext": self.values["F_ext"], name: value}
-            if self.block is None:
-                check_inputs(inputs["v_drive"], inputs["F_ext"])  # the parameters may still change
-            else:
-                self.block.set_inputs(inputs["v_drive"], inputs["F_ext"])
+        """A parameter or an input (:meth:`BlockInterface.set_variable`: checked first, ParameterError naming it and
+        its range, fmi3Error, the value kept); after initialization an input is also held by the model-exchange
+        block, both interfaces alike."""
         super().set_variable(name, value)
+        if name in INPUTS and self.block is not None:
+            self.block.set_inputs(self.values["v_drive"], self.values["F_ext"])
 
     def current_state(self):
         return self.block if self.exchange else self.current_trajectory()

@@ -19,7 +19,7 @@ from stickslip.fmu_src.loader_binding import (  # the slaves take these from her
 
 from stickslip.core import (
     ANY_FINITE, KINETIC_LAWS, OUTPUT_NAMES, POSITIVE, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, StateError,
-    Trajectory, check, kinetic_law, saved_state, static_law,
+    Trajectory, check, check_input, check_rate_scale, kinetic_law, saved_state, static_law,
 )
 
 #: causality "parameter" (fixed), "input" or "output"; kind "real" or "integer"; variability "fixed",
@@ -140,6 +140,8 @@ if tuple(v.attribute for v in VARIABLES[FIRST_OUTPUT:]) != OUTPUT_NAMES:
 #: The key of ``BlockInterface.values`` that holds ``der(F_ext)`` (N/s), the first time derivative of ``F_ext`` that an
 #: FMI 2 master set (fmi2SetRealInputDerivatives): F_ext grows at that rate from where it was set, until set again.
 F_EXT_RATE = "der(F_ext)"
+#: The inputs, by FMU name.
+INPUTS = ("v_drive", "F_ext")
 #: The outputs whose time derivatives the FMU gives (fmi2GetRealOutputDerivatives), by order 1, 2: x (v, dv/dt) and v
 #: (dv/dt, d2v/dt2); MAX_OUTPUT_DERIVATIVE_ORDER is the model description's maxOutputDerivativeOrder.
 OUTPUT_DERIVATIVES = {"x": ("v", "a"), "v": ("a", "jerk")}
@@ -190,14 +192,32 @@ class BlockInterface:
             )
 
     def set_variable(self, name, value):
-        """Set a parameter (only before initialization ends) or an input."""
-        if self.trajectory is not None and name in self.values and name not in ("v_drive", "F_ext"):
-            raise ParameterError(f"{name} is a fixed parameter: it cannot change after initialization")
+        """Set a parameter (only before initialization ends) or an input, checked first (:meth:`check_setting`)."""
+        self.check_setting(name, value)
         self.values[name] = value
         if name == "F_ext":
             self.values[F_EXT_RATE] = 0.0  # a force set is held, until a rate is set for it
-        self._inputs_set.add(name)
+        if name in INPUTS:
+            self._inputs_set.add(name)
         self._output_cache.clear()
+
+    def set_values(self, names, values):
+        """Set the parameters or inputs ``names`` to ``values``, all or nothing: each is checked
+        (:meth:`check_setting`) before any is taken."""
+        pairs = list(zip(names, values))
+        for name, value in pairs:
+            self.check_setting(name, value)
+        for name, value in pairs:
+            self.set_variable(name, value)
+
+    def check_setting(self, name, value):
+        """Raise ParameterError naming ``name`` and its allowed range unless it can be set to ``value`` now: a
+        parameter only before initialization ends; an input finite, and once initialization ended within the force
+        scales of the parameters (the runtime's :func:`check_input`), as the next step would need it."""
+        if name in INPUTS:
+            check_input(name, value, None if self.trajectory is None else self.trajectory.params)
+        elif self.trajectory is not None and name in self.values:
+            raise ParameterError(f"{name} is a fixed parameter: it cannot change after initialization")
 
     def read_output(self, name, attribute):
         """An output at the current state, computed on its first read after a change (none is ever None)."""
@@ -245,17 +265,16 @@ class BlockInterface:
     # ---- input and output derivatives (FMI 2) -------------------------------------------
 
     def set_input_derivatives(self, names, orders, values):
-        """fmi2SetRealInputDerivatives on the inputs ``names``: ``der(F_ext)`` (N/s, order 1) is taken, from the
-        current time on; a derivative the block does not follow (F_ext's of order 2 and more, v_drive's, which is
-        held over a step) is ignored, with a warning returned the first time one of its name and order is not 0
-        (None if none: a master that sets them at every step is told once)."""
+        """fmi2SetRealInputDerivatives on the inputs ``names``, all or nothing (each checked first,
+        :meth:`_check_input_derivative`): ``der(F_ext)`` (N/s, order 1) is taken, from the current time on; a
+        derivative the block does not follow (F_ext's of order 2 and more, v_drive's, which is held over a step) is
+        ignored, with a warning returned the first time one of its name and order is not 0 (None if none: a master
+        that sets them at every step is told once)."""
+        entries = list(zip(names, orders, values))
+        for name, order, value in entries:
+            self._check_input_derivative(name, order, value)
         ignored = []
-        for name, order, value in zip(names, orders, values):
-            if name not in ("v_drive", "F_ext"):
-                raise ValueError(f"{name} is not an input: input derivatives are set for the inputs v_drive and F_ext")
-            if not order >= 1:
-                raise ValueError(f"the order of der({name}) is {order}: allowed is 1 or more (1: the first derivative)")
-            check(f"der({name}, {order})", value, ANY_FINITE)
+        for name, order, value in entries:
             if name == "F_ext" and order == 1:
                 self.values[F_EXT_RATE] = float(value)
                 self._inputs_set.add(F_EXT_RATE)
@@ -268,6 +287,18 @@ class BlockInterface:
         return (f"fmi2SetRealInputDerivatives: ignored {', '.join(ignored)}: the block follows F_ext to first order "
                 f"(F_ext and der(F_ext) from where they were set) and holds v_drive over a step (said once for each "
                 f"derivative)")
+
+    def _check_input_derivative(self, name, order, value):
+        """Raise ValueError or ParameterError naming the derivative of order ``order`` of ``name`` unless it is one
+        of an input, of order 1 or more, and finite; der(F_ext) once initialization ended also within the force
+        scale of the parameters (the runtime's :func:`check_rate_scale`), as the next step would need it."""
+        if name not in INPUTS:
+            raise ValueError(f"{name} is not an input: input derivatives are set for the inputs v_drive and F_ext")
+        if not order >= 1:
+            raise ValueError(f"the order of der({name}) is {order}: allowed is 1 or more (1: the first derivative)")
+        check(f"der({name}, {order})", value, ANY_FINITE)
+        if name == "F_ext" and order == 1 and self.trajectory is not None:
+            check_rate_scale(value, self.trajectory.params)
 
     def output_derivatives(self, names, orders):
         """fmi2GetRealOutputDerivatives: the derivatives of order 1 or 2 of the outputs ``names`` (x: m/s, m/s^2;
@@ -308,12 +339,20 @@ class BlockInterface:
         trajectory = self.current_trajectory()
         return trajectory.communicate, trajectory.outputs
 
+    def fmu_time(self):
+        """The time the FMU is at (s), which the C loader answers fmi2LastSuccessfulTime with (and fmi3DoStep's
+        lastSuccessfulTime after a failed step): the end of the last step, or of the part of a failed step it went,
+        or of a restored state; the start time until initialization ends."""
+        return self.start_time if self.trajectory is None else self.trajectory.t
+
     # ---- FMU state ---------------------------------------------------------------
 
     def block_state(self):
-        """Values, start time and trajectory snapshot as JSON-serializable values."""
+        """Values, start time, trajectory snapshot and the inputs set since the trajectory last saw them (the next
+        step applies them) as JSON-serializable values."""
         snapshot = None if self.trajectory is None else self.trajectory.snapshot()
-        return {"values": dict(self.values), "start_time": self.start_time, "trajectory": snapshot}
+        return {"values": dict(self.values), "start_time": self.start_time, "trajectory": snapshot,
+                "pending": sorted(self._inputs_set)}
 
     def restore_block_state(self, state):
         """Undo to a state from :meth:`block_state` (which stays usable for another restore):
@@ -321,9 +360,10 @@ class BlockInterface:
         self.take_block_state(self.checked_block_state(state))
 
     def checked_block_state(self, state):
-        """``(values, start time, trajectory, parameters)`` of a state from :meth:`block_state`, every value checked
-        and nothing taken: the parameters and inputs (:func:`check_values`), the start time and the trajectory
-        (:meth:`Trajectory.from_snapshot`); StateError or ParameterError names a field out of place or range.
+        """``(values, start time, trajectory, parameters, pending inputs)`` of a state from :meth:`block_state`, every
+        value checked and nothing taken: the parameters and inputs (:func:`check_values`), the start time, the
+        trajectory (:meth:`Trajectory.from_snapshot`) and the inputs pending; StateError or ParameterError names a
+        field out of place or range.
 
         A state saved during initialization (no trajectory yet) is refused once initialization has ended: the
         instance would go on without a trajectory, every step discarded (FMI does not say what it means)."""
@@ -337,13 +377,15 @@ class BlockInterface:
                              "initialization ended: reset the instance first, or restore a state saved after "
                              "initialization")
         trajectory = None if snapshot is None else Trajectory.from_snapshot(parameters, snapshot)
-        return values, fields["start_time"], trajectory, parameters
+        pending = fields["pending"]
+        if not isinstance(pending, list) or not set(pending) <= _PENDING:
+            raise StateError(f"saved state pending = {pending!r} is not a list of names among {sorted(_PENDING)}")
+        return values, fields["start_time"], trajectory, parameters, set(pending)
 
     def take_block_state(self, checked):
         """Take a state from :meth:`checked_block_state`."""
-        values, self.start_time, self.trajectory, _ = checked
+        values, self.start_time, self.trajectory, _, self._inputs_set = checked
         self.values.update(values)
-        self._inputs_set.clear()  # the restored trajectory holds the restored inputs
         self.outputs_changed()
 
 
@@ -354,7 +396,11 @@ def check_state(state):
         raise StateError(reason)
 
 
-_BLOCK_STATE_KINDS = {"values": saved_state.NESTED, "start_time": saved_state.REAL, "trajectory": saved_state.NESTED}
+_BLOCK_STATE_KINDS = {"values": saved_state.NESTED, "start_time": saved_state.REAL, "trajectory": saved_state.NESTED,
+                      "pending": saved_state.NESTED}
+#: The keys of :meth:`BlockInterface.block_state`.
+BLOCK_STATE_KEYS = tuple(_BLOCK_STATE_KINDS)
+_PENDING = frozenset(INPUTS + (F_EXT_RATE,))  # the names a state's inputs pending may hold
 
 
 def _law(values, kind, build):

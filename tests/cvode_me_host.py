@@ -12,10 +12,11 @@ Run as a script (each run a child process of the tests, so a crash or hang of th
 ``python cvode_me_host.py FOLDER SPEC`` with the extracted FMU's folder and a JSON spec ``{"start":
 {name: value}, "stop": s, "interval": s, "rtol": r, "repeats": n}`` (``repeats``: extra Event Mode entries
 with an update, nothing changed, after each event, as a host that re-enters it at the same instant);
-prints one JSON line ``{"t": [...], "x": [...], "events": [[t, n_events], ...], "error": null or text}``
-(``events``: after the initial event iteration, then after each root).
+prints one JSON line ``{"t": [...], "x": [...], "events": [[t, n_events], ...], "indicators": [[z...], ...],
+"error": null or text}`` (``events`` and ``indicators``: after the initial event iteration, then after each root).
 """
 
+import ctypes
 import json
 import sys
 
@@ -72,15 +73,21 @@ def simulate(folder, spec):
     """fmusim's loop (see the module docstring); the result as the script prints it."""
     fmu, description, variables = instantiate(folder, spec["start"])
     x_ref, n_ref = variables["x"].valueReference, variables["n_events"].valueReference
-    result = {"t": [], "x": [], "events": [], "error": None}
+    result = {"t": [], "x": [], "events": [], "indicators": [], "error": None}
+    nx, nz = description.numberOfContinuousStates, description.numberOfEventIndicators
+    indicators = (ctypes.c_double * nz)()
 
     def sample(t):
         result["t"].append(t)
         result["x"].append(fmu.getFloat64([x_ref])[0])
 
+    def after_event(t):
+        result["events"].append([t, fmu.getInt32([n_ref])[0]])
+        fmu.getEventIndicators(indicators, nz)
+        result["indicators"].append(list(indicators))
+
     event_iteration(fmu, 0)
-    result["events"].append([0.0, fmu.getInt32([n_ref])[0]])  # after the initial event iteration
-    nx, nz = description.numberOfContinuousStates, description.numberOfEventIndicators
+    after_event(0.0)
     solver = CVodeSolver(nx=nx, nz=nz, get_x=fmu.getContinuousStates, set_x=fmu.setContinuousStates,
                          get_dx=fmu.getContinuousStateDerivatives, get_z=fmu.getEventIndicators,
                          get_nominals=ones, set_time=fmu.setTime, input=NoInput(), startTime=0.0,
@@ -97,7 +104,7 @@ def simulate(folder, spec):
             if event:
                 if event_iteration(fmu, spec["repeats"]):
                     solver.reset(t)
-                result["events"].append([t, fmu.getInt32([n_ref])[0]])
+                after_event(t)
             if t == t_next:
                 sample(t)
     except RuntimeError as exc:  # CVode's error, as fmusim reports it and stops

@@ -184,7 +184,7 @@ def test_with_logging_off_fmpy_gets_the_error_and_its_message(fmu_path, name, va
             if inst is not None:
                 inst.free()  # terminated and freed after fmi2Error
         assert error.status == fmi2Error
-        assert error.function == ("fmi2ExitInitializationMode" if name == "M" else "fmi2DoStep")
+        assert error.function == ("fmi2ExitInitializationMode" if name == "M" else "fmi2SetReal")
         assert any(expected in message for message in error.messages), error.messages
 
 

@@ -307,6 +307,49 @@ def test_a_slip_that_arrives_at_v_rel_zero_still_reads_zero():
     assert block.update() is True and block.mode == STUCK
 
 
+STEADY = law_values("lubricated", "constant", M=40.0, kappa=1.0)  # the steady-sliding scene of docs/fmi3.md
+
+
+def steady_sliding_block(dv=0.0):
+    """A forward slip at ``v = dv`` (m/s; v_drive 0.1 m/s) whose acceleration reads exactly 0 at ``dv = 0``: ``x`` is
+    ``F_K(v_drive)/kappa`` as the runtime computes it (kappa = 1 N/m), where steady sliding settles."""
+    core, _ = both_parameters(STEADY)
+    x = core.kinetic.force(0.1) / core.kappa
+    block = ExchangeBlock(core, x, dv, 0.1, 0.0, t0=T0)
+    assert block.mode == 1 and (dv != 0.0 or block.derivatives()[1] == 0.0)
+    return block
+
+
+@pytest.mark.parametrize("dv, sign", [(0.0, 1.0), (1e-300, 1.0), (-1e-300, -1.0)])
+def test_the_graze_indicator_reads_no_zero_where_the_slip_goes_on(dv, sign):
+    """Steady sliding, ``a`` exactly 0 (fmusim's CVode stopped there: "Root found at and very near t"): the update
+    keeps the mode and changes nothing, and the graze indicator reads the tiny value ``2^-52 F_S(0)/M`` with the
+    sign ``-m a`` takes just after (``m kappa v / M``; at rest +), before and after the update; the others are
+    their usual values."""
+    block = steady_sliding_block(dv)
+    assert block.derivatives()[1] == 0.0
+    for _ in range(2):
+        stick, breakaway, graze = block.indicators()
+        assert graze == sign * 2.0 ** -52 * 1.0 / 40.0
+        assert stick == 0.1 - dv and breakaway == INACTIVE
+        assert block.update() is False and block.mode == 1 and block.n_events == 0
+
+
+def test_a_breakaway_indicator_that_touches_zero_and_rises_reads_no_zero():
+    """Stuck without drive, the holding force exactly ``F_S(2 s)`` of a logarithmic aging law: ``z_slip`` is 0 and
+    rising, the contact holds (the update keeps the stick), so the indicator reads ``2^-52 F_S(0)``, not 0."""
+    core, ref = both_parameters(law_values("coulomb", "logarithmic", kappa=1.0))
+    block = stuck_block(core, 0.0, v_drive=0.0)
+    block.t = T0 + 2.0
+    block.set_states(core.static.force(2.0), 0.0)
+    assert block.z_slip == 0.0
+    for _ in range(2):
+        assert block.indicators() == [INACTIVE, 2.0 ** -52 * ref.static.force(0.0), INACTIVE]
+        assert block.update() is False and block.mode == STUCK
+    block.t = T0 + 2.5
+    assert block.indicators()[1] > 0.0
+
+
 @pytest.mark.parametrize("name, value", [("v_drive", math.nan), ("F_ext", math.inf), ("F_ext", -math.inf),
                                          ("v_drive", -math.inf), ("F_ext", 1e200)])
 def test_set_inputs_refuses_non_finite_or_overflowing_inputs_naming_them(name, value):
@@ -401,8 +444,10 @@ class SolveIvpHost:
         self.block.set_states(*y)
 
     def _update(self, cause):
+        """The event update, after which no indicator reads exactly 0 (a root that would not go away)."""
         old = self.block.mode
         self.block.update()
+        assert 0.0 not in self.block.indicators(), (self.block.t, self.block.indicators())
         if self.block.mode != old:
             self.events.append((self.block.t, old, self.block.mode, cause))
 

@@ -30,7 +30,7 @@ from .laws import (
     kinetic_law,
     static_law,
 )
-from .model import BACKWARD, FORWARD, STUCK, Parameters
+from .model import BACKWARD, FORWARD, STUCK, Parameters, check_input, check_rate_scale
 from .ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, check
 from .trajectory import OUTPUT_NAMES, RTOL_RANGE, Trajectory
 
@@ -39,6 +39,6 @@ __all__ = [
     "OUTPUT_NAMES", "STATIC_LAWS",
     "CallableKinetic", "CallableStatic", "Constant", "Coulomb", "Logarithmic", "Lubricated",
     "Parameters", "ParameterError", "RTOL_RANGE", "Saturating", "Sigmoid", "SolverError", "StateError",
-    "StickSlipError", "Stribeck", "Trajectory", "Viscous", "check", "kinetic_law", "saved_state",
-    "static_law",
+    "StickSlipError", "Stribeck", "Trajectory", "Viscous", "check", "check_input", "check_rate_scale", "kinetic_law",
+    "saved_state", "static_law",
 ]

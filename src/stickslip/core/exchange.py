@@ -13,16 +13,6 @@ discrete state between the host's calls.
   in the modes where it does not apply), zero at the event:
 
   ``stick`` (m/s)      slipping: ``m v_rel``, zero when the slip reaches ``v_rel = 0``;
-                       where a slip leaves ``v_rel = 0`` (right after a breakaway
-                       or an overshoot: ``m v_rel = 0`` and moving into its own
-                       side, :func:`.model.slip_departs`) it reads ``LEAVING``
-                       times the speed nominal instead, the sign it has just
-                       after, as the Reference-FMUs' BouncingBall lifts its
-                       height to DBL_MIN after a bounce: an indicator on its zero
-                       at the event would be a second root there (CVode stops:
-                       "root found at and very near t") and an arrival to the
-                       event update. Only that point changes: an arrival's zero
-                       is located where it is;
   ``breakaway`` (N)    stuck: ``z_slip = F_S(t_stick) - |kappa x - F_ext|``;
   ``graze`` (m/s^2)    slipping: ``m dv_rel/dt = -m a``, zero at each extremum
                        of ``v_rel``: a sign-based locator sees a dip of
@@ -32,6 +22,18 @@ discrete state between the host's calls.
                        Stuck phases have none: with constant inputs ``z_slip``
                        can dip below zero and back only where ``F_S`` is convex
                        (saturating with F_inf < F0, parts of sigmoid), see docs/fmi3.md.
+
+  An indicator reads exactly zero only where the event update acts on it (it
+  changes the mode there). Where the update would leave the mode as it is,
+  a zero reads ``LEAVING`` times the indicator's nominal instead, with the sign
+  the indicator has just after (positive where that is unknown): a slip that
+  leaves ``v_rel = 0`` (right after a breakaway or an overshoot), a stick whose
+  ``z_slip`` touches 0 and rises, an extremum of ``v_rel`` (and steady sliding,
+  where ``a`` settles on 0 to rounding). So the Reference-FMUs' BouncingBall
+  lifts its height to DBL_MIN after a bounce: an indicator on its zero where
+  nothing happens would be a root that does not go away (CVode, evaluating it
+  again just after, stops: "root found at and very near t"). An arrival's zero
+  is located where it is.
 
 - :meth:`ExchangeBlock.update` is the event update: a stuck block breaks away
   when ``z_slip < 0``, or when ``z_slip = 0`` exactly and falling (the
@@ -71,7 +73,7 @@ from .ranges import ANY_FINITE, check
 from .stuck import breakaway_delay
 
 INACTIVE = 1.0  # value of an event indicator in the modes where it does not apply (never crosses zero)
-LEAVING = 2.0 ** -52  # of the speed nominal: the stick indicator where a slip leaves v_rel = 0 (module docstring)
+LEAVING = 2.0 ** -52  # of an indicator's nominal: its value at a zero where the mode lasts (module docstring)
 INDICATORS = ("stick", "breakaway", "graze")
 
 
@@ -148,45 +150,63 @@ class ExchangeBlock:
         return [self._v, slip_acceleration(self.mode, self._x, self._v, self.v_drive, self.F_ext, self.params)]
 
     def indicators(self):
-        """``[stick, breakaway, graze]`` (m/s, N, m/s^2), see the module docstring."""
+        """``[stick, breakaway, graze]`` (m/s, N, m/s^2), see the module docstring: exactly zero only where
+        :meth:`update` would change the mode."""
         if self.mode == STUCK:
-            return [INACTIVE, self.z_slip, INACTIVE]
-        accel = slip_acceleration(self.mode, self._x, self._v, self.v_drive, self.F_ext, self.params)
-        return [self._stick_indicator(), INACTIVE, -self.mode * accel]
+            values = [INACTIVE, self.z_slip, INACTIVE]
+        else:
+            accel = slip_acceleration(self.mode, self._x, self._v, self.v_drive, self.F_ext, self.params)
+            values = [self.mode * (self.v_drive - self._v), INACTIVE, -self.mode * accel]
+        if 0.0 not in values or self._transition()[0] != self.mode:
+            return values
+        return [value if value != 0.0 else LEAVING * self._sign_after(k) * nominal
+                for k, (value, nominal) in enumerate(zip(values, self._indicator_nominals()))]
 
-    def _stick_indicator(self):
-        """``m v_rel`` (m/s) while slipping in mode ``m``; ``LEAVING`` times the speed nominal where the slip
-        leaves ``v_rel = 0`` (see the module docstring)."""
+    def _indicator_nominals(self):
+        """Scales of the indicators (m/s, N, m/s^2): the speed nominal, ``F_S(0)`` and ``F_S(0)/M``."""
+        force = self.params.static.force(0.0)
+        return [self.nominals()[1], force, force / self.params.M]
+
+    def _sign_after(self, k):
+        """+1 or -1: the sign indicator ``k`` takes just after a zero where the mode lasts. A stick indicator
+        there belongs to a slip that leaves ``v_rel = 0``, a breakaway indicator to a ``z_slip`` that does not
+        fall (both positive after); the graze indicator ``-m a`` at ``a = 0`` moves as ``m kappa v / M``, and
+        at rest too (steady sliding settled to rounding) it takes +1."""
+        return -1.0 if k == 2 and self.mode * self._v < 0.0 else 1.0
+
+    def _arrived(self):
+        """True if a slip is at or past ``v_rel = 0`` and not leaving it (:func:`.model.slip_departs`)."""
         m_v_rel = self.mode * (self.v_drive - self._v)
-        if m_v_rel == 0.0 and slip_departs(self.mode, self._x, self.v_drive, self.F_ext, self.params):
-            return LEAVING * self.nominals()[1]
-        return m_v_rel
+        return m_v_rel < 0.0 or (m_v_rel == 0.0 and not slip_departs(self.mode, self._x, self.v_drive, self.F_ext,
+                                                                        self.params))
 
     # ---- event update ------------------------------------------------------------
+
+    def _transition(self):
+        """``(mode, v)`` (m/s) that the event update at ``t`` with the current inputs gives, nothing changed."""
+        p = self.params
+        x, v_drive, F_ext = self._x, self.v_drive, self.F_ext
+        old = self.mode
+        if old == STUCK:
+            new = stuck_or_breakaway(x, F_ext, self.t_stick, p)  # = mode_after_input_change for a stuck block
+            if new == STUCK and breakaway_delay(x, v_drive, F_ext, self.t_stick, p, self._time_scale()) == 0.0:
+                new = breakaway_direction(x, F_ext, p)  # z_slip = 0 and falling: the contact fails now
+            return new, v_drive
+        if (v_drive, F_ext) != self._inputs and old * (self._inputs[0] - self._v) > 0.0:  # the jump moved v_rel
+            new = mode_after_input_change(old, x, self._v, 0.0, v_drive, F_ext, p)
+            return new, (v_drive if new == STUCK else self._v)
+        if self._arrived():  # the slip reached v_rel = 0: this is the event's point
+            return mode_at_zero_v_rel(x, F_ext, p), v_drive
+        return old, self._v
 
     def update(self):
         """Apply the transition due at ``t`` with the current inputs; True if the host must restart its solver
         from :meth:`states` (``valuesOfContinuousStatesChanged``): its ``v`` changed, or the mode did. At a mode
         change the derivatives jump, and a solver that goes on from its own history (fmusim's CVode does
         unless told) would keep the old mode's solution beyond the event, where it has already integrated."""
-        p = self.params
-        x, v_drive, F_ext = self._x, self.v_drive, self.F_ext
         old = self.mode
-        jumped = (v_drive, F_ext) != self._inputs
-        if old == STUCK:
-            new = stuck_or_breakaway(x, F_ext, self.t_stick, p)  # = mode_after_input_change for a stuck block
-            if new == STUCK and breakaway_delay(x, v_drive, F_ext, self.t_stick, p, self._time_scale()) == 0.0:
-                new = breakaway_direction(x, F_ext, p)  # z_slip = 0 and falling: the contact fails now
-            v = v_drive
-        elif jumped and old * (self._inputs[0] - self._v) > 0.0:  # the jump, not the motion, moved v_rel
-            new = mode_after_input_change(old, x, self._v, 0.0, v_drive, F_ext, p)
-            v = v_drive if new == STUCK else self._v
-        elif self._stick_indicator() <= 0.0:  # the slip reached v_rel = 0: this is the event's point
-            new = mode_at_zero_v_rel(x, F_ext, p)
-            v = v_drive
-        else:
-            new, v = old, self._v
-        self._inputs = (v_drive, F_ext)
+        new, v = self._transition()
+        self._inputs = (self.v_drive, self.F_ext)
         changed = v != self._v or new != old
         self._v = v
         if new != old:

@@ -130,7 +130,17 @@ def check_state_scales(x, v, p, state_names=("x", "v")):
 
 def check_input_scales(v_drive, F_ext, p):
     """Raise ParameterError if ``|F_ext|`` or ``sqrt(kappa M) |v_drive|`` exceeds :data:`MAX_FORCE_SCALE`."""
+    _check_force_input_scale(F_ext, p)
+    _check_drive_scale(v_drive, p)
+
+
+def _check_force_input_scale(F_ext, p):
+    """Raise ParameterError if ``|F_ext|`` (N) exceeds :data:`MAX_FORCE_SCALE`."""
     _check_force_scale("|F_ext|", abs(F_ext), lambda: f"F_ext = {F_ext!r} N")
+
+
+def _check_drive_scale(v_drive, p):
+    """Raise ParameterError if ``sqrt(kappa M) |v_drive|`` (N; v_drive in m/s) exceeds :data:`MAX_FORCE_SCALE`."""
     _check_force_scale("sqrt(kappa M) * |v_drive|", _impedance(p) * abs(v_drive),
                        lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, v_drive = {v_drive!r} m/s")
 
@@ -140,6 +150,21 @@ def check_rate_scale(F_ext_rate, p):
     time scale, exceeds :data:`MAX_FORCE_SCALE`."""
     _check_force_scale("sqrt(M/kappa) * |der(F_ext)|", math.sqrt(p.M) / math.sqrt(p.kappa) * abs(F_ext_rate),
                        lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, der(F_ext) = {F_ext_rate!r} N/s")
+
+
+# unit and force-scale check of each input by its FMU name (check_input)
+_INPUT_CHECKS = {"v_drive": ("m/s", _check_drive_scale), "F_ext": ("N", _check_force_input_scale),
+                 "der(F_ext)": ("N/s", check_rate_scale)}
+
+
+def check_input(name, value, p=None):
+    """Raise ParameterError naming the input ``name`` ("v_drive" in m/s, "F_ext" in N, "der(F_ext)" in N/s) and its
+    allowed range unless ``value`` is finite and, given the parameters ``p``, within its force scale
+    (:func:`check_input_scales`, :func:`check_rate_scale`); without ``p`` (they may still change), finite."""
+    unit, check_scale = _INPUT_CHECKS[name]
+    check(name, value, ANY_FINITE, unit)
+    if p is not None:
+        check_scale(value, p)
 
 
 TIME_RESOLUTION = 1e-8  # the coarsest spacing of floats allowed at a start time, in units of sqrt(M/kappa)

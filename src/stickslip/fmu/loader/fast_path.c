@@ -238,6 +238,22 @@ int sbf_fast_integers(sbf_fast_path *fast, const unsigned *vr, size_t n, int *va
     return 1;
 }
 
+/* ---- the slave's time ---- */
+
+int sbf_slave_time(sbf_fast_path *fast, double *t)
+{
+    if (!fast->slave) return 0;
+    int gil = py.PyGILState_Ensure();
+    PyObject *result = py.PyObject_CallMethod(fast->slave, "fmu_time", NULL);
+    double value = result ? py.PyFloat_AsDouble(result) : 0.0;
+    int answered = result && !py.PyErr_Occurred();
+    if (answered) *t = value;
+    py.PyErr_Clear();
+    if (result) py.Py_DecRef(result);
+    py.PyGILState_Release(gil);
+    return answered;
+}
+
 /* ---- the derivatives ---- */
 
 /* A tuple of the `n` numbers `value(i)`, or NULL (an exception set) */

@@ -71,6 +71,11 @@ int sbf_fast_integers(sbf_fast_path *fast, const unsigned *vr, size_t n, int *va
 int sbf_slave_derivatives(sbf_fast_path *fast, const char *function, const char *method, const unsigned *vr, size_t n,
                           const int *order, double *values, int writes, char *why, size_t why_size);
 
+/* The time the FMU is at (s), the bound slave's answer to fmu_time() (fmu_src/block_interface.py): the end of the
+ * last step or of the part of a failed step it went, whichever path took it, or a restored state's time. 1 with it
+ * in *t; 0 if there is no bound slave or its answer is no number (no Python exception is left pending). */
+int sbf_slave_time(sbf_fast_path *fast, double *t);
+
 /* Drop the slave and its step call (freeing the instance). */
 void sbf_fast_unbind(sbf_fast_path *fast);
 /* Drop them and bind the slave the inner library constructs next on this thread (around a reset, which makes a new

@@ -10,7 +10,6 @@
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -117,7 +116,6 @@ typedef struct {
     sbf_log_filter logging;
     int fatal_is_error; /* during a RECOVERABLE call: PythonFMU's fmi2Fatal is reported as fmi2Error */
     sbf_fast_path fast; /* steps and output reads without PythonFMU (fast_path.h) */
-    double last_successful_time; /* s: the end of the last step that succeeded (NaN before any, as PythonFMU) */
 } Instance;
 
 static void host_log(const Instance *inst, fmi2Status status, const char *text)
@@ -203,7 +201,6 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
     inst->relay.logger = relay_log;
     inst->relay.componentEnvironment = inst;
     inst->logging.on = loggingOn;
-    inst->last_successful_time = NAN;
     if (!instantiable(inst, name, type, guid, resources, path, sizeof path)) {
         free_instance(inst);
         return NULL;
@@ -326,22 +323,21 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolea
         return fmi2Error;
     }
     sbf_keep_thread_state();
-    fmi2Status status;
     switch (sbf_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
-    case 0: status = fmi2OK; break;
+    case 0: return fmi2OK;
     case 1: host_log(c, fmi2Error, why); return fmi2Error;
-    default: status = forward_fmi2DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint);
+    default: return forward_fmi2DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint);
     }
-    if (status <= fmi2Warning) ((Instance *)c)->last_successful_time = t + h;
-    return status;
 }
 
-/* fmi2LastSuccessfulTime from the loader, which sees every step (PythonFMU does not see the fast path's) */
+/* fmi2LastSuccessfulTime: the time the FMU is at, from the slave (sbf_slave_time), which knows it after every step
+ * (PythonFMU does not see the fast path's), a failed step that went part of the way, a restored state or a reset;
+ * PythonFMU's answer where no slave is bound (then it takes every step itself). */
 EXPORT fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
 {
     if (c && s == fmi2LastSuccessfulTime && value) {
-        *value = ((Instance *)c)->last_successful_time;
-        return fmi2OK;
+        sbf_keep_thread_state();
+        if (sbf_slave_time(&((Instance *)c)->fast, value)) return fmi2OK;
     }
     return forward_fmi2GetRealStatus(c, s, value);
 }

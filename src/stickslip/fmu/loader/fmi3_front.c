@@ -527,12 +527,15 @@ EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3B
     fmi3Status status;
     switch (sbf_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
     case 0: status = fmi3OK; break;
-    case 1: host_log(c, fmi3Error, why); return fmi3Error;
+    case 1: host_log(c, fmi3Error, why); status = fmi3Error; break;
     default:
         status = forward_fmi3DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded,
                                     terminateSimulation, earlyReturn, lastSuccessfulTime);
     }
-    if (status <= fmi3Warning) *lastSuccessfulTime = t + h;
+    if (status <= fmi3Warning)
+        *lastSuccessfulTime = t + h;
+    else
+        sbf_slave_time(&((Instance *)c)->fast, lastSuccessfulTime); /* where a failed step left the FMU */
     return status;
 }
 
