@@ -6,6 +6,7 @@ stickslip.fmu_src (the builders read them from there). Everything else is in pyp
 """
 
 import importlib.util
+import os
 import sys
 import time
 from pathlib import Path
@@ -21,7 +22,13 @@ _spec.loader.exec_module(compile_runtime)
 
 
 class BuildCompiledRuntime(build_ext):
-    """build_ext that removes compiled files of older sources first, says how far it is, and stamps the new ones."""
+    """build_ext that removes compiled files of older sources first, says how far it is, and stamps the new ones;
+    it compiles the extensions in parallel, one per core (the module shims beside the large group library)."""
+
+    def finalize_options(self):
+        super().finalize_options()
+        if self.parallel is None:
+            self.parallel = os.cpu_count() or 1
 
     def run(self):
         if self.inplace:

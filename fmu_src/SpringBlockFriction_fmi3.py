@@ -18,8 +18,8 @@ time, model exchange at t = 0, unless the host (or the FMU's loader) calls ``fmi
 import math
 from collections import namedtuple
 
-from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, Fmi3Variability, Float64, Int32,
-                        ModelExchange)
+from pythonfmu3 import (CoSimulation, Enumeration, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, Fmi3Variability, Float64,
+                        Int32, ModelExchange)
 
 from block_interface import BlockInterface, balance_release, check_state, saved_state, serialized_states
 from stickslip.core.exchange import INDICATORS, ExchangeBlock, check_inputs  # one import of the runtime (staging)
@@ -56,7 +56,8 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         self.exchange = False  # True once the host made a model-exchange call
         self._stepped = False  # a co-simulation step was taken, or the host gave the start time
         self.init_block()
-        self.register_variables({"real": Float64, "integer": Int32}, _CAUSALITY, _VARIABILITY)
+        self.register_variables({"real": Float64, "integer": Int32, "enumeration": Enumeration}, _CAUSALITY,
+                                _VARIABILITY)
         state_refs = {v.name: v.value_reference for v in self.vars.values()}
         for index, (name, unit, text) in enumerate(DERIVATIVES):
             self._local(name, unit, text, lambda i=index: self._block_now().derivatives()[i],
@@ -86,9 +87,17 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         super().set_float64(vrs, values)
 
     def set_int32(self, vrs, values):
-        """Set Int32 parameters (before initialization ends); TypeError naming any other variable."""
+        """Set Int32 parameters (before initialization ends); TypeError naming any other variable. The law
+        selectors, Enumerations (fmi3SetInt64), are taken here too, as FMUs whose selectors were Int32 took them."""
         self._check_settable(vrs)
-        super().set_int32(vrs, values)
+        (super().set_int64 if self._enumerations_only(vrs) else super().set_int32)(vrs, values)
+
+    def get_int32(self, vrs):
+        """Int32 values; the law selectors' codes too (see :meth:`set_int32`)."""
+        return (super().get_int64 if self._enumerations_only(vrs) else super().get_int32)(vrs)
+
+    def _enumerations_only(self, references):
+        return all(isinstance(self.vars.get(reference), Enumeration) for reference in references)
 
     def _check_settable(self, references):
         """TypeError unless each value reference is a parameter or an input (pythonfmu3 would call an output's

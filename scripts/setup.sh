@@ -16,5 +16,9 @@ if ! PYTHONUNBUFFERED=1 .venv/bin/python -m pip install -v -e ".[compile${1:+,$1
     tail -n 40 "$LOG" >&2
     exit 1
 fi
+# the FMUs' generationDateAndTime and the dates of their files: the last commit's time, unless set (reproducible builds)
+if [ -z "${SOURCE_DATE_EPOCH:-}" ] && git rev-parse --git-dir >/dev/null 2>&1; then
+    SOURCE_DATE_EPOCH="$(git log -1 --format=%ct)" && export SOURCE_DATE_EPOCH
+fi
 echo "setup: building the FMUs (FMI 2, FMI 3) into dist/"
 .venv/bin/python build_fmu.py | sed 's/^/setup: FMU built at /'  # one line per FMU (FMI 2, FMI 3)

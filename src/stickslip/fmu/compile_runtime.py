@@ -74,8 +74,9 @@ def _version(distribution):
         return "none"
 
 
-def compile_in_place(root, package):
+def compile_in_place(root, package, announce=None):
     """Compile ``root/package`` in place; its compiled files (paths), or CompileError saying why not.
+    ``announce``: called once mypyc is found, before it runs.
 
     The C compiler maps ``root`` to ``.`` and mypyc's C runtime (in the environment's site-packages) to
     ``mypyc/lib-rt`` in the paths it records, so that the files do not depend on the folder they were compiled in
@@ -84,14 +85,20 @@ def compile_in_place(root, package):
     its first step.
     """
     package_dir = Path(root) / package
-    if importlib.util.find_spec("mypyc") is None:
-        raise CompileError("mypyc is not installed (it comes with mypy: the extra 'stickslip[compile]')")
+    missing = [name for name in ("mypyc", "setuptools") if importlib.util.find_spec(name) is None]
+    if missing:
+        raise CompileError(f"{' and '.join(missing)} not installed in {sys.prefix} (pip compiles stickslip's own "
+                           f"runtime in a build environment of its own; the FMUs' copy is compiled where they are "
+                           f"built): pip install 'stickslip[compile]' (mypy, which brings mypyc, and setuptools)")
+    if announce is not None:
+        announce()
     remove_compiled(root, package_dir)
     script = (
         f"import importlib.util as u; s = u.spec_from_file_location('compile_runtime', {str(Path(__file__).resolve())!r}); "
         f"c = u.module_from_spec(s); s.loader.exec_module(c); "
         f"from setuptools import setup; "
-        f"setup(ext_modules=c.extensions({package!r}), script_args=['build_ext', '--inplace', '--quiet'])"
+        f"setup(ext_modules=c.extensions({package!r}), "
+        f"script_args=['build_ext', '--inplace', '--quiet', '--parallel', '{os.cpu_count() or 1}'])"
     )
     try:
         lib_rt = Path(importlib.util.find_spec("mypyc").submodule_search_locations[0]) / "lib-rt"

@@ -13,7 +13,7 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from . import archive, loader, model_description
+from . import archive, documentation, loader, model_description
 from .build import default_fmu_path
 from .python_path import preserved_sys_path
 from .sources import LOADER_BINDING, SLAVE_FOLDER, files_tag
@@ -25,12 +25,18 @@ COUPLING_SLAVE = SLAVE_FOLDER / f"{COUPLING_NAME}.py"
 #: variable: unit as model_description.UNITS names it
 UNITS = {"x_left": "m", "x": "m", "x_right": "m", "kc_left": "N/m", "kc_right": "N/m", "F": "N"}
 BOUNDS = {name: ((0.0, None) if name.startswith("kc_") else (None, None)) for name in UNITS}
+#: what the FMU's documentation says the model is
+SUMMARY = ("The coupling springs of one block in a chain of blocks: the force F = kc_left (x_left - x) + kc_right "
+           "(x_right - x) that the springs to its neighbours (positions x_left and x_right) exert on the block at x. "
+           "An engine wires it between SpringBlockFriction FMUs, F to the block's F_ext input.")
 
 
 def coupling_tag():
-    """10 hex digits over the slave, the loader binding, this builder and the loader's sources: they decide the FMU's
-    content."""
-    return files_tag((COUPLING_SLAVE, LOADER_BINDING, Path(__file__), *loader.SOURCES))
+    """10 hex digits over the slave, the loader binding, this builder, the model description's and documentation's
+    builders and the loader's sources: they decide the FMU's content."""
+    here = Path(__file__)
+    return files_tag((COUPLING_SLAVE, LOADER_BINDING, here, here.with_name("model_description.py"),
+                      here.with_name("documentation.py"), *loader.SOURCES))
 
 
 def _staged_slave(folder, tag):
@@ -82,6 +88,7 @@ def build_coupling(dest=None):
         entries = archive.read_entries(built)
         entries["modelDescription.xml"] = model_description.complete(
             entries["modelDescription.xml"], UNITS, BOUNDS, 2, *archive.identity(COUPLING_NAME, 2, tag))
+        entries.update(documentation.entries(entries["modelDescription.xml"], SUMMARY, ("stickslip", "pythonfmu")))
         partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
         archive.write_entries(partial, entries)
         loader.install(partial, COUPLING_NAME)

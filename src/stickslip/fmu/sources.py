@@ -2,8 +2,9 @@
 
 The slaves come from the package ``stickslip.fmu_src`` (the project's top-level ``fmu_src/``, mapped into the
 package), the runtime from ``stickslip/core``, the loader from :mod:`stickslip.fmu.loader`. The tag (10 hex
-digits of a sha256 over all of them and the builder modules) names the runtime's package inside the FMU, so
-that two builds never share a module in one process, and tells whether an FMU is current.
+digits of a sha256 over all of them and the builder modules) names the slave's package inside the FMU, so
+that two builds never share a slave in one process, and tells whether an FMU is current; the runtime tag (over the
+runtime and what lays it out) names the runtime's package, the same in the FMI 2 and FMI 3 FMUs.
 """
 
 import hashlib
@@ -26,7 +27,7 @@ MODULE_PREFIXES = {2: "springblockfriction_", 3: "springblockfriction3_"}
 #: the builder modules whose source decides an FMU's content
 BUILDERS = (*(Path(__file__).resolve().with_name(name) for name in
               ("build.py", "archive.py", "model_description.py", "staging.py", "compile_runtime.py", "sources.py",
-               "trim.py")),
+               "trim.py", "documentation.py")),
             *loader.SOURCES)
 
 
@@ -36,6 +37,14 @@ def files_tag(paths):
     for path in map(Path, paths):
         digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
     return digest.hexdigest()[:10]
+
+
+def runtime_tag():
+    """10 hex digits identifying the runtime as the FMUs carry it: its sources and the builder modules that lay it out
+    and compile it. It names the runtime's package in the FMUs, which FMUs of the same runtime share."""
+    sources = sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts)
+    return files_tag([*sources, *(Path(__file__).resolve().with_name(name)
+                                  for name in ("staging.py", "compile_runtime.py", "trim.py"))])
 
 
 def source_tag(fmi_version=2):

@@ -37,8 +37,8 @@ def rows(fmu_path):
     out = []
     for v in read_model_description(str(fmu_path)).modelVariables:
         meaning, allowed = split_description(v.description)
-        if v.type == "Integer" and v.min is not None:
-            allowed = f"{v.min} .. {v.max} (codes)"
+        if v.type == "Enumeration":
+            allowed = ", ".join(f"{item.value} {item.name}" for item in v.declaredType.items)
         default = "–" if v.start is None else str(v.start)
         unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None) or "1"
         out.append((v.name, v.causality, v.type, default, unit, allowed or "–", meaning))
