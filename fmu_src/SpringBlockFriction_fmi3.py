@@ -18,8 +18,8 @@ time, model exchange at t = 0, unless the host (or the FMU's loader) calls ``fmi
 import math
 from collections import namedtuple
 
-from pythonfmu3 import (CoSimulation, Enumeration, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, Fmi3Variability, Float64,
-                        Int32, ModelExchange)
+from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, Fmi3Variability, Float64, Int32, Int64,
+                        ModelExchange)
 
 from block_interface import BlockInterface, balance_release, check_state, saved_state, serialized_states
 from stickslip.core.exchange import INDICATORS, ExchangeBlock, check_inputs  # one import of the runtime (staging)
@@ -56,8 +56,9 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         self.exchange = False  # True once the host made a model-exchange call
         self._stepped = False  # a co-simulation step was taken, or the host gave the start time
         self.init_block()
-        self.register_variables({"real": Float64, "integer": Int32, "enumeration": Enumeration}, _CAUSALITY,
-                                _VARIABILITY)
+        # the law selectors as Int64, the type of an Enumeration's values (pythonfmu3 0.3.4's Enumeration cannot be
+        # read or set); the builder declares them Enumerations
+        self.register_variables({"real": Float64, "integer": Int32, "enumeration": Int64}, _CAUSALITY, _VARIABILITY)
         state_refs = {v.name: v.value_reference for v in self.vars.values()}
         for index, (name, unit, text) in enumerate(DERIVATIVES):
             self._local(name, unit, text, lambda i=index: self._block_now().derivatives()[i],
@@ -88,7 +89,8 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
 
     def set_int32(self, vrs, values):
         """Set Int32 parameters (before initialization ends); TypeError naming any other variable. The law
-        selectors, Enumerations (fmi3SetInt64), are taken here too, as FMUs whose selectors were Int32 took them."""
+        selectors, Enumerations (fmi3SetInt64: Int64 here), are taken too, as FMUs whose selectors were Int32 took
+        them."""
         self._check_settable(vrs)
         (super().set_int64 if self._enumerations_only(vrs) else super().set_int32)(vrs, values)
 
@@ -97,7 +99,7 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         return (super().get_int64 if self._enumerations_only(vrs) else super().get_int32)(vrs)
 
     def _enumerations_only(self, references):
-        return all(isinstance(self.vars.get(reference), Enumeration) for reference in references)
+        return all(isinstance(self.vars.get(reference), Int64) for reference in references)
 
     def _check_settable(self, references):
         """TypeError unless each value reference is a parameter or an input (pythonfmu3 would call an output's

@@ -196,7 +196,8 @@ class BlockInterface:
 
     def register_variables(self, classes, causalities, variabilities):
         """Register :data:`VARIABLES` with the FMI library: ``classes`` maps a kind ("real", "integer", and
-        "enumeration" where the library has that class: the law codes) to the library's variable class, ``causalities`` and ``variabilities`` our names to its enumerations."""
+        "enumeration" where the library has that class: the law codes) to the library's variable class,
+        ``causalities`` and ``variabilities`` our names to its enumerations."""
         for variable in VARIABLES:
             name, attribute = variable.name, variable.attribute
             kind = "enumeration" if variable.enumeration is not None and "enumeration" in classes else variable.kind

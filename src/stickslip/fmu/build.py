@@ -33,9 +33,9 @@ SUMMARY = (
     "A block of mass M on a surface moving at v_drive, tied to a wall by a spring of stiffness kappa, with dry "
     "friction: while it slips, the kinetic law F_K of the sliding speed acts against the sliding; it sticks when "
     "the sliding speed reaches zero and the static friction F_S can hold the spring and external forces, and "
-    "breaks away when they exceed F_S, which may grow with the time stuck (aging). The FMU integrates this "
-    "exactly, locating every stick and slip event inside a step: F_ext is the external force on the block, and "
-    "the outputs give its position, velocity, forces, mode and event counts.")
+    "breaks away when they exceed F_S, which may grow with the time stuck (aging). The FMU locates every stick "
+    "and slip event inside a step. Inputs: the surface velocity v_drive and an external force F_ext on the block; "
+    "outputs: its position, velocity, forces, mode and event counts.")
 #: FMI version: the FMU's file name
 FILE_NAMES = {2: f"{MODEL_NAME}.fmu", 3: f"{MODEL_NAME}-fmi3.fmu"}
 

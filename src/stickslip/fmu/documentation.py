@@ -10,10 +10,13 @@ reproducible.
 
 import html
 import importlib.metadata
+import importlib.util
 from xml.etree import ElementTree as ET
 
-from .variable_docs import split_description
+from .compile_runtime import MYPY_LICENSE, PREBUILT
 
+#: what separates a variable's meaning from its allowed range in its description (as in the FMU's error messages)
+RANGE_MARK = "; allowed: a finite value in "
 INDEX = "documentation/index.html"
 LICENSES = "documentation/licenses"
 #: stickslip's licence (pyproject.toml: MIT), carried by every FMU
@@ -60,11 +63,21 @@ BINARY_SOURCES = (
     "binary ({model}_pythonfmu.so), which, like the Windows binary, is {library}'s, built from its C++ sources.")
 
 
+def split_description(description):
+    """``(meaning, range)`` of a variable's description (range ``""`` if it states none)."""
+    meaning, _, allowed = (description or "").partition(RANGE_MARK)
+    return meaning, allowed
+
+
 def license_text(distribution):
-    """The licence file of the installed ``distribution`` (stickslip's own: :data:`STICKSLIP_LICENSE`); a notice
-    naming the licence if the distribution is not installed."""
+    """The licence file of the installed ``distribution`` (stickslip's own: :data:`STICKSLIP_LICENSE`; mypy's, if it
+    is not installed, the copy beside the runtime compiled with the package); a notice naming the licence if none
+    is found."""
     if distribution == "stickslip":
         return STICKSLIP_LICENSE
+    if distribution == "mypy" and importlib.util.find_spec("mypy") is None:
+        for copy in sorted(PREBUILT.glob(f"*/{MYPY_LICENSE}")):
+            return copy.read_text(encoding="utf-8")
     try:
         files = importlib.metadata.distribution(distribution).files or []
     except importlib.metadata.PackageNotFoundError:
@@ -105,7 +118,8 @@ def _page(root, summary, distributions):
         for name, items in enumerations.items():
             parts.append(f"<h3>{_e(name)}</h3>\n<table>\n<tr><th>code</th><th>name</th><th>formula</th></tr>\n")
             parts += [_row(item) for item in items] + ["</table>\n"]
-    parts.append(f"<h2>Binaries and sources</h2>\n<p>{_e(BINARY_SOURCES.format(model=model, version=version[0], library=library))}</p>\n")
+    sources = BINARY_SOURCES.format(model=model, version=version[0], library=library)
+    parts.append(f"<h2>Binaries and sources</h2>\n<p>{_e(sources)}</p>\n")
     parts.append("<h2>Licences</h2>\n<ul>\n")
     parts += [f"<li><a href=\"licenses/{name}.txt\">{_e(name)}</a>: {_e(CARRIED[name][0])}; in this FMU: "
               f"{_e(CARRIED[name][1])}</li>\n" for name in distributions]

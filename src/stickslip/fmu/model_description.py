@@ -69,7 +69,7 @@ def _annotate(variables, units, bounds, enumerations, element_of):
         name = variable.get("name")
         element = element_of(variable)
         if name in enumerations:
-            if element.tag not in ("Integer", "Enumeration"):
+            if element.tag not in ("Integer", "Int64", "Enumeration"):
                 raise ModelDescriptionError(f"variable {name} is an enumeration but the library wrote {element.tag}")
             element.tag = "Enumeration"
             element.set("declaredType", enumerations[name][0])

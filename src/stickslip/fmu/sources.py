@@ -7,12 +7,12 @@ that two builds never share a slave in one process, and tells whether an FMU is 
 runtime and what lays it out) names the runtime's package, the same in the FMI 2 and FMI 3 FMUs.
 """
 
-import hashlib
 import zipfile
 from pathlib import Path
 
 from .. import fmu_src
 from . import loader
+from .compile_runtime import files_tag, runtime_tag  # the tags are made there: setup.py uses them too
 
 MODEL_NAME = "SpringBlockFriction"
 SLAVE_FOLDER = Path(fmu_src.__file__).resolve().parent
@@ -29,22 +29,6 @@ BUILDERS = (*(Path(__file__).resolve().with_name(name) for name in
               ("build.py", "archive.py", "model_description.py", "staging.py", "compile_runtime.py", "sources.py",
                "trim.py", "documentation.py")),
             *loader.SOURCES)
-
-
-def files_tag(paths):
-    """10 hex digits of a sha256 over the names and contents of the files ``paths``, in that order."""
-    digest = hashlib.sha256()
-    for path in map(Path, paths):
-        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
-    return digest.hexdigest()[:10]
-
-
-def runtime_tag():
-    """10 hex digits identifying the runtime as the FMUs carry it: its sources and the builder modules that lay it out
-    and compile it. It names the runtime's package in the FMUs, which FMUs of the same runtime share."""
-    sources = sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts)
-    return files_tag([*sources, *(Path(__file__).resolve().with_name(name)
-                                  for name in ("staging.py", "compile_runtime.py", "trim.py"))])
 
 
 def source_tag(fmi_version=2):

@@ -32,20 +32,18 @@ import re
 import shutil
 import subprocess
 import sys
-import sysconfig
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .compile_runtime import COMPILED_MODULES, CompileError, compile_in_place, toolchain_tag
+from .compile_runtime import (COMPILED_ARTIFACTS, COMPILED_MODULES, COMPLETE, MYPY_LICENSE, PREBUILT, RUNTIME_PREFIX,
+                              CompileError, compile_in_place, prebuilt_key, store, toolchain_tag)
 from .sources import LOADER_BINDING
 
 #: the packages of an FMU's ``resources/``: the runtime (the same in every FMU built from the same runtime, so that
 #: the FMI 2 and FMI 3 FMUs share one compilation and a process that loads both shares one copy) and the slave
-RUNTIME_PREFIX, SLAVE_PREFIX = "sbf_runtime_", "sbf_slave_"
+SLAVE_PREFIX = "sbf_slave_"
 CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stickslip" / "fmu-runtime"
-#: files of an in-place compiled ``stickslip/core`` (pip install -e) that never go into an FMU's copy
-COMPILED_ARTIFACTS = ("__pycache__", "*.pyc", "*.so", "*.pyd", "compiled_sources.crc32")
 
 
 @dataclass(frozen=True)
@@ -78,6 +76,15 @@ FMI3_LOADER = LoaderModule("springblockfriction3_", _LIBRARY_ON_PATH + (
     "from pythonfmu3 import Fmi3SlaveBase\n\nfrom {package} import fmu_slave\n\n\n"
     "class {model_name}(fmu_slave.{model_name}, Fmi3SlaveBase):\n"
     '    """The slave (fmu_slave), named where pythonfmu3 looks for it."""\n'))
+#: the slave package's ``__init__.py`` (``{runtime}``: the runtime's package). A process may have imported the
+#: runtime's package from another FMU of the same runtime, whose files a host may have removed since: a module it
+#: imports later (``exchange``, which only the FMI 3 slave needs) is then found in this FMU's copy.
+SLAVE_PACKAGE_INIT = (
+    '"""The FMU\'s slave and the variable table it shares; this FMU\'s copy of the runtime first on its path."""\n\n'
+    "import os\n\nimport {runtime}\n\n"
+    "_copy = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), {runtime!r})\n"
+    "if _copy not in {runtime}.__path__:\n"
+    "    {runtime}.__path__.insert(0, _copy)\n")
 #: FMI version: its loader module
 LOADERS = {2: FMI2_LOADER, 3: FMI3_LOADER}
 
@@ -122,7 +129,7 @@ def stage_runtime(folder, tags, runtime, slave, interface, model_name, compiled=
     package_dir, slave_dir = Path(folder) / package, Path(folder) / slave_package
     shutil.copytree(runtime, package_dir, ignore=shutil.ignore_patterns(*COMPILED_ARTIFACTS))
     slave_dir.mkdir()
-    (slave_dir / "__init__.py").write_text('"""The FMU\'s slave and the variable table it shares."""\n')
+    (slave_dir / "__init__.py").write_text(SLAVE_PACKAGE_INIT.format(runtime=package))
     interface_code = rewrite_once(interface, r"\bstickslip\.core\b", package,
                                   "the runtime as 'from stickslip.core import ...'")
     (slave_dir / "block_interface.py").write_text(
@@ -159,12 +166,14 @@ _NOT_COMPILED = {}
 
 
 def _compiled(folder, package):
-    """The compiled modules of ``folder/package`` (from the cache or compiled now): ``{archive name: path}``; none
-    if it cannot be compiled (the build says why once)."""
-    cache = CACHE / f"{package}-{sys.implementation.cache_tag}-{sysconfig.get_platform()}-{toolchain_tag()}"
+    """The compiled modules of ``folder/package`` (those the package brought, :data:`PREBUILT`, else from the cache
+    or compiled now): ``{archive name: path}``; none if it cannot be compiled (the build says why once)."""
+    cache = PREBUILT / prebuilt_key(package)
+    if not (cache / COMPLETE).is_file():
+        cache = CACHE / f"{prebuilt_key(package)}-{toolchain_tag()}"
     if package in _NOT_COMPILED:
         return {}
-    if not (cache / "complete").is_file():
+    if not (cache / COMPLETE).is_file():
         start = time.monotonic()
         try:
             files = compile_in_place(folder, package, announce=lambda: print(
@@ -175,15 +184,10 @@ def _compiled(folder, package):
             print(f"stickslip: the FMUs' runtime stays pure Python (same results, slower): {exc}", file=sys.stderr)
             return {}
         print(f"stickslip: ... compiled in {time.monotonic() - start:.0f} s", file=sys.stderr)
-        shutil.rmtree(cache, ignore_errors=True)
-        for path in files:
-            target = cache / path.relative_to(folder)
-            target.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(path, target)
-        (cache / "complete").write_text("")
+        store(files, folder, cache)
     out = {}
     for path in cache.rglob("*"):
-        if path.is_file() and path.name != "complete":
+        if path.is_file() and path.name not in (COMPLETE, MYPY_LICENSE):
             relative = path.relative_to(cache)
             shutil.copy2(path, folder / relative)
             out[f"resources/{relative.as_posix()}"] = folder / relative
