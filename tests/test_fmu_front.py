@@ -20,7 +20,7 @@ import pytest
 from fmpy.validation import validate_fmu
 
 from stickslip.core import KINETIC_LAWS, STATIC_LAWS
-from stickslip.fmu import build, documentation, model_description, variables
+from stickslip.fmu import build, compile_runtime, documentation, model_description, staging, variables
 from stickslip.fmu.coupling import UNITS as COUPLING_UNITS, build_coupling
 from stickslip.fmu_src.block_interface import VARIABLES
 from stickslip.hosts.c_host import run_host
@@ -207,3 +207,21 @@ def test_a_process_runs_the_fmi3_fmu_after_the_fmi2_fmu_whose_files_are_gone(fmu
     assert run.returncode == 0, run.stderr[-3000:]
     first, second = map(float, run.stdout.split())
     assert first == second
+
+
+def test_without_mypyc_the_build_says_once_that_the_runtime_stays_pure(tmp_path, monkeypatch, capsys):
+    """Both FMUs built in one process where nothing compiled brought the runtime and mypyc is missing: one line says
+    so and how to get it, none announces a compilation; the FMUs run."""
+    monkeypatch.setattr(staging, "CACHE", tmp_path / "empty-cache")
+    monkeypatch.setattr(staging, "PREBUILT", tmp_path / "none-prebuilt")
+    monkeypatch.setattr(compile_runtime, "missing_tools", lambda: ["mypyc"])
+    monkeypatch.setattr(staging, "_NOT_COMPILED", {})
+    built = [build(tmp_path / f"{version}.fmu", version) for version in (2, 3)]
+    said = capsys.readouterr().err.splitlines()
+    assert not [line for line in said if "compiling" in line]
+    assert [line for line in said if "pure Python" in line] == [
+        next(line for line in said if "mypyc not installed" in line and "pip install 'stickslip[compile]'" in line)]
+    for path in built:
+        with zipfile.ZipFile(path) as fmu:
+            assert not [name for name in fmu.namelist() if name.endswith(".so") and name.startswith("resources/")]
+        assert fmpy.simulate_fmu(str(path), stop_time=1.0, output_interval=0.5)["x"][-1] != 0.0

@@ -150,6 +150,11 @@ def main(argv):
     return 0
 
 
+def missing_tools():
+    """The packages that compiling needs and this environment lacks (mypyc, setuptools)."""
+    return [name for name in ("mypyc", "setuptools") if importlib.util.find_spec(name) is None]
+
+
 def compile_in_place(root, package, announce=None):
     """Compile ``root/package`` in place; its compiled files (paths), or CompileError saying why not.
     ``announce``: called once mypyc is found, before it runs.
@@ -161,7 +166,7 @@ def compile_in_place(root, package, announce=None):
     its first step.
     """
     package_dir = Path(root) / package
-    missing = [name for name in ("mypyc", "setuptools") if importlib.util.find_spec(name) is None]
+    missing = missing_tools()
     if missing:
         raise CompileError(f"{' and '.join(missing)} not installed in {sys.prefix} (pip compiles stickslip's own "
                            f"runtime in a build environment of its own; the FMUs' copy is compiled where they are "

@@ -107,8 +107,8 @@ def _page(root, summary, distributions):
     parts = [f"<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{_e(model)}</title>\n"
              f"<style>body{{font-family:sans-serif;max-width:70em}}td,th{{border-bottom:1px solid #ccc;"
              f"padding:2px 6px;text-align:left;vertical-align:top}}</style>\n</head>\n<body>\n",
-             f"<h1>{_e(model)}</h1>\n<p>{_e(root.get('description') or '')}. FMI {_e(version)}, "
-             f"version {_e(root.get('version') or '')}, built by {_e(root.get('generationTool') or '')}.</p>\n"
+             f"<h1>{_e(model)}</h1>\n<p>{_e(root.get('description') or '')}. FMI {_e(version)}, built by "
+             f"{_e(root.get('generationTool') or 'stickslip')}.</p>\n"
              f"<p>{_e(summary)}</p>\n",
              "<h2>Variables</h2>\n<table>\n<tr><th>name</th><th>causality</th><th>type</th><th>default</th>"
              "<th>unit</th><th>allowed range</th><th>meaning</th></tr>\n",
