@@ -456,7 +456,8 @@ FMI3_OTHER_TYPES = ("Int64", "UInt64", "Boolean", "String")
 class Fmi3(Binary):
     """The FMI 3 binary with a logMessage callback."""
 
-    PREFIX, REAL, INTEGER, ENUMERATION, TYPES, VALUE_COUNT = "fmi3", "Float64", "Int32", "Int64", FMI3_TYPES, True
+    # the law selectors (Enumerations) through fmi3Get/SetInt32, which the FMU takes too (fmi3SetInt64: its own cases)
+    PREFIX, REAL, INTEGER, ENUMERATION, TYPES, VALUE_COUNT = "fmi3", "Float64", "Int32", "Int32", FMI3_TYPES, True
 
     def __init__(self, folder):
         super().__init__(folder, "x86_64-linux", _fmi3_signatures())

@@ -23,7 +23,7 @@ STRIBECK = {"kinetic.law": 3, "kinetic.F0": 0.4, "kinetic.F_stribeck": 0.3, "kin
 SPEC_VARIABLES = {  # SPEC section 4: name -> (causality, type, unit)
     "M": ("parameter", "Real", "kg"), "kappa": ("parameter", "Real", "N/m"),
     "x_start": ("parameter", "Real", "m"), "v_start": ("parameter", "Real", "m/s"),
-    "kinetic.law": ("parameter", "Enumeration", None), "static.law": ("parameter", "Enumeration", None),
+    "kinetic.law": ("parameter", "Integer", None), "static.law": ("parameter", "Integer", None),
     "kinetic.F0": ("parameter", "Real", "N"), "kinetic.gamma": ("parameter", "Real", "N.s/m"),
     "kinetic.F_stribeck": ("parameter", "Real", "N"), "kinetic.v_stribeck": ("parameter", "Real", "m/s"),
     "kinetic.delta": ("parameter", "Real", None), "kinetic.gamma1": ("parameter", "Real", "N.s/m"),

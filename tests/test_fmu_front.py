@@ -1,6 +1,6 @@
-"""What a tool user meets in the FMUs around the model: the law selectors are Enumerations of the law codes (FMI 2
-and FMI 3), so a tool offers the laws by name, while integer start values select them as before (FMPy, the C
-hosts); ``documentation/index.html`` lists the variable table with units and ranges, the laws and the licences
+"""What a tool user meets in the FMUs around the model: the FMI 3 FMU's law selectors are Enumerations of the law
+codes, so a tool offers the laws by name (FMI 2's stay Integers: libcosim cannot see an FMI 2 Enumeration), while
+integer start values select them as before (FMPy, the C hosts); ``documentation/index.html`` lists the variable table with units and ranges, the laws and the licences
 of what the FMU carries (``documentation/licenses/``); no ``sources/`` (the library's C++ sources are not those
 of the FMU's binary); ``generationDateAndTime`` and the files' dates follow ``$SOURCE_DATE_EPOCH``, the same
 bytes for the same sources and date."""
@@ -39,9 +39,26 @@ def _root(path):
         return ET.fromstring(fmu.read("modelDescription.xml"))
 
 
-@pytest.mark.parametrize("fmu", ["fmu_path", "fmu3_path"])
-def test_the_law_selectors_are_enumerations_of_the_unchanged_codes(request, fmu):
-    path = request.getfixturevalue(fmu)
+def test_the_fmi2_law_selectors_are_integers_of_the_codes_libcosim_sees(fmu_path):
+    declared = {v.name: v for v in fmpy.read_model_description(str(fmu_path)).modelVariables}
+    for name, (_, laws) in LAWS.items():
+        variable = declared[name]
+        assert (variable.type, variable.declaredType, variable.min, variable.max) == (
+            "Integer", None, str(min(laws)), str(max(laws)))
+    probe = textwrap.dedent(f"""
+        from libcosimpy.CosimExecution import CosimExecution
+        from libcosimpy.CosimSlave import CosimLocalSlave
+        execution = CosimExecution.from_step_size(step_size=100_000_000)
+        index = execution.add_local_slave(CosimLocalSlave(fmu_path={str(fmu_path)!r}, instance_name="block"))
+        print(" ".join(v.name.decode() for v in execution.slave_variables(index)))
+    """)
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert set(LAWS) <= set(run.stdout.split())  # libcosim lists the variables it can set
+
+
+def test_the_law_selectors_are_enumerations_of_the_unchanged_codes(fmu3_path):
+    path = fmu3_path
     declared = {v.name: v for v in fmpy.read_model_description(str(path)).modelVariables}
     for name, (type_name, laws) in LAWS.items():
         variable = declared[name]
@@ -49,12 +66,8 @@ def test_the_law_selectors_are_enumerations_of_the_unchanged_codes(request, fmu)
         items = [(int(i.value), i.name) for i in variable.declaredType.items]
         assert items == [(code, laws[code].NAME) for code in sorted(laws)]
     root = _root(path)
-    if root.get("fmiVersion") == "2.0":
-        types = {t.get("name"): t.find("Enumeration") for t in root.find("TypeDefinitions").iter("SimpleType")}
-        elements = {v.get("name"): v[0] for v in root.find("ModelVariables")}
-    else:
-        types = {t.get("name"): t for t in root.find("TypeDefinitions").iter("EnumerationType")}
-        elements = {v.get("name"): v for v in root.find("ModelVariables")}
+    types = {t.get("name"): t for t in root.find("TypeDefinitions").iter("EnumerationType")}
+    elements = {v.get("name"): v for v in root.find("ModelVariables")}
     for name, (type_name, laws) in LAWS.items():
         assert (elements[name].tag, elements[name].get("declaredType")) == ("Enumeration", type_name)
         assert all(item.get("description").startswith(("F_K(u) = ", "F_S(t) = ")) for item in types[type_name])

@@ -34,16 +34,20 @@ def test_runtime_imports_from_the_shipped_bytecode_whatever_the_file_times(unzip
 
 
 def test_shipped_bytecode_is_unchecked_hash_based(fmu_path):
-    """Every module of the runtime's package ships byte-compiled, except those that ship compiled by mypyc."""
+    """Every module of the runtime's package ships byte-compiled, except those that ship compiled by mypyc, and
+    every module of the slave's package."""
     with zipfile.ZipFile(fmu_path) as fmu:
         names = fmu.namelist()
         pycs = [name for name in names if name.endswith(".pyc")]
-        package = f"resources/sbf_runtime_{runtime_tag()}"
+        package, slave = f"resources/sbf_runtime_{runtime_tag()}", f"resources/sbf_slave_{source_tag()}"
         compiled = {n.split("/")[-1].split(".")[0] for n in names if n.startswith(package) and n.endswith(".so")}
         modules = {n.split("/")[-1][:-3] for n in names if n.startswith(f"{package}/") and n.endswith(".py")}
-        assert compiled == set(COMPILED_MODULES)
-        assert sorted(pycs) == sorted(f"{package}/__pycache__/{m}.{sys.implementation.cache_tag}.pyc"
-                                      for m in modules - compiled)
+        slave_modules = {n.split("/")[-1][:-3] for n in names if n.startswith(f"{slave}/") and n.endswith(".py")}
+        assert compiled == set(COMPILED_MODULES) and {"fmu_slave", "block_interface"} <= slave_modules
+        assert sorted(pycs) == sorted([*(f"{package}/__pycache__/{m}.{sys.implementation.cache_tag}.pyc"
+                                         for m in modules - compiled),
+                                       *(f"{slave}/__pycache__/{m}.{sys.implementation.cache_tag}.pyc"
+                                         for m in slave_modules)])
         for name in pycs:
             flags = int.from_bytes(fmu.read(name)[4:8], "little")
             assert flags == 0b01  # hash-based, source not checked (PEP 552)

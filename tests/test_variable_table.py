@@ -24,14 +24,7 @@ def test_every_variable_has_default_unit_range_and_meaning(unzipped):
         assert meaning, v.name
         if v.causality in ("parameter", "input"):
             assert v.start is not None, v.name
-            assert allowed or v.type == "Enumeration", v.name
-
-
-def test_the_law_selectors_rows_list_their_codes_by_name(fmu_path):
-    table = {row[0]: row for row in rows(fmu_path)}
-    for kind, laws in (("kinetic", KINETIC_LAWS), ("static", STATIC_LAWS)):
-        name, _, kind_of_value, _, _, allowed, _ = table[f"{kind}.law"]
-        assert (kind_of_value, allowed) == ("Enumeration", ", ".join(f"{c} {laws[c].NAME}" for c in sorted(laws)))
+            assert allowed or v.type == "Integer", v.name
 
 
 def test_stated_ranges_are_the_ones_the_runtime_checks(unzipped):

@@ -28,6 +28,10 @@ from .staging import LOADERS, stage_runtime
 
 #: the FMI versions this package builds
 FMI_VERSIONS = (2, 3)
+#: the FMI versions whose FMU declares the law selectors Enumerations (the others: Integers holding the same codes).
+#: FMI 2's stays Integer: libcosim (0.0.6, and ecos, built on it) lists no Enumeration variable of an FMI 2 FMU, so
+#: a law could no longer be chosen there.
+ENUMERATION_VERSIONS = (3,)
 #: what the FMU's documentation says the model is
 SUMMARY = (
     "A block of mass M on a surface moving at v_drive, tied to a wall by a spring of stiffness kappa, with dry "
@@ -96,12 +100,13 @@ def build(dest=None, fmi_version=2, pure=False):
         entries["modelDescription.xml"] = model_description.complete(
             entries["modelDescription.xml"], instance.variable_units, instance.variable_bounds, fmi_version,
             *archive.identity(MODEL_NAME, fmi_version, tag), dependencies=instance.output_dependencies,
-            enumerations=instance.variable_enumerations)
+            enumerations=instance.variable_enumerations if fmi_version in ENUMERATION_VERSIONS else None)
         staged.add_to(entries)
         trim.trim(entries, fmi_version, staged.package_dir.name)
         compiled = any(name.endswith(".so") for name in entries if name.startswith("resources/"))
         entries.update(documentation.entries(entries["modelDescription.xml"], SUMMARY,
-                                             ("stickslip", library.module, *(("mypy",) if compiled else ()))))
+                                             ("stickslip", library.module, *(("mypy",) if compiled else ())),
+                                             instance.variable_enumerations))
         _write_with_loader(dest, entries, fmi_version)
     return dest
 

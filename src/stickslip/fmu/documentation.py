@@ -89,21 +89,22 @@ def license_text(distribution):
             f"this FMU was built. See the {distribution} distribution on https://pypi.org/project/{distribution}/.\n")
 
 
-def entries(model_description, summary, distributions):
+def entries(model_description, summary, distributions, selectors=None):
     """The documentation folder's files, ``{archive name: bytes}``: ``model_description`` (the completed XML,
-    bytes), ``summary`` (a paragraph on the model, text) and ``distributions`` (the :data:`CARRIED` keys whose code
-    the FMU carries)."""
+    bytes), ``summary`` (a paragraph on the model, text), ``distributions`` (the :data:`CARRIED` keys whose code
+    the FMU carries) and ``selectors``: {variable name: ``(type name, items)``, items ``(code, name, formula)``}
+    of the variables that select a law by its code."""
     root = ET.fromstring(model_description)
     files = {f"{LICENSES}/{name}.txt": license_text(name).encode() for name in distributions}
-    files[INDEX] = _page(root, summary, distributions).encode()
+    files[INDEX] = _page(root, summary, distributions, selectors or {}).encode()
     return files
 
 
-def _page(root, summary, distributions):
+def _page(root, summary, distributions, selectors):
     """index.html of the model description ``root``."""
     model, version = root.get("modelName"), root.get("fmiVersion")
     library = "PythonFMU" if version.startswith("2") else "pythonfmu3"
-    enumerations = _enumerations(root)
+    enumerations = dict(selectors.values())
     parts = [f"<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{_e(model)}</title>\n"
              f"<style>body{{font-family:sans-serif;max-width:70em}}td,th{{border-bottom:1px solid #ccc;"
              f"padding:2px 6px;text-align:left;vertical-align:top}}</style>\n</head>\n<body>\n",
@@ -112,7 +113,7 @@ def _page(root, summary, distributions):
              f"<p>{_e(summary)}</p>\n",
              "<h2>Variables</h2>\n<table>\n<tr><th>name</th><th>causality</th><th>type</th><th>default</th>"
              "<th>unit</th><th>allowed range</th><th>meaning</th></tr>\n",
-             *(_row(cells) for cells in _variables(root, enumerations)), "</table>\n"]
+             *(_row(cells) for cells in _variables(root, selectors)), "</table>\n"]
     if enumerations:
         parts.append("<h2>Laws</h2>\n")
         for name, items in enumerations.items():
@@ -127,27 +128,14 @@ def _page(root, summary, distributions):
     return "".join(parts)
 
 
-def _enumerations(root):
-    """``{type name: [(code, item name, description), ...]}`` of the model description's enumeration types."""
-    types = {}
-    for definition in root.iter():
-        if definition.tag in ("SimpleType", "EnumerationType"):
-            items = list(definition.iter("Item"))
-            if items:
-                types[definition.get("name")] = [(i.get("value"), i.get("name"), i.get("description") or "")
-                                                 for i in items]
-    return types
-
-
-def _variables(root, enumerations):
+def _variables(root, selectors):
     """One row of cells per model variable: name, causality, type, default, unit, allowed range, meaning."""
     rows = []
     for variable in root.find("ModelVariables"):
         element = variable[0] if variable.tag == "ScalarVariable" else variable
         meaning, allowed = split_description(variable.get("description"))
-        declared = element.get("declaredType")
-        if declared in enumerations:
-            allowed = ", ".join(f"{code} {name}" for code, name, _ in enumerations[declared])
+        if variable.get("name") in selectors:
+            allowed = ", ".join(f"{code} {name}" for code, name, _ in selectors[variable.get("name")][1])
         elif not allowed and (element.get("min") or element.get("max")):
             allowed = f"[{element.get('min') or '-inf'}, {element.get('max') or 'inf'}]"
         rows.append((variable.get("name"), variable.get("causality") or "local", element.tag,

@@ -34,6 +34,8 @@ def rows(fmu_path):
         meaning, allowed = split_description(v.description)
         if v.type == "Enumeration":
             allowed = ", ".join(f"{item.value} {item.name}" for item in v.declaredType.items)
+        elif v.type == "Integer" and v.min is not None:
+            allowed = f"{v.min} .. {v.max} (codes)"
         default = "–" if v.start is None else str(v.start)
         unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None) or "1"
         out.append((v.name, v.causality, v.type, default, unit, allowed or "–", meaning))
