@@ -1,4 +1,5 @@
-"""setuptools hook: compile the runtime's hot modules with mypyc (src/stickslip/fmu/compile_runtime.py).
+"""setuptools hook: compile the runtime's hot modules with mypyc (src/stickslip/fmu/compile_runtime.py), and, in a
+second process at the same time, the FMUs' renamed copy of them into stickslip/fmu/prebuilt.
 
 Optional: without mypyc or a C compiler the package installs as pure Python, and says so.
 The packages are those below src/ plus the slaves' sources, the top-level fmu_src/ mapped in as
@@ -6,6 +7,8 @@ stickslip.fmu_src (the builders read them from there). Everything else is in pyp
 """
 
 import importlib.util
+import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -21,11 +24,18 @@ _spec.loader.exec_module(compile_runtime)
 
 
 class BuildCompiledRuntime(build_ext):
-    """build_ext that removes compiled files of older sources first, says how far it is, and stamps the new ones."""
+    """build_ext that removes compiled files of older sources first, says how far it is, and stamps the new ones;
+    it compiles the extensions in parallel, one per core (the module shims beside the large group library)."""
+
+    def finalize_options(self):
+        super().finalize_options()
+        if self.parallel is None:
+            self.parallel = os.cpu_count() or 1
 
     def run(self):
         if self.inplace:
             compile_runtime.remove_compiled(SRC, CORE)
+        fmu_runtime = self._start_fmu_runtime()
         self.n_started, start = 0, time.monotonic()
         print(f"stickslip: compiling the C that mypyc made of the runtime's {len(compile_runtime.COMPILED_MODULES)} "
               f"hot modules: {len(self.extensions)} extensions, the first the largest", file=sys.stderr)
@@ -40,6 +50,17 @@ class BuildCompiledRuntime(build_ext):
                   file=sys.stderr)
         else:
             print("stickslip: compiling the runtime failed (no C compiler?): it runs as pure Python", file=sys.stderr)
+        if fmu_runtime.wait() != 0:
+            print("stickslip: compiling the FMUs' runtime failed: the FMUs' builder compiles it", file=sys.stderr)
+
+    def _start_fmu_runtime(self):
+        """Start compiling the FMUs' copy of the runtime into the package's ``fmu/prebuilt`` (one process beside
+        this build's: on two cores the two compilations take the time of one), so that FMUs built where this
+        package is installed carry compiled modules without mypy there."""
+        lib = SRC if self.inplace else Path(self.build_lib)
+        print("stickslip: compiling the FMUs' copy of the runtime (mypyc) beside it", file=sys.stderr)
+        return subprocess.Popen([sys.executable, str(SRC / "stickslip" / "fmu" / "compile_runtime.py"), str(CORE),
+                                 str(lib / "stickslip" / "fmu" / compile_runtime.PREBUILT.name)])
 
     def build_extension(self, ext):
         self.n_started += 1

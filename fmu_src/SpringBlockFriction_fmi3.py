@@ -18,7 +18,7 @@ time, model exchange at t = 0, unless the host (or the FMU's loader) calls ``fmi
 import math
 from collections import namedtuple
 
-from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, Fmi3Variability, Float64, Int32,
+from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, Fmi3Variability, Float64, Int32, Int64,
                         ModelExchange)
 
 from block_interface import INPUTS, BlockInterface, balance_release, check_state, saved_state, serialized_states
@@ -56,7 +56,9 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         self.exchange = False  # True once the host made a model-exchange call
         self._stepped = False  # a co-simulation step was taken, or the host gave the start time
         self.init_block()
-        self.register_variables({"real": Float64, "integer": Int32}, _CAUSALITY, _VARIABILITY)
+        # the law selectors as Int64, the type of an Enumeration's values (pythonfmu3 0.3.4's Enumeration cannot be
+        # read or set); the builder declares them Enumerations
+        self.register_variables({"real": Float64, "integer": Int32, "enumeration": Int64}, _CAUSALITY, _VARIABILITY)
         state_refs = {v.name: v.value_reference for v in self.vars.values()}
         for index, (name, unit, text) in enumerate(DERIVATIVES):
             self._local(name, unit, text, lambda i=index: self._block_now().derivatives()[i],
@@ -86,9 +88,24 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         super().set_float64(vrs, values)
 
     def set_int32(self, vrs, values):
-        """Set Int32 parameters (before initialization ends), all or nothing (:meth:`_check_setting_all`)."""
-        self._check_setting_all(Int32, vrs, values)
-        super().set_int32(vrs, values)
+        """Set Int32 parameters (before initialization ends), all or nothing (:meth:`_check_setting_all`). The law
+        selectors, Enumerations (fmi3SetInt64: Int64 here), are taken too, as FMUs whose selectors were Int32 took
+        them."""
+        enumerations = self._enumerations_only(vrs)
+        self._check_setting_all(Int64 if enumerations else Int32, vrs, values)
+        (super().set_int64 if enumerations else super().set_int32)(vrs, values)
+
+    def set_int64(self, vrs, values):
+        """Set the law selectors (Enumerations: fmi3SetInt64), all or nothing (:meth:`_check_setting_all`)."""
+        self._check_setting_all(Int64, vrs, values)
+        super().set_int64(vrs, values)
+
+    def get_int32(self, vrs):
+        """Int32 values; the law selectors' codes too (see :meth:`set_int32`)."""
+        return (super().get_int64 if self._enumerations_only(vrs) else super().get_int32)(vrs)
+
+    def _enumerations_only(self, references):
+        return all(isinstance(self.vars.get(reference), Int64) for reference in references)
 
     def _check_setting_all(self, kind, references, values):
         """Check a set of ``values`` of the variables ``references`` of type ``kind`` before any is taken: TypeError

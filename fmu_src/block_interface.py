@@ -25,8 +25,16 @@ from stickslip.core import (
 #: causality "parameter" (fixed), "input" or "output"; kind "real" or "integer"; variability "fixed",
 #: "continuous" or "discrete"; start None for outputs; unit "" or "1" when dimensionless; bounds inclusive
 #: (min, max), None where unbounded; attribute: the Trajectory attribute an output reads (None otherwise); allowed: the
-#: Range of a real parameter or input (None for law codes and outputs).
-Variable = namedtuple("Variable", "name causality kind variability start unit description bounds attribute allowed")
+#: Range of a real parameter or input (None for law codes and outputs); enumeration: for a law code, the
+#: :class:`Enumeration` type the model descriptions declare for it (None for every other variable).
+Variable = namedtuple("Variable", "name causality kind variability start unit description bounds attribute allowed "
+                                  "enumeration", defaults=(None,))
+#: An enumeration type of the model descriptions: its ``name`` and its ``items``, ``(code, item name, description)``
+#: in the order of the codes; a variable of the type holds a code (FMI 2 sets it with fmi2SetInteger, FMI 3 with
+#: fmi3SetInt64).
+Enumeration = namedtuple("Enumeration", "name items")
+#: the enumeration type of each law selector
+LAW_TYPE_NAMES = {"kinetic": "KineticLaw", "static": "StaticLaw"}
 
 _UNBOUNDED = (None, None)
 
@@ -68,6 +76,19 @@ LAW_PARAMETER_MEANINGS = {
     "static.n": "sigmoid exponent",
 }
 
+# each law's formula (SPEC section 2), u >= 0 the sliding speed (m/s), t >= 0 the stick time (s)
+LAW_FORMULAS = {
+    "coulomb": "F_K(u) = F0",
+    "viscous": "F_K(u) = F0 + gamma u",
+    "stribeck": "F_K(u) = F0 + F_stribeck exp(-(u/v_stribeck)^delta) + gamma u",
+    "lubricated": "F_K(u) = u (gamma1 + gamma2 + (gamma2 - gamma1) w / sqrt(dv^2 + w^2)) / 2, w = u - v_tilde: "
+                  "slope gamma1 well below v_tilde (boundary lubrication), gamma2 well above (hydrodynamic)",
+    "constant": "F_S(t) = F0",
+    "logarithmic": "F_S(t) = F0 + A ln(1 + t/tau)",
+    "saturating": "F_S(t) = F0 + (F_inf - F0)(1 - exp(-t/tau))",
+    "sigmoid": "F_S(t) = F0 + (F_inf - F0) t^n / (tau^n + t^n)",
+}
+
 
 def _law_parameters(kind, laws):
     """``{FMU name: (default, Range, unit, description)}`` of every parameter of the coded laws.
@@ -101,8 +122,9 @@ def _variables():
 
     def law_code(kind, laws):
         codes = ", ".join(f"{code} {laws[code].NAME}" for code in sorted(laws))
+        items = tuple((code, laws[code].NAME, LAW_FORMULAS[laws[code].NAME]) for code in sorted(laws))
         return Variable(f"{kind}.law", "parameter", "integer", "fixed", 1, "", f"{kind} friction law: {codes}",
-                        (min(laws), max(laws)), None, None)
+                        (min(laws), max(laws)), None, None, Enumeration(LAW_TYPE_NAMES[kind], items))
 
     def input_(name, start, unit, description):
         return Variable(name, "input", "real", "continuous", start, unit, _with_range(description, ANY_FINITE),
@@ -166,6 +188,7 @@ class BlockInterface:
         self.values[F_EXT_RATE] = 0.0
         self.variable_units = {v.name: v.unit for v in VARIABLES}
         self.variable_bounds = {v.name: v.bounds for v in VARIABLES}
+        self.variable_enumerations = {v.name: v.enumeration for v in VARIABLES if v.enumeration is not None}
         self.output_dependencies = OUTPUT_DEPENDENCIES
         self.start_time = 0.0
         self.trajectory = None  # built when initialization ends
@@ -174,17 +197,19 @@ class BlockInterface:
         self._output_cache = {}  # {output name: value} at the current state, filled as outputs are read
 
     def register_variables(self, classes, causalities, variabilities):
-        """Register :data:`VARIABLES` with the FMI library: ``classes`` maps a kind ("real", "integer") to the
-        library's variable class, ``causalities`` and ``variabilities`` our names to its enumerations."""
+        """Register :data:`VARIABLES` with the FMI library: ``classes`` maps a kind ("real", "integer", and
+        "enumeration" where the library has that class: the law codes) to the library's variable class,
+        ``causalities`` and ``variabilities`` our names to its enumerations."""
         for variable in VARIABLES:
             name, attribute = variable.name, variable.attribute
+            kind = "enumeration" if variable.enumeration is not None and "enumeration" in classes else variable.kind
             if variable.causality == "output":
                 accessors = {"getter": functools.partial(self.read_output, name, attribute)}
             else:
                 accessors = {"getter": functools.partial(self.values.get, name),
                              "setter": functools.partial(self.set_variable, name)}
             self.register_variable(
-                classes[variable.kind](
+                classes[kind](
                     name, causality=causalities[variable.causality], variability=variabilities[variable.variability],
                     description=variable.description, **accessors,
                 ),

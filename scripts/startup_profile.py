@@ -97,7 +97,7 @@ def _run_child(path, rounds):
 def _kind(name):
     """Who a module belongs to: ours, the FMI library, or the standard library / FMPy's process."""
     top = name.strip().split(".")[0]
-    if top.startswith(("sbf_runtime_", "springblockfriction", "TrivialFloor")):
+    if top.startswith(("sbf_runtime_", "sbf_slave_", "springblockfriction", "TrivialFloor")):
         return "ours"
     return "pythonfmu" if top.startswith("pythonfmu") else "stdlib/other"
 

@@ -48,7 +48,7 @@ def instantiate(folder, start):
     fmu.instantiate()
     fmu.enterInitializationMode(startTime=0.0)
     for name, value in start.items():
-        setter = fmu.setInt32 if variables[name].type == "Int32" else fmu.setFloat64
+        setter = {"Int32": fmu.setInt32, "Enumeration": fmu.setInt64}.get(variables[name].type, fmu.setFloat64)
         setter([variables[name].valueReference], [value])
     fmu.exitInitializationMode()
     return fmu, description, variables

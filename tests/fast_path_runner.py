@@ -45,7 +45,7 @@ class Session:
     def set(self, values):
         for name, value in values.items():
             if isinstance(value, int):
-                (self.fmu.setInteger if self.v2 else self.fmu.setInt32)([self.refs[name]], [value])
+                (self.fmu.setInteger if self.v2 else self.fmu.setInt64)([self.refs[name]], [value])  # law codes
             else:
                 (self.fmu.setReal if self.v2 else self.fmu.setFloat64)([self.refs[name]], [value])
 

@@ -149,16 +149,18 @@ class Binary:
 
     A subclass names its FMI version: ``PREFIX`` of the functions, ``REAL`` and ``INTEGER`` (the variable types),
     ``TYPES`` (their C types), ``NAMES`` (FMI 3's spellings of the FMU-state functions mapped to its own) and
-    ``VALUE_COUNT`` (fmi<N>Get/Set<T> take the number of values after the values)."""
+    ``VALUE_COUNT`` (fmi<N>Get/Set<T> take the number of values after the values); ``ENUMERATION``: the type of
+    the functions that access an Enumeration variable."""
 
-    PREFIX, REAL, INTEGER, TYPES, NAMES, VALUE_COUNT = "", "", "", {}, {}, False
+    PREFIX, REAL, INTEGER, ENUMERATION, TYPES, NAMES, VALUE_COUNT = "", "", "", "", {}, {}, False
 
     def __init__(self, folder, platform, signatures):
         self.folder = pathlib.Path(folder)
         self.description = read_model_description(folder)
         interface = self.description.coSimulation or self.description.modelExchange
         self.refs = {v.name: v.valueReference for v in self.description.modelVariables}
-        self.kinds = {v.name: v.type for v in self.description.modelVariables}
+        self.kinds = {v.name: self.ENUMERATION if v.type == "Enumeration" else v.type
+                      for v in self.description.modelVariables}
         self.lib = ctypes.CDLL(str(self.folder / "binaries" / platform / f"{interface.modelIdentifier}.so"))
         for name, (restype, argtypes) in signatures.items():
             function = getattr(self.lib, name)
@@ -336,7 +338,7 @@ FMI2_DO_STEP_STATUS, FMI2_PENDING_STATUS, FMI2_LAST_SUCCESSFUL_TIME, FMI2_TERMIN
 class Fmi2(Binary):
     """The FMI 2 binary with a logger and memory callbacks."""
 
-    PREFIX, REAL, INTEGER = "fmi2", "Real", "Integer"
+    PREFIX, REAL, INTEGER, ENUMERATION = "fmi2", "Real", "Integer", "Integer"
     TYPES = {"Real": c_double, "Integer": c_int, "Boolean": c_int, "String": c_char_p}
     NAMES = {"GetFMUState": "fmi2GetFMUstate", "SetFMUState": "fmi2SetFMUstate", "FreeFMUState": "fmi2FreeFMUstate",
              "SerializedFMUStateSize": "fmi2SerializedFMUstateSize", "SerializeFMUState": "fmi2SerializeFMUstate",
@@ -454,7 +456,8 @@ FMI3_OTHER_TYPES = ("Int64", "UInt64", "Boolean", "String")
 class Fmi3(Binary):
     """The FMI 3 binary with a logMessage callback."""
 
-    PREFIX, REAL, INTEGER, TYPES, VALUE_COUNT = "fmi3", "Float64", "Int32", FMI3_TYPES, True
+    # the law selectors (Enumerations) through fmi3Get/SetInt32, which the FMU takes too (fmi3SetInt64: its own cases)
+    PREFIX, REAL, INTEGER, ENUMERATION, TYPES, VALUE_COUNT = "fmi3", "Float64", "Int32", "Int32", FMI3_TYPES, True
 
     def __init__(self, folder):
         super().__init__(folder, "x86_64-linux", _fmi3_signatures())

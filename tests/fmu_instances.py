@@ -13,7 +13,7 @@ def instantiate(unzipped, name, start):
     fmu.enterInitializationMode()
     for key, value in start.items():
         variable = variables[key]
-        setter = fmu.setInteger if variable.type == "Integer" else fmu.setReal
+        setter = fmu.setInteger if variable.type in ("Integer", "Enumeration") else fmu.setReal
         setter([variable.valueReference], [value])
     fmu.exitInitializationMode()
     return fmu

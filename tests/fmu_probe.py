@@ -29,8 +29,8 @@ SPECIAL = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
 def _setter(inst, name):
     """A function that sets the variable ``name`` of the instance ``inst`` to a value."""
     variable, fmi2 = inst.extracted.variables[name], inst.extracted.fmi_version == 2
-    if variable.type in ("Integer", "Int32"):
-        integer = inst.fmu.setInteger if fmi2 else inst.fmu.setInt32
+    if variable.type in ("Integer", "Int32", "Enumeration"):  # FMI 3 sets an Enumeration as Int64
+        integer = inst.fmu.setInteger if fmi2 else (inst.fmu.setInt64 if variable.type == "Enumeration" else inst.fmu.setInt32)
         return lambda value: inst.call(integer, [variable.valueReference], [int(value)])
     real = inst.fmu.setReal if fmi2 else inst.fmu.setFloat64
     return lambda value: inst.call(real, [variable.valueReference], [SPECIAL.get(value, value)])

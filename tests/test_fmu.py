@@ -12,6 +12,7 @@ from fmpy.validation import validate_fmu
 
 from stickslip.core import Parameters, StickSlipError, Trajectory, kinetic_law, static_law
 from stickslip.fmu import default_fmu_path, ensure_fmu, source_tag
+from stickslip.fmu import sources
 from stickslip.hosts.fmpy_host import FMUError, run_fmu
 
 from fmu_instances import instantiate
@@ -104,21 +105,20 @@ def test_capabilities_structure_and_default_experiment(fmu_path):
 
 
 def test_runtime_is_bundled_under_a_private_name(fmu_path):
-    tag = source_tag()
+    tag, runtime_tag = source_tag(), sources.runtime_tag()
     with zipfile.ZipFile(fmu_path) as fmu:
         names = fmu.namelist()
         loader = fmu.read(f"resources/springblockfriction_{tag}.py").decode()
-        slave = fmu.read(f"resources/sbf_runtime_{tag}/fmu_slave.py").decode()
-        interface = fmu.read(f"resources/sbf_runtime_{tag}/block_interface.py").decode()
+        slave = fmu.read(f"resources/sbf_slave_{tag}/fmu_slave.py").decode()
+        interface = fmu.read(f"resources/sbf_slave_{tag}/block_interface.py").decode()
         assert fmu.read("resources/slavemodule.txt").decode() == f"springblockfriction_{tag}"
-    assert f"resources/sbf_runtime_{tag}/trajectory.py" in names
-    assert f"resources/sbf_runtime_{tag}/__pycache__/block_interface.{sys.implementation.cache_tag}.pyc" in names
-    assert f"from sbf_runtime_{tag}.fmu_slave import SpringBlockFriction" in loader
-    assert f"from sbf_runtime_{tag} import" in interface and "stickslip.core" not in interface + slave
-    assert f"from sbf_runtime_{tag}.block_interface import" in slave and "from block_interface" not in slave
-    assert f"resources/sbf_runtime_{tag}/block_interface.py" in names
+    assert f"resources/sbf_runtime_{runtime_tag}/trajectory.py" in names
+    assert f"resources/sbf_slave_{tag}/__pycache__/block_interface.{sys.implementation.cache_tag}.pyc" in names
+    assert f"from sbf_slave_{tag}.fmu_slave import SpringBlockFriction" in loader
+    assert f"from sbf_runtime_{runtime_tag} import" in interface and "stickslip.core" not in interface + slave
+    assert f"from sbf_slave_{tag}.block_interface import" in slave and "from block_interface" not in slave
     run_fmu(fmu_path, {}, 1.0, 1.0)
-    runtime = sys.modules[f"sbf_runtime_{tag}"]  # the FMU's copy, though this host imported stickslip
+    runtime = sys.modules[f"sbf_runtime_{runtime_tag}"]  # the FMU's copy, though this host imported stickslip
     assert Path(runtime.__file__).parent != Path(sys.modules["stickslip.core"].__file__).parent
 
 

@@ -10,6 +10,7 @@ import zipfile
 from pathlib import Path
 
 from stickslip.fmu import source_tag, trim
+from stickslip.fmu.sources import runtime_tag
 from stickslip.fmu.compile_runtime import COMPILED_MODULES
 
 from fmu_instances import instantiate
@@ -17,8 +18,8 @@ from fmu_instances import instantiate
 
 def test_runtime_imports_from_the_shipped_bytecode_whatever_the_file_times(unzipped, tmp_path):
     resources = Path(unzipped[0]) / "resources"
-    package = resources / f"sbf_runtime_{source_tag()}"
-    for source in package.glob("*.py"):  # an extraction gives the files any time: later than the .pyc here
+    package, runtime = resources / f"sbf_slave_{source_tag()}", resources / f"sbf_runtime_{runtime_tag()}"
+    for source in [*package.glob("*.py"), *runtime.glob("*.py")]:  # an extraction gives the files any time: later than the .pyc here
         os.utime(source, (2e9, 2e9))
     probe = textwrap.dedent(f"""
         import sys
@@ -26,23 +27,27 @@ def test_runtime_imports_from_the_shipped_bytecode_whatever_the_file_times(unzip
         sys.addaudithook(lambda event, args: event == "compile" and compiled.append(args[1]))
         sys.path.insert(0, {str(resources)!r})
         import {package.name}.fmu_slave
-        print([name for name in compiled if {str(package)!r} in str(name)])
+        print([name for name in compiled if {str(package)!r} in str(name) or {str(runtime)!r} in str(name)])
     """)
     result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True, cwd=tmp_path)
     assert result.stdout.strip() == "[]"
 
 
 def test_shipped_bytecode_is_unchecked_hash_based(fmu_path):
-    """Every module of the runtime's package ships byte-compiled, except those that ship compiled by mypyc."""
+    """Every module of the runtime's package ships byte-compiled, except those that ship compiled by mypyc, and
+    every module of the slave's package."""
     with zipfile.ZipFile(fmu_path) as fmu:
         names = fmu.namelist()
         pycs = [name for name in names if name.endswith(".pyc")]
-        package = f"resources/sbf_runtime_{source_tag()}"
+        package, slave = f"resources/sbf_runtime_{runtime_tag()}", f"resources/sbf_slave_{source_tag()}"
         compiled = {n.split("/")[-1].split(".")[0] for n in names if n.startswith(package) and n.endswith(".so")}
         modules = {n.split("/")[-1][:-3] for n in names if n.startswith(f"{package}/") and n.endswith(".py")}
-        assert compiled == set(COMPILED_MODULES)
-        assert sorted(pycs) == sorted(f"{package}/__pycache__/{m}.{sys.implementation.cache_tag}.pyc"
-                                      for m in modules - compiled)
+        slave_modules = {n.split("/")[-1][:-3] for n in names if n.startswith(f"{slave}/") and n.endswith(".py")}
+        assert compiled == set(COMPILED_MODULES) and {"fmu_slave", "block_interface"} <= slave_modules
+        assert sorted(pycs) == sorted([*(f"{package}/__pycache__/{m}.{sys.implementation.cache_tag}.pyc"
+                                         for m in modules - compiled),
+                                       *(f"{slave}/__pycache__/{m}.{sys.implementation.cache_tag}.pyc"
+                                         for m in slave_modules)])
         for name in pycs:
             flags = int.from_bytes(fmu.read(name)[4:8], "little")
             assert flags == 0b01  # hash-based, source not checked (PEP 552)
@@ -67,20 +72,25 @@ def test_many_instances_keep_the_loader_module_intact(unzipped):
 
 
 def test_the_fmus_hold_no_file_a_host_does_not_need(fmu_path, fmu3_path):
-    """No module of the FMI library's builder, its package in one archive, no runtime module of the other FMI
-    version; every module of the archive byte-compiled for the building Python beside its source."""
-    for fmu, library, other_version_only in ((fmu_path, "pythonfmu", {"exchange"}), (fmu3_path, "pythonfmu3", set())):
+    """No module of the FMI library's builder, its package in one archive, no sources of the library's binary;
+    every module of the archive byte-compiled for the building Python beside its source. The runtime's package is
+    the same in both FMUs (a process that loads both shares it)."""
+    runtimes = []
+    for fmu, library in ((fmu_path, "pythonfmu"), (fmu3_path, "pythonfmu3")):
         with zipfile.ZipFile(fmu) as archive:
             names = archive.namelist()
             packed = zipfile.ZipFile(io.BytesIO(archive.read(f"resources/{library}.zip")))
-        assert not [name for name in names if name.startswith(f"resources/{library}/")]
-        modules = {name.rsplit("/", 1)[1].split(".")[0] for name in names if name.startswith("resources/sbf_runtime_")}
-        assert modules & other_version_only == set() and {"trajectory", "fmu_slave"} <= modules
+            runtimes.append({name: archive.read(name) for name in names
+                             if name.startswith(f"resources/sbf_runtime_{runtime_tag()}/")})
+        assert not [name for name in names if name.startswith((f"resources/{library}/", "sources/"))]
+        modules = {name.rsplit("/", 1)[1].split(".")[0] for name in names if name.startswith("resources/sbf_")}
+        assert {"trajectory", "exchange", "fmu_slave"} <= modules
         inside = packed.namelist()
         assert sorted(inside) == sorted([*(n for n in inside if n.endswith(".py")), *(n + "c" for n in inside
                                                                                     if n.endswith(".py"))])
         assert {f"{library}/{m}.py" for m in trim.BUILD_ONLY_MODULES} & set(inside) == set()
         assert b"builder" not in packed.read(f"{library}/__init__.py")
+    assert runtimes[0] == runtimes[1] and runtimes[0]
 
 
 def test_the_loader_module_imports_the_library_from_its_archive_and_not_its_builder(unzipped, tmp_path):

@@ -207,7 +207,7 @@ class Model:
     def value(self, name):
         """A value for ``name``: inside its range, near its start value, or an edge value."""
         low, high = self.bounds[name]
-        if self.kinds[name] in ("Integer", "Int32"):
+        if self.kinds[name] in ("Integer", "Int32", "Enumeration"):
             low, high = int(low if low is not None else -3), int(high if high is not None else 3)
             return st.one_of(st.integers(low - 1, high + 1), st.sampled_from(INT_EDGES))
         start = self.starts[name] or 0.0

@@ -88,9 +88,10 @@ def test_the_installed_wheel_builds_both_fmus_in_any_folder(installed, tmp_path,
 
 
 def test_two_builds_are_byte_identical(tmp_path, monkeypatch, fmu_path, fmu3_path):
-    """The session's FMUs and a second build with an empty compile cache (mypyc compiles again, in another
-    folder) have the same bytes; the archive's entries are sorted, stamped 1980-01-01 00:00, rw-r--r--."""
+    """The session's FMUs and a second build with an empty compile cache and none compiled with the package (mypyc
+    compiles again, in another folder) have the same bytes; the archive's entries are sorted, stamped 1980-01-01 00:00, rw-r--r--."""
     monkeypatch.setattr(staging, "CACHE", tmp_path / "empty-cache")
+    monkeypatch.setattr(staging, "PREBUILT", tmp_path / "none-prebuilt")
     for version, first in ((2, fmu_path), (3, fmu3_path)):
         second = build(tmp_path / "again" / first.name, version)
         first_entries, second_entries = archive.read_entries(first), archive.read_entries(second)

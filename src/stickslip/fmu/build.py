@@ -1,12 +1,13 @@
 """Build the SpringBlockFriction FMUs: FMI 2.0 co-simulation (PythonFMU) and FMI 3.0 co-simulation and model
 exchange (pythonfmu3), with one function, :func:`build`.
 
-The runtime ``stickslip/core`` is bundled into the FMU's resources as the package ``sbf_runtime_<tag>``,
-together with the slave (``fmu_slave``) and the variable table the slaves share (``block_interface``), loaded
-through the module ``springblockfriction_<tag>`` (FMI 3: ``springblockfriction3_<tag>``; layout, byte-compiled
-and mypyc-compiled modules: :mod:`stickslip.fmu.staging`); ``<tag>`` is :func:`~stickslip.fmu.sources.source_tag`.
-A host that imported its own ``stickslip``, or another build of this FMU, therefore never hands the FMU a
-different copy of the runtime. The library's model description is then completed
+The runtime ``stickslip/core`` is bundled into the FMU's resources as the package ``sbf_runtime_<runtime tag>``,
+the slave (``fmu_slave``) and the variable table the slaves share (``block_interface``) as ``sbf_slave_<tag>``,
+loaded through the module ``springblockfriction_<tag>`` (FMI 3: ``springblockfriction3_<tag>``; layout,
+byte-compiled and mypyc-compiled modules: :mod:`stickslip.fmu.staging`); ``<tag>`` is
+:func:`~stickslip.fmu.sources.source_tag`, ``<runtime tag>`` :func:`~stickslip.fmu.sources.runtime_tag`. A host
+that imported its own ``stickslip``, or another build of this FMU, therefore never hands the FMU a different copy
+of the runtime; the FMI 2 and FMI 3 FMUs of one build carry the same runtime package, compiled once. The library's model description is then completed
 (:mod:`stickslip.fmu.model_description`), what no host needs left out (:mod:`stickslip.fmu.trim`), and its
 Linux binary becomes the loader of
 :mod:`stickslip.fmu.loader`, so that the FMU also runs in hosts that are not Python processes. Building twice
@@ -20,13 +21,25 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import archive, loader, model_description, trim
-from .sources import MODEL_NAME, RUNTIME, INTERFACE, SLAVES, is_current, source_tag
+from . import archive, documentation, loader, model_description, trim
+from .sources import MODEL_NAME, RUNTIME, INTERFACE, SLAVES, is_current, runtime_tag, source_tag
 from .python_path import preserved_sys_path
 from .staging import LOADERS, stage_runtime
 
 #: the FMI versions this package builds
 FMI_VERSIONS = (2, 3)
+#: the FMI versions whose FMU declares the law selectors Enumerations (the others: Integers holding the same codes).
+#: FMI 2's stays Integer: libcosim (0.0.6, and ecos, built on it) lists no Enumeration variable of an FMI 2 FMU, so
+#: a law could no longer be chosen there.
+ENUMERATION_VERSIONS = (3,)
+#: what the FMU's documentation says the model is
+SUMMARY = (
+    "A block of mass M on a surface moving at v_drive, tied to a wall by a spring of stiffness kappa, with dry "
+    "friction: while it slips, the kinetic law F_K of the sliding speed acts against the sliding; it sticks when "
+    "the sliding speed reaches zero and the static friction F_S can hold the spring and external forces, and "
+    "breaks away when they exceed F_S, which may grow with the time stuck (aging). The FMU locates every stick "
+    "and slip event inside a step. Inputs: the surface velocity v_drive and an external force F_ext on the block; "
+    "outputs: its position, velocity, forces, mode and event counts.")
 #: FMI version: the FMU's file name
 FILE_NAMES = {2: f"{MODEL_NAME}.fmu", 3: f"{MODEL_NAME}-fmi3.fmu"}
 
@@ -70,9 +83,10 @@ def build(dest=None, fmi_version=2, pure=False):
     dest.parent.mkdir(parents=True, exist_ok=True)
     library = LIBRARIES[fmi_version]
     builder = importlib.import_module(library.module).FmuBuilder
-    tag = source_tag(fmi_version) + ("p" if pure else "")
+    tags = (source_tag(fmi_version) + ("p" if pure else ""), runtime_tag() + ("p" if pure else ""))
+    tag = tags[0]
     with tempfile.TemporaryDirectory(prefix="sbf_build_") as tmp:
-        staged = stage_runtime(Path(tmp), tag, RUNTIME, SLAVES[fmi_version], INTERFACE, MODEL_NAME,
+        staged = stage_runtime(Path(tmp), tags, RUNTIME, SLAVES[fmi_version], INTERFACE, MODEL_NAME,
                                compiled=not pure, loader=LOADERS[fmi_version], library=library.module)
         try:
             with preserved_sys_path():  # the builder, and the import below, put the staging folder on sys.path
@@ -81,21 +95,26 @@ def build(dest=None, fmi_version=2, pure=False):
                 sys.path.insert(0, tmp)
                 instance = getattr(importlib.import_module(staged.module), MODEL_NAME)(instance_name="build")
         finally:  # ... and the modules imported
-            forget_modules(tag, staged.module)
+            forget_modules(tags, staged.module)
         entries = archive.read_entries(built)
         entries["modelDescription.xml"] = model_description.complete(
             entries["modelDescription.xml"], instance.variable_units, instance.variable_bounds, fmi_version,
-            *archive.identity(MODEL_NAME, fmi_version, tag), dependencies=instance.output_dependencies)
+            *archive.identity(MODEL_NAME, fmi_version, tag), dependencies=instance.output_dependencies,
+            enumerations=instance.variable_enumerations if fmi_version in ENUMERATION_VERSIONS else None)
         staged.add_to(entries)
         trim.trim(entries, fmi_version, staged.package_dir.name)
+        compiled = any(name.endswith(".so") for name in entries if name.startswith("resources/"))
+        entries.update(documentation.entries(entries["modelDescription.xml"], SUMMARY,
+                                             ("stickslip", library.module, *(("mypy",) if compiled else ())),
+                                             instance.variable_enumerations))
         _write_with_loader(dest, entries, fmi_version)
     return dest
 
 
-def forget_modules(tag, module):
+def forget_modules(tags, module):
     """Drop the bundled modules that building imported into this process: ``module`` (the one the FMI library loads)
-    and the packages whose names end in ``_<tag>``."""
-    for name in [m for m in sys.modules if m == module or m.split(".")[0].endswith(f"_{tag}")]:
+    and the packages whose names end with ``_<tag>`` for one of ``tags``."""
+    for name in [m for m in sys.modules if m == module or m.split(".")[0].endswith(tuple(f"_{t}" for t in tags))]:
         del sys.modules[name]
 
 

@@ -15,7 +15,7 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from . import archive, loader, model_description, trim
+from . import archive, documentation, loader, model_description, trim
 from .build import default_fmu_path, forget_modules
 from .python_path import preserved_sys_path
 from .sources import BUILDERS, LOADER_BINDING, SLAVE_FOLDER, files_tag
@@ -27,11 +27,15 @@ COUPLING_SLAVE = SLAVE_FOLDER / f"{COUPLING_NAME}.py"
 #: variable: unit as model_description.UNITS names it
 UNITS = {"x_left": "m", "x": "m", "x_right": "m", "kc_left": "N/m", "kc_right": "N/m", "F": "N"}
 BOUNDS = {name: ((0.0, None) if name.startswith("kc_") else (None, None)) for name in UNITS}
+#: what the FMU's documentation says the model is
+SUMMARY = ("The coupling springs of one block in a chain of blocks: the force F = kc_left (x_left - x) + kc_right "
+           "(x_right - x) that the springs to its neighbours (positions x_left and x_right) exert on the block at x. "
+           "An engine wires it between SpringBlockFriction FMUs, F to the block's F_ext input.")
 
 
 def coupling_tag():
     """10 hex digits over the slave, the loader binding, this builder and the other builder modules (staging, trim,
-    the loader's sources...): they decide the FMU's content."""
+    model description, documentation, the loader's sources...): they decide the FMU's content."""
     return files_tag((COUPLING_SLAVE, LOADER_BINDING, Path(__file__), *BUILDERS))
 
 
@@ -91,13 +95,14 @@ def build_coupling(dest=None):
                 built = FmuBuilder.build_FMU(script, dest=Path(tmp) / "out", project_files=[package],
                                              canGetAndSetFMUstate=True, canSerializeFMUstate=True)
         finally:  # the builder imported the staged modules
-            forget_modules(tag, script.stem)
+            forget_modules((tag,), script.stem)
         entries = archive.read_entries(built)
         entries["modelDescription.xml"] = model_description.complete(
             entries["modelDescription.xml"], UNITS, BOUNDS, 2, *archive.identity(COUPLING_NAME, 2, tag))
         for name, path in compiled.items():
             entries.setdefault(name, path.read_bytes())
         trim.trim(entries, 2, package.name)
+        entries.update(documentation.entries(entries["modelDescription.xml"], SUMMARY, ("stickslip", "pythonfmu")))
         partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
         archive.write_entries(partial, entries)
         loader.install(partial, COUPLING_NAME, slave_survives_release=True)

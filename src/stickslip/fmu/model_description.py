@@ -1,7 +1,8 @@
 """Complete the model description that PythonFMU (FMI 2) or pythonfmu3 (FMI 3) writes.
 
 The libraries write names, causalities and start values. :func:`complete` adds what an importer needs: units
-and declared types, the bounds the slave checks (``min``/``max``), a DefaultExperiment and, for FMI 2, the
+and declared types, the enumeration types of the law selectors (their codes as items, so that a tool offers the
+laws by name), the bounds the slave checks (``min``/``max``), a DefaultExperiment and, for FMI 2, the
 ModelStructure's Outputs and InitialUnknowns; and it replaces the libraries' random GUID and the time of the
 build by values that depend on the sources alone (:func:`stickslip.fmu.archive.identity`).
 """
@@ -32,37 +33,46 @@ class ModelDescriptionError(RuntimeError):
 GUID_ATTRIBUTES = {2: "guid", 3: "instantiationToken"}
 
 
-def complete(xml, units, bounds, fmi_version, guid, generated=None, dependencies=None):
+def complete(xml, units, bounds, fmi_version, guid, generated=None, dependencies=None, enumerations=None):
     """``xml`` (the library's model description, bytes) completed; ``units``/``bounds``: {variable name: unit
     as the slave states it / (min, max) with None for an open end}; ``guid``: the GUID (FMI 3: instantiation
     token); ``generated``: generationDateAndTime (ISO 8601 text), or None to leave it out; ``dependencies``
-    (FMI 2): {output name: the inputs it depends on directly}, for the outputs that depend on fewer than all."""
+    (FMI 2): {output name: the inputs it depends on directly}, for the outputs that depend on fewer than all;
+    ``enumerations``: {variable name: its enumeration type, ``(name, items)`` with items ``(code, item name,
+    description)``}, for the integer variables that hold a code (FMI 2 declares them Enumeration, FMI 3 too)."""
     root = ET.fromstring(xml)
     root.set(GUID_ATTRIBUTES[fmi_version], guid)
     root.attrib.pop("generationDateAndTime", None)
     if generated is not None:
         root.set("generationDateAndTime", generated)
     variables = root.find("ModelVariables")
+    enumerations = enumerations or {}
     if fmi_version == 2:
-        used = _annotate(variables, units, bounds, lambda variable: variable[0])
-        _insert_definitions(root, used, _add_simple_type)
+        used = _annotate(variables, units, bounds, enumerations, lambda variable: variable[0])
+        _insert_definitions(root, used, enumerations, _add_simple_type, _add_fmi2_enumeration)
         _fmi2_structure(root.find("ModelStructure"), variables, dependencies or {})
     else:
-        used = _annotate(variables, units, bounds, lambda variable: variable)
+        used = _annotate(variables, units, bounds, enumerations, lambda variable: variable)
         for old in root.findall("UnitDefinitions") + root.findall("TypeDefinitions"):
             root.remove(old)
-        _insert_definitions(root, used, _add_float64_type)
+        _insert_definitions(root, used, enumerations, _add_float64_type, _add_fmi3_enumeration)
     ET.indent(root)
     return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
 
 
-def _annotate(variables, units, bounds, element_of):
-    """Set declaredType, unit, min and max on ``element_of(variable)`` for each model variable; return the units
-    used, ``{unit: (FMI unit name, declared type, exponents)}``."""
+def _annotate(variables, units, bounds, enumerations, element_of):
+    """Set declaredType, unit, min and max on ``element_of(variable)`` for each model variable, and make the
+    variables of ``enumerations`` Enumerations of their type; return the units used, ``{unit: (FMI unit name,
+    declared type, exponents)}``."""
     used = {}
     for variable in variables:
         name = variable.get("name")
         element = element_of(variable)
+        if name in enumerations:
+            if element.tag not in ("Integer", "Int64", "Enumeration"):
+                raise ModelDescriptionError(f"variable {name} is an enumeration but the library wrote {element.tag}")
+            element.tag = "Enumeration"
+            element.set("declaredType", enumerations[name][0])
         unit = units[name]
         if unit not in DIMENSIONLESS:
             if unit not in UNITS:
@@ -76,15 +86,18 @@ def _annotate(variables, units, bounds, element_of):
     return used
 
 
-def _insert_definitions(root, used, add_type):
+def _insert_definitions(root, used, enumerations, add_type, add_enumeration):
     """Insert UnitDefinitions and TypeDefinitions of the ``used`` units after the CoSimulation element, each type
-    added by ``add_type(type_definitions, declared type, FMI unit)``; and the DefaultExperiment."""
+    added by ``add_type(type_definitions, declared type, FMI unit)``, then the types of ``enumerations`` by
+    ``add_enumeration(type_definitions, name, items)``; and the DefaultExperiment."""
     unit_definitions = ET.Element("UnitDefinitions")
     type_definitions = ET.Element("TypeDefinitions")
     for fmi_unit, declared, exponents in sorted(used.values(), key=lambda entry: entry[1]):
         unit = ET.SubElement(unit_definitions, "Unit", name=fmi_unit)
         ET.SubElement(unit, "BaseUnit", {k: str(e) for k, e in exponents.items()})
         add_type(type_definitions, declared, fmi_unit)
+    for name, items in sorted(set(map(tuple, enumerations.values()))):
+        add_enumeration(type_definitions, name, items)
     position = list(root).index(root.find("CoSimulation")) + 1
     root.insert(position, unit_definitions)
     root.insert(position + 1, type_definitions)
@@ -100,6 +113,19 @@ def _add_simple_type(type_definitions, declared, fmi_unit):
 
 def _add_float64_type(type_definitions, declared, fmi_unit):
     ET.SubElement(type_definitions, "Float64Type", name=declared, quantity=declared, unit=fmi_unit)
+
+
+def _add_items(parent, items):
+    for code, item, description in items:
+        ET.SubElement(parent, "Item", name=item, value=str(code), description=description)
+
+
+def _add_fmi2_enumeration(type_definitions, name, items):
+    _add_items(ET.SubElement(ET.SubElement(type_definitions, "SimpleType", name=name), "Enumeration"), items)
+
+
+def _add_fmi3_enumeration(type_definitions, name, items):
+    _add_items(ET.SubElement(type_definitions, "EnumerationType", name=name), items)
 
 
 def _fmi2_structure(structure, variables, dependencies):

@@ -2,16 +2,17 @@
 
 The slaves come from the package ``stickslip.fmu_src`` (the project's top-level ``fmu_src/``, mapped into the
 package), the runtime from ``stickslip/core``, the loader from :mod:`stickslip.fmu.loader`. The tag (10 hex
-digits of a sha256 over all of them and the builder modules) names the runtime's package inside the FMU, so
-that two builds never share a module in one process, and tells whether an FMU is current.
+digits of a sha256 over all of them and the builder modules) names the slave's package inside the FMU, so
+that two builds never share a slave in one process, and tells whether an FMU is current; the runtime tag (over the
+runtime and what lays it out) names the runtime's package, the same in the FMI 2 and FMI 3 FMUs.
 """
 
-import hashlib
 import zipfile
 from pathlib import Path
 
 from .. import fmu_src
 from . import loader
+from .compile_runtime import files_tag, runtime_tag  # the tags are made there: setup.py uses them too
 
 MODEL_NAME = "SpringBlockFriction"
 SLAVE_FOLDER = Path(fmu_src.__file__).resolve().parent
@@ -26,16 +27,8 @@ MODULE_PREFIXES = {2: "springblockfriction_", 3: "springblockfriction3_"}
 #: the builder modules whose source decides an FMU's content
 BUILDERS = (*(Path(__file__).resolve().with_name(name) for name in
               ("build.py", "archive.py", "model_description.py", "staging.py", "compile_runtime.py", "sources.py",
-               "trim.py")),
+               "trim.py", "documentation.py")),
             *loader.SOURCES)
-
-
-def files_tag(paths):
-    """10 hex digits of a sha256 over the names and contents of the files ``paths``, in that order."""
-    digest = hashlib.sha256()
-    for path in map(Path, paths):
-        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
-    return digest.hexdigest()[:10]
 
 
 def source_tag(fmi_version=2):

@@ -3,9 +3,11 @@ how fast.
 
 In the FMU's ``resources/``:
 
-- ``sbf_runtime_<tag>/``: the runtime ``stickslip/core``, the slave (``fmu_slave.py``, from
-  ``fmu_src/SpringBlockFriction.py`` or ``fmu_src/SpringBlockFriction_fmi3.py``) and the variable table
-  the two slaves share (``block_interface.py``, from ``fmu_src/``), their imports renamed to the package, with byte-compiled files
+- ``sbf_runtime_<runtime tag>/``: the runtime ``stickslip/core``, the same in the FMI 2 and FMI 3 FMUs;
+- ``sbf_slave_<tag>/``: the slave (``fmu_slave.py``, from ``fmu_src/SpringBlockFriction.py`` or
+  ``fmu_src/SpringBlockFriction_fmi3.py``), the variable table the two slaves share (``block_interface.py``, from
+  ``fmu_src/``) and the loader binding, their imports renamed to the two packages;
+- with both packages, byte-compiled files
   for the building Python in ``__pycache__`` (unchecked-hash ``.pyc``: valid whatever times the
   extraction gives the files, so a host with that Python never compiles them);
 - the hot modules of the runtime compiled by mypyc under that package name, for the building
@@ -14,7 +16,7 @@ In the FMU's ``resources/``:
   pure Python, and the build says so on stderr). A host that cannot load them (another Python
   version or platform) runs the sources (``core/_implementation.py``). Compiled files are cached
   in the user's cache folder (``$XDG_CACHE_HOME/stickslip/fmu-runtime``, default
-  ``~/.cache/...``) by package name (the source tag), Python and toolchain (mypy, setuptools, compiler
+  ``~/.cache/...``) by package name (the runtime tag: one compilation serves both FMUs), Python and toolchain (mypy, setuptools, compiler
   and flags);
 - ``springblockfriction_<tag>.py`` (FMI 3: ``springblockfriction3_<tag>.py``): the module PythonFMU
   (pythonfmu3) loads, a few lines (:data:`FMI2_LOADER`, :data:`FMI3_LOADER`), the first of which put the
@@ -30,17 +32,18 @@ import re
 import shutil
 import subprocess
 import sys
-import sysconfig
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .compile_runtime import COMPILED_MODULES, CompileError, compile_in_place, toolchain_tag
+from .compile_runtime import (COMPILED_ARTIFACTS, COMPILED_MODULES, COMPLETE, MYPY_LICENSE, PREBUILT, RUNTIME_PREFIX,
+                              CompileError, compile_in_place, prebuilt_key, store, toolchain_tag)
 from .sources import LOADER_BINDING
 
+#: the packages of an FMU's ``resources/``: the runtime (the same in every FMU built from the same runtime, so that
+#: the FMI 2 and FMI 3 FMUs share one compilation and a process that loads both shares one copy) and the slave
+SLAVE_PREFIX = "sbf_slave_"
 CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stickslip" / "fmu-runtime"
-#: files of an in-place compiled ``stickslip/core`` (pip install -e) that never go into an FMU's copy
-COMPILED_ARTIFACTS = ("__pycache__", "*.pyc", "*.so", "*.pyd", "compiled_sources.crc32")
 
 
 @dataclass(frozen=True)
@@ -77,6 +80,15 @@ FMI3_LOADER = LoaderModule("springblockfriction3_", _LIBRARY_ON_PATH + (
     "from pythonfmu3 import Fmi3SlaveBase\n\nfrom {package} import fmu_slave\n\n\n"
     "class {model_name}(fmu_slave.{model_name}, Fmi3SlaveBase):\n"
     '    """The slave (fmu_slave), named where pythonfmu3 looks for it."""\n'))
+#: the slave package's ``__init__.py`` (``{runtime}``: the runtime's package). A process may have imported the
+#: runtime's package from another FMU of the same runtime, whose files a host may have removed since: a module it
+#: imports later (``exchange``, which only the FMI 3 slave needs) is then found in this FMU's copy.
+SLAVE_PACKAGE_INIT = (
+    '"""The FMU\'s slave and the variable table it shares; this FMU\'s copy of the runtime first on its path."""\n\n'
+    "import os\n\nimport {runtime}\n\n"
+    "_copy = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), {runtime!r})\n"
+    "if _copy not in {runtime}.__path__:\n"
+    "    {runtime}.__path__.insert(0, _copy)\n")
 #: FMI version: its loader module
 LOADERS = {2: FMI2_LOADER, 3: FMI3_LOADER}
 
@@ -87,20 +99,22 @@ class StagingError(RuntimeError):
 
 @dataclass
 class StagedRuntime:
-    """The staged code in a build folder: ``script`` and ``package_dir`` go to PythonFMU's builder;
-    ``extra_files`` (archive name -> path) are the files its builder may leave out of the FMU."""
+    """The staged code in a build folder: ``script``, ``package_dir`` (the runtime) and ``slave_dir`` (the slave's
+    package) go to PythonFMU's builder; ``extra_files`` (archive name -> path) are the files its builder may leave
+    out of the FMU."""
 
     script: Path
     package_dir: Path
+    slave_dir: Path
     module: str
     extra_files: dict = field(default_factory=dict)
 
     def project_files(self):
-        """What the library's builder copies into ``resources/``: the package, and the compiled group library
-        beside it (the builder imports the slave to write the model description, and pythonfmu3 imports it
+        """What the library's builder copies into ``resources/``: the two packages, and the compiled group library
+        beside them (the builder imports the slave to write the model description, and pythonfmu3 imports it
         from the copy)."""
-        return [self.package_dir, *(path for arcname, path in sorted(self.extra_files.items())
-                                    if arcname.count("/") == 1)]
+        return [self.package_dir, self.slave_dir, *(path for arcname, path in sorted(self.extra_files.items())
+                                                    if arcname.count("/") == 1)]
 
     def add_to(self, entries):
         """Add those of :attr:`extra_files` that the FMU's ``entries`` (``{name: bytes}``) do not have yet."""
@@ -108,30 +122,35 @@ class StagedRuntime:
             entries.setdefault(arcname, path.read_bytes())
 
 
-def stage_runtime(folder, tag, runtime, slave, interface, model_name, compiled=True, loader=FMI2_LOADER,
+def stage_runtime(folder, tags, runtime, slave, interface, model_name, compiled=True, loader=FMI2_LOADER,
                   library="pythonfmu"):
-    """Stage the runtime folder ``runtime``, the slave source ``slave`` (class ``model_name``), the shared
-    variable table ``interface`` and the ``loader`` module in ``folder``; ``compiled``: also compile the
-    runtime's hot modules (if this machine can); ``library``: the FMI library's package."""
-    package, module = f"sbf_runtime_{tag}", f"{loader.prefix}{tag}"
-    package_dir = Path(folder) / package
+    """Stage the runtime folder ``runtime`` as :data:`RUNTIME_PREFIX` ``<runtime tag>``, the slave source ``slave``
+    (class ``model_name``) with the shared variable table ``interface`` as :data:`SLAVE_PREFIX` ``<tag>``, and the
+    ``loader`` module in ``folder``; ``tags``: ``(tag, runtime tag)``; ``compiled``: also compile the runtime's hot
+    modules (if this machine can); ``library``: the FMI library's package."""
+    tag, runtime_tag = tags
+    package, slave_package, module = f"{RUNTIME_PREFIX}{runtime_tag}", f"{SLAVE_PREFIX}{tag}", f"{loader.prefix}{tag}"
+    package_dir, slave_dir = Path(folder) / package, Path(folder) / slave_package
     shutil.copytree(runtime, package_dir, ignore=shutil.ignore_patterns(*COMPILED_ARTIFACTS))
+    slave_dir.mkdir()
+    (slave_dir / "__init__.py").write_text(SLAVE_PACKAGE_INIT.format(runtime=package))
     interface_code = rewrite_once(interface, r"\bstickslip\.core\b", package,
                                   "the runtime as 'from stickslip.core import ...'")
-    (package_dir / "block_interface.py").write_text(
-        rewrite_once(interface, r"\bstickslip\.fmu_src\.loader_binding\b", f"{package}.loader_binding",
+    (slave_dir / "block_interface.py").write_text(
+        rewrite_once(interface, r"\bstickslip\.fmu_src\.loader_binding\b", f"{slave_package}.loader_binding",
                      "the loader binding as 'from stickslip.fmu_src.loader_binding import ...'", interface_code))
-    shutil.copyfile(LOADER_BINDING, package_dir / LOADER_BINDING.name)
+    shutil.copyfile(LOADER_BINDING, slave_dir / LOADER_BINDING.name)
     slave_code = rewrite_once(slave, r"\bstickslip\.core\b", package, "the runtime as 'from stickslip.core import ...'",
                               optional=True)
-    slave_code = rewrite_once(slave, r"\bfrom block_interface import\b", f"from {package}.block_interface import",
-                               "the shared table as 'from block_interface import ...'", slave_code)
-    (package_dir / "fmu_slave.py").write_text(slave_code)
+    slave_code = rewrite_once(slave, r"\bfrom block_interface import\b", f"from {slave_package}.block_interface import",
+                              "the shared table as 'from block_interface import ...'", slave_code)
+    (slave_dir / "fmu_slave.py").write_text(slave_code)
     script = Path(folder) / f"{module}.py"
-    script.write_text(loader.template.format(package=package, model_name=model_name,
+    script.write_text(loader.template.format(package=slave_package, model_name=model_name,
                                              archive=LIBRARY_ARCHIVE.format(library=library)))
-    staged = StagedRuntime(script, package_dir, module)
+    staged = StagedRuntime(script, package_dir, slave_dir, module)
     staged.extra_files.update(byte_compile(package_dir))
+    staged.extra_files.update(byte_compile(slave_dir))
     if compiled:
         staged.extra_files.update(_compiled(Path(folder), package))
     return staged
@@ -146,28 +165,33 @@ def rewrite_once(path, pattern, replacement, what, code=None, optional=False):
     return code
 
 
+#: {runtime package: why it stays pure Python}, for the builds of this process (said once, on the first)
+_NOT_COMPILED = {}
+
+
 def _compiled(folder, package):
-    """The compiled modules of ``folder/package`` (from the cache or compiled now): ``{archive name: path}``."""
-    cache = CACHE / f"{package}-{sys.implementation.cache_tag}-{sysconfig.get_platform()}-{toolchain_tag()}"
-    if not (cache / "complete").is_file():
-        print(f"stickslip: compiling the FMU's runtime {package} with mypyc ({len(COMPILED_MODULES)} modules; "
-              f"kept in {CACHE}) ...", file=sys.stderr)
+    """The compiled modules of ``folder/package`` (those the package brought, :data:`PREBUILT`, else from the cache
+    or compiled now): ``{archive name: path}``; none if it cannot be compiled (the build says why once)."""
+    cache = PREBUILT / prebuilt_key(package)
+    if not (cache / COMPLETE).is_file():
+        cache = CACHE / f"{prebuilt_key(package)}-{toolchain_tag()}"
+    if package in _NOT_COMPILED:
+        return {}
+    if not (cache / COMPLETE).is_file():
         start = time.monotonic()
         try:
-            files = compile_in_place(folder, package)
+            files = compile_in_place(folder, package, announce=lambda: print(
+                f"stickslip: compiling the FMUs' runtime {package} with mypyc ({len(COMPILED_MODULES)} modules, once "
+                f"for every FMU built from it; kept in {CACHE}) ...", file=sys.stderr))
         except CompileError as exc:
-            print(f"stickslip: the FMU's runtime stays pure Python: {exc}", file=sys.stderr)
+            _NOT_COMPILED[package] = str(exc)
+            print(f"stickslip: the FMUs' runtime stays pure Python (same results, slower): {exc}", file=sys.stderr)
             return {}
         print(f"stickslip: ... compiled in {time.monotonic() - start:.0f} s", file=sys.stderr)
-        shutil.rmtree(cache, ignore_errors=True)
-        for path in files:
-            target = cache / path.relative_to(folder)
-            target.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(path, target)
-        (cache / "complete").write_text("")
+        store(files, folder, cache)
     out = {}
     for path in cache.rglob("*"):
-        if path.is_file() and path.name != "complete":
+        if path.is_file() and path.name not in (COMPLETE, MYPY_LICENSE):
             relative = path.relative_to(cache)
             shutil.copy2(path, folder / relative)
             out[f"resources/{relative.as_posix()}"] = folder / relative

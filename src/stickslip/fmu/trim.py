@@ -2,6 +2,8 @@
 (issue 21: a host extracts every file before the first step, at about 0.2 ms a file here, and imports every
 module at the first instantiation).
 
+- The FMI library's C++ sources (``sources/``, pythonfmu3's): they build its binary, which is not the FMU's
+  binary (:mod:`stickslip.fmu.documentation` says where the binaries come from).
 - The FMI library's modules that only build or deploy FMUs (:data:`BUILD_ONLY_MODULES`): a host imports the
   library's slave classes, never its builder, which cannot run from an FMU anyway (its binaries are not there).
   The library's ``__init__.py`` loses its import of the builder, which took argparse, logging, inspect and
@@ -10,7 +12,6 @@ module at the first instantiation).
   :data:`~stickslip.fmu.staging.LIBRARY_ARCHIVE`), each module with its byte-compiled file for the building
   Python beside it (zipimport's layout; another Python compiles the source in memory), which the loader
   module puts on ``sys.path``.
-- The runtime modules that only the other FMI version's slave imports (:data:`OTHER_VERSION_ONLY`).
 - The byte-compiled files of the modules that ship compiled (mypyc): the building Python loads the compiled
   modules, and another Python cannot use those ``.pyc`` files. The sources stay: another Python or platform
   runs them, and ``compiled_sources.crc32`` is checked against them.
@@ -31,8 +32,6 @@ LIBRARY_PACKAGES = {2: "pythonfmu", 3: "pythonfmu3"}
 BUILD_ONLY_MODULES = ("__main__", "builder", "csvbuilder", "deploy", "osutil")
 #: the line of the library's ``__init__.py`` that imports its builder
 BUILDER_IMPORT = re.compile(r"^from \.builder import FmuBuilder\n", re.MULTILINE)
-#: FMI version: the runtime modules that only the slave of the other FMI version imports
-OTHER_VERSION_ONLY = {2: ("exchange",), 3: ()}
 
 
 class TrimError(RuntimeError):
@@ -41,8 +40,11 @@ class TrimError(RuntimeError):
 
 def trim(entries, fmi_version, package):
     """Drop from ``entries`` (``{archive name: bytes}``, changed in place) what no host of the FMU needs;
-    ``package``: the runtime's package name (``sbf_runtime_<tag>``)."""
+    ``package``: the runtime's package name (``sbf_runtime_<runtime tag>``; its files are the same in every FMU of
+    that runtime, which a process that loads several of them shares)."""
     library = LIBRARY_PACKAGES[fmi_version]
+    for name in [name for name in entries if name.startswith("sources/")]:
+        del entries[name]  # the library's C++ sources of its binary, which is not the FMU's (see documentation)
     _trim_library(entries, f"resources/{library}")
     _pack_library(entries, library)
     runtime = f"resources/{package}"
@@ -50,9 +52,7 @@ def trim(entries, fmi_version, package):
     for name in list(entries):
         folder, _, file = name.rpartition("/")
         module = file.split(".")[0]
-        other_version = module in OTHER_VERSION_ONLY[fmi_version] and folder in (runtime, f"{runtime}/__pycache__")
-        unused_pyc = compiled and folder == f"{runtime}/__pycache__" and module in COMPILED_MODULES
-        if other_version or unused_pyc:
+        if compiled and folder == f"{runtime}/__pycache__" and module in COMPILED_MODULES:
             del entries[name]
 
 

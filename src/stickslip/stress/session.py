@@ -52,7 +52,7 @@ class Instance(fmpy_host.Instance):
 
     def set_value(self, name, value):
         variable = self.extracted.variables[name]
-        if variable.type == "Integer":
+        if variable.type in ("Integer", "Enumeration"):  # the law selectors are Enumerations
             self.call(self.fmu.setInteger, [variable.valueReference], [int(value)])
         else:
             self.call(self.fmu.setReal, [variable.valueReference], [float(value)])

@@ -22,8 +22,10 @@ from ..fmu.variables import START_VALUES
 from ..hosts.fmpy_host import ExtractedFMU, FMUError
 from ..reference import ChainEvent
 
-#: FMI version: (Real type, Integer type) of the model description, the setter of each on FMPy's instance
-_SETTERS = {2: {"Real": "setReal", "Integer": "setInteger"}, 3: {"Float64": "setFloat64", "Int32": "setInt32"}}
+#: FMI version: {type of a variable in the model description: the setter of that type on FMPy's instance} (the law
+#: selectors are Enumerations: FMI 2 sets them as Integers, FMI 3 as Int64)
+_SETTERS = {2: {"Real": "setReal", "Integer": "setInteger", "Enumeration": "setInteger"},
+            3: {"Float64": "setFloat64", "Int32": "setInt32", "Enumeration": "setInt64"}}
 
 
 def checked_rtol(master, rtol, default, lowest):

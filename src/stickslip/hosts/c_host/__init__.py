@@ -22,6 +22,9 @@ SOURCES = {2: HERE / "host.c", 3: HERE / "host3.c"}
 COMMON = HERE / "host_common.h"
 #: FMI version: the folder of the FMU's Linux binaries
 BINARY_FOLDERS = {2: "linux64", 3: "x86_64-linux"}
+#: the model description's types of the variables the hosts set as integers ("i" settings): FMI 3's host sets them
+#: with fmi3SetInt64 (its integer parameters are the law selectors, Enumerations), FMI 2's with fmi2SetInteger
+INTEGER_TYPES = ("Integer", "Int32", "Int64", "Enumeration")
 
 
 class HostBuildError(RuntimeError):
@@ -105,7 +108,7 @@ def host_command(host, fmu_folder, mode, stop_time, step, start_values=(), outpu
     folder = Path(fmu_folder).resolve()
     description = fmpy.read_model_description(str(folder))
     variables = {v.name: v for v in description.modelVariables}
-    settings = [f"{'i' if variables[name].type in ('Integer', 'Int32') else 'r'}{variables[name].valueReference}"
+    settings = [f"{'i' if variables[name].type in INTEGER_TYPES else 'r'}{variables[name].valueReference}"
                 f"={value!r}"
                 for name, value in (start_values.items() if hasattr(start_values, "items") else start_values)]
     version = int(description.fmiVersion[0])

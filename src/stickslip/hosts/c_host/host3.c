@@ -3,7 +3,7 @@
  * communication points, so results compare bit for bit); model exchange with an integrator and an event
  * locator of its own, as a C simulator would (see run_me).
  *
- *   host3 BINARY RESOURCE_PATH TOKEN MODE STOP STEP OUTPUT_VR [rVR=VALUE | iVR=VALUE ...]
+ *   host3 BINARY RESOURCE_PATH TOKEN MODE STOP STEP OUTPUT_VR [rVR=VALUE | iVR=VALUE ...]  (i: fmi3SetInt64)
  *
  * RESOURCE_PATH is the FMU's resources folder with a trailing slash (FMI 3 passes a path, not a URI).
  * MODE    what it does (every logged message is printed as "log STATUS INSTANCE TEXT")
@@ -42,7 +42,7 @@ static struct {
     Status (*do_step)(Instance, double, double, bool, bool *, bool *, bool *, double *);
     Status (*get_float64)(Instance, const VR *, size_t, double *, size_t);
     Status (*set_float64)(Instance, const VR *, size_t, const double *, size_t);
-    Status (*set_int32)(Instance, const VR *, size_t, const int32_t *, size_t);
+    Status (*set_int64)(Instance, const VR *, size_t, const int64_t *, size_t);
     /* model exchange */
     Instance (*instantiate_me)(const char *, const char *, const char *, bool, bool, void *, LogMessage);
     Status (*get_int32)(Instance, const VR *, size_t, int32_t *, size_t);
@@ -92,8 +92,8 @@ static Status initialize(Instance c, int n)
         int is_integer;
         const char *value = setting(i, &vr, &is_integer);
         if (is_integer) {
-            int32_t v = atoi(value);
-            check("fmi3SetInt32", fmi.set_int32(c, &vr, 1, &v, 1));
+            int64_t v = atoll(value); /* the integer parameters are enumerations: set as Int64 (FMI 3) */
+            check("fmi3SetInt64", fmi.set_int64(c, &vr, 1, &v, 1));
         } else {
             double v = strtod(value, NULL);
             check("fmi3SetFloat64", fmi.set_float64(c, &vr, 1, &v, 1));
@@ -350,7 +350,7 @@ int main(int argc, char **argv)
 {
     static const char *const names[] = {
         "fmi3InstantiateCoSimulation", "fmi3FreeInstance", "fmi3EnterInitializationMode", "fmi3ExitInitializationMode",
-        "fmi3Terminate", "fmi3DoStep", "fmi3GetFloat64", "fmi3SetFloat64", "fmi3SetInt32",
+        "fmi3Terminate", "fmi3DoStep", "fmi3GetFloat64", "fmi3SetFloat64", "fmi3SetInt64",
         "fmi3InstantiateModelExchange", "fmi3GetInt32", "fmi3GetNumberOfContinuousStates",
         "fmi3GetNumberOfEventIndicators", "fmi3UpdateDiscreteStates", "fmi3EnterEventMode",
         "fmi3EnterContinuousTimeMode", "fmi3SetTime", "fmi3GetContinuousStates", "fmi3SetContinuousStates",
