@@ -23,6 +23,11 @@
  *        fmi2GetReal per step, averaged over the steps
  * thread_steps  one instance, each fmi2DoStep from a new thread: prints the resident memory
  *        after 100 steps and at the end ("rss_kb_warm K", "rss_kb_end K"), then "x T X" at the end
+ * unload two threads each run an instance ("a"/"b" lines like "x") and then wait; the FMU is
+ *        unloaded (dlclose) and only then do the threads end
+ * pair   the FMU on one thread and a second FMU ($HOST_SECOND: "BINARY RESOURCE_URI GUID OUTPUT_VR",
+ *        its default start values, another binary) on another, both instantiated at the same time:
+ *        "a T X" and "b T X" (its output) at the end of each run
  * Every line is flushed. The exit code is 0 when the mode ran to its end (a
  * failing FMI call ends the program with "failed FUNCTION STATUS" and code 1). */
 #define _GNU_SOURCE
@@ -277,6 +282,89 @@ static void mode_thread_steps(void)
     finish(c);
 }
 
+/* Mode "unload": the threads that called the FMU end after it was unloaded */
+static pthread_barrier_t ran, unloaded;
+
+static void *run_then_wait(void *tag)
+{
+    run_one(tag, tag);
+    pthread_barrier_wait(&ran);
+    pthread_barrier_wait(&unloaded);
+    return NULL;
+}
+
+static void mode_unload(void)
+{
+    pthread_t threads[2];
+    static char *tags[] = {"a", "b"};
+    pthread_barrier_init(&ran, NULL, 3);
+    pthread_barrier_init(&unloaded, NULL, 3);
+    for (int i = 0; i < 2; ++i)
+        if (pthread_create(&threads[i], NULL, run_then_wait, tags[i])) exit(2);
+    pthread_barrier_wait(&ran);
+    say("unloaded %d\n", dlclose(fmu_library));
+    pthread_barrier_wait(&unloaded);
+    for (int i = 0; i < 2; ++i) pthread_join(threads[i], NULL);
+}
+
+/* Mode "pair": the second FMU, run with its default start values from its own binary */
+static pthread_barrier_t instantiating;
+
+static void *run_second(void *line)
+{
+    char binary[4096], uri[4096], guid[256];
+    unsigned int vr;
+    if (sscanf(line, "%4095s %4095s %255s %u", binary, uri, guid, &vr) != 4) exit(2);
+    void *lib = dlopen(binary, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+        say("failed dlopen %s\n", dlerror());
+        exit(1);
+    }
+    Component (*instantiate2)(const char *, int, const char *, const char *, const Callbacks *, int, int) =
+        (Component (*)(const char *, int, const char *, const char *, const Callbacks *, int, int))dlsym(lib, "fmi2Instantiate");
+    Status (*setup)(Component, int, double, double, int, double) = (Status (*)(Component, int, double, double, int, double))dlsym(lib, "fmi2SetupExperiment");
+    Status (*enter)(Component) = (Status (*)(Component))dlsym(lib, "fmi2EnterInitializationMode");
+    Status (*exit_init)(Component) = (Status (*)(Component))dlsym(lib, "fmi2ExitInitializationMode");
+    Status (*do_step)(Component, double, double, int) = (Status (*)(Component, double, double, int))dlsym(lib, "fmi2DoStep");
+    Status (*get_real)(Component, const VR *, size_t, double *) = (Status (*)(Component, const VR *, size_t, double *))dlsym(lib, "fmi2GetReal");
+    pthread_barrier_wait(&instantiating);
+    Component c = instantiate2("b", 1, guid, uri, &callbacks, 0, 0);
+    if (!c) {
+        say("failed fmi2Instantiate NULL\n");
+        exit(1);
+    }
+    check("fmi2SetupExperiment", setup(c, 0, 0.0, 0.0, 1, stop_time));
+    check("fmi2EnterInitializationMode", enter(c));
+    check("fmi2ExitInitializationMode", exit_init(c));
+    double t = 0.0, value;
+    for (long n = 0; !done(t, stop_time); ++n) {
+        double next = next_point(n, stop_time);
+        check("fmi2DoStep", do_step(c, t, next - t, 1));
+        t = next;
+    }
+    check("fmi2GetReal", get_real(c, &vr, 1, &value));
+    say("b %.17g %.17g\n", t, value);
+    return NULL;
+}
+
+static void *run_first(void *tag)
+{
+    pthread_barrier_wait(&instantiating);
+    run_one(tag, tag);
+    return NULL;
+}
+
+static void mode_pair(void)
+{
+    pthread_t threads[2];
+    char *second = getenv("HOST_SECOND");
+    if (!second) exit(2);
+    pthread_barrier_init(&instantiating, NULL, 2);
+    if (pthread_create(&threads[0], NULL, run_first, "a") || pthread_create(&threads[1], NULL, run_second, second))
+        exit(2);
+    for (int i = 0; i < 2; ++i) pthread_join(threads[i], NULL);
+}
+
 int main(int argc, char **argv)
 {
     static const char *const names[] = {
@@ -294,6 +382,8 @@ int main(int argc, char **argv)
     else if (!strcmp(mode, "cycles")) mode_cycles();
     else if (!strcmp(mode, "bench")) mode_bench();
     else if (!strcmp(mode, "thread_steps")) mode_thread_steps();
+    else if (!strcmp(mode, "unload")) mode_unload();
+    else if (!strcmp(mode, "pair")) mode_pair();
     else {
         fprintf(stderr, "unknown mode %s\n", mode);
         return 2;

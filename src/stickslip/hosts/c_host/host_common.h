@@ -30,6 +30,7 @@ static double stop_time, step;               /* s */
 static unsigned int output;                  /* value reference of the real output printed */
 static int n_settings;
 static char **settings;                      /* start values, set in this order */
+static void *fmu_library;                    /* the FMU's binary, as dlopen gave it */
 
 /* Parse the command line and load the FMU's functions `names` into `slots`, in order; 0 after a printed failure. */
 static int start_host(int argc, char **argv, const char *const *names, size_t n, void **slots)
@@ -38,7 +39,7 @@ static int start_host(int argc, char **argv, const char *const *names, size_t n,
         fprintf(stderr, "usage: %s BINARY RESOURCES TOKEN MODE STOP STEP OUTPUT_VR [rVR=VALUE|iVR=VALUE ...]\n", argv[0]);
         return 0;
     }
-    void *lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
+    void *lib = fmu_library = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
     if (!lib) {
         say("failed dlopen %s\n", dlerror());
         return 0;
