@@ -308,7 +308,9 @@ def test_a_new_thread_per_step_keeps_memory_flat(extracted, request):
     run = run_host(host, folder, "thread_steps", 20.0, 0.01, STUCK, timeout=TIMEOUT)
     assert run.completed, (run.returncode, run.lines[-3:], run.stderr[-2000:])
     assert run.value("steps") == ["2000"]
-    _, x = run_host(host, folder, "run", 20.0, 0.01, STUCK, timeout=TIMEOUT).series("x")
+    alone = run_host(host, folder, "run", 20.0, 0.01, STUCK, timeout=TIMEOUT)
+    assert alone.completed, (alone.returncode, alone.stderr[-2000:])
+    _, x = alone.series("x")
     assert run.series("x") == ([20.0], x[-1:])  # the same run as from one thread
     growth = int(run.value("rss_kb_end")[0]) - int(run.value("rss_kb_warm")[0])
     assert growth < 1024, f"{growth} kB more after 1,900 steps from new threads"

@@ -17,9 +17,8 @@ same first order, a larger error (docs/systems.md gives both).
 
 libcosim and ecos run in a child process (``python -m stickslip.systems.engines`` reads a JSON spec on stdin and
 prints ``RESULT_MARK + json``): an engine that aborts (libcosim calls ``std::terminate`` on a failure during its
-initialization) or hangs ends as an FMUError naming it, and ecos gets its ``LD_LIBRARY_PATH``. Its
-executions are kept and the child leaves with ``os._exit`` once its result is printed: libcosimpy 0.0.6 crashes
-(SIGSEGV) when it destroys an execution made from an SSP, even one of the block FMUs alone.
+initialization) or hangs ends as an FMUError naming it, and ecos gets its ``LD_LIBRARY_PATH``. The child must
+exit with status 0 after printing its result.
 """
 
 import ctypes.util
@@ -42,8 +41,6 @@ RESULT_MARK = "@@ssp-engine-result@@"
 REALS, INTEGERS = ("x", "v", "t_last_event"), ("mode", "n_events")
 #: the Python package each engine needs
 PACKAGES = {"libcosim": "libcosimpy", "ecos": "ecospy"}
-#: the child's libcosim executions, never destroyed (see the module text)
-_KEPT = []
 
 
 def run_ssp(engine, system, step, block_fmu):
@@ -148,7 +145,6 @@ def run_libcosim(spec):
     execution = CosimExecution.from_ssp_file(spec["ssp"], step_size=round(spec["step"] * 1e9))
     observer = CosimObserver.create_last_value()
     execution.add_observer(observer)
-    _KEPT.append((execution, observer))
     blocks = []
     for i in range(1, spec["blocks"] + 1):
         index = execution.slave_index_from_instance_name(f"b{i}")
@@ -185,5 +181,3 @@ def run_ecos(spec):
 if __name__ == "__main__":
     job = json.loads(sys.stdin.read())
     print(RESULT_MARK + json.dumps({"libcosim": run_libcosim, "ecos": run_ecos}[job["engine"]](job)), flush=True)
-    sys.stderr.flush()
-    os._exit(0)  # libcosimpy 0.0.6 crashes destroying an execution made from an SSP (the block FMUs alone too)
