@@ -133,7 +133,6 @@ BAD_LOCATIONS = {  # the location (Python in the probe) and what the message say
     "not-utf8": ("uri + b'%FF'", "not UTF-8 text"),
     "a-file": ("str(folder / 'modelDescription.xml').encode()", "modelDescription.xml, which is not a folder"),
     "not-the-resources": ("str(folder).encode()", "is not this FMU's resources folder: "),
-    "literal-%20": ("b'/tmp/a%20b/resources/'", "contains '%20', which the FMU's library rewrites"),
 }
 
 
