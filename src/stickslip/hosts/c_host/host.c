@@ -54,7 +54,8 @@ typedef struct {
     void *componentEnvironment;
 } Callbacks;
 
-static struct {
+/* The FMU's functions, in the order of `function_names` */
+typedef struct {
     Component (*instantiate)(const char *, int, const char *, const char *, const Callbacks *, int, int);
     void (*free_instance)(Component);
     Status (*setup)(Component, int, double, double, int, double);
@@ -72,7 +73,16 @@ static struct {
     Status (*state_size)(Component, void *, size_t *);
     Status (*serialize)(Component, void *, char *, size_t);
     Status (*deserialize)(Component, const char *, size_t, void **);
-} fmi;
+} Functions;
+
+static const char *const function_names[] = {
+    "fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
+    "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2Reset", "fmi2DoStep", "fmi2GetReal", "fmi2SetReal",
+    "fmi2SetInteger", "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate",
+    "fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate"};
+#define N_FUNCTIONS (sizeof function_names / sizeof *function_names)
+
+static Functions fmi; /* the FMU's (the second FMU of mode "pair" has its own) */
 
 static void logger(void *env, const char *name, Status status, const char *category, const char *message, ...)
 {
@@ -282,31 +292,6 @@ static void mode_thread_steps(void)
     finish(c);
 }
 
-/* Mode "unload": the threads that called the FMU end after it was unloaded */
-static pthread_barrier_t ran, unloaded;
-
-static void *run_then_wait(void *tag)
-{
-    run_one(tag, tag);
-    pthread_barrier_wait(&ran);
-    pthread_barrier_wait(&unloaded);
-    return NULL;
-}
-
-static void mode_unload(void)
-{
-    pthread_t threads[2];
-    static char *tags[] = {"a", "b"};
-    pthread_barrier_init(&ran, NULL, 3);
-    pthread_barrier_init(&unloaded, NULL, 3);
-    for (int i = 0; i < 2; ++i)
-        if (pthread_create(&threads[i], NULL, run_then_wait, tags[i])) exit(2);
-    pthread_barrier_wait(&ran);
-    say("unloaded %d\n", dlclose(fmu_library));
-    pthread_barrier_wait(&unloaded);
-    for (int i = 0; i < 2; ++i) pthread_join(threads[i], NULL);
-}
-
 /* Mode "pair": the second FMU, run with its default start values from its own binary */
 static pthread_barrier_t instantiating;
 
@@ -314,36 +299,28 @@ static void *run_second(void *line)
 {
     char binary[4096], uri[4096], guid[256];
     unsigned int vr;
+    Functions other;
     if (sscanf(line, "%4095s %4095s %255s %u", binary, uri, guid, &vr) != 4) exit(2);
-    void *lib = dlopen(binary, RTLD_NOW | RTLD_LOCAL);
-    if (!lib) {
-        say("failed dlopen %s\n", dlerror());
-        exit(1);
-    }
-    Component (*instantiate2)(const char *, int, const char *, const char *, const Callbacks *, int, int) =
-        (Component (*)(const char *, int, const char *, const char *, const Callbacks *, int, int))dlsym(lib, "fmi2Instantiate");
-    Status (*setup)(Component, int, double, double, int, double) = (Status (*)(Component, int, double, double, int, double))dlsym(lib, "fmi2SetupExperiment");
-    Status (*enter)(Component) = (Status (*)(Component))dlsym(lib, "fmi2EnterInitializationMode");
-    Status (*exit_init)(Component) = (Status (*)(Component))dlsym(lib, "fmi2ExitInitializationMode");
-    Status (*do_step)(Component, double, double, int) = (Status (*)(Component, double, double, int))dlsym(lib, "fmi2DoStep");
-    Status (*get_real)(Component, const VR *, size_t, double *) = (Status (*)(Component, const VR *, size_t, double *))dlsym(lib, "fmi2GetReal");
+    if (!load_fmu(binary, function_names, N_FUNCTIONS, (void **)&other)) exit(1);
     pthread_barrier_wait(&instantiating);
-    Component c = instantiate2("b", 1, guid, uri, &callbacks, 0, 0);
+    Component c = other.instantiate("b", 1, guid, uri, &callbacks, 0, 0);
     if (!c) {
         say("failed fmi2Instantiate NULL\n");
         exit(1);
     }
-    check("fmi2SetupExperiment", setup(c, 0, 0.0, 0.0, 1, stop_time));
-    check("fmi2EnterInitializationMode", enter(c));
-    check("fmi2ExitInitializationMode", exit_init(c));
+    check("fmi2SetupExperiment", other.setup(c, 0, 0.0, 0.0, 1, stop_time));
+    check("fmi2EnterInitializationMode", other.enter(c));
+    check("fmi2ExitInitializationMode", other.exit_init(c));
     double t = 0.0, value;
     for (long n = 0; !done(t, stop_time); ++n) {
         double next = next_point(n, stop_time);
-        check("fmi2DoStep", do_step(c, t, next - t, 1));
+        check("fmi2DoStep", other.do_step(c, t, next - t, 1));
         t = next;
     }
-    check("fmi2GetReal", get_real(c, &vr, 1, &value));
+    check("fmi2GetReal", other.get_real(c, &vr, 1, &value));
     say("b %.17g %.17g\n", t, value);
+    check("fmi2Terminate", other.terminate(c));
+    other.free_instance(c);
     return NULL;
 }
 
@@ -367,12 +344,7 @@ static void mode_pair(void)
 
 int main(int argc, char **argv)
 {
-    static const char *const names[] = {
-        "fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
-        "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2Reset", "fmi2DoStep", "fmi2GetReal", "fmi2SetReal",
-        "fmi2SetInteger", "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate",
-        "fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate"};
-    if (!start_host(argc, argv, names, sizeof names / sizeof *names, (void **)&fmi)) return argc < 8 ? 2 : 1;
+    if (!start_host(argc, argv, function_names, N_FUNCTIONS, (void **)&fmi)) return argc < 8 ? 2 : 1;
     if (!strcmp(mode, "run")) run_one("run", "x");
     else if (!strcmp(mode, "bad")) mode_bad();
     else if (!strcmp(mode, "reset")) mode_reset();
@@ -382,7 +354,7 @@ int main(int argc, char **argv)
     else if (!strcmp(mode, "cycles")) mode_cycles();
     else if (!strcmp(mode, "bench")) mode_bench();
     else if (!strcmp(mode, "thread_steps")) mode_thread_steps();
-    else if (!strcmp(mode, "unload")) mode_unload();
+    else if (!strcmp(mode, "unload")) unload_after_runs(thread_main);
     else if (!strcmp(mode, "pair")) mode_pair();
     else {
         fprintf(stderr, "unknown mode %s\n", mode);
