@@ -55,13 +55,16 @@ def test_a_host_that_unloads_the_fmu_before_its_threads_end_exits_normally(reque
     assert points == sorted(2 * [tuple(line[1:]) for line in alone.lines if line[0] == "x"])
 
 
-@pytest.mark.parametrize("second", ["copy", "coupling"])
-def test_two_fmus_started_at_once_on_two_threads(host, unzipped, coupling_folder, tmp_path, second):
-    """The block FMU on one thread and another FMU on another (a copy of the block FMU in another folder, or the
-    coupling FMU), instantiated at the same moment: both start Python through their own loader, which must do it
-    once for the process. Every run exits 0 with the results of each FMU run alone."""
-    other, output = (copy_of(unzipped[0], tmp_path / "copy"), "x") if second == "copy" else (coupling_folder, "F")
-    alone = run_host(host, other, "run", 2.0, 0.5, output=output)
+@pytest.mark.parametrize("second", ["copy", "fmi3", "coupling"])
+def test_two_fmus_started_at_once_on_two_threads(request, host, unzipped, coupling_folder, tmp_path, second):
+    """The FMI 2 block FMU on one thread and another FMU on another (a copy of it in another folder, the FMI 3 block
+    FMU, or the coupling FMU), instantiated at the same moment: both start Python through their own loader, which
+    must do it once for the process. Every run exits 0 with the results of each FMU run alone."""
+    other, output, other_host = {
+        "copy": lambda: (copy_of(unzipped[0], tmp_path / "copy"), "x", host),
+        "fmi3": lambda: (request.getfixturevalue("unzipped3")[0], "x", request.getfixturevalue("host3")),
+        "coupling": lambda: (coupling_folder, "F", host)}[second]()
+    alone = run_host(other_host, other, "run", 2.0, 0.5, output=output)
     first_alone = run_host(host, unzipped[0], "run", 2.0, 0.5, STUCK)
     assert alone.completed and first_alone.completed
     command = host_command(host, other, "run", 2.0, 0.5, output=output)

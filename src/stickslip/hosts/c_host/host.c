@@ -25,8 +25,9 @@
  *        after 100 steps and at the end ("rss_kb_warm K", "rss_kb_end K"), then "x T X" at the end
  * unload two threads each run an instance ("a"/"b" lines like "x") and then wait; the FMU is
  *        unloaded (dlclose) and only then do the threads end
- * pair   the FMU on one thread and a second FMU ($HOST_SECOND: "BINARY RESOURCE_URI GUID OUTPUT_VR",
- *        its default start values, another binary) on another, both instantiated at the same time:
+ * pair   the FMU on one thread and a second FMU ($HOST_SECOND: "BINARY RESOURCES TOKEN OUTPUT_VR", its
+ *        default start values, another binary: FMI 2, or FMI 3 co-simulation if BINARY is in an x86_64-linux
+ *        folder, RESOURCES then a path) on another, both instantiated at the same time:
  *        "a T X" and "b T X" (its output) at the end of each run
  * Every line is flushed. The exit code is 0 when the mode ran to its end (a
  * failing FMI call ends the program with "failed FUNCTION STATUS" and code 1). */
@@ -35,6 +36,7 @@
 #include <math.h>
 #include <pthread.h>
 #include <stdarg.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -295,12 +297,63 @@ static void mode_thread_steps(void)
 /* Mode "pair": the second FMU, run with its default start values from its own binary */
 static pthread_barrier_t instantiating;
 
+/* An FMI 3 co-simulation FMU's functions, for mode "pair" */
+static const char *const fmi3_names[] = {"fmi3InstantiateCoSimulation", "fmi3EnterInitializationMode",
+                                         "fmi3ExitInitializationMode", "fmi3DoStep", "fmi3GetFloat64",
+                                         "fmi3Terminate", "fmi3FreeInstance"};
+typedef struct {
+    Component (*instantiate)(const char *, const char *, const char *, bool, bool, bool, bool, const VR *, size_t,
+                             void *, void (*)(void *, Status, const char *, const char *), void *);
+    Status (*enter)(Component, bool, double, double, bool, double);
+    Status (*exit_init)(Component);
+    Status (*do_step)(Component, double, double, bool, bool *, bool *, bool *, double *);
+    Status (*get_float64)(Component, const VR *, size_t, double *, size_t);
+    Status (*terminate)(Component);
+    void (*free_instance)(Component);
+} Fmi3Functions;
+
+static void log_fmi3(void *env, Status status, const char *category, const char *message)
+{
+    (void)env, (void)category;
+    say("log %d b %s\n", status, message);
+}
+
+/* The second FMU of mode "pair" as an FMI 3 co-simulation FMU (`path`: its resources folder): "b T X" at the end */
+static void run_second_fmi3(const char *binary, const char *path, const char *token, VR vr)
+{
+    Fmi3Functions other;
+    if (!load_fmu(binary, fmi3_names, sizeof fmi3_names / sizeof *fmi3_names, (void **)&other)) exit(1);
+    pthread_barrier_wait(&instantiating);
+    Component c = other.instantiate("b", token, path, false, false, false, false, NULL, 0, NULL, log_fmi3, NULL);
+    if (!c) {
+        say("failed fmi3InstantiateCoSimulation NULL\n");
+        exit(1);
+    }
+    check("fmi3EnterInitializationMode", other.enter(c, false, 0.0, 0.0, true, stop_time));
+    check("fmi3ExitInitializationMode", other.exit_init(c));
+    double t = 0.0, value, last;
+    bool event, terminate, early;
+    for (long n = 0; !done(t, stop_time); ++n) {
+        double next = next_point(n, stop_time);
+        check("fmi3DoStep", other.do_step(c, t, next - t, true, &event, &terminate, &early, &last));
+        t = next;
+    }
+    check("fmi3GetFloat64", other.get_float64(c, &vr, 1, &value, 1));
+    say("b %.17g %.17g\n", t, value);
+    check("fmi3Terminate", other.terminate(c));
+    other.free_instance(c);
+}
+
 static void *run_second(void *line)
 {
     char binary[4096], uri[4096], guid[256];
     unsigned int vr;
     Functions other;
     if (sscanf(line, "%4095s %4095s %255s %u", binary, uri, guid, &vr) != 4) exit(2);
+    if (strstr(binary, "/x86_64-linux/")) {
+        run_second_fmi3(binary, uri, guid, vr);
+        return NULL;
+    }
     if (!load_fmu(binary, function_names, N_FUNCTIONS, (void **)&other)) exit(1);
     pthread_barrier_wait(&instantiating);
     Component c = other.instantiate("b", 1, guid, uri, &callbacks, 0, 0);
