@@ -83,26 +83,6 @@ FMPY_RUN = ("import fmpy, sys; r = fmpy.simulate_fmu(sys.argv[1], stop_time=2.0,
             "start_values={'v_start': 0.1}, output=['x']); print('x', *r['x'])")
 
 
-@pytest.mark.parametrize("name", FOLDERS)
-def test_folders_the_fmi_libraries_would_rewrite(host, host3, unzipped, unzipped3, tmp_path, name):
-    """Both FMUs extracted below a folder whose name has '%', '%20', a space or non-ASCII letters run through FMPy
-    and through the C hosts with the results of a plain folder; the slave gets the folder's path byte for byte."""
-    for fmi, (folder, c_host) in {2: (unzipped[0], host), 3: (unzipped3[0], host3)}.items():
-        plain = copy_of(folder, tmp_path / f"plain{fmi}")
-        odd = copy_of(folder, tmp_path / name / f"fmu{fmi}")
-        runs = [subprocess.run([sys.executable, "-c", FMPY_RUN, str(where)], capture_output=True, text=True,
-                               timeout=120) for where in (plain, odd)]
-        assert [r.returncode for r in runs] == [0, 0], runs[1].stderr[-2000:]
-        assert runs[1].stdout.split("x")[-1] == runs[0].stdout.split("x")[-1]
-        in_c = [run_host(c_host, where, "run", 2.0, 0.5, STUCK) for where in (plain, odd)]
-        assert [r.returncode for r in in_c] == [0, 0] and in_c[1].completed, in_c[1].lines[-3:]
-        assert in_c[1].series("x") == in_c[0].series("x")
-        folder_seen = subprocess.run([sys.executable, "-c", SLAVE_FOLDER, str(odd), str(fmi)], capture_output=True,
-                                     text=True, timeout=120)
-        assert folder_seen.returncode == 0, folder_seen.stderr[-2000:]
-        assert folder_seen.stdout.splitlines()[-1] == str(odd / "resources") + ("/" if fmi == 3 else "")
-
-
 # the resources folder the slave holds, with the loader's fast path bound (FMI 2: the output derivative answers)
 SLAVE_FOLDER = textwrap.dedent("""
     import gc, sys
@@ -124,6 +104,26 @@ SLAVE_FOLDER = textwrap.dedent("""
         slave.getRealOutputDerivatives(reference, [1])
     print(found[0].resources)
 """)
+
+
+@pytest.mark.parametrize("name", FOLDERS)
+def test_folders_the_fmi_libraries_would_rewrite(host, host3, unzipped, unzipped3, tmp_path, name):
+    """Both FMUs extracted below a folder whose name has '%', '%20', a space or non-ASCII letters run through FMPy
+    and through the C hosts with the results of a plain folder; the slave gets the folder's path byte for byte."""
+    for fmi, (folder, c_host) in {2: (unzipped[0], host), 3: (unzipped3[0], host3)}.items():
+        plain = copy_of(folder, tmp_path / f"plain{fmi}")
+        odd = copy_of(folder, tmp_path / name / f"fmu{fmi}")
+        runs = [subprocess.run([sys.executable, "-c", FMPY_RUN, str(where)], capture_output=True, text=True,
+                               timeout=120) for where in (plain, odd)]
+        assert [r.returncode for r in runs] == [0, 0], runs[1].stderr[-2000:]
+        assert runs[1].stdout.split("x")[-1] == runs[0].stdout.split("x")[-1]
+        in_c = [run_host(c_host, where, "run", 2.0, 0.5, STUCK) for where in (plain, odd)]
+        assert [r.returncode for r in in_c] == [0, 0] and in_c[1].completed, in_c[1].lines[-3:]
+        assert in_c[1].series("x") == in_c[0].series("x")
+        folder_seen = subprocess.run([sys.executable, "-c", SLAVE_FOLDER, str(odd), str(fmi)], capture_output=True,
+                                     text=True, timeout=120)
+        assert folder_seen.returncode == 0, folder_seen.stderr[-2000:]
+        assert folder_seen.stdout.splitlines()[-1] == str(odd / "resources") + ("/" if fmi == 3 else "")
 
 
 SIGINT_HOST = textwrap.dedent("""
