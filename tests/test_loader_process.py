@@ -16,7 +16,7 @@ from stickslip.fmu.coupling import ensure_coupling_fmu
 from stickslip.hosts.c_host import host_command, run_host
 
 STUCK = {"v_start": 0.1}  # the default block, stuck: x = 0.1 t - 0.01 after breakaway
-RUNS = {"unload": 10, "pair": 20}  # processes per case
+RUNS = {"unload": 10, "pair": 20, "sigint": 20}  # processes per case
 FOLDERS = ("100% done", "a%20b", "jürgen dir")
 
 
@@ -160,14 +160,14 @@ def test_ctrl_c_while_the_model_steps_reaches_the_host_not_the_model(unzipped):
     KeyboardInterrupt in the host's own code (exit 7), never as an FMU error status ("[doStep]
     KeyboardInterrupt()", exit 3)."""
     outcomes = []
-    for k in range(10):
+    for k in range(RUNS["sigint"]):
         env = dict(os.environ, SBF_FAST_PATH=str(k % 2))  # steps through the fast path and through PythonFMU
         child = subprocess.Popen([sys.executable, "-c", SIGINT_HOST, str(unzipped[0])], stdout=subprocess.PIPE,
                                  stderr=subprocess.PIPE, text=True, env=env)
         assert child.stdout.readline().strip() == "stepping"
-        time.sleep(0.05 + 0.037 * k)
+        time.sleep(0.05 + 0.037 * (k % 10))
         child.send_signal(signal.SIGINT)
         out, err = child.communicate(timeout=60)
         outcomes.append((child.returncode, out.strip(), err[-300:]))
-    assert [code for code, _, _ in outcomes] == [7] * 10, outcomes
+    assert [code for code, _, _ in outcomes] == [7] * RUNS["sigint"], outcomes
     assert not any("KeyboardInterrupt()" in err or "FMU error" in out for _, out, err in outcomes)

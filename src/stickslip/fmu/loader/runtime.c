@@ -73,6 +73,7 @@ static struct {
     void (*PyThreadState_Clear)(void *);
     void (*PyThreadState_DeleteCurrent)(void);
     int (*Py_IsFinalizing)(void); /* _Py_IsFinalizing before CPython 3.13; NULL before 3.7 */
+    int (*PyOS_InterruptOccurred)(void); /* takes back a SIGINT Python has noted and not handled yet */
     void (*PyConfig_InitPythonConfig)(void *);
     PyStatus (*PyConfig_SetBytesArgv)(void *, long, char *const *);
     PyStatus (*Py_InitializeFromConfig)(const void *);
@@ -105,6 +106,7 @@ static int resolve_python(void *lib)
 #define RESOLVE(symbol) (*(void **)&py.symbol = dlsym(lib, #symbol)) != NULL
     *(void **)&py.Py_IsFinalizing = dlsym(lib, "Py_IsFinalizing");
     if (!py.Py_IsFinalizing) *(void **)&py.Py_IsFinalizing = dlsym(lib, "_Py_IsFinalizing");
+    *(void **)&py.PyOS_InterruptOccurred = dlsym(lib, "PyOS_InterruptOccurred");
     return RESOLVE(Py_IsInitialized) && RESOLVE(PyGILState_Ensure) && RESOLVE(PyGILState_Release) &&
            RESOLVE(PyGILState_GetThisThreadState) && RESOLVE(PyEval_SaveThread) && RESOLVE(PyEval_RestoreThread) &&
            RESOLVE(PyThreadState_Clear) && RESOLVE(PyThreadState_DeleteCurrent);
@@ -374,11 +376,16 @@ int sbf_start(sbf_resolve_inner resolve)
  * wrapped, once per loader copy (under the process-wide lock, so copies chain): while the main thread is inside a
  * call into the model, the wrapper only notes the signal, and the call's end raises it again, so that the host's
  * handler runs after the call returns, on that thread. Calls from other threads are not waited for (Python runs its
- * handlers in the main thread only). Costs per call: a thread-local read, and on the main thread two counter
- * updates. A default or ignored SIGINT is left alone; a handler the host installs later replaces the wrapper. */
+ * handlers in the main thread only). A SIGINT that reached Python's handler just before a call, which Python has
+ * noted but not yet acted on, would be acted on in the model's code all the same (or lost, in a call whose Python
+ * exceptions the loader clears): the wrapper notes that it passed one on, and the next call on the main thread
+ * takes it back from Python (PyOS_InterruptOccurred) and defers it too. Costs per call: a thread-local read, and on
+ * the main thread two counter updates (and, once after each SIGINT, taking the GIL). A default or ignored SIGINT is
+ * left alone; a handler the host installs later replaces the wrapper. */
 static struct sigaction host_sigint;        /* the handler wrapped */
 static volatile sig_atomic_t main_in_model; /* depth of calls into the model on the process's main thread */
 static volatile sig_atomic_t sigint_deferred;
+static volatile sig_atomic_t sigint_passed_on; /* the wrapper called the host's handler since the last call began */
 static __thread int on_main_thread = -1;    /* -1 not known yet */
 
 static void deferring_handler(int signal, siginfo_t *info, void *context)
@@ -387,6 +394,7 @@ static void deferring_handler(int signal, siginfo_t *info, void *context)
         sigint_deferred = 1;
         return;
     }
+    sigint_passed_on = 1;
     if (host_sigint.sa_flags & SA_SIGINFO)
         host_sigint.sa_sigaction(signal, info, context);
     else
@@ -411,6 +419,12 @@ void sbf_call_begin(void)
     if (!on_main_thread) return;
     main_in_model = main_in_model + 1;
     atomic_signal_fence(memory_order_seq_cst);
+    if (sigint_passed_on && py.PyOS_InterruptOccurred) { /* take back what Python has not acted on yet */
+        sigint_passed_on = 0;
+        int gil = py.PyGILState_Ensure();
+        if (py.PyOS_InterruptOccurred()) sigint_deferred = 1;
+        py.PyGILState_Release(gil);
+    }
 }
 
 void sbf_call_end(void)
