@@ -334,10 +334,7 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolea
     }
     sbf_keep_thread_state();
     fmi2Status status;
-    sbf_call_begin();
-    int fast = sbf_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why);
-    sbf_call_end();
-    switch (fast) {
+    switch (sbf_model_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
     case 0: status = fmi2OK; break;
     case 1: host_log(c, fmi2Error, why); return fmi2Error;
     default: status = forward_fmi2DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint);

@@ -534,10 +534,7 @@ EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3B
     }
     sbf_keep_thread_state();
     fmi3Status status;
-    sbf_call_begin();
-    int fast = sbf_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why);
-    sbf_call_end();
-    switch (fast) {
+    switch (sbf_model_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
     case 0: status = fmi3OK; break;
     case 1: host_log(c, fmi3Error, why); return fmi3Error;
     default:

@@ -471,6 +471,14 @@ void sbf_keep_thread_state(void)
     pthread_setspecific(owned_state_key, py.PyEval_SaveThread()); /* release the GIL, keep the state */
 }
 
+int sbf_model_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size)
+{
+    sbf_call_begin();
+    int outcome = sbf_fast_step(fast, t, h, why, why_size);
+    sbf_call_end();
+    return outcome;
+}
+
 const char *sbf_exception_text(const char *message, char *out, size_t size)
 {
     static const char prefix[] = "Fatal py exception encountered: ";

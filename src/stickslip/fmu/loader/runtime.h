@@ -41,6 +41,8 @@ int sbf_check_instance(const char *function, const char *name, const char *token
  * inside the model's Python code (see runtime.c). Calls nest. */
 void sbf_call_begin(void);
 void sbf_call_end(void);
+/* sbf_fast_step (fast_path.h) as such a call */
+int sbf_model_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size);
 
 /* The states of FMI's co-simulation state machine that the fronts tell apart (FMI 2.0 section 4.2.4, FMI 3.0
  * section 4.2); a model-exchange instance is SBF_EXCHANGING throughout. */
