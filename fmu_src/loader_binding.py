@@ -44,9 +44,23 @@ def offer_to_loader(slave, resources, platform, first_output, output_kinds):
         if bind is not None:
             bind.argtypes, bind.restype = (ctypes.py_object, ctypes.c_uint, ctypes.c_char_p), ctypes.c_int
             bind(slave, first_output, output_kinds.encode("ascii"))
+            take_resources_folder(slave, loader)
     finally:
         # the reference this lookup took; the host holds its own
         ctypes.CDLL(None).dlclose(ctypes.c_void_p(loader._handle))
+
+
+def take_resources_folder(slave, loader):
+    """``slave.resources`` set to the resources folder as the host named it, which the loader knows: the FMI
+    library may have been handed another path to the same folder (one it does not rewrite, see the loader's
+    ``inner_library_path``)."""
+    folder = getattr(loader, "sbf_bound_folder", None)
+    if folder is None:
+        return
+    folder.argtypes, folder.restype = (), ctypes.c_char_p
+    named = folder()
+    if named:
+        slave.resources = os.fsdecode(named)
 
 
 # ---- the library's release of the slave on an exception ------------------------------------------------------

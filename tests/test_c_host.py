@@ -132,6 +132,7 @@ def test_a_libpython_that_cannot_be_found_is_a_logged_error_not_a_crash(host, fo
 def test_a_broken_pythonhome_is_a_logged_error_not_an_exit_of_the_host(host, folder):
     run = run_host(host, folder, "run", SHORT, SCENE.output_interval, START, env={"PYTHONHOME": "/nonexistent"})
     assert run.lines == [["failed", "fmi2Instantiate", "NULL"]]
+    assert run.returncode == 1
     [(status, _, text)] = run.logs
     assert status == 4 and "failed to start" in text and "PYTHONHOME (/nonexistent)" in text
 
@@ -148,7 +149,7 @@ def test_other_cpythons_through_the_override(host, folder, fmpy_x, libpython):
     run = run_host(host, folder, "run", SHORT, SCENE.output_interval, START, env={LIBPYTHON_VARIABLE: libpython})
     version = tuple(int(p) for p in Path(libpython).name[len("libpython"):].split(".so")[0].rstrip("m").split("."))
     if version < (3, 8):
-        assert run.lines == [["failed", "fmi2Instantiate", "NULL"]]
+        assert run.lines == [["failed", "fmi2Instantiate", "NULL"]] and run.returncode == 1
         assert "CPython 3.8 or newer is needed" in run.logs[0][2]
         return
     times, x = completed(run).series("x")

@@ -180,7 +180,7 @@ def make_container(fmu_path, folder, start):
     proc = subprocess.run([toolbox_command("fmucontainer"), "-fmu-directory", str(folder),
                            "-container", f"box.csv:{SCENE.output_interval}"], capture_output=True, text=True,
                           timeout=TIMEOUT, cwd=folder)
-    assert (folder / "box.fmu").exists(), proc.stdout + proc.stderr
+    assert proc.returncode == 0 and (folder / "box.fmu").exists(), proc.stdout + proc.stderr
     return folder / "box.fmu"
 
 

@@ -108,7 +108,8 @@ def test_libcosim_connection_drives_the_second_block(cosim_runs):
 def test_libcosim_bad_input_during_the_run_is_a_clear_error(fmu_path):
     bad = system(fmu_path, {"a": STICK_SLIP}, steps=40, overrides=[(20, "a", "v_drive", math.nan)])
     child = cosim.run_in_child([bad])
-    failed = child["results"][0]  # delivered even when the child dies afterwards (see the next test)
+    assert child["returncode"] == 0, child["stderr"]
+    failed = child["results"][0]
     assert not failed["ok"]
     assert "v_drive = nan" in failed["error"] and "allowed" in failed["error"]
     assert len(failed["time"]) == 20  # the steps before the bad input were done

@@ -21,9 +21,8 @@ same first order, a larger error (docs/systems.md gives both).
 
 libcosim, ecos and FMPy's SSP simulator run in a child process (``python -m stickslip.systems.engines`` reads a JSON spec on stdin and
 prints ``RESULT_MARK + json``): an engine that aborts (libcosim calls ``std::terminate`` on a failure during its
-initialization) or hangs ends as an FMUError naming it, and ecos gets its ``LD_LIBRARY_PATH``. Its
-executions are kept and the child leaves with ``os._exit`` once its result is printed: libcosimpy 0.0.6 crashes
-(SIGSEGV) when it destroys an execution made from an SSP, even one of the block FMUs alone.
+initialization) or hangs ends as an FMUError naming it, and ecos gets its ``LD_LIBRARY_PATH``. The child must
+exit with status 0 after printing its result.
 """
 
 import ctypes.util
@@ -46,8 +45,6 @@ RESULT_MARK = "@@ssp-engine-result@@"
 REALS, INTEGERS = ("x", "v", "t_last_event"), ("mode", "n_events")
 #: the Python package each engine needs
 PACKAGES = {"libcosim": "libcosimpy", "ecos": "ecospy", "fmpy-ssp": "fmpy"}
-#: the child's libcosim executions, never destroyed (see the module text)
-_KEPT = []
 
 
 def run_ssp(engine, system, step, block_fmu):
@@ -157,7 +154,6 @@ def run_libcosim(spec):
     execution = CosimExecution.from_ssp_file(spec["ssp"], step_size=round(spec["step"] * 1e9))
     observer = CosimObserver.create_last_value()
     execution.add_observer(observer)
-    _KEPT.append((execution, observer))
     blocks = []
     for name in _blocks(spec["blocks"]):
         index = execution.slave_index_from_instance_name(name)
@@ -216,5 +212,3 @@ if __name__ == "__main__":
     job = json.loads(sys.stdin.read())
     run = {"libcosim": run_libcosim, "ecos": run_ecos, "fmpy-ssp": run_fmpy_ssp}[job["engine"]]
     print(RESULT_MARK + json.dumps(run(job)), flush=True)
-    sys.stderr.flush()
-    os._exit(0)  # libcosimpy 0.0.6 crashes destroying an execution made from an SSP (the block FMUs alone too)

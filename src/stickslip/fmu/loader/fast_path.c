@@ -55,6 +55,8 @@ static __thread sbf_fast_path *binding;
 
 void sbf_fast_binding(sbf_fast_path *fast) { binding = fast; }
 
+__attribute__((visibility("default"))) const char *sbf_bound_folder(void) { return binding ? binding->folder : NULL; }
+
 /* Forget the step and outputs calls (under the GIL) */
 static void drop_step_call(sbf_fast_path *fast)
 {
@@ -75,7 +77,7 @@ __attribute__((visibility("default"))) int sbf_bind_slave(PyObject *slave, unsig
     drop_step_call(fast);
     if (fast->slave) py.Py_DecRef(fast->slave);
     py.Py_IncRef(slave);
-    *fast = (sbf_fast_path){.slave = slave, .first = first, .n = n};
+    *fast = (sbf_fast_path){.slave = slave, .first = first, .n = n, .folder = fast->folder};
     memcpy(fast->kinds, kinds, n);
     return 1;
 }
@@ -184,7 +186,7 @@ void sbf_fast_unbind(sbf_fast_path *fast)
         py.Py_DecRef(fast->slave);
         py.PyGILState_Release(gil);
     }
-    *fast = (sbf_fast_path){0};
+    *fast = (sbf_fast_path){.folder = fast->folder};
 }
 
 void sbf_fast_rebinding(sbf_fast_path *fast)

@@ -40,6 +40,7 @@ typedef struct {
     size_t fresh; /* the first `fresh` outputs in reals/integers hold their values at the current state; 0 unless the
                    * state is the one the last fast step left (then the other outputs can be asked for) */
     int moved; /* a fast step moved the state since the slave last heard of it */
+    const char *folder; /* the instance's resources folder (owned by the instance; kept when the slave is dropped) */
 } sbf_fast_path;
 
 /* Resolve the CPython functions the fast path calls from `libpython` (a dlopen handle or RTLD_DEFAULT); without
@@ -49,6 +50,10 @@ void sbf_fast_resolve(void *libpython);
 /* The instance whose slave the inner library constructs next on this thread (NULL when done): set around the
  * inner library's instantiation and reset, when the slave calls sbf_bind_slave. */
 void sbf_fast_binding(sbf_fast_path *fast);
+
+/* Called by the slave while it binds (sbf_bind_slave): the resources folder of the instance being made on this
+ * thread, byte for byte as the host named it (the inner library may have been given another path to it), or NULL. */
+const char *sbf_bound_folder(void);
 
 /* A communication step from `t` by `h` (s): -1 if the fast path cannot take it (forward the call instead), 0 if
  * taken, 1 if the step failed, with the slave's exception as "[doStep] <repr>" in `why`. */

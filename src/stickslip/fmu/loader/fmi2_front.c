@@ -116,6 +116,7 @@ typedef struct {
     sbf_log_filter logging;
     int fatal_is_error; /* during a RECOVERABLE call: PythonFMU's fmi2Fatal is reported as fmi2Error */
     sbf_fast_path fast; /* steps and output reads without PythonFMU (fast_path.h) */
+    char folder[4096]; /* the resources folder, as the host named it (fast.folder) */
 } Instance;
 
 static void host_log(const Instance *inst, fmi2Status status, const char *text)
@@ -169,13 +170,14 @@ static void free_instance(Instance *inst)
     free(inst);
 }
 
-/* Why the instance asked for cannot be made (0 after a message to the host), else 1 with the resources folder's
- * path for PythonFMU in `path`. */
-static int instantiable(const Instance *inst, fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
-                        char *path, size_t size)
+/* Why the instance asked for cannot be made (0 after a message to the host), else 1 with the resources folder in
+ * inst->folder and the path to it for PythonFMU in `path` (as big as inst->folder). */
+static int instantiable(Instance *inst, fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
+                        char *path)
 {
     char why[8192];
-    if (!sbf_check_instance("fmi2Instantiate", name, "GUID", guid, resources, path, size, why, sizeof why)) {
+    if (!sbf_check_instance("fmi2Instantiate", name, "GUID", guid, resources, inst->folder, path, sizeof inst->folder,
+                            why, sizeof why)) {
         host_log(inst, fmi2Error, why);
         return 0;
     }
@@ -192,16 +194,17 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
                                      const fmi2CallbackFunctions *functions, fmi2Boolean visible,
                                      fmi2Boolean loggingOn)
 {
-    char path[4096];
+    char path[sizeof ((Instance *)0)->folder];
     Instance *inst = calloc(1, sizeof *inst);
     if (!inst) return NULL;
+    inst->fast.folder = inst->folder;
     inst->name = strdup(name ? name : "");
     if (functions) inst->host = *functions;
     inst->relay = inst->host;
     inst->relay.logger = relay_log;
     inst->relay.componentEnvironment = inst;
     inst->logging.on = loggingOn;
-    if (!instantiable(inst, name, type, guid, resources, path, sizeof path)) {
+    if (!instantiable(inst, name, type, guid, resources, path)) {
         free_instance(inst);
         return NULL;
     }
@@ -211,9 +214,11 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
         return NULL;
     }
     sbf_keep_thread_state();
+    sbf_call_begin();
     sbf_fast_binding(&inst->fast);
     inst->inner = inner.fmi2Instantiate(name, type, guid, path, &inst->relay, visible, 1);
     sbf_fast_binding(NULL);
+    sbf_call_end();
     if (!inst->inner) {
         free_instance(inst);
         return NULL;
@@ -226,8 +231,10 @@ EXPORT void fmi2FreeInstance(fmi2Component c)
     Instance *inst = c;
     if (!inst) return;
     sbf_keep_thread_state();
+    sbf_call_begin();
     sbf_fast_unbind(&inst->fast);
     inner.fmi2FreeInstance(inst->inner);
+    sbf_call_end();
     free_instance(inst);
 }
 
@@ -323,7 +330,7 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolea
         return fmi2Error;
     }
     sbf_keep_thread_state();
-    switch (sbf_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
+    switch (sbf_model_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
     case 0: return fmi2OK;
     case 1: host_log(c, fmi2Error, why); return fmi2Error;
     default: return forward_fmi2DoStep(c, t, h, noSetFMUStatePriorToCurrentPoint);
@@ -361,8 +368,11 @@ static fmi2Status derivatives(fmi2Component c, const char *function, const char 
         return fmi2Error;
     }
     sbf_keep_thread_state();
+    sbf_call_begin();
     sbf_fast_forward(&inst->fast, writes);
-    switch (sbf_slave_derivatives(&inst->fast, function, method, vr, n, order, values, writes, why, sizeof why)) {
+    int outcome = sbf_slave_derivatives(&inst->fast, function, method, vr, n, order, values, writes, why, sizeof why);
+    sbf_call_end();
+    switch (outcome) {
     case 0: return fmi2OK;
     case 2: host_log(c, fmi2Warning, why); return fmi2Warning;
     default: host_log(c, fmi2Error, why); return fmi2Error;

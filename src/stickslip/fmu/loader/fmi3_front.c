@@ -212,6 +212,7 @@ typedef struct {
     sbf_log_filter logging;
     int fatal_is_error; /* during a RECOVERABLE call: pythonfmu3's fmi3Fatal is reported as fmi3Error */
     sbf_fast_path fast; /* steps and output reads without pythonfmu3 (fast_path.h) */
+    char folder[4096]; /* the resources folder, as the host named it (fast.folder) */
 } Instance;
 
 static void host_log(const Instance *inst, fmi3Status status, const char *text)
@@ -274,7 +275,9 @@ static Instance *new_instance(const char *function, fmi3String name, fmi3String 
     inst->environment = environment;
     inst->log_message = logMessage;
     inst->logging.on = loggingOn;
-    if (!sbf_check_instance(function, name, "instantiation token", token, resourcePath, path, size, why, sizeof why)) {
+    inst->fast.folder = inst->folder;
+    if (!sbf_check_instance(function, name, "instantiation token", token, resourcePath, inst->folder, path,
+                            size < sizeof inst->folder ? size : sizeof inst->folder, why, sizeof why)) {
         host_log(inst, fmi3Error, why);
         free_instance(inst);
         return NULL;
@@ -319,12 +322,14 @@ EXPORT fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3Str
         return NULL;
     }
     if (inst) {
+        sbf_call_begin();
         sbf_fast_binding(&inst->fast);
         inst->inner = inner.fmi3InstantiateCoSimulation(instanceName, instantiationToken, path, visible, true,
                                                         eventModeUsed, earlyReturnAllowed,
                                                         requiredIntermediateVariables, nRequiredIntermediateVariables,
                                                         inst, relay_log, NULL);
         sbf_fast_binding(NULL);
+        sbf_call_end();
     }
     return instantiated(inst);
 }
@@ -339,8 +344,10 @@ EXPORT fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3St
                                   path, sizeof path, loggingOn, instanceEnvironment, logMessage);
     if (inst) {
         inst->mode = SBF_EXCHANGING;
+        sbf_call_begin();
         inst->inner = inner.fmi3InstantiateModelExchange(instanceName, instantiationToken, path, visible, true,
                                                          inst, relay_log);
+        sbf_call_end();
     }
     return instantiated(inst);
 }
@@ -365,8 +372,10 @@ EXPORT void fmi3FreeInstance(fmi3Instance c)
     Instance *inst = c;
     if (!inst) return;
     sbf_keep_thread_state();
+    sbf_call_begin();
     sbf_fast_unbind(&inst->fast);
     inner.fmi3FreeInstance(inst->inner);
+    sbf_call_end();
     free_instance(inst);
 }
 
@@ -525,7 +534,7 @@ EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3B
     }
     sbf_keep_thread_state();
     fmi3Status status;
-    switch (sbf_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
+    switch (sbf_model_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
     case 0: status = fmi3OK; break;
     case 1: host_log(c, fmi3Error, why); status = fmi3Error; break;
     default:

@@ -4,7 +4,8 @@ The loader is ``runtime.c`` (CPython and the inner library) and ``fast_path.c`` 
 without the inner library) with the front of the
 FMU's FMI version (``fmi2_front.c`` or ``fmi3_front.c``). It becomes
 ``binaries/<linux folder>/<model identifier>.so``; the library's own binary stays
-beside it as ``<model identifier>_pythonfmu.so``. The loader
+beside it as ``<model identifier>_pythonfmu.so``, and the start guard (``start_guard.c``, the lock under which
+the first loader of a process starts CPython, shared by every FMU with this loader) as ``sbf_start_guard.so``. The loader
 records the CPython shared library of the Python that builds the FMU (path and
 soname) as the ones to try after ``$SBF_LIBPYTHON``. The compiler is ``$CC``
 (default ``cc``); without a working one the FMU keeps its library's binary, which
@@ -27,8 +28,11 @@ HERE = Path(__file__).resolve().parent
 FRONTS = {2: (HERE / "fmi2_front.c", "binaries/linux64", "PythonFMU"),
           3: (HERE / "fmi3_front.c", "binaries/x86_64-linux", "pythonfmu3")}
 RUNTIME = (HERE / "runtime.c", HERE / "runtime.h", HERE / "fast_path.c", HERE / "fast_path.h")
+START_GUARD = HERE / "start_guard.c"
+#: the start guard's file name beside the loader
+START_GUARD_NAME = "sbf_start_guard.so"
 #: what a built binary depends on
-SOURCES = (*RUNTIME, *(front for front, _, _ in FRONTS.values()), Path(__file__).resolve())
+SOURCES = (*RUNTIME, START_GUARD, *(front for front, _, _ in FRONTS.values()), Path(__file__).resolve())
 LIBPYTHON_VARIABLE = "SBF_LIBPYTHON"  # the loader's override: path or name of a CPython shared library
 
 
@@ -54,7 +58,8 @@ def model_token(model_description, fmi_version):
 
 def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, token=""):
     """Compile the loader of ``fmi_version`` to ``dest``, forwarding to ``inner_name`` beside it and accepting
-    the GUID or instantiation token ``token`` only; None on success, else why not."""
+    the GUID or instantiation token ``token`` only, and the start guard beside ``dest`` (``START_GUARD_NAME``);
+    None on success, else why not."""
     compiler = os.environ.get("CC") or "cc"
     if shutil.which(compiler) is None:
         return f"no C compiler ({compiler!r} not found; set CC)"
@@ -63,12 +68,16 @@ def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, toke
         compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o", str(dest),
         str(FRONTS[fmi_version][0]), str(RUNTIME[0]), str(RUNTIME[2]),
         f"-DSBF_INNER_LIBRARY={_c_string(inner_name)}", f"-DSBF_TOKEN={_c_string(token)}",
+        f"-DSBF_START_GUARD={_c_string(START_GUARD_NAME)}",
         f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
         f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}", "-ldl", "-lpthread",
     ] + (["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else [])
-    result = subprocess.run(command, capture_output=True, text=True)
-    if result.returncode != 0:
-        return f"{compiler} failed: {result.stderr.strip()[-2000:]}"
+    guard = [compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o",
+             str(Path(dest).with_name(START_GUARD_NAME)), str(START_GUARD), "-lpthread"]
+    for step in (command, guard):
+        result = subprocess.run(step, capture_output=True, text=True)
+        if result.returncode != 0:
+            return f"{compiler} failed: {result.stderr.strip()[-2000:]}"
     return None
 
 
@@ -98,5 +107,6 @@ def install(fmu_path, model_identifier, slave_survives_release=False, fmi_versio
             return False
         entries[f"{folder}/{inner_name}"] = entries[binary]
         entries[binary] = loader.read_bytes()
+        entries[f"{folder}/{START_GUARD_NAME}"] = loader.with_name(START_GUARD_NAME).read_bytes()
         write_entries(fmu_path, entries)
     return True

@@ -10,8 +10,14 @@
  *      logged message, not an exit of the host; the host's handlers of SIGINT, SIGPIPE and SIGXFSZ are kept;
  *   3. loads the inner library (PythonFMU's or pythonfmu3's binary, SBF_INNER_LIBRARY beside this one)
  *      and lets the front resolve its entry points.
+ * Steps 1 and 2 run under a process-wide lock that every copy of the loader in the process shares (see
+ * process_start_lock), and sbf_start first pins this library in memory (see pin_library).
  * Each host thread gets one Python thread state, kept for the thread's life (sbf_keep_thread_state).
- * The resource location a host passes is decoded and checked here for both fronts (sbf_resource_folder).
+ * The resource location a host passes is decoded and checked here for both fronts (sbf_check_instance), and the
+ * inner library is handed a path to that folder that it does not rewrite (inner_library_path).
+ * A SIGINT that arrives while the process's main thread is inside a call into the model reaches the host's handler
+ * when that call returns (sbf_call_begin).
+ * What depends on the operating system (Linux, glibc) is in this file only.
  * At process exit the inner library's Python start-up object is reset once before its own destructors run
  * (see reset_inner_python_state).
  */
@@ -27,6 +33,7 @@
 #include <math.h>
 #include <pthread.h>
 #include <signal.h>
+#include <stdatomic.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -34,6 +41,7 @@
 #include <strings.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #ifndef SBF_INNER_LIBRARY
@@ -41,6 +49,9 @@
 #endif
 #ifndef SBF_TOKEN
 #error "define SBF_TOKEN: the FMU's GUID (FMI 2) or instantiation token (FMI 3)"
+#endif
+#ifndef SBF_START_GUARD
+#error "define SBF_START_GUARD: the file name of the process-wide start guard library beside this library"
 #endif
 #ifndef SBF_BUILD_LIBPYTHON
 #define SBF_BUILD_LIBPYTHON ""
@@ -62,6 +73,7 @@ static struct {
     void (*PyThreadState_Clear)(void *);
     void (*PyThreadState_DeleteCurrent)(void);
     int (*Py_IsFinalizing)(void); /* _Py_IsFinalizing before CPython 3.13; NULL before 3.7 */
+    int (*PyOS_InterruptOccurred)(void); /* takes back a SIGINT Python has noted and not handled yet */
     void (*PyConfig_InitPythonConfig)(void *);
     PyStatus (*PyConfig_SetBytesArgv)(void *, long, char *const *);
     PyStatus (*Py_InitializeFromConfig)(const void *);
@@ -94,6 +106,7 @@ static int resolve_python(void *lib)
 #define RESOLVE(symbol) (*(void **)&py.symbol = dlsym(lib, #symbol)) != NULL
     *(void **)&py.Py_IsFinalizing = dlsym(lib, "Py_IsFinalizing");
     if (!py.Py_IsFinalizing) *(void **)&py.Py_IsFinalizing = dlsym(lib, "_Py_IsFinalizing");
+    *(void **)&py.PyOS_InterruptOccurred = dlsym(lib, "PyOS_InterruptOccurred");
     return RESOLVE(Py_IsInitialized) && RESOLVE(PyGILState_Ensure) && RESOLVE(PyGILState_Release) &&
            RESOLVE(PyGILState_GetThisThreadState) && RESOLVE(PyEval_SaveThread) && RESOLVE(PyEval_RestoreThread) &&
            RESOLVE(PyThreadState_Clear) && RESOLVE(PyThreadState_DeleteCurrent);
@@ -248,17 +261,64 @@ static void *find_function(void *lib, const char *path, const char *name)
     return function;
 }
 
-static void load_inner(sbf_resolve_inner resolve)
+/* The path of the file `name` beside this library into `path`; 0 after sbf_fail() if this library cannot be found. */
+static int beside_this_library(const char *name, char *path, size_t size)
 {
     Dl_info self;
-    char path[4096];
     if (!dladdr((void *)&sbf_start, &self) || !self.dli_fname) {
         sbf_fail("cannot locate the FMU's binaries folder");
-        return;
+        return 0;
     }
     const char *slash = strrchr(self.dli_fname, '/');
     int dir_length = slash ? (int)(slash - self.dli_fname + 1) : 0;
-    snprintf(path, sizeof path, "%.*s%s", dir_length, self.dli_fname, SBF_INNER_LIBRARY);
+    snprintf(path, size, "%.*s%s", dir_length, self.dli_fname, name);
+    return 1;
+}
+
+/* Keep this library loaded until the process ends (0 after sbf_fail() if it cannot be). Once sbf_start has run, the
+ * library has code that runs after any call of the host: the destructor of every host thread's Python thread state
+ * (owned_state_key, run by glibc when the thread ends, which may be after the host's dlclose), the SIGINT handler
+ * (sbf_call_begin) and the exit handler (reset_inner_python_state); Python, started once, cannot be started again
+ * in the process, and the inner library it runs stays loaded too. Unloading it would leave those pointing into
+ * unmapped memory (a host that unloads the FMU and then ends a thread that called it died with SIGSEGV). So the
+ * library pins itself with RTLD_NODELETE here, rather than being linked with -z nodelete: a host that loads it and
+ * unloads it without instantiating (to read its functions, say) still unloads it, and the pin holds however the
+ * library was linked. dlclose of the host's handle then only drops a reference. */
+static int pin_library(void)
+{
+    Dl_info self;
+    if (dladdr((void *)&sbf_start, &self) && self.dli_fname &&
+        dlopen(self.dli_fname, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE))
+        return 1;
+    sbf_fail("cannot keep the FMU's binary loaded: %s", dlerror());
+    return 0;
+}
+
+/* The lock under which the first copy of the loader in the process starts Python, NULL after sbf_fail(). Every FMU
+ * built with this loader (the block's FMI 2 and FMI 3 FMUs, the coupling FMU, and each copy of them in another
+ * folder) is a separate library with its own statics, so a lock of its own cannot keep two of them from starting
+ * Python at once on two threads (which crashed the host). The lock is the symbol sbf_python_start_lock of the tiny
+ * start guard library (start_guard.c) that every FMU ships beside its loader: each loader opens its own copy with
+ * RTLD_GLOBAL (and RTLD_NODELETE), then looks the symbol up with dlsym(RTLD_DEFAULT), which searches the global
+ * scope in load order and so answers every copy with the definition of the guard loaded first, for the life of the
+ * process (dlopen and dlsym are serialized by the dynamic linker). The symbol's name is the guard's only export. */
+static pthread_mutex_t *process_start_lock(void)
+{
+    char path[4096];
+    if (!beside_this_library(SBF_START_GUARD, path, sizeof path)) return NULL;
+    if (!dlopen(path, RTLD_NOW | RTLD_GLOBAL | RTLD_NODELETE)) {
+        sbf_fail("cannot load the FMU's start guard %s: %s", path, dlerror());
+        return NULL;
+    }
+    pthread_mutex_t *lock = dlsym(RTLD_DEFAULT, "sbf_python_start_lock");
+    if (!lock) sbf_fail("the FMU's start guard %s lacks sbf_python_start_lock: %s", path, dlerror());
+    return lock;
+}
+
+static void load_inner(sbf_resolve_inner resolve)
+{
+    char path[4096];
+    if (!beside_this_library(SBF_INNER_LIBRARY, path, sizeof path)) return;
     void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!lib) {
         sbf_fail("cannot load the FMU's inner binary %s: %s", path, dlerror());
@@ -269,28 +329,114 @@ static void load_inner(sbf_resolve_inner resolve)
     if (inner_reset_python_state) atexit(reset_inner_python_state);
 }
 
+static void defer_sigint_in_model_calls(void);
+
+/* Steps 1 and 2 of sbf_start, under the process-wide lock: the CPython library (NULL after sbf_fail()), started. */
+static void *start_python(void)
+{
+    const char *where = "";
+    void *lib = NULL;
+    pthread_mutex_t *process_lock = process_start_lock();
+    if (!process_lock) return NULL;
+    pthread_mutex_lock(process_lock);
+    int found = find_libpython(&lib, &where);
+    if (found && !resolve_python(lib))
+        sbf_fail("%s is not a usable CPython library: %s", where, dlerror());
+    else if (found && !py.Py_IsInitialized()) {
+        if (!resolve_config_api(lib))
+            sbf_fail("%s lacks the PyConfig API: CPython 3.8 or newer is needed (set %s)", where, LIBPYTHON_VARIABLE);
+        else
+            initialize_python(where);
+    }
+    if (started == 0) defer_sigint_in_model_calls();
+    pthread_mutex_unlock(process_lock);
+    return started == 0 ? lib : NULL;
+}
+
 int sbf_start(sbf_resolve_inner resolve)
 {
     pthread_mutex_lock(&start_lock);
-    if (started == 0) {
-        const char *where = "";
-        void *lib = NULL;
-        int found = find_libpython(&lib, &where);
-        if (found && !resolve_python(lib))
-            sbf_fail("%s is not a usable CPython library: %s", where, dlerror());
-        else if (found && !py.Py_IsInitialized()) {
-            if (!resolve_config_api(lib))
-                sbf_fail("%s lacks the PyConfig API: CPython 3.8 or newer is needed (set %s)", where,
-                     LIBPYTHON_VARIABLE);
-            else
-                initialize_python(where);
-        }
+    if (started == 0 && pin_library()) {
+        void *lib = start_python();
         if (started == 0) sbf_fast_resolve(lib);
         if (started == 0) load_inner(resolve);
         if (started == 0) started = 1;
     }
     pthread_mutex_unlock(&start_lock);
     return started == 1;
+}
+
+/* ---- Ctrl-C during a call into the model ----
+ * A Python host (FMPy, ...) runs its SIGINT handler, which raises KeyboardInterrupt, in its main thread at the next
+ * Python instruction that thread runs. When the signal arrives while that thread is inside a call into the model,
+ * that instruction is the slave's: the inner library then reports the KeyboardInterrupt as the slave's failure
+ * (an error status, the call maybe half done). Blocking SIGINT in the calling thread is not enough: the kernel
+ * then hands the signal to another thread of the host (a Python host has some: numpy's BLAS pool, its own), whose
+ * run of the handler trips Python's flag all the same. So the handler that the process has when Python is ready is
+ * wrapped, once per loader copy (under the process-wide lock, so copies chain): while the main thread is inside a
+ * call into the model, the wrapper only notes the signal, and the call's end raises it again, so that the host's
+ * handler runs after the call returns, on that thread. Calls from other threads are not waited for (Python runs its
+ * handlers in the main thread only). A SIGINT that reached Python's handler just before a call, which Python has
+ * noted but not yet acted on, would be acted on in the model's code all the same (or lost, in a call whose Python
+ * exceptions the loader clears): the wrapper notes that it passed one on, and the next call on the main thread
+ * takes it back from Python (PyOS_InterruptOccurred) and defers it too. Costs per call: a thread-local read, and on
+ * the main thread two counter updates (and, once after each SIGINT, taking the GIL). A default or ignored SIGINT is
+ * left alone; a handler the host installs later replaces the wrapper. */
+static struct sigaction host_sigint;        /* the handler wrapped */
+static volatile sig_atomic_t main_in_model; /* depth of calls into the model on the process's main thread */
+static volatile sig_atomic_t sigint_deferred;
+static volatile sig_atomic_t sigint_passed_on; /* the wrapper called the host's handler since the last call began */
+static __thread int on_main_thread = -1;    /* -1 not known yet */
+
+static void deferring_handler(int signal, siginfo_t *info, void *context)
+{
+    if (main_in_model) {
+        sigint_deferred = 1;
+        return;
+    }
+    sigint_passed_on = 1;
+    if (host_sigint.sa_flags & SA_SIGINFO)
+        host_sigint.sa_sigaction(signal, info, context);
+    else
+        host_sigint.sa_handler(signal);
+}
+
+static void defer_sigint_in_model_calls(void)
+{
+    struct sigaction now, wrapper;
+    if (sigaction(SIGINT, NULL, &now) != 0) return;
+    if (now.sa_flags & SA_SIGINFO ? !now.sa_sigaction : now.sa_handler == SIG_DFL || now.sa_handler == SIG_IGN) return;
+    host_sigint = now;
+    wrapper = now;
+    wrapper.sa_sigaction = deferring_handler;
+    wrapper.sa_flags = (now.sa_flags | SA_SIGINFO) & ~SA_RESETHAND;
+    sigaction(SIGINT, &wrapper, NULL);
+}
+
+void sbf_call_begin(void)
+{
+    if (on_main_thread < 0) on_main_thread = syscall(SYS_gettid) == getpid();
+    if (!on_main_thread) return;
+    main_in_model = main_in_model + 1;
+    atomic_signal_fence(memory_order_seq_cst);
+    if (sigint_passed_on && py.PyOS_InterruptOccurred) { /* take back what Python has not acted on yet */
+        sigint_passed_on = 0;
+        int gil = py.PyGILState_Ensure();
+        if (py.PyOS_InterruptOccurred()) sigint_deferred = 1;
+        py.PyGILState_Release(gil);
+    }
+}
+
+void sbf_call_end(void)
+{
+    if (on_main_thread != 1) return;
+    atomic_signal_fence(memory_order_seq_cst);
+    main_in_model = main_in_model - 1;
+    atomic_signal_fence(memory_order_seq_cst);
+    if (main_in_model == 0 && sigint_deferred) {
+        sigint_deferred = 0;
+        raise(SIGINT);
+    }
 }
 
 /* ---- host threads' Python thread states ----
@@ -323,6 +469,14 @@ void sbf_keep_thread_state(void)
     pthread_once(&owned_state_once, create_owned_state_key);
     py.PyGILState_Ensure();
     pthread_setspecific(owned_state_key, py.PyEval_SaveThread()); /* release the GIL, keep the state */
+}
+
+int sbf_model_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size)
+{
+    sbf_call_begin();
+    int outcome = sbf_fast_step(fast, t, h, why, why_size);
+    sbf_call_end();
+    return outcome;
 }
 
 const char *sbf_exception_text(const char *message, char *out, size_t size)
@@ -443,9 +597,6 @@ static int resource_folder(const char *location, char *path, size_t size, char *
     if (location_path(location, path, size, cause, sizeof cause)) {
         if (!is_utf8((const unsigned char *)path))
             snprintf(cause, sizeof cause, "names a folder whose path is not UTF-8 text, which Python cannot take");
-        else if (strstr(path, "%20") || strstr(path, "file://"))
-            snprintf(cause, sizeof cause, "names the folder %s, whose path contains '%s', which the FMU's library "
-                     "rewrites: move the FMU to a folder without it", path, strstr(path, "%20") ? "%20" : "file://");
         else if (stat(path, &st) != 0)
             snprintf(cause, sizeof cause, "names the folder %s, which does not exist (%s)", path, strerror(errno));
         else if (!S_ISDIR(st.st_mode))
@@ -457,8 +608,57 @@ static int resource_folder(const char *location, char *path, size_t size, char *
     return ok;
 }
 
+/* Whether the inner library (PythonFMU 0.7.0, pythonfmu3 0.3.4) takes `path` as it is: both replace every "%20" in
+ * the resource location by a space and then cut its first "file://" out (CppfmuInstantiateSlave). */
+static int taken_as_is(const char *path) { return !strstr(path, "%20") && !strstr(path, "file://"); }
+
+/* Descriptors of folders kept open for inner_library_path, one per folder, for the life of the process: Python's
+ * import system keeps the path made from one in sys.path and reads modules through it later. */
+static struct {
+    pthread_mutex_t lock;
+    size_t n;
+    struct { dev_t device; ino_t inode; int fd; } kept[64];
+} folder_fds = {.lock = PTHREAD_MUTEX_INITIALIZER};
+
+/* An open descriptor of the folder `path` (one kept per folder), or -1 with errno set */
+static int folder_fd(const char *path)
+{
+    struct stat st;
+    int fd = -1;
+    if (stat(path, &st) != 0) return -1;
+    pthread_mutex_lock(&folder_fds.lock);
+    for (size_t i = 0; i < folder_fds.n && fd < 0; ++i)
+        if (folder_fds.kept[i].device == st.st_dev && folder_fds.kept[i].inode == st.st_ino) fd = folder_fds.kept[i].fd;
+    if (fd < 0 && (fd = open(path, O_PATH | O_DIRECTORY | O_CLOEXEC)) >= 0 &&
+        folder_fds.n < sizeof folder_fds.kept / sizeof *folder_fds.kept)
+        folder_fds.kept[folder_fds.n++] = (typeof(folder_fds.kept[0])){st.st_dev, st.st_ino, fd};
+    pthread_mutex_unlock(&folder_fds.lock);
+    return fd;
+}
+
+/* The path the inner library is given for the resources folder `folder` (an absolute path), into `path`: `folder`
+ * itself where the library takes it as it is, else the same folder reached through /proc/self/fd/N, N a descriptor
+ * of its parent, kept open (the folder's own name after it, so that the slave finds the FMU's binaries beside it).
+ * The slave then learns `folder` itself from the loader (sbf_bound_folder). 0 with the cause in `why` if neither. */
+static int inner_library_path(const char *folder, char *path, size_t size, char *why, size_t why_size)
+{
+    if (taken_as_is(folder)) return snprintf(path, size, "%s", folder), 1;
+    size_t end = strlen(folder), start;
+    while (end > 1 && folder[end - 1] == '/') --end;
+    for (start = end; start > 0 && folder[start - 1] != '/';) --start;
+    char parent[4096];
+    snprintf(parent, sizeof parent, "%.*s", (int)(start ? start : 1), folder);
+    int fd = folder_fd(parent);
+    if (fd >= 0) snprintf(path, size, "/proc/self/fd/%d/%s", fd, folder + start);
+    if (fd >= 0 && taken_as_is(path)) return 1;
+    snprintf(why, why_size, "the resources folder %s cannot be handed to the FMU's library, which rewrites '%%20' and "
+             "'file://' in it (%s): move the FMU to a folder whose name has neither", folder,
+             fd < 0 ? strerror(errno) : "so does the folder's own name");
+    return 0;
+}
+
 int sbf_check_instance(const char *function, const char *name, const char *token_name, const char *token,
-                       const char *location, char *path, size_t size, char *why, size_t why_size)
+                       const char *location, char *folder, char *path, size_t size, char *why, size_t why_size)
 {
     char cause[8192];
     if (!name)
@@ -466,7 +666,8 @@ int sbf_check_instance(const char *function, const char *name, const char *token
     else if (!token || strcmp(token, SBF_TOKEN) != 0)
         snprintf(cause, sizeof cause, "the %s %s%s%s is not this FMU's %s \"%s\" (see its modelDescription.xml)",
                  token_name, token ? "\"" : "", token ? token : "NULL", token ? "\"" : "", token_name, SBF_TOKEN);
-    else if (resource_folder(location, path, size, cause, sizeof cause))
+    else if (resource_folder(location, folder, size, cause, sizeof cause) &&
+             inner_library_path(folder, path, size, cause, sizeof cause))
         return 1;
     snprintf(why, why_size, "%s: %s", function, cause);
     return 0;

@@ -27,13 +27,22 @@ void sbf_keep_thread_state(void);
 
 /* Whether `function` (fmi2Instantiate, fmi3Instantiate...) can make an instance named `name` with the token
  * `token` (the FMI version's `token_name`: "GUID", "instantiation token") and the resource location `location`:
- * 1 with the resources folder as the inner library takes it (a plain absolute path) in `path`; else 0 with a
- * message naming the function, the value and the cause in `why`. The location is an RFC 8089 file URI
- * (file:///abs, file:/abs, file://localhost/abs; every percent-escape decoded to its byte) or a plain absolute
- * path (FMI 3's form, taken as is); it must name a folder with the FMU's slave module that the inner library
- * does not misread. */
+ * 1 with the resources folder (a plain absolute path) in `folder` and the path to it that the inner library is to be
+ * given in `path` (each `size` bytes; the same unless the library would rewrite the folder's path, see
+ * inner_library_path in runtime.c); else 0 with a message naming the function, the value and the cause in `why`.
+ * The location is an RFC 8089 file URI (file:///abs, file:/abs, file://localhost/abs; every percent-escape decoded
+ * to its byte) or a plain absolute path (FMI 3's form, taken as is); it must name a folder with the FMU's slave
+ * module. */
 int sbf_check_instance(const char *function, const char *name, const char *token_name, const char *token,
-                       const char *location, char *path, size_t size, char *why, size_t why_size);
+                       const char *location, char *folder, char *path, size_t size, char *why, size_t why_size);
+
+/* Around every call into the model (the inner library, or the slave through the fast path): a SIGINT that arrives
+ * meanwhile while this is the process's main thread reaches the host's handler when sbf_call_end is called, not
+ * inside the model's Python code (see runtime.c). Calls nest. */
+void sbf_call_begin(void);
+void sbf_call_end(void);
+/* sbf_fast_step (fast_path.h) as such a call */
+int sbf_model_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size);
 
 /* The states of FMI's co-simulation state machine that the fronts tell apart (FMI 2.0 section 4.2.4, FMI 3.0
  * section 4.2); a model-exchange instance is SBF_EXCHANGING throughout. */
@@ -96,10 +105,12 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
         Instance *inst = c;                                                                          \
         if (!inst) return error;                                                                     \
         sbf_keep_thread_state();                                                                     \
+        sbf_call_begin();                                                                            \
         sbf_fast_forward(&inst->fast, changes);                                                      \
         inst->fatal_is_error = failure;                                                              \
         Status status = inner.name(inst->inner SBF_FORWARD_ARGS args);                               \
         inst->fatal_is_error = 0;                                                                    \
+        sbf_call_end();                                                                              \
         return failure && status == fatal ? error : status;                                          \
     }
 /* The same, for a call that may change the instance */
@@ -124,7 +135,10 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
     SBF_FORWARD_WITH(static, forward_##name, Status, error, fatal, name, failure, 0, params, args)              \
     __attribute__((visibility("default"))) Status name params                                                  \
     {                                                                                                           \
-        if (c && read(&((Instance *)c)->fast SBF_FORWARD_ARGS args)) return ok;                                 \
+        sbf_call_begin();                                                                                       \
+        int answered = c && read(&((Instance *)c)->fast SBF_FORWARD_ARGS args);                                 \
+        sbf_call_end();                                                                                         \
+        if (answered) return ok;                                                                                \
         return forward_##name(c SBF_FORWARD_ARGS args);                                                         \
     }
 /* The exported FMI function `name`, forwarded as is. */
@@ -155,6 +169,7 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
 #define SBF_DESERIALIZE(Status, error, warning, Byte, name, forward, size_of, serialize, free_state)              \
     __attribute__((visibility("default"))) Status name(void *c, const Byte *bytes, size_t size, void **state)    \
     {                                                                                                             \
+        sbf_call_begin();                                                                                         \
         Status status = forward(c, bytes, size, state);                                                           \
         Instance *inst = c;                                                                                       \
         size_t n = 0;                                                                                             \
@@ -168,6 +183,7 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
             status = error;                                                                                       \
         }                                                                                                         \
         free(text);                                                                                               \
+        sbf_call_end();                                                                                           \
         return status;                                                                                            \
     }
 

@@ -24,6 +24,12 @@
  *        fmi2GetReal per step, averaged over the steps
  * thread_steps  one instance, each fmi2DoStep from a new thread: prints the resident memory
  *        after 100 steps and at the end ("rss_kb_warm K", "rss_kb_end K"), then "x T X" at the end
+ * unload two threads each run an instance ("a"/"b" lines like "x") and then wait; the FMU is
+ *        unloaded (dlclose) and only then do the threads end
+ * pair   the FMU on one thread and a second FMU ($HOST_SECOND: "BINARY RESOURCES TOKEN OUTPUT_VR", its
+ *        default start values, another binary: FMI 2, or FMI 3 co-simulation if BINARY is in an x86_64-linux
+ *        folder, RESOURCES then a path) on another, both instantiated at the same time:
+ *        "a T X" and "b T X" (its output) at the end of each run
  * Every line is flushed. The exit code is 0 when the mode ran to its end (a
  * failing FMI call ends the program with "failed FUNCTION STATUS" and code 1). */
 #define _GNU_SOURCE
@@ -31,6 +37,7 @@
 #include <math.h>
 #include <pthread.h>
 #include <stdarg.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -50,7 +57,8 @@ typedef struct {
     void *componentEnvironment;
 } Callbacks;
 
-static struct {
+/* The FMU's functions, in the order of `function_names` */
+typedef struct {
     Component (*instantiate)(const char *, int, const char *, const char *, const Callbacks *, int, int);
     void (*free_instance)(Component);
     Status (*setup)(Component, int, double, double, int, double);
@@ -68,7 +76,16 @@ static struct {
     Status (*state_size)(Component, void *, size_t *);
     Status (*serialize)(Component, void *, char *, size_t);
     Status (*deserialize)(Component, const char *, size_t, void **);
-} fmi;
+} Functions;
+
+static const char *const function_names[] = {
+    "fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
+    "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2Reset", "fmi2DoStep", "fmi2GetReal", "fmi2SetReal",
+    "fmi2SetInteger", "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate",
+    "fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate"};
+#define N_FUNCTIONS (sizeof function_names / sizeof *function_names)
+
+static Functions fmi; /* the FMU's (the second FMU of mode "pair" has its own) */
 
 static void logger(void *env, const char *name, Status status, const char *category, const char *message, ...)
 {
@@ -280,14 +297,110 @@ static void mode_thread_steps(void)
     finish(c);
 }
 
+/* Mode "pair": the second FMU, run with its default start values from its own binary */
+static pthread_barrier_t instantiating;
+
+/* An FMI 3 co-simulation FMU's functions, for mode "pair" */
+static const char *const fmi3_names[] = {"fmi3InstantiateCoSimulation", "fmi3EnterInitializationMode",
+                                         "fmi3ExitInitializationMode", "fmi3DoStep", "fmi3GetFloat64",
+                                         "fmi3Terminate", "fmi3FreeInstance"};
+typedef struct {
+    Component (*instantiate)(const char *, const char *, const char *, bool, bool, bool, bool, const VR *, size_t,
+                             void *, void (*)(void *, Status, const char *, const char *), void *);
+    Status (*enter)(Component, bool, double, double, bool, double);
+    Status (*exit_init)(Component);
+    Status (*do_step)(Component, double, double, bool, bool *, bool *, bool *, double *);
+    Status (*get_float64)(Component, const VR *, size_t, double *, size_t);
+    Status (*terminate)(Component);
+    void (*free_instance)(Component);
+} Fmi3Functions;
+
+static void log_fmi3(void *env, Status status, const char *category, const char *message)
+{
+    (void)env, (void)category;
+    say("log %d b %s\n", status, message);
+}
+
+/* The second FMU of mode "pair" as an FMI 3 co-simulation FMU (`path`: its resources folder): "b T X" at the end */
+static void run_second_fmi3(const char *binary, const char *path, const char *token, VR vr)
+{
+    Fmi3Functions other;
+    if (!load_fmu(binary, fmi3_names, sizeof fmi3_names / sizeof *fmi3_names, (void **)&other)) exit(1);
+    pthread_barrier_wait(&instantiating);
+    Component c = other.instantiate("b", token, path, false, false, false, false, NULL, 0, NULL, log_fmi3, NULL);
+    if (!c) {
+        say("failed fmi3InstantiateCoSimulation NULL\n");
+        exit(1);
+    }
+    check("fmi3EnterInitializationMode", other.enter(c, false, 0.0, 0.0, true, stop_time));
+    check("fmi3ExitInitializationMode", other.exit_init(c));
+    double t = 0.0, value, last;
+    bool event, terminate, early;
+    for (long n = 0; !done(t, stop_time); ++n) {
+        double next = next_point(n, stop_time);
+        check("fmi3DoStep", other.do_step(c, t, next - t, true, &event, &terminate, &early, &last));
+        t = next;
+    }
+    check("fmi3GetFloat64", other.get_float64(c, &vr, 1, &value, 1));
+    say("b %.17g %.17g\n", t, value);
+    check("fmi3Terminate", other.terminate(c));
+    other.free_instance(c);
+}
+
+static void *run_second(void *line)
+{
+    char binary[4096], uri[4096], guid[256];
+    unsigned int vr;
+    Functions other;
+    if (sscanf(line, "%4095s %4095s %255s %u", binary, uri, guid, &vr) != 4) exit(2);
+    if (strstr(binary, "/x86_64-linux/")) {
+        run_second_fmi3(binary, uri, guid, vr);
+        return NULL;
+    }
+    if (!load_fmu(binary, function_names, N_FUNCTIONS, (void **)&other)) exit(1);
+    pthread_barrier_wait(&instantiating);
+    Component c = other.instantiate("b", 1, guid, uri, &callbacks, 0, 0);
+    if (!c) {
+        say("failed fmi2Instantiate NULL\n");
+        exit(1);
+    }
+    check("fmi2SetupExperiment", other.setup(c, 0, 0.0, 0.0, 1, stop_time));
+    check("fmi2EnterInitializationMode", other.enter(c));
+    check("fmi2ExitInitializationMode", other.exit_init(c));
+    double t = 0.0, value;
+    for (long n = 0; !done(t, stop_time); ++n) {
+        double next = next_point(n, stop_time);
+        check("fmi2DoStep", other.do_step(c, t, next - t, 1));
+        t = next;
+    }
+    check("fmi2GetReal", other.get_real(c, &vr, 1, &value));
+    say("b %.17g %.17g\n", t, value);
+    check("fmi2Terminate", other.terminate(c));
+    other.free_instance(c);
+    return NULL;
+}
+
+static void *run_first(void *tag)
+{
+    pthread_barrier_wait(&instantiating);
+    run_one(tag, tag);
+    return NULL;
+}
+
+static void mode_pair(void)
+{
+    pthread_t threads[2];
+    char *second = getenv("HOST_SECOND");
+    if (!second) exit(2);
+    pthread_barrier_init(&instantiating, NULL, 2);
+    if (pthread_create(&threads[0], NULL, run_first, "a") || pthread_create(&threads[1], NULL, run_second, second))
+        exit(2);
+    for (int i = 0; i < 2; ++i) pthread_join(threads[i], NULL);
+}
+
 int main(int argc, char **argv)
 {
-    static const char *const names[] = {
-        "fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
-        "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2Reset", "fmi2DoStep", "fmi2GetReal", "fmi2SetReal",
-        "fmi2SetInteger", "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate",
-        "fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate"};
-    if (!start_host(argc, argv, names, sizeof names / sizeof *names, (void **)&fmi)) return argc < 8 ? 2 : 1;
+    if (!start_host(argc, argv, function_names, N_FUNCTIONS, (void **)&fmi)) return argc < 8 ? 2 : 1;
     if (!strcmp(mode, "run")) run_one("run", "x");
     else if (!strcmp(mode, "bad")) mode_bad();
     else if (!strcmp(mode, "reset")) mode_reset();
@@ -297,6 +410,8 @@ int main(int argc, char **argv)
     else if (!strcmp(mode, "cycles")) mode_cycles();
     else if (!strcmp(mode, "bench")) mode_bench();
     else if (!strcmp(mode, "thread_steps")) mode_thread_steps();
+    else if (!strcmp(mode, "unload")) unload_after_runs(thread_main);
+    else if (!strcmp(mode, "pair")) mode_pair();
     else {
         fprintf(stderr, "unknown mode %s\n", mode);
         return 2;

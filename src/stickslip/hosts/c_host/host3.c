@@ -17,6 +17,8 @@
  * me-bad  as bad, with model-exchange instances
  * thread_steps  one co-simulation instance, each fmi3DoStep from a new thread: prints the resident memory
  *         after 100 steps and at the end ("rss_kb_warm K", "rss_kb_end K"), then "x T X" at the end
+ * unload  two threads each run a co-simulation instance ("x" lines) and then wait; the FMU is unloaded
+ *         (dlclose) and only then do the threads end
  * Every line is flushed. The exit code is 0 when the mode ran to its end (a failing FMI call ends the
  * program with "failed FUNCTION STATUS" and code 1). */
 #define _GNU_SOURCE
@@ -318,6 +320,12 @@ static void run_one(const char *name)
     fmi.free_instance(c);
 }
 
+static void *run_on_thread(void *name)
+{
+    run_one(name);
+    return NULL;
+}
+
 static void mode_bad(void)
 {
     Instance c = instantiate("bad");
@@ -361,6 +369,7 @@ int main(int argc, char **argv)
     if (!strcmp(what, "run")) run_one("run");
     else if (!strcmp(what, "bad")) mode_bad();
     else if (!strcmp(mode, "thread_steps")) mode_thread_steps();
+    else if (!strcmp(mode, "unload")) unload_after_runs(run_on_thread);
     else {
         fprintf(stderr, "unknown mode %s\n", mode);
         return 2;

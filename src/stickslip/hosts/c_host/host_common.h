@@ -30,6 +30,24 @@ static double stop_time, step;               /* s */
 static unsigned int output;                  /* value reference of the real output printed */
 static int n_settings;
 static char **settings;                      /* start values, set in this order */
+static void *fmu_library;                    /* the FMU's binary, as dlopen gave it */
+
+/* Open the FMU binary `binary` and load its functions `names` into `slots`, in order; its handle, or NULL after a
+ * printed failure. */
+static void *load_fmu(const char *binary, const char *const *names, size_t n, void **slots)
+{
+    void *lib = dlopen(binary, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+        say("failed dlopen %s\n", dlerror());
+        return NULL;
+    }
+    for (size_t i = 0; i < n; ++i)
+        if (!(slots[i] = dlsym(lib, names[i]))) {
+            say("failed dlsym %s\n", names[i]);
+            return NULL;
+        }
+    return lib;
+}
 
 /* Parse the command line and load the FMU's functions `names` into `slots`, in order; 0 after a printed failure. */
 static int start_host(int argc, char **argv, const char *const *names, size_t n, void **slots)
@@ -38,16 +56,7 @@ static int start_host(int argc, char **argv, const char *const *names, size_t n,
         fprintf(stderr, "usage: %s BINARY RESOURCES TOKEN MODE STOP STEP OUTPUT_VR [rVR=VALUE|iVR=VALUE ...]\n", argv[0]);
         return 0;
     }
-    void *lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
-    if (!lib) {
-        say("failed dlopen %s\n", dlerror());
-        return 0;
-    }
-    for (size_t i = 0; i < n; ++i)
-        if (!(slots[i] = dlsym(lib, names[i]))) {
-            say("failed dlsym %s\n", names[i]);
-            return 0;
-        }
+    if (!(fmu_library = load_fmu(argv[1], names, n, slots))) return 0;
     resources = argv[2];
     token = argv[3];
     mode = argv[4];
@@ -127,6 +136,34 @@ static void steps_from_new_threads(void *instance, void *(*do_step)(void *), dou
         t = next;
     }
     say("rss_kb_end %ld\nsteps %ld\nx %.17g %.17g\n", resident_kb(), n, t, read(instance));
+}
+
+/* Mode "unload": `run(tag)` on two threads (tags "a" and "b"), which then wait; the FMU is unloaded (dlclose of the
+ * host's handle, "unloaded R" with its result), and only then do the threads end. */
+static pthread_barrier_t unload_ran, unload_done;
+static void *(*unload_run)(void *);
+
+static void *run_then_wait(void *tag)
+{
+    unload_run(tag);
+    pthread_barrier_wait(&unload_ran);
+    pthread_barrier_wait(&unload_done);
+    return NULL;
+}
+
+static void unload_after_runs(void *(*run)(void *))
+{
+    pthread_t threads[2];
+    static char *tags[] = {"a", "b"};
+    unload_run = run;
+    pthread_barrier_init(&unload_ran, NULL, 3);
+    pthread_barrier_init(&unload_done, NULL, 3);
+    for (int i = 0; i < 2; ++i)
+        if (pthread_create(&threads[i], NULL, run_then_wait, tags[i])) exit(2);
+    pthread_barrier_wait(&unload_ran);
+    say("unloaded %d\n", dlclose(fmu_library));
+    pthread_barrier_wait(&unload_done);
+    for (int i = 0; i < 2; ++i) pthread_join(threads[i], NULL);
 }
 
 #endif
