@@ -57,3 +57,19 @@ def test_long_names_failures_and_known_misses_stay_within_the_width():
     assert failures[0].startswith(f"- {outcomes[0].name}: max |dx|") and failures[1].startswith("  ")
     joined = " ".join(line.strip() for line in failures)
     assert joined.count("max |dx| 1.23e-03") == 8 and "- broken: the FMU did not load: no such file" in joined
+
+
+def _outcome(name, met, known_miss=""):
+    """An outcome whose comparison met (``met``) or missed its checks."""
+    comparison = SimpleNamespace(passed=met, failures=() if met else ("max |dx| above its tolerance",))
+    return Outcome(name, "stick-slip", comparison, known_miss=known_miss)
+
+
+def test_a_known_miss_is_counted_as_such_not_as_passed():
+    from stickslip.suite.report import tally
+    outcomes = [_outcome("a", True), _outcome("b", True), _outcome("c", False, known_miss="host solver")]
+    assert tally(outcomes) == "2/3 passed, 1 known miss"
+    assert tally(outcomes[:2]) == "2/2 passed"
+    assert tally(outcomes + [_outcome("d", False)]) == "2/4 passed, 1 known miss"
+    # a known miss that met its checks fails: neither passed nor a known miss
+    assert tally([_outcome("e", True, known_miss="host solver")]) == "0/1 passed"

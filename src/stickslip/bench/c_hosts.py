@@ -1,4 +1,4 @@
-"""The C-host family of issue 21: FMUs in our C host (:mod:`stickslip.hosts.c_host`, mode ``bench``) and in
+"""The C-host family of the benchmarks: FMUs in our C host (:mod:`stickslip.hosts.c_host`, mode ``bench``) and in
 fmusim (Reference-FMUs), per step and at start-up, each run a child process timed from outside.
 
 A :class:`Subject` is an FMU file as a host runs it: the output read after every step and the start values.

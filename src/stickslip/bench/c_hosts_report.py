@@ -22,7 +22,7 @@ def _ratio(a, b):
 def markdown(results):
     """The report: header (machine, load at start and end), host costs, ratios, FMPy, dense grid, one step."""
     meta = results["meta"]
-    lines = [f"# Issue 21 benchmarks ({meta['date']})", "",
+    lines = [f"# C-host benchmarks ({meta['date']})", "",
              f"{meta['machine']}; load average (1, 5, 15 min) at the start {meta['load_start']}, at the end "
              f"{meta['load_end']}. Per step: slope over runs of 1 and {meta['steps']} steps of {meta['step']:g} s "
              f"(medians of {meta['repeats']}); start-up: the 1-step run (our C host: plus extracting the FMU).", ""]
@@ -114,7 +114,7 @@ def plot(path, results):
         ax.set_title(title)
         ax.legend()
     meta = results["meta"]
-    fig.suptitle(f"Issue 21 C hosts, {meta['steps']} steps of {meta['step']:g} s; load {meta['load_start'][0]:g} "
+    fig.suptitle(f"C hosts, {meta['steps']} steps of {meta['step']:g} s; load {meta['load_start'][0]:g} "
                  f"at the start")
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -1,4 +1,4 @@
-"""``stickslip bench-c-hosts``: every measurement of issue 21's benchmarks in one run (see
+"""``stickslip bench-c-hosts``: every measurement of the C-host benchmarks in one run (see
 benchmarks/README.md): the C-host family (:mod:`.c_hosts`) with ours at the peer's error, the FMPy family
 against the peer (:mod:`.matched_error`), the ``.fmu`` file against DOP853 and against the floor
 (:mod:`.fmu_file_runs`). The result is one JSON-ready dict; :mod:`.c_hosts_report` writes it out.

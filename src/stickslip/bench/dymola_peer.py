@@ -1,4 +1,4 @@
-"""The compiled peer of issue 21: the Modelica Standard Library's friction pendulum as Dymola 2023x exports it
+"""The compiled peer of the C-host benchmarks: the Modelica Standard Library's friction pendulum as Dymola 2023x exports it
 (``SpringFrictionPendulum1D.fmu`` of ThummeTo/FMIZoo.jl, ``models/bin/Dymola/2023x/2.0/``), a benchmark input
 read from a path, never a test dependency.
 

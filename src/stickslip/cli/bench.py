@@ -66,7 +66,7 @@ def run_bench(args):
 
 
 def add_c_hosts_parser(subparsers):
-    p = subparsers.add_parser("bench-c-hosts", help="issue 21's benchmarks: C hosts per step and start-up, the "
+    p = subparsers.add_parser("bench-c-hosts", help="C hosts per step and start-up, the "
                                                     "compiled peer at matched error, the .fmu file against DOP853")
     p.add_argument("--peer", help="the compiled peer, SpringFrictionPendulum1D.fmu of FMIZoo.jl (Dymola 2023x); "
                                   "without it the peer's columns are left out")
@@ -110,7 +110,7 @@ def run_c_hosts(args):
 def add_systems_parser(subparsers):
     from ..bench.systems_bench import ADAPTIVE_RTOLS, ME_RTOLS, ZOH_STEPS
 
-    p = subparsers.add_parser("bench-systems", help="issue 19's masters on chain scenes: error against wall time, "
+    p = subparsers.add_parser("bench-systems", help="the masters on chain scenes: error against wall time, "
                                                     "orders, zoh's wall against adaptive's at matched error")
     p.add_argument("files", nargs="+", metavar="FILE.toml", help="system files (e.g. systems/chain2-coulomb.toml)")
     p.add_argument("--out", default="bench-systems", help="output directory (default: bench-systems)")

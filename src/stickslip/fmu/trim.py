@@ -1,5 +1,5 @@
 """Leave out of an FMU the files no host imports or loads, and pack the FMI library's package into one file
-(issue 21: a host extracts every file before the first step, at about 0.2 ms a file here, and imports every
+(a host extracts every file before the first step, at about 0.2 ms a file here, and imports every
 module at the first instantiation).
 
 - The FMI library's C++ sources (``sources/``, pythonfmu3's): they build its binary, which is not the FMU's

@@ -1,4 +1,4 @@
-"""Stress matrix and robustness checks of the SpringBlockFriction FMU (issue 5).
+"""Stress matrix and robustness checks of the SpringBlockFriction FMU.
 
 - :mod:`.cases`: the grid of stress cases as data;
 - :mod:`.checks`: invariants, reference comparison, energy balance;

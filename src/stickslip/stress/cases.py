@@ -1,4 +1,4 @@
-"""The stress matrix as data: the regimes where friction solvers fail (issue 5, item 1).
+"""The stress matrix as data: the regimes where friction solvers fail.
 
 A :class:`Case` is an FMU configuration (start values), a communication grid,
 input steps at grid points, and what to check. :func:`stress_cases` returns the
@@ -36,7 +36,7 @@ from ..reference.closed_form import AffineSlip
 
 COULOMB = {"kinetic.law": 1, "static.law": 1}
 
-#: reported bugs that are still open (see the report of issue 5); cases that show them carry the name.
+#: reported bugs that are still open; cases that show them carry the name.
 #: Fixed since (regression tests in tests/test_stress.py): a constant-law breakaway later than 1e6 natural
 #: periods was never found; Sigmoid.rate(0) had the wrong sign for weakening n < 1; a slip that could not
 #: leave v_rel = 0 stayed in mode -1 with v_rel == 0 (all f13ede0); a stick beginning against the drive

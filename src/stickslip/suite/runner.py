@@ -24,7 +24,7 @@ from ..hosts.run_limits import output_folder
 from .inputs import held_input_table
 from .scenario_plots import plot_scenario
 from ..reference import ReferenceFailure, parameters_from_values, simulate_reference
-from .report import Outcome, console_summary, write_report, write_result_csv
+from .report import Outcome, console_summary, tally, write_report, write_result_csv
 from .scenario import ScenarioError, load_scenarios
 
 #: FMU variables recorded for every scenario: every output (SPEC section 4 and the extra counters), then the inputs
@@ -133,7 +133,7 @@ def run_suite(paths, out_dir, jobs=2, fmu_path=None, interface=None):
     result = SuiteResult(tuple(outcomes), time.perf_counter() - start)
     write_report(out_dir / "report.md", result.outcomes, result.seconds)
     print(console_summary(result.outcomes))
-    print(f"{sum(o.passed for o in result.outcomes)}/{len(result.outcomes)} passed in {result.seconds:.1f} s")
+    print(f"{tally(result.outcomes)} in {result.seconds:.1f} s")
     print(f"report: {out_dir / 'report.md'}")
     return result
 

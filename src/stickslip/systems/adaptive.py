@@ -38,7 +38,7 @@ import numpy as np
 from ..hosts.fmpy_host import FmuCallError, FMUError
 from .master import SystemResult, block_instances, checked_rtol, read_values, references, step_events
 
-DEFAULT_RTOL = 3e-10  # keeps the 2- and 3-block chains' event times within 1e-8 s (issue 19; 1e-9: 4e-8 s)
+DEFAULT_RTOL = 3e-10  # keeps the 2- and 3-block chains' event times within 1e-8 s (1e-9: 4e-8 s)
 EVENT_TOL = 1e-10  # s: an event this close before a step's end has landed on it
 CELLS = 4  # cells per communication step while a block slips (1 while all are stuck)
 STEPS_PER_PERIOD = 8  # longest step: this fraction of the shortest free period
