@@ -2,8 +2,10 @@
 second process at the same time, the FMUs' renamed copy of them into stickslip/fmu/prebuilt.
 
 Optional: without mypyc or a C compiler the package installs as pure Python, and says so.
-The packages are those below src/ plus the slaves' sources, the top-level fmu_src/ mapped in as
-stickslip.fmu_src (the builders read them from there). Everything else is in pyproject.toml.
+The packages are those below src/ plus three top-level folders mapped in: the slaves' sources fmu_src/ as
+stickslip.fmu_src (the builders read them from there), and the scenario and system files scenarios/ and systems/ as
+the data-only packages stickslip.scenario_files and stickslip.system_files (the command line finds them by name,
+stickslip.cli.named_files). Everything else is in pyproject.toml.
 """
 
 import importlib.util
@@ -76,9 +78,12 @@ def _extensions():
         return []
 
 
+#: package -> the top-level folder it is mapped from
+MAPPED = {"stickslip.fmu_src": "fmu_src", "stickslip.scenario_files": "scenarios", "stickslip.system_files": "systems"}
+
 setup(
-    packages=[*find_packages("src"), "stickslip.fmu_src"],
-    package_dir={"": "src", "stickslip.fmu_src": "fmu_src"},
+    packages=[*find_packages("src"), *MAPPED],
+    package_dir={"": "src", **MAPPED},
     ext_modules=_extensions(),
     cmdclass={"build_ext": BuildCompiledRuntime},
 )

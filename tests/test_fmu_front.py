@@ -12,6 +12,7 @@ import subprocess
 import sys
 import textwrap
 import zipfile
+from pathlib import Path
 from xml.etree import ElementTree as ET
 
 import fmpy
@@ -25,6 +26,8 @@ from stickslip.fmu.coupling import UNITS as COUPLING_UNITS, build_coupling
 from stickslip.fmu_src.block_interface import VARIABLES
 from stickslip.hosts.c_host import run_host
 from stickslip.reference import parameters_from_values, simulate_reference
+
+ROOT = Path(__file__).resolve().parents[1]
 
 #: law selector: (its enumeration type, the laws by code)
 LAWS = {"kinetic.law": ("KineticLaw", KINETIC_LAWS), "static.law": ("StaticLaw", STATIC_LAWS)}
@@ -174,12 +177,24 @@ def test_the_documentation_carries_the_licences_and_the_fmu_no_sources(request, 
     compiled = any(name.startswith("resources/") and name.endswith(".so") for name in names)
     assert set(licences) == {"stickslip.txt", f"{library}.txt", *(("mypy.txt",) if compiled else ())}
     installed = [f for f in importlib.metadata.distribution(library).files if f.name == "LICENSE"]
-    assert licences[f"{library}.txt"] == installed[0].read_text() and "MIT License" in licences["stickslip.txt"]
+    assert licences[f"{library}.txt"] == installed[0].read_text()
+    assert licences["stickslip.txt"] == (ROOT / "LICENSE").read_text(encoding="utf-8")  # the one source
     assert not compiled or "PSF" in licences["mypy.txt"]
     assert all(f'href="licenses/{name}"' in page for name in licences)
     assert not [name for name in names if name.startswith("sources/")]
     root = _root(path)
     assert root.find("CoSimulation").find("SourceFiles") is None and "buildDescription" not in " ".join(names)
+
+
+def test_without_stickslips_licence_in_its_metadata_no_fmu_is_built(tmp_path, monkeypatch):
+    def no_metadata(name):
+        raise importlib.metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(documentation.importlib.metadata, "distribution", no_metadata)
+    assert "pythonfmu is licensed under MIT" in documentation.license_text("pythonfmu")
+    with pytest.raises(documentation.LicenseError, match=r"stickslip's licence file \(LICENSE\) is not in"):
+        build(tmp_path / "SpringBlockFriction.fmu", 2)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_builds_with_one_source_date_are_byte_identical_and_dated(tmp_path, monkeypatch):

@@ -1,5 +1,6 @@
 """The package as a user gets it (issue 18): a wheel built from the checkout, installed into a new virtual
-environment, builds both FMUs in any folder and they run; and building twice gives byte-identical FMUs.
+environment, builds both FMUs in any folder and they run, and carries the scenario and system files, which its
+command line finds by name in any folder; and building twice gives byte-identical FMUs.
 
 Cost on this project's 2-core machine: the wheel test about 20 s (the wheel's mypyc compile, 15 s in a fresh
 checkout and less with ``build/`` from an earlier one; a new virtual environment; two FMU builds from the
@@ -46,8 +47,8 @@ def _last_row(fmu_path, python=sys.executable, cwd=None, env=None):
 
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory):
-    """``(python, environment)`` of a new virtual environment with the package installed from a wheel of the
-    checkout, and the environment variables to run it with (no PYTHONPATH)."""
+    """``(python, environment, wheel)`` of a new virtual environment with the package installed from a wheel of
+    the checkout, the environment variables to run it with (no PYTHONPATH), and the wheel's path."""
     folder = tmp_path_factory.mktemp("package")
     wheels = folder / "wheels"
     _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "--quiet", "-w", wheels, ROOT],
@@ -61,11 +62,11 @@ def installed(tmp_path_factory):
     (site / "test_environment_dependencies.pth").write_text("".join(f"{path}\n" for path in sorted(dependencies)))
     _run([python, "-m", "pip", "install", "--no-deps", "--no-index", "--quiet", wheel], cwd=folder)
     env = {key: value for key, value in os.environ.items() if key != "PYTHONPATH"}
-    return python, env
+    return python, env, wheel
 
 
 def test_the_installed_wheel_builds_both_fmus_in_any_folder(installed, tmp_path, fmu_path, fmu3_path):
-    python, env = installed
+    python, env, _ = installed
     cwd = tmp_path / "elsewhere"
     cwd.mkdir()
     where = json.loads(_run([python, "-c", "import json, sys, stickslip.core, stickslip.fmu_src; print(json.dumps("
@@ -84,6 +85,30 @@ def test_the_installed_wheel_builds_both_fmus_in_any_folder(installed, tmp_path,
     for built, checkout in ((out / fmu_path.name, fmu_path), (out / fmu3_path.name, fmu3_path)):
         assert built.read_bytes() == checkout.read_bytes(), f"{built.name}: the wheel builds other bytes"
         assert _last_row(built, python, cwd, env) == _last_row(checkout)
+    assert list(cwd.iterdir()) == []
+
+
+def test_the_wheel_ships_the_scenarios_and_systems_and_finds_them_by_name(installed, tmp_path, fmu_path):
+    python, env, wheel = installed
+    with zipfile.ZipFile(wheel) as archive:
+        for folder, package in (("scenarios", "scenario_files"), ("systems", "system_files")):
+            shipped = {name.rsplit("/", 1)[1]: archive.read(name) for name in archive.namelist()
+                       if name.startswith(f"stickslip/{package}/") and name.endswith(".toml")}
+            assert shipped == {path.name: path.read_bytes() for path in (ROOT / folder).glob("*.toml")}, folder
+    cwd = tmp_path / "elsewhere"
+    cwd.mkdir()
+    found = _run([python, "-c", "from stickslip.cli.named_files import SYSTEMS, resolve; "
+                                "print(resolve('chain2-coulomb', SYSTEMS))"], cwd, env).strip()
+    assert Path(found).is_relative_to(python.parents[1]) and Path(found).read_bytes() == (
+        ROOT / "systems" / "chain2-coulomb.toml").read_bytes()
+    out = tmp_path / "out"
+    _run([python.parent / "stickslip", "run", "grazing-stribeck-below", "--fmu", fmu_path, "--jobs", 1, "--out", out],
+         cwd, env)
+    assert "| grazing-stribeck-below |" in (out / "report.md").read_text()
+    refused = subprocess.run([python.parent / "stickslip", "system", "run", "chain9", "--master", "me"], cwd=cwd,
+                             env=env, capture_output=True, text=True, timeout=120)
+    assert refused.returncode == 1 and refused.stderr.endswith(
+        "(names: bk10-velocity-weakening, chain2-coulomb, chain3-coulomb, chain3-stribeck-aging)\n"), refused.stderr
     assert list(cwd.iterdir()) == []
 
 

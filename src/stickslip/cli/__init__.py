@@ -19,7 +19,9 @@ from .system import add_system
 
 def add_run(subparsers):
     p = subparsers.add_parser("run", help="run scenarios through the FMU and the reference and report")
-    p.add_argument("paths", nargs="+", metavar="PATH", help="scenario files or directories of *.toml files")
+    p.add_argument("paths", nargs="*", metavar="PATH",
+                   help="scenario files, directories of *.toml files, or names of the scenarios shipped with stickslip "
+                        "(e.g. elmer-fig3-v0.1); none: every shipped scenario")
     p.add_argument("--out", default="results", help="output directory (default: results)")
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default: 2)")
     p.add_argument("--fmu", help="FMU to test (default: dist/SpringBlockFriction.fmu, built if missing or stale)")
@@ -31,8 +33,11 @@ def add_run(subparsers):
 
 def _run(args):
     from ..suite.runner import run_suite
+    from .named_files import SCENARIOS, local_paths, resolve, shipped
 
-    return 0 if run_suite(args.paths, args.out, jobs=args.jobs, fmu_path=args.fmu, interface=args.interface).ok else 1
+    files = [resolve(path, SCENARIOS) for path in args.paths] or list(shipped(SCENARIOS).values())
+    with local_paths(files) as paths:
+        return 0 if run_suite(paths, args.out, jobs=args.jobs, fmu_path=args.fmu, interface=args.interface).ok else 1
 
 
 def add_build(subparsers):

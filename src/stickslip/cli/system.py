@@ -1,11 +1,14 @@
-"""``stickslip system run FILE.toml --master MASTER --out DIR``: a chain of blocks through a master, against the
-chain's reference; ``stickslip system ssp FILE.toml --out DIR``: the chain as an SSP file (docs/systems.md)."""
+"""``stickslip system run FILE.toml|NAME --master MASTER --out DIR``: a chain of blocks through a master, against the
+chain's reference; ``stickslip system ssp FILE.toml|NAME --out DIR``: the chain as an SSP file (docs/systems.md). A NAME
+is that of a system file shipped with the package (e.g. chain2-coulomb)."""
 
 import argparse
 import math
 
 from ..systems.engines import ENGINES
 from ..systems.masters import MASTERS
+
+FILE_HELP = "system file, or the name of a system shipped with stickslip (e.g. chain2-coulomb)"
 
 
 def add_system(subparsers):
@@ -14,7 +17,7 @@ def add_system(subparsers):
     run = commands.add_parser(
         "run", help="run a system file through a master and the chain's reference; write DIR/<stem>.csv, .md and "
                     "plots; exit 1 if the error exceeds the file's tolerance for the master")
-    run.add_argument("file", metavar="FILE.toml", help="system file")
+    run.add_argument("file", metavar="FILE.toml", help=FILE_HELP)
     run.add_argument("--master", required=True, choices=sorted(MASTERS),
                      help="zoh: fixed step, held inputs (FMI 2 co-simulation); me: FMI 3 model exchange of all "
                           "blocks in one solver; adaptive: FMI 2 co-simulation with events landed, step rejection and "
@@ -32,7 +35,7 @@ def add_system(subparsers):
     run.set_defaults(handler=_run)
     ssp = commands.add_parser("ssp", help="write the system as DIR/<stem>.ssp: the block FMUs, one coupling FMU per "
                                           "block, their values and connections, the fixed step")
-    ssp.add_argument("file", metavar="FILE.toml", help="system file")
+    ssp.add_argument("file", metavar="FILE.toml", help=FILE_HELP)
     ssp.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     ssp.add_argument("--step", type=step_seconds, help="the fixed step in s (default: the file's output_interval)")
     ssp.add_argument("--fmu", help="the block FMU (default: the built FMI 2 FMU)")
@@ -52,10 +55,11 @@ def step_seconds(text):
 
 def _run(args):
     from ..systems.run import run_system
+    from .named_files import SYSTEMS, local_paths, resolve
 
     options = {"step": args.step, "rtol": args.rtol, "engine": args.engine}
-    outcome = run_system(args.file, args.master, args.out, options, args.fmu,
-                         show_progress=not args.quiet)
+    with local_paths([resolve(args.file, SYSTEMS)]) as (path,):
+        outcome = run_system(path, args.master, args.out, options, args.fmu, show_progress=not args.quiet)
     print(outcome.summary)
     print(f"report: {outcome.files[1]}")
     return 0 if outcome.ok else 1
@@ -69,8 +73,10 @@ def _ssp(args):
     from ..hosts.run_limits import output_folder
     from ..systems import load_system
     from ..systems.ssp import write_ssp
+    from .named_files import SYSTEMS, local_paths, resolve
 
-    system = load_system(args.file)
+    with local_paths([resolve(args.file, SYSTEMS)]) as (path,):
+        system = load_system(path)
     step = system.output_interval if args.step is None else args.step
     if args.fmu is not None:
         read_model_description(args.fmu, needs=START_VALUES)

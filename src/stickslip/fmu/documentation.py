@@ -19,29 +19,6 @@ from .compile_runtime import MYPY_LICENSE, PREBUILT
 RANGE_MARK = "; allowed: a finite value in "
 INDEX = "documentation/index.html"
 LICENSES = "documentation/licenses"
-#: stickslip's licence (pyproject.toml: MIT), carried by every FMU
-STICKSLIP_LICENSE = """MIT License
-
-Copyright (c) 2026 the stickslip authors
-
-Permission is hereby granted, free of charge, to any person obtaining a copy
-of this software and associated documentation files (the "Software"), to deal
-in the Software without restriction, including without limitation the rights
-to use, copy, modify, merge, publish, distribute, sublicense, and/or sell
-copies of the Software, and to permit persons to whom the Software is
-furnished to do so, subject to the following conditions:
-
-The above copyright notice and this permission notice shall be included in all
-copies or substantial portions of the Software.
-
-THE SOFTWARE IS PROVIDED "AS IS", WITHOUT WARRANTY OF ANY KIND, EXPRESS OR
-IMPLIED, INCLUDING BUT NOT LIMITED TO THE WARRANTIES OF MERCHANTABILITY,
-FITNESS FOR A PARTICULAR PURPOSE AND NONINFRINGEMENT. IN NO EVENT SHALL THE
-AUTHORS OR COPYRIGHT HOLDERS BE LIABLE FOR ANY CLAIM, DAMAGES OR OTHER
-LIABILITY, WHETHER IN AN ACTION OF CONTRACT, TORT OR OTHERWISE, ARISING FROM,
-OUT OF OR IN CONNECTION WITH THE SOFTWARE OR THE USE OR OTHER DEALINGS IN THE
-SOFTWARE.
-"""
 #: distribution: (its licence as the page names it, what of it an FMU carries)
 CARRIED = {
     "stickslip": ("MIT", "the model: the runtime (resources/sbf_runtime_*), the slave (resources/sbf_slave_*) and "
@@ -69,12 +46,15 @@ def split_description(description):
     return meaning, allowed
 
 
+class LicenseError(RuntimeError):
+    """stickslip's own licence file is not in its installed metadata: no FMU is built without it."""
+
+
 def license_text(distribution):
-    """The licence file of the installed ``distribution`` (stickslip's own: :data:`STICKSLIP_LICENSE`; mypy's, if it
-    is not installed, the copy beside the runtime compiled with the package); a notice naming the licence if none
-    is found."""
-    if distribution == "stickslip":
-        return STICKSLIP_LICENSE
+    """The licence file of the installed ``distribution``, from its metadata (``*.dist-info``; stickslip's is the
+    checkout's top-level LICENSE, which pyproject.toml's ``license-files`` puts there); mypy's, if it is not
+    installed, the copy beside the runtime compiled with the package; for the other distributions a notice naming
+    the licence if none is found. Raises :class:`LicenseError` if stickslip's is missing."""
     if distribution == "mypy" and importlib.util.find_spec("mypy") is None:
         for copy in sorted(PREBUILT.glob(f"*/{MYPY_LICENSE}")):
             return copy.read_text(encoding="utf-8")
@@ -85,6 +65,9 @@ def license_text(distribution):
     for path in sorted(files, key=str):
         if path.name.upper().startswith(("LICENSE", "COPYING")) and "dist-info" in str(path):
             return path.read_text(encoding="utf-8")
+    if distribution == "stickslip":
+        raise LicenseError("stickslip's licence file (LICENSE) is not in its installed metadata, and every FMU "
+                           "carries it: install stickslip (in a checkout: pip install -e .) before building an FMU")
     return (f"{distribution} is licensed under {CARRIED[distribution][0]}; its licence file was not installed where "
             f"this FMU was built. See the {distribution} distribution on https://pypi.org/project/{distribution}/.\n")
 

@@ -1,0 +1,1 @@
+"""The system files shipped with stickslip (installed as stickslip.system_files; docs/systems.md)."""
