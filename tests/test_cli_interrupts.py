@@ -87,7 +87,7 @@ def test_ctrl_c_stops_a_system_run(tmp_path, fmu_path, master, to_group):
     """During the master's run of the 10-block chain: exit 130 within seconds, one line, the previous report
     removed when the run started and no new one. (The FMI 3 master ``me`` is left out: its process crashes with
     SIGSEGV at exit in about 1 run in 6 after the line, in the FMU's loader.)"""
-    report = tmp_path / "bk10-velocity-weakening.md"
+    report = tmp_path / f"bk10-velocity-weakening-{master}.md"
     report.write_text("a previous run's report")
     proc = start(["system", "run", str(ROOT / "systems" / "bk10-velocity-weakening.toml"), "--master", master,
                   "--out", str(tmp_path), "--fmu", str(fmu_path)])
@@ -98,7 +98,7 @@ def test_ctrl_c_stops_a_system_run(tmp_path, fmu_path, master, to_group):
     assert proc.returncode == 130, stderr
     assert took <= EXIT_WITHIN
     assert one_line(stderr, "system") == "stickslip system: interrupted"
-    assert not report.exists() and not (tmp_path / "bk10-velocity-weakening.csv").exists()
+    assert not report.exists() and not (tmp_path / f"bk10-velocity-weakening-{master}.csv").exists()
 
 
 def _interrupted_inside(instance):

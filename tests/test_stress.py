@@ -19,7 +19,8 @@ from stickslip.cli import main
 from stickslip.core import Constant, Coulomb, Parameters, Saturating, Sigmoid, SolverError, Trajectory
 from stickslip.stress.cases import GROUPS, stress_cases
 from stickslip.stress.checks import coulomb_cycle
-from stickslip.stress.case_runs import run_case, summary_table
+from stickslip.stress.case_runs import TABLE_COLUMNS, Outcome, console_summary, run_case, summary_table
+from stickslip.suite.report import CONSOLE_WIDTH
 from stickslip.stress.session import FmuSession
 
 QUICK = stress_cases(quick=True)
@@ -63,7 +64,7 @@ def test_full_matrix_spans_the_regimes_of_the_issue():
 
 
 def _case_results(report):
-    """``{case: result}`` from the "Cases" table of a ``stickslip stress --report`` file."""
+    """``{case: result}`` from the "Cases" table of the report ``stickslip stress --out DIR`` writes."""
     cases = report.split("\n## Cases\n", 1)[1].split("\n## ", 1)[0]
     lines = [line for line in cases.splitlines() if line.startswith("|")]
     rows = [[cell.strip() for cell in line.strip("|").split("|")] for line in lines]
@@ -78,7 +79,7 @@ def test_the_whole_matrix_passes_through_the_command_line(fmu_path, tmp_path):
     report = tmp_path / "stress.md"
     code = "import sys; from stickslip.cli import main; sys.exit(main(sys.argv[1:]))"
     run = subprocess.run([sys.executable, "-c", code, "stress", "--fmu", str(fmu_path), "--no-progress",
-                          "--report", str(report)], capture_output=True, text=True, timeout=600)
+                          "--out", str(tmp_path)], capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, f"{run.stdout[-4000:]}\n{run.stderr[-2000:]}"
     cases = stress_cases()
     assert {c.group for c in cases} == set(GROUPS) and sum(bool(c.long) for c in cases) == 3
@@ -90,6 +91,38 @@ def test_stress_cli_lists_cases_and_builds_a_table(capsys):
     assert main(["stress", "--list", "--group", "grazing"]) == 0
     listed = capsys.readouterr().out.splitlines()
     assert len(listed) == len(stress_cases(groups=["grazing"])) and all("grazing" in line for line in listed)
+
+
+def test_stress_writes_its_report_into_out_and_prints_within_100_columns(fmu_path, tmp_path, capsys):
+    """``--out DIR`` like every other command: DIR/stress.md with every column and every case; the console shows
+    fewer columns, within 100."""
+    out = tmp_path / "out"
+    assert main(["stress", "--case", "ratio-coulomb-1e3", "--case", "drive-1e3", "--fmu", str(fmu_path), "--no-progress",
+                 "--out", str(out)]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert max(len(line) for line in printed) <= CONSOLE_WIDTH
+    assert printed[-2:] == ["2/2 stress cases passed, 0 failed with known bugs, 0 unexpected",
+                            f"report: {out / 'stress.md'}"]
+    assert "max step (ms)" in printed[0] and "mean time/step" not in printed[0]
+    report = (out / "stress.md").read_text()
+    assert all(column in report.splitlines()[4] for column in TABLE_COLUMNS)
+    assert _case_results(report) == {"ratio-coulomb-1e3": "PASS", "drive-1e3": "PASS"}
+
+
+def test_the_console_summary_of_every_group_stays_within_100_columns():
+    """The widest numbers every column can hold, in every group, and failures longer than a line: every console
+    line within 100 columns, the failures wrapped with nothing lost."""
+    why = "energy balance |dE - W| 1.23e+300 above 1e-08 of the energy scale " * 3
+    outcomes = [Outcome(f"{group}-a-case-name-as-long-as-they-come", group, failures=[why], ref_error=1.23e300,
+                        grid_error=math.inf, energy_error=9.99e-300, n_steps=10 ** 9, n_events=10 ** 9,
+                        max_step_s=1234.5, mean_step_s=1234.5, seconds=1e6, known_bug="a known limit" * (i % 2))
+                for i, group in enumerate(GROUPS)]
+    lines = console_summary(outcomes).splitlines()
+    assert max(len(line) for line in lines) <= CONSOLE_WIDTH
+    assert len(summary_table(outcomes).splitlines()[0]) > CONSOLE_WIDTH  # the report's table: every column
+    assert [line.split("|")[1].strip() for line in lines[2:3 + len(GROUPS)]] == [*GROUPS, "total"]
+    wrapped = " ".join(line.strip() for line in lines[3 + len(GROUPS):])
+    assert wrapped.count("energy balance |dE - W| 1.23e+300") == 3 * len(GROUPS)
 
 
 def test_summary_table_counts_passes_and_known_bugs(session):

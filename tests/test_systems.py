@@ -54,7 +54,7 @@ def test_the_issues_file_loads_with_the_fmus_start_values_for_what_it_leaves_out
     assert system.blocks[0]["solver.rtol"] == 1e-10  # the FMU's start value
     assert system.times()[-1] == 100.0 and len(system.times()) == 1001
     assert system.forces([0.0, 0.2]) == [0.5 * 0.2, -0.5 * 0.2]
-    assert system.tolerances == {"zoh": 0.1, "me": 1e-6, "adaptive": 1e-6}
+    assert system.tolerances == {"zoh": None, "me": 1e-6, "adaptive": 1e-6}
 
 
 def test_dotted_names_without_quotes_are_the_fmus_names(tmp_path):
@@ -249,27 +249,61 @@ def test_command_writes_the_csv_report_and_plots(tmp_path, fmu_path, capsys):
     assert main(["system", "run", str(CHAIN2), "--master", "zoh", "--step", "0.01", "--out", str(out), "--fmu",
                  str(fmu_path), "--quiet"]) == 0
     printed = capsys.readouterr().out
-    assert "chain2-coulomb: zoh (step (s) 0.01): max |dx| 0.0379 m = 0.0367 of the amplitude 1.03 m (tolerance 0.1)" \
-        ": PASS" in printed
-    with open(out / "chain2-coulomb.csv") as stream:
+    assert "chain2-coulomb: zoh (step (s) 0.01): max |dx| 0.0379 m = 0.0367 of the amplitude 1.03 m (not judged)" \
+        in printed
+    with open(out / "chain2-coulomb-zoh.csv") as stream:
         rows = list(csv.reader(stream))
     assert rows[0] == ["time", "b1.x", "b2.x", "b1.v", "b2.v", "b1.mode", "b2.mode"]
     assert len(rows) == 1 + 1001 and float(rows[-1][0]) == pytest.approx(100.0)
-    report = (out / "chain2-coulomb.md").read_text()
-    assert "**PASS**" in report and "| b2 |" in report and "18 / 18" in report
-    for name in ("chain2-coulomb.png", "chain2-coulomb-spacetime.png"):
+    report = (out / "chain2-coulomb-zoh.md").read_text()
+    assert "**NOT JUDGED**" in report and "| b2 |" in report and "18 / 18" in report
+    for name in ("chain2-coulomb-zoh.png", "chain2-coulomb-zoh-spacetime.png"):
         assert (out / name).stat().st_size > 10_000
 
 
-def test_command_exits_1_when_the_error_exceeds_the_tolerance(tmp_path, fmu_path, capsys):
-    """zoh at the output interval (0.1 s) is 39% of the amplitude off: above the default 10%, within a file's 50%."""
+def test_zoh_is_reported_not_judged_unless_its_file_sets_a_tolerance(tmp_path, fmu_path, capsys):
+    """zoh at the output interval (0.1 s) is 39% of the amplitude off, its held inputs' first-order error: without
+    a ``[tolerance.zoh]`` the run is reported with that error and the advice, exit 0; a file's 10% fails it (exit
+    1), its 50% passes it."""
     arguments = ["--master", "zoh", "--out", str(tmp_path), "--fmu", str(fmu_path), "--quiet"]
-    assert main(["system", "run", str(CHAIN2), *arguments]) == 1
-    assert "(tolerance 0.1): FAIL" in capsys.readouterr().out
-    assert "**FAIL**" in (tmp_path / "chain2-coulomb.md").read_text()
-    lenient = write(tmp_path, CHAIN2.read_text() + "\n[tolerance.zoh]\nmax_rel_dx = 0.5\n", "lenient.toml")
-    assert main(["system", "run", str(lenient), *arguments]) == 0
-    assert "(tolerance 0.5): PASS" in capsys.readouterr().out
+    assert main(["system", "run", str(CHAIN2), *arguments]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0].startswith("chain2-coulomb: zoh (step (s) 0.1): max |dx| 0.4 m = 0.388 of the amplitude")
+    assert "(not judged);" in printed[0] and "PASS" not in printed[0] and "FAIL" not in printed[0]
+    assert printed[1] == ("zoh: not judged against the tolerance (a held-input coupling of order 1: its error is "
+                          "the step's; use --master me or adaptive for exact results, or a smaller --step)")
+    report = (tmp_path / "chain2-coulomb-zoh.md").read_text()
+    assert "**NOT JUDGED**: max |dx| = 4.0" in report and "zoh: not judged against the tolerance" in report
+    for tolerance, status, verdict in ((0.1, 1, "FAIL"), (0.5, 0, "PASS")):
+        judged = write(tmp_path, CHAIN2.read_text() + f"\n[tolerance.zoh]\nmax_rel_dx = {tolerance}\n", "judged.toml")
+        assert main(["system", "run", str(judged), *arguments]) == status
+        assert f"(tolerance {tolerance}): {verdict}" in capsys.readouterr().out
+        assert f"**{verdict}**" in (tmp_path / "judged-zoh.md").read_text()
+
+
+def test_an_unjudged_run_with_a_non_finite_error_fails():
+    """Not judged is not a pass for a run that failed: a position that is not finite makes the error infinite."""
+    system = load_system(CHAIN2)
+    reference = simulate_chain(system.chain_blocks(), system.coupling, system.v_drive, system.times())
+    x = reference.x.copy()
+    x[-1, 0] = math.nan
+    broken = SystemResult("zoh", reference.t, x, reference.v, reference.mode, [], True, np.zeros(2, int), 0.0)
+    assert compare(broken, reference, None).max_rel_dx == math.inf
+    assert not compare(broken, reference, None).ok
+    assert compare(dataclasses.replace(broken, x=reference.x), reference, None).ok
+
+
+def test_masters_sharing_a_folder_keep_their_own_files(tmp_path, fmu_path, fmu3_path):
+    """zoh and me into the same folder: each run's files are named by its master, neither overwrites the other."""
+    out = tmp_path / "out"
+    for master, fmu in (("zoh", fmu_path), ("me", fmu3_path)):
+        assert main(["system", "run", str(CHAIN2), "--master", master, "--out", str(out), "--fmu", str(fmu),
+                     "--quiet"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        f"chain2-coulomb-{m}{suffix}" for m in ("me", "zoh") for suffix in (".csv", ".md", ".png", "-spacetime.png"))
+    zoh, me = (np.loadtxt(out / f"chain2-coulomb-{m}.csv", delimiter=",", skiprows=1) for m in ("zoh", "me"))
+    assert np.max(np.abs(zoh[:, 1:3] - me[:, 1:3])) > 0.1  # zoh's 39% of the amplitude against me's 1e-6
+    assert "master `me`" in (out / "chain2-coulomb-me.md").read_text()
 
 
 def test_command_names_a_bad_file_and_exits_1(tmp_path, capsys):
@@ -373,7 +407,7 @@ def test_a_chain_at_rest_passes(tmp_path, master, capsys):
     (its error is a fraction of the floor, 1e-6 of the largest F_S/kappa); a master that moved would fail."""
     still = BLOCK.replace("v_start = 0.1", "v_start = 0.0")
     path = write(tmp_path, system_text("stop_time = 10.0\noutput_interval = 0.1\nv_drive = 0.0\ncoupling = [0.5]",
-                                       blocks=(still, still)))
+                                       blocks=(still, still), extra="[tolerance.zoh]\nmax_rel_dx = 0.1\n"))
     assert main(["system", "run", str(path), "--master", master, "--out", str(tmp_path), "--quiet"]) == 0
     line = capsys.readouterr().out
     assert f"max |dx| 0 m = 0 of the floor 1e-06 m (the amplitude is 0 m)" in line and ": PASS" in line

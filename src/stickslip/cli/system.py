@@ -15,8 +15,9 @@ def add_system(subparsers):
     p = subparsers.add_parser("system", help="systems of coupled blocks (chains) described by a TOML file")
     commands = p.add_subparsers(dest="system_command", required=True, metavar="COMMAND")
     run = commands.add_parser(
-        "run", help="run a system file through a master and the chain's reference; write DIR/<stem>.csv, .md and "
-                    "plots; exit 1 if the error exceeds the file's tolerance for the master")
+        "run", help="run a system file through a master and the chain's reference; write DIR/<stem>-<master>.csv, "
+                    ".md and plots (zoh with --engine: <stem>-zoh-<engine>.*); exit 1 if the error exceeds the file's "
+                    "tolerance for the master (zoh is judged only where the file sets one) or the run fails")
     run.add_argument("file", metavar="FILE.toml", help=FILE_HELP)
     run.add_argument("--master", required=True, choices=sorted(MASTERS),
                      help="zoh: fixed step, held inputs (FMI 2 co-simulation); me: FMI 3 model exchange of all "

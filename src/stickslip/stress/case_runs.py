@@ -23,6 +23,7 @@ import gc
 import math
 import os
 import resource
+import textwrap
 import time
 from dataclasses import dataclass, field
 
@@ -30,6 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 from ..core.errors import StickSlipError
+from ..suite.report import CONSOLE_WIDTH
 from . import checks
 from .cases import stress_cases
 from .session import FmuCallError, FmuSession, as_columns
@@ -525,6 +527,24 @@ def summary_table(outcomes):
     """Markdown table by group: cases, passes, known-bug failures, worst errors (normalized; known-bug
     failures left out), worst single and worst mean wall time of one ``fmi2DoStep``."""
     return _table(TABLE_COLUMNS, summary_rows(outcomes))
+
+
+#: the summary table's columns on the console, within :data:`CONSOLE_WIDTH` (the report has every column of
+#: :data:`TABLE_COLUMNS`): {column: its header on the console}
+CONSOLE_COLUMNS = {"group": "group", "cases": "cases", "passed": "passed", "known bugs": "known bugs",
+                   "worst error": "worst error", "worst time/step (ms)": "max step (ms)", "events": "events",
+                   "wall (s)": "wall (s)"}
+
+
+def console_summary(outcomes, width=CONSOLE_WIDTH):
+    """What the console shows, within ``width`` columns: the summary table's :data:`CONSOLE_COLUMNS`, then the
+    failure lines (:func:`failure_lines`), wrapped."""
+    keep = [TABLE_COLUMNS.index(column) for column in CONSOLE_COLUMNS]
+    rows = [tuple(row[i] for i in keep) for row in summary_rows(outcomes)]
+    lines = _table(tuple(CONSOLE_COLUMNS.values()), rows).splitlines()
+    for line in failure_lines(outcomes):
+        lines += textwrap.wrap(line, width, subsequent_indent="  ", break_on_hyphens=False)
+    return "\n".join(lines)
 
 
 def case_table(outcomes):

@@ -19,7 +19,8 @@ class Comparison:
     """``amplitude`` (m): the reference's largest range of any block's ``x``; per block (arrays over blocks):
     ``max_abs_dx`` (m), the master's and the reference's event counts, and ``max_event_dt`` (s, NaN where the
     events cannot be paired: the counts or kinds differ, or the master does not know every event's time);
-    ``tolerance``: the largest allowed ``max_rel_dx``; ``floor`` (m): the smallest amplitude an error is measured
+    ``tolerance``: the largest allowed ``max_rel_dx``, or None: the run is not judged (it passes unless an error is
+    not finite); ``floor`` (m): the smallest amplitude an error is measured
     against."""
 
     amplitude: float
@@ -27,7 +28,7 @@ class Comparison:
     master_events: np.ndarray
     reference_events: np.ndarray
     max_event_dt: np.ndarray
-    tolerance: float
+    tolerance: float | None
     floor: float = 0.0
 
     @property
@@ -44,7 +45,14 @@ class Comparison:
         return 0.0 if largest == 0.0 else math.inf
 
     @property
+    def judged(self):
+        """Whether the error is held against a tolerance (else it is only reported)."""
+        return self.tolerance is not None
+
+    @property
     def ok(self):
+        if not self.judged:
+            return math.isfinite(self.max_rel_dx)
         return bool(self.max_rel_dx <= self.tolerance)
 
 
@@ -57,7 +65,7 @@ def amplitude_floor(system):
 def compare(result, reference, tolerance, floor=0.0):
     """Compare a :class:`~.master.SystemResult` with a :class:`~stickslip.reference.ChainResult` on the same grid;
     ``tolerance``: the largest allowed ``max |dx|`` as a fraction of the amplitude, or of ``floor`` (m) if that is
-    larger (:func:`amplitude_floor`)."""
+    larger (:func:`amplitude_floor`); None: not judged."""
     if result.x.shape != reference.x.shape or not np.allclose(result.t, reference.t, rtol=1e-12, atol=0.0):
         raise ValueError(f"the master's grid ({result.x.shape}) is not the reference's ({reference.x.shape})")
     n = reference.x.shape[1]

@@ -22,13 +22,26 @@ def _seconds(value):
     return "n/a" if math.isnan(value) else f"{value:.2e}"
 
 
-def summary_line(system, result, comparison):
-    """One line: the file, the master with its settings, the error against the tolerance, the verdict."""
+#: why a master without a tolerance (zoh, unless its file sets one) is reported and not judged
+NOT_JUDGED = ("not judged against the tolerance (a held-input coupling of order 1: its error is the step's; "
+              "use --master me or adaptive for exact results, or a smaller --step)")
+
+
+def summary(system, result, comparison):
+    """The console's text: one line with the file, the master with its settings, the error against the
+    tolerance, the verdict and the wall time; a second line with :data:`NOT_JUDGED` where the run is not judged."""
     settings = ", ".join(f"{k} {_shown(v)}" for k, v in result.settings.items())
-    verdict = "PASS" if comparison.ok else "FAIL"
-    return (f"{system.name}: {result.master} ({settings}): max |dx| {np.max(comparison.max_abs_dx):.3g} m = "
-            f"{comparison.max_rel_dx:.3g} of {_scale(comparison)} (tolerance {comparison.tolerance:g}): {verdict}; "
-            f"{result.wall_time:.2f} s")
+    line = (f"{system.name}: {result.master} ({settings}): max |dx| {np.max(comparison.max_abs_dx):.3g} m = "
+            f"{comparison.max_rel_dx:.3g} of {_scale(comparison)} {verdict(comparison)}; {result.wall_time:.2f} s")
+    return line if comparison.judged else f"{line}\n{result.master}: {NOT_JUDGED}"
+
+
+def verdict(comparison):
+    """``(tolerance 0.1): PASS`` or ``FAIL``; ``(not judged)`` where there is no tolerance, with ``: FAIL`` if an
+    error is not finite (the run itself failed)."""
+    if comparison.judged:
+        return f"(tolerance {comparison.tolerance:g}): {'PASS' if comparison.ok else 'FAIL'}"
+    return "(not judged)" if comparison.ok else "(not judged): FAIL, an error is not finite"
 
 
 def _scale(comparison):
@@ -47,8 +60,9 @@ def write_report(path, system, result, comparison, reference_seconds, figures):
     lines += [
         f"{n} blocks, coupling {list(system.coupling)} N/m, v_drive = {system.v_drive:g} m/s, "
         f"{system.stop_time:g} s sampled every {system.output_interval:g} s (file `{system.path}`).", "",
-        f"**{'PASS' if comparison.ok else 'FAIL'}**: max |dx| = {np.max(comparison.max_abs_dx):.3e} m, "
-        f"{comparison.max_rel_dx:.3e} of {_scale(comparison)} (tolerance {comparison.tolerance:g}).", "",
+        f"**{_headline(comparison)}**: max |dx| = {np.max(comparison.max_abs_dx):.3e} m, "
+        f"{comparison.max_rel_dx:.3e} of {_scale(comparison)} {verdict(comparison)}.", "",
+        *([] if comparison.judged else [f"{result.master}: {NOT_JUDGED}.", ""]),
         "| | |", "|---|---|",
         *(f"| {label} | {_shown(value)} |" for label, value in {**result.settings, **result.stats}.items()),
         f"| wall time of the master (s) | {result.wall_time:.3f} |",
@@ -64,6 +78,13 @@ def write_report(path, system, result, comparison, reference_seconds, figures):
         lines += ["", "Some steps held more than one event of a block: those events are counted, not timed."]
     lines += [""] + [f"![{caption}]({name})" for caption, name in figures.items()]
     path.write_text("\n".join(lines) + "\n")
+
+
+def _headline(comparison):
+    """The report's verdict in one word: PASS, FAIL or NOT JUDGED (an unjudged run with a non-finite error: FAIL)."""
+    if comparison.judged or not comparison.ok:
+        return "PASS" if comparison.ok else "FAIL"
+    return "NOT JUDGED"
 
 
 def _shown(value):

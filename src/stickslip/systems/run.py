@@ -1,7 +1,9 @@
 """``stickslip system run``: a system file through a master and the chain's reference, compared, with the files.
 
-Writes ``<out>/<stem>.csv`` (the master's samples), ``<out>/<stem>.md`` (the report), ``<out>/<stem>.png``
-(each block's ``x(t)``, master against reference) and ``<out>/<stem>-spacetime.png`` (which block slips when).
+Writes ``<out>/<run>.csv`` (the master's samples), ``<out>/<run>.md`` (the report), ``<out>/<run>.png``
+(each block's ``x(t)``, master against reference) and ``<out>/<run>-spacetime.png`` (which block slips when),
+``<run>`` being the file's stem, the master and its engine (``chain2-coulomb-zoh-libcosim``, ``chain2-coulomb-me``):
+runs of different masters share a folder.
 """
 
 import time
@@ -15,13 +17,14 @@ from .compare import Comparison, amplitude_floor, compare
 from .master import SystemResult
 from .masters import make_master
 from .plots import plot_positions, plot_space_time
-from .report import summary_line, write_csv, write_report
+from .report import summary, write_csv, write_report
 from .system_file import load_system
 
 
 @dataclass(frozen=True)
 class SystemOutcome:
-    """The run (:class:`~.master.SystemResult`), its comparison, the summary line and the files written."""
+    """The run (:class:`~.master.SystemResult`), its comparison, the console's summary and the files written;
+    ``ok``: within the tolerance, or (where the master is not judged) every error finite."""
 
     result: SystemResult
     comparison: Comparison
@@ -41,7 +44,7 @@ def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress
     """
     system = load_system(path)
     runner = make_master(master, **(options or {}))
-    files = output_files(out_dir, system.name)
+    files = output_files(out_dir, run_name(system.name, master, (options or {}).get("engine")))
     fmu_path = fmu_path or ensure_fmu(fmi_version=runner.FMI_VERSION)
     with _progress(f"{system.name} {master}", system.stop_time, show_progress) as step:
         result = runner.run(system, fmu_path, step)
@@ -58,13 +61,19 @@ def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress
     figures = {"x of each block, master against reference": files["positions"].name,
                "which block slips when": files["space-time"].name}
     write_report(files["report"], system, result, comparison, reference_seconds, figures)
-    return SystemOutcome(result, comparison, summary_line(system, result, comparison), tuple(files.values()))
+    return SystemOutcome(result, comparison, summary(system, result, comparison), tuple(files.values()))
+
+
+def run_name(system_name, master, engine=None):
+    """The stem of a run's files: the system's name, the master and, if given, the engine (``None``: the master's
+    own stepping)."""
+    return "-".join(part for part in (system_name, master, engine) if part)
 
 
 def output_files(out_dir, name):
-    """``{kind: path}`` of the files a run of the system ``name`` writes into ``out_dir``: checked before the run
-    (the folder made, the names fit), the previous run's report removed (it is written last: a run that stops
-    leaves none)."""
+    """``{kind: path}`` of the files the run ``name`` (:func:`run_name`) writes into ``out_dir``: checked before
+    the run (the folder made, the names fit), the previous run's report removed (it is written last: a run that
+    stops leaves none)."""
     suffixes = {"csv": ".csv", "report": ".md", "positions": ".png", "space-time": "-spacetime.png"}
     out = output_folder(out_dir, [name + suffix for suffix in suffixes.values()])
     files = {kind: out / f"{name}{suffix}" for kind, suffix in suffixes.items()}

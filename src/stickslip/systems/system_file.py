@@ -4,8 +4,8 @@
 ``coupling`` (N/m, the ``N - 1`` springs between neighbours); each ``[[blocks]]`` table holds FMU parameter
 values by the FMU's names (``M``, ``kappa``, ``"kinetic.law"``, ...; a missing one takes the FMU's start
 value); an optional ``[tolerance.<master>]`` table sets ``max_rel_dx``, the largest error of that master
-against the chain's reference, as a fraction of the chain's amplitude. Names, kinds and law codes come from
-the FMU's variable table (:mod:`stickslip.fmu.variables`), value ranges from the FMU's own checks: the ranges of
+against the chain's reference, as a fraction of the chain's amplitude (without it ``zoh`` is not judged).
+Names, kinds and law codes come from the FMU's variable table (:mod:`stickslip.fmu.variables`), value ranges from the FMU's own checks: the ranges of
 that table, the runtime's checks of the parameters and of the scales they combine into with the system's
 ``v_drive`` and each block's starting coupling force (what the FMU would refuse at its initialization). A run
 that would not finish is refused too (:mod:`stickslip.hosts.run_limits`). A malformed file raises
@@ -27,8 +27,9 @@ from ..fmu.variables import INPUTS, START_VALUES, VARIABLES, check_values
 from ..hosts.run_limits import free_period, too_many_periods, too_many_points
 from ..reference import ChainBlock, parameters_from_values
 
-#: {master: default max |dx| against the reference as a fraction of the chain's amplitude}, see docs/systems.md
-DEFAULT_TOLERANCES = {"zoh": 0.1, "me": 1e-6, "adaptive": 1e-6}
+#: {master: default max |dx| against the reference as a fraction of the chain's amplitude}, see docs/systems.md;
+#: None: the master's runs are reported, not judged (zoh's held inputs are first order: its error is the step's)
+DEFAULT_TOLERANCES = {"zoh": None, "me": 1e-6, "adaptive": 1e-6}
 _SYSTEM_KEYS = {"stop_time", "output_interval", "v_drive", "coupling", "description"}
 _TOP_KEYS = {"system", "blocks", "tolerance"}
 #: {parameter name: its variable in the FMU's table}
@@ -43,7 +44,8 @@ class SystemFileError(StickSlipError, ValueError):
 @dataclass(frozen=True)
 class System:
     """One validated system file. ``blocks``: every FMU parameter of each block by FMU name (file values over the
-    FMU's start values); ``tolerances``: {master: max |dx| / amplitude} with the defaults filled in."""
+    FMU's start values); ``tolerances``: {master: max |dx| / amplitude, or None: not judged} with the defaults
+    filled in."""
 
     path: Path
     stop_time: float
