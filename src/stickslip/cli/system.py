@@ -4,8 +4,7 @@ chain's reference; ``stickslip system ssp FILE.toml --out DIR``: the chain as an
 import argparse
 import math
 
-from ..systems.engines import ENGINES
-from ..systems.masters import MASTERS
+from ..systems.names import ENGINES, MASTER_NAMES
 
 
 def add_system(subparsers):
@@ -15,7 +14,7 @@ def add_system(subparsers):
         "run", help="run a system file through a master and the chain's reference; write DIR/<stem>.csv, .md and "
                     "plots; exit 1 if the error exceeds the file's tolerance for the master")
     run.add_argument("file", metavar="FILE.toml", help="system file")
-    run.add_argument("--master", required=True, choices=sorted(MASTERS),
+    run.add_argument("--master", required=True, choices=sorted(MASTER_NAMES),
                      help="zoh: fixed step, held inputs (FMI 2 co-simulation); me: FMI 3 model exchange of all "
                           "blocks in one solver; adaptive: FMI 2 co-simulation with events landed, step rejection and "
                           "iterated coupling")
