@@ -6,7 +6,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from stickslip.core import CallableKinetic, Constant, Lubricated, Parameters, Stribeck
-from stickslip.analysis import boundary, sliding_limit_cycles, steady_sliding
+from stickslip.analysis import boundary, flow, sliding_limit_cycles, steady_sliding
 
 
 def test_subcritical_hopf_cycle_matches_the_normal_form():
@@ -30,6 +30,27 @@ def test_subcritical_hopf_cycle_matches_the_normal_form():
     values = rmap.evaluate([0.01 * predicted], [h.v_drive - 1e-3])
     assert values["G"][0] > 0.0
 
+
+
+@pytest.mark.filterwarnings("error")
+def test_the_return_map_has_no_value_at_an_amplitude_at_or_below_zero():
+    """A continuation's predictor may step past the Hopf point to ``sigma <= 0``: no revolution starts there (NaN),
+    none is integrated with the zero or negative tolerance that amplitude would set, and the points beside it in
+    the batch keep their values."""
+    p = Parameters(2.0, 1.5, Stribeck(F0=0.4, F_stribeck=0.3, v_stribeck=0.1, delta=1.0, gamma=0.5),
+                   Constant(F0=1.0))
+    (h,) = steady_sliding.hopf_points(p, 0.0, 5.0)
+    v = h.v_drive + 1e-3
+    sigma = h.amplitude(v, slope=p.kinetic.slope(v)) * h.omega
+    rmap = sliding_limit_cycles.ReturnMap(p)
+    alone = rmap.evaluate([sigma], [v])
+    batch = rmap.evaluate([sigma, -0.1 * sigma, 0.0, sigma], [v] * 4)
+    for key, values in batch.items():
+        assert math.isfinite(alone[key][0]), key
+        assert list(values[[0, 3]]) == pytest.approx([alone[key][0]] * 2, rel=1e-9), key  # batches differ by ~1e-11
+        assert all(math.isnan(value) for value in values[1:3]), key
+    with pytest.raises(ValueError, match="scale: allowed is a length > 0 m"):
+        flow.run(p, 1.0, 0.0, 0.1, scale=0.0)
 
 def test_supercritical_hopf_cycle_is_stable():
     d = 0.04

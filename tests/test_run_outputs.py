@@ -155,3 +155,18 @@ def test_the_figure_plots_the_fmu_and_the_reference_where_they_say(tmp_path, run
     for (x, v), (x_expected, v_expected) in ((solid, (fmu["x"], fmu["v"])), (dashed, (ref.x, ref.v))):
         np.testing.assert_array_equal(x, x_expected)
         np.testing.assert_array_equal(v, v_expected)
+
+
+@pytest.mark.filterwarnings("error")
+def test_the_figure_of_a_run_without_any_difference_has_a_log_axis_that_holds_the_tolerance(tmp_path, fmu_path):
+    """coulomb-FK-equals-FS: the FMU equals the reference at every sample, so nothing is drawn on the |dx| axis;
+    its limits are set (no warning of equal limits) and hold the tolerance line."""
+    scenario = load_scenario(SCENARIO_DIR / "coulomb-FK-equals-FS.toml")
+    fmu = _fmpy_run(fmu_path, scenario, _columns(fmu_path))
+    ref = _reference(scenario, fmu["time"])
+    assert not np.any(fmu["x"] - ref.x)
+    fig = plot_scenario(tmp_path / "plot.png", scenario.name, fmu, ref, scenario.tolerance.max_abs_dx)
+    assert (tmp_path / "plot.png").stat().st_size > 0
+    (dx_axis,) = [ax for ax in fig.axes if ax.get_ylabel() == "|x_FMU - x_ref| (m)"]
+    low, high = dx_axis.get_ylim()
+    assert 0.0 < low < scenario.tolerance.max_abs_dx < high

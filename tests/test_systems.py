@@ -13,9 +13,10 @@ import pytest
 from stickslip.cli import main
 from stickslip.hosts.fmpy_host import FMUError
 from stickslip.reference import simulate_chain
-from stickslip.systems import SystemFileError, load_system, make_master
+from stickslip.systems import MASTERS, SystemFileError, load_system, make_master
 from stickslip.systems.compare import compare
 from stickslip.systems.master import SystemResult
+from stickslip.systems.names import MASTER_NAMES
 
 SYSTEMS = Path(__file__).resolve().parents[1] / "systems"
 CHAIN2 = SYSTEMS / "chain2-coulomb.toml"
@@ -119,6 +120,13 @@ def test_masters_refuse_options_they_do_not_take():
         make_master("exact")
     with pytest.raises(FMUError, match=r"zoh: step = 0.03 s: allowed is output_interval \(0.1 s\) divided by a whole"):
         make_master("zoh", step=0.03).run(load_system(CHAIN2), "unused.fmu")
+
+
+
+def test_the_command_lines_master_names_are_the_masters():
+    """``--master`` offers the names of :mod:`stickslip.systems.names`: every master, each under its class's NAME."""
+    assert sorted(MASTER_NAMES) == sorted(MASTERS)
+    assert all(cls.NAME == name for name, cls in MASTERS.items())
 
 
 # ---------------------------------------------------------------- the masters on the scenes

@@ -3,8 +3,10 @@ and its subcommands, nor in the package's strings (messages, docstrings shown by
 reads, or the scenario and system files."""
 
 import ast
+import json
 import re
 import subprocess
+import sys
 from pathlib import Path
 
 from cli_child import STICKSLIP
@@ -51,3 +53,40 @@ def test_package_strings_and_user_docs_name_no_issue():
         if path.name not in DEVELOPER_DOCS:
             found += [f"{path.relative_to(ROOT)}: {m}" for m in INTERNAL.findall(path.read_text())]
     assert not found
+
+
+#: in a fresh Python: ``--help`` of ``stickslip`` and of every command and nested command, each exiting 0; then
+#: prints the commands seen and which numerical modules got imported
+HELP_CHILD = r"""
+import argparse, contextlib, io, json, sys
+from stickslip.cli import build_parser, main
+
+def commands(parser, prefix=()):
+    yield prefix
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from commands(sub, (*prefix, name))
+
+seen = []
+for argv in commands(build_parser()):
+    with contextlib.redirect_stdout(io.StringIO()) as out:
+        try:
+            main([*argv, "--help"])
+        except SystemExit as exc:
+            assert exc.code == 0 and "usage:" in out.getvalue(), (argv, exc.code)
+    seen.append(" ".join(argv))
+print(json.dumps({"commands": seen, "heavy": sorted(m for m in sys.modules
+                                                  if m.split(".")[0] in ("numpy", "scipy", "fmpy", "matplotlib"))}))
+"""
+
+
+def test_help_imports_no_numerical_module():
+    """``--help`` answers at once: building and printing every parser loads none of NumPy, SciPy, FMPy and
+    Matplotlib (the handlers import them when a command runs)."""
+    done = subprocess.run([sys.executable, "-c", HELP_CHILD], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    found = json.loads(done.stdout.splitlines()[-1])
+    assert {"", "run", "map", "bifurcation", "bench-versus", "bench-systems", "system run", "system ssp"} <= set(
+        found["commands"])
+    assert found["heavy"] == []

@@ -186,7 +186,7 @@ def run(params, x0, v0, v_drive, F_ext=0.0, mode=1, *, backward=False, rtol=1e-1
     ``escape`` times its natural scale (``"escape"``) or ``max_steps`` steps
     were taken (``"steps"``).
 
-    ``scale`` (m, per member) sets the absolute tolerance (``rtol * scale`` in
+    ``scale`` (m, per member, > 0: ValueError otherwise) sets the absolute tolerance (``rtol * scale`` in
     position, ``rtol * scale * omega0`` in velocity; default ``(F_S(0) +
     |F_ext|)/kappa``); ``x_shift`` (m) is subtracted from ``x`` for the
     integration, so that small oscillations about it are resolved relatively.
@@ -219,6 +219,8 @@ class _Batch:
         self.max_steps = max_steps
         natural = (params.static.force(0.0) + np.abs(fe)) / kappa
         scale = np.broadcast_to(np.asarray(natural if scale is None else scale, float), (n,)).copy()
+        if not np.all(scale > 0.0):
+            raise ValueError(f"scale: allowed is a length > 0 m (it sets the absolute tolerances), got {scale.min()!r}")
         xs = np.zeros(n) if x_shift is None else np.broadcast_to(np.asarray(x_shift, float), (n,)).copy()
         self.system = System(Kinetic(params.kinetic), M, kappa, vd, fe, md, np.where(bw > 0.0, -1.0, 1.0), xs)
         self.x0, self.v0 = x0, v0

@@ -86,23 +86,27 @@ class ReturnMap:
         return np.array([(law.force(float(v)) + self.F_ext) / self.params.kappa for v in np.atleast_1d(v_drive)])
 
     def evaluate(self, sigma, v_drive):
-        """Batch of one revolution each: dict of arrays ``G, P, period, x_min, v_min, v_max`` (NaN if lost)."""
+        """Batch of one revolution each: dict of arrays ``G, P, period, x_min, v_min, v_max``; NaN where the
+        revolution is lost and where ``sigma <= 0`` (m/s): a revolution starts ``sigma / omega`` m right of the
+        centre, an amplitude that must be positive (it also scales the integration's absolute tolerance)."""
         sigma, v_drive = np.broadcast_arrays(np.asarray(sigma, float), np.asarray(v_drive, float))
         sigma, v_drive = sigma.ravel(), v_drive.ravel()
-        self.n_evaluations += sigma.size
-        s = sigma / self.omega
-        xc = self.centre(v_drive)
-        recs = flow.run(self.params, xc + s, 0.0, v_drive, self.F_ext, 1, rtol=self.rtol, scale=s, x_shift=xc,
+        out = {k: np.full(sigma.size, np.nan) for k in ("G", "P", "period", "x_min", "v_min", "v_max")}
+        run = np.flatnonzero(sigma > 0.0)
+        if run.size == 0:
+            return out
+        self.n_evaluations += run.size
+        s = sigma[run] / self.omega
+        xc = self.centre(v_drive[run])
+        recs = flow.run(self.params, xc + s, 0.0, v_drive[run], self.F_ext, 1, rtol=self.rtol, scale=s, x_shift=xc,
                         stop_at_cross=False, policy=lambda i, r, e: e[0] == "xmax",
                         t_max=4.0 * 2.0 * math.pi / self.omega)
-        n = sigma.size
-        out = {k: np.full(n, np.nan) for k in ("G", "P", "period", "x_min", "v_min", "v_max")}
-        for i, r in enumerate(recs):
+        for j, (i, r) in enumerate(zip(run, recs)):
             if r.reason != "policy":
                 continue
-            P = r.x - xc[i]
+            P = r.x - xc[j]
             out["P"][i] = P
-            out["G"][i] = (P - s[i]) / s[i]
+            out["G"][i] = (P - s[j]) / s[j]
             out["period"][i] = r.t
             out["x_min"][i] = min((x for k, t, x, v in r.events if k == "xmin"), default=np.nan)
             out["v_min"][i] = min((v for k, t, x, v in r.events if k == "vmin"), default=np.nan)

@@ -21,10 +21,6 @@ from ..reference import simulate_chain
 from ..systems.compare import compare
 from ..systems.masters import make_master
 
-#: default settings: zoh's step h (s), adaptive's and me's rtol
-ZOH_STEPS = (0.1, 0.01, 0.001, 1e-4)
-ADAPTIVE_RTOLS = (1e-5, 1e-7, 1e-9, 3e-10, 1e-11)
-ME_RTOLS = (1e-6, 1e-8, 1e-10, 1e-12)
 #: master: (its option, the option's name in the report)
 SETTINGS = {"zoh": ("step", "h"), "adaptive": ("rtol", "rtol"), "me": ("rtol", "rtol")}
 

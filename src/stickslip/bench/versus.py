@@ -12,22 +12,9 @@ import statistics
 import subprocess
 import sys
 
-from ..fmu.variables import START_VALUES
 from .fmus import ExtractedFMU
 from .process_timing import timed_call
 from .scenes import select_scenes
-
-
-def add_versus_parser(subparsers):
-    p = subparsers.add_parser("bench-versus", help="time FMU files side by side on one benchmark scene")
-    p.add_argument("fmus", nargs="+", metavar="FMU", help="FMU files; ratios are to the first")
-    p.add_argument("--scene", default="elmer-fig3-v1.0-long", help="benchmark scene (default: elmer-fig3-v1.0-long)")
-    p.add_argument("--comm-step", type=float, default=1.0, help="communication step in s (default: 1)")
-    p.add_argument("--rtol", type=float, default=START_VALUES["solver.rtol"],
-                   help=f"the FMUs' solver.rtol (default: the FMU's, {START_VALUES['solver.rtol']:g})")
-    p.add_argument("--rounds", type=int, default=3, help="alternating rounds (default: 3)")
-    p.add_argument("--repeats", type=int, default=5, help="timed calls per FMU and round (default: 5)")
-    p.set_defaults(handler=run_versus)
 
 
 def time_fmu(fmu_path, scene_name, comm_step, rtol, repeats):

@@ -1,18 +1,18 @@
 """Command line: ``stickslip <command> ...``.
 
 Each command is a function ``add_<command>(subparsers)`` that adds its parser and
-sets ``handler``, a function of the parsed arguments returning the exit code.
+sets ``handler``, a function of the parsed arguments returning the exit code. Parsers are built from light
+modules only; a handler imports what its command needs (NumPy, SciPy, FMPy, Matplotlib) when it runs.
 """
 
 import argparse
 import sys
 from pathlib import Path
 
-from ..bench.versus import add_versus_parser
 from ..core.errors import StickSlipError
 from ..hosts import interrupts
 from .analysis import add_bifurcation, add_chart, add_map, add_slow_manifold, add_vc
-from .bench import add_bench_parser, add_c_hosts_parser, add_systems_parser
+from .bench import add_bench_parser, add_c_hosts_parser, add_systems_parser, add_versus_parser
 from .stress import add_stress_parser
 from .system import add_system
 
@@ -69,15 +69,21 @@ COMMANDS = (add_run, add_build, add_bench_parser, add_c_hosts_parser, add_system
 INTERRUPTED = 130
 
 
-def main(argv=None):
-    """Entry point of the ``stickslip`` script; returns the exit code (0 success, 1 failure, 2 usage,
-    :data:`INTERRUPTED` after Ctrl-C)."""
+def build_parser():
+    """The ``stickslip`` parser with every command's; building it imports no numerical module (each handler
+    imports what its command needs), so that ``--help`` answers at once."""
     parser = argparse.ArgumentParser(
         prog="stickslip", description="Spring-block dry friction: FMU, reference integrator and scenario suite.")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in COMMANDS:
         add(subparsers)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv=None):
+    """Entry point of the ``stickslip`` script; returns the exit code (0 success, 1 failure, 2 usage,
+    :data:`INTERRUPTED` after Ctrl-C)."""
+    args = build_parser().parse_args(argv)
     try:
         with interrupts.counting():
             return args.handler(args)

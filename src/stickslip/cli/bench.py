@@ -1,7 +1,9 @@
 """``stickslip bench``: the work-precision benchmark (:mod:`stickslip.bench`); ``add_bench_parser(subparsers)`` adds
-it, ``run_bench(args)`` runs it."""
+it, ``run_bench(args)`` runs it. Also ``bench-c-hosts``, ``bench-systems`` and ``bench-versus``."""
 
 import sys
+
+from ..fmu.variables import START_VALUES
 
 
 def add_bench_parser(subparsers):
@@ -107,9 +109,13 @@ def run_c_hosts(args):
     return 0
 
 
-def add_systems_parser(subparsers):
-    from ..bench.systems_bench import ADAPTIVE_RTOLS, ME_RTOLS, ZOH_STEPS
+#: ``bench-systems`` defaults: zoh's step h (s), adaptive's and me's rtol
+ZOH_STEPS = (0.1, 0.01, 0.001, 1e-4)
+ADAPTIVE_RTOLS = (1e-5, 1e-7, 1e-9, 3e-10, 1e-11)
+ME_RTOLS = (1e-6, 1e-8, 1e-10, 1e-12)
 
+
+def add_systems_parser(subparsers):
     p = subparsers.add_parser("bench-systems", help="the masters on chain scenes: error against wall time, "
                                                     "orders, zoh's wall against adaptive's at matched error")
     p.add_argument("files", nargs="+", metavar="FILE.toml", help="system files (e.g. systems/chain2-coulomb.toml)")
@@ -156,3 +162,21 @@ def run_systems(args):
     meta["load_end"] = [round(x, 2) for x in os.getloadavg()]
     print("wrote " + ", ".join(str(p) for p in write(Path(args.out), meta, records)))
     return 0
+
+
+def add_versus_parser(subparsers):
+    p = subparsers.add_parser("bench-versus", help="time FMU files side by side on one benchmark scene")
+    p.add_argument("fmus", nargs="+", metavar="FMU", help="FMU files; ratios are to the first")
+    p.add_argument("--scene", default="elmer-fig3-v1.0-long", help="benchmark scene (default: elmer-fig3-v1.0-long)")
+    p.add_argument("--comm-step", type=float, default=1.0, help="communication step in s (default: 1)")
+    p.add_argument("--rtol", type=float, default=START_VALUES["solver.rtol"],
+                   help=f"the FMUs' solver.rtol (default: the FMU's, {START_VALUES['solver.rtol']:g})")
+    p.add_argument("--rounds", type=int, default=3, help="alternating rounds (default: 3)")
+    p.add_argument("--repeats", type=int, default=5, help="timed calls per FMU and round (default: 5)")
+    p.set_defaults(handler=_versus)
+
+
+def _versus(args):
+    from ..bench.versus import run_versus
+
+    return run_versus(args)

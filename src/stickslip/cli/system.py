@@ -5,8 +5,7 @@ is that of a system file shipped with the package (e.g. chain2-coulomb)."""
 import argparse
 import math
 
-from ..systems.engines import ENGINES
-from ..systems.masters import MASTERS
+from ..systems.names import ENGINES, MASTER_NAMES
 
 FILE_HELP = "system file, or the name of a system shipped with stickslip (e.g. chain2-coulomb)"
 
@@ -19,7 +18,7 @@ def add_system(subparsers):
                     ".md and plots (zoh with --engine: <stem>-zoh-<engine>.*); exit 1 if the error exceeds the file's "
                     "tolerance for the master (zoh is judged only where the file sets one) or the run fails")
     run.add_argument("file", metavar="FILE.toml", help=FILE_HELP)
-    run.add_argument("--master", required=True, choices=sorted(MASTERS),
+    run.add_argument("--master", required=True, choices=sorted(MASTER_NAMES),
                      help="zoh: fixed step, held inputs (FMI 2 co-simulation); me: FMI 3 model exchange of all "
                           "blocks in one solver; adaptive: FMI 2 co-simulation with events landed, step rejection and "
                           "iterated coupling")

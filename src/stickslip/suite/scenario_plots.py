@@ -52,6 +52,11 @@ def plot_scenario(png_path, title, fmu, ref, max_abs_dx=None):
 
     dx = np.abs(fmu["x"] - ref.x)
     shown = dx > 0.0
+    if not shown.any():  # the FMU equals the reference at every sample: no data sets the log axis's limits
+        top = 10.0 * (max_abs_dx if max_abs_dx is not None else 1.0)
+        ax_dx.set_yscale("log")
+        ax_dx.set_ylim(1e-9 * top, top)
+        ax_dx.text(0.5, 0.5, "x_FMU = x_ref at every sample", transform=ax_dx.transAxes, ha="center", va="center")
     ax_dx.semilogy(t[shown], dx[shown], lw=0.8, color="C4", label="|x_FMU - x_ref| (exact zeros not drawn)")
     if max_abs_dx is not None:
         ax_dx.axhline(max_abs_dx, color="C3", ls="--", lw=1.0, label=f"tolerance max_abs_dx = {max_abs_dx:g} {UNITS['x']}")

@@ -37,9 +37,9 @@ from pathlib import Path
 from ..fmu.coupling import ensure_coupling_fmu
 from ..hosts.fmpy_host import ExtractedFMU, FMUError
 from .master import read_values, references, start_block
+from .names import ENGINES
 from .ssp import PARAMETER_SET, component, component_values, connections, write_ssp
 
-ENGINES = ("fmpy", "libcosim", "ecos", "fmpy-ssp")
 RESULT_MARK = "@@ssp-engine-result@@"
 #: what each block's row holds after a step: Real outputs, then Integer outputs
 REALS, INTEGERS = ("x", "v", "t_last_event"), ("mode", "n_events")

@@ -20,8 +20,9 @@ import numpy as np
 
 from ..hosts.fmpy_host import FMUError
 from ..hosts.run_limits import too_many_steps
-from .engines import ENGINES, INTEGERS, REALS, run_ssp
+from .engines import INTEGERS, REALS, run_ssp
 from .master import SystemResult, block_instances, read_values, references, step_events
+from .names import ENGINES
 
 
 
