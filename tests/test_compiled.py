@@ -129,14 +129,15 @@ def test_a_build_without_a_c_compiler_gives_a_working_pure_fmu_and_says_so(tmp_p
     code = f"""
         from pathlib import Path
         import stickslip.fmu.staging as staging
-        staging.CACHE = Path({str(tmp_path / "cache")!r})  # nothing compiled earlier to reuse
+        staging.CACHE = Path({str(tmp_path / "cache")!r})  # nothing compiled earlier to reuse,
+        staging.PREBUILT = Path({str(tmp_path / "prebuilt")!r})  # nor compiled when the package was installed
         from stickslip.fmu import build
         print(build(Path({str(tmp_path / "SpringBlockFriction.fmu")!r})))
     """
     run = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True,
                          env={**os.environ, "CC": str(tmp_path / "no-such-compiler")}, cwd=tmp_path)
     assert run.returncode == 0, run.stderr
-    assert "the FMU's runtime stays pure Python" in run.stderr
+    assert "the FMUs' runtime stays pure Python" in run.stderr
     pure_fmu = fmpy.extract(run.stdout.strip().splitlines()[-1], unzipdir=str(tmp_path / "pure_fmu"))
     implementation, xs = _fmu_run(pure_fmu, tmp_path)
     assert implementation == "pure Python (no compiled modules for this Python)"
