@@ -71,7 +71,7 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         self.register_variable(Float64("time", causality=Fmi3Causality.independent,
                                        variability=Fmi3Variability.continuous, description="simulation time",
                                        getter=lambda: self.time), nested=False)
-        self.offer_to_loader("x86_64-linux")
+        self.offer_to_loader(3)
 
     def _local(self, name, unit, description, getter, derivative=None):
         self.variable_units[name] = unit
