@@ -57,9 +57,12 @@ def offer_to_loader(slave, resources, fmi_version, first_output, output_kinds):
 def _loaded_library(path):
     """The library at ``path`` if this process has loaded it (``ctypes.PyDLL``: the GIL stays held in its calls),
     else None. POSIX: a reference is taken (dlclose it); Windows: none is."""
-    if os.name == "nt":
+    if os.name == "nt":  # by its long path: the FMI library may have been handed a short (8.3) one
         kernel32 = ctypes.WinDLL("kernel32", use_last_error=True)
         kernel32.GetModuleHandleW.argtypes, kernel32.GetModuleHandleW.restype = (ctypes.c_wchar_p,), ctypes.c_void_p
+        long_path = ctypes.create_unicode_buffer(32768)
+        if kernel32.GetLongPathNameW(path, long_path, len(long_path)):
+            path = long_path.value
         handle = kernel32.GetModuleHandleW(path)
         return ctypes.PyDLL(path, handle=handle) if handle else None
     try:

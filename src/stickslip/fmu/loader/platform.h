@@ -76,7 +76,10 @@ int sbf_uri_path(const char *host, size_t host_length, const char *uri_path, cha
 int sbf_path_kind(const char *path, char *why, size_t why_size);
 /* The first line of the text file `path` (without its line end) into `line`; 0 if it cannot be read. */
 int sbf_read_first_line(const char *path, char *line, size_t size);
-/* Another path to the folder `folder` that has neither "%20" nor "file://" in it, into `path`; 0 with the cause in
+/* Whether the FMI library's binary can open files under the folder `path` by that path (Linux: always; Windows:
+ * if it is ASCII, since PythonFMU's and pythonfmu3's DLLs open files through the ANSI code page) */
+int sbf_library_can_open(const char *path);
+/* Another path to the folder `folder` that the FMI library's binary can open and that has neither "%20" nor "file://" in it, into `path`; 0 with the cause in
  * `why` if the system has none. */
 int sbf_folder_alias(const char *folder, char *path, size_t size, char *why, size_t why_size);
 

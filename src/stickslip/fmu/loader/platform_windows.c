@@ -264,6 +264,8 @@ int sbf_path_kind(const char *path, char *why, size_t why_size)
     static wchar_t wide[WIDE_PATH];
     struct _stat64 st;
     if (!to_wide(path, wide, WIDE_PATH)) return snprintf(why, why_size, "the path is not UTF-8 text"), 0;
+    size_t n = wcslen(wide); /* _wstat64 finds no folder whose name ends with a separator, save a drive's root */
+    while (n > 3 && (wide[n - 1] == L'\\' || wide[n - 1] == L'/')) wide[--n] = L'\0';
     if (_wstat64(wide, &st) != 0) return snprintf(why, why_size, "%s", strerror(errno)), 0;
     return (st.st_mode & S_IFMT) == S_IFDIR ? 1 : (st.st_mode & S_IFMT) == S_IFREG ? 2 : 3;
 }
@@ -279,12 +281,20 @@ int sbf_read_first_line(const char *path, char *line, size_t size)
     return 1;
 }
 
-/* The folder's short (8.3) path, where the volume keeps short names */
+int sbf_library_can_open(const char *path)
+{
+    for (const unsigned char *c = (const unsigned char *)path; *c; ++c)
+        if (*c >= 0x80) return 0;
+    return 1;
+}
+
+/* The folder's short (8.3) path, where the volume keeps short names (ASCII names) */
 int sbf_folder_alias(const char *folder, char *path, size_t size, char *why, size_t why_size)
 {
     static wchar_t wide[WIDE_PATH], short_path[WIDE_PATH];
     DWORD n = to_wide(folder, wide, WIDE_PATH) ? GetShortPathNameW(wide, short_path, WIDE_PATH) : 0;
-    if (n > 0 && n < WIDE_PATH && from_wide(short_path, path, size) && !strstr(path, "%20") && !strstr(path, "file://"))
+    if (n > 0 && n < WIDE_PATH && from_wide(short_path, path, size) && !strstr(path, "%20") &&
+        !strstr(path, "file://") && sbf_library_can_open(path))
         return 1;
     snprintf(why, why_size, "its volume has no short name for it");
     return 0;

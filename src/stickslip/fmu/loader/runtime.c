@@ -439,8 +439,12 @@ static int resource_folder(const char *location, char *path, size_t size, char *
 }
 
 /* Whether the inner library (PythonFMU 0.7.0, pythonfmu3 0.3.4) takes `path` as it is: both replace every "%20" in
- * the resource location by a space and then cut its first "file://" out (CppfmuInstantiateSlave). */
-static int taken_as_is(const char *path) { return !strstr(path, "%20") && !strstr(path, "file://"); }
+ * the resource location by a space and then cut its first "file://" out (CppfmuInstantiateSlave), and must be able
+ * to open files under it (sbf_library_can_open). */
+static int taken_as_is(const char *path)
+{
+    return !strstr(path, "%20") && !strstr(path, "file://") && sbf_library_can_open(path);
+}
 
 /* The path the inner library is given for the resources folder `folder` (an absolute path), into `path`: `folder`
  * itself where the library takes it as it is, else another path to the same folder (sbf_folder_alias) that it does.
@@ -451,7 +455,9 @@ static int inner_library_path(const char *folder, char *path, size_t size, char 
     if (taken_as_is(folder)) return snprintf(path, size, "%s", folder), 1;
     if (sbf_folder_alias(folder, path, size, cause, sizeof cause)) return 1;
     snprintf(why, why_size, "the resources folder %s cannot be handed to the FMU's library, which rewrites '%%20' and "
-             "'file://' in it (%s): move the FMU to a folder whose name has neither", folder, cause);
+             "'file://' in it%s (%s): move the FMU to a folder whose name has neither%s", folder,
+             sbf_library_can_open(folder) ? "" : " and cannot open its non-ASCII path", cause,
+             sbf_library_can_open(folder) ? "" : ", in ASCII letters");
     return 0;
 }
 
