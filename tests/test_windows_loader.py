@@ -77,16 +77,16 @@ def linux_hosts(host, host3):
     return {2: host, 3: host3}
 
 
-def windows_run(wine_env, windows_hosts, version, folder, mode, stop, start=START, env=None, resources=None):
+def windows_run(wine_env, windows_hosts, version, folder, mode, stop, start=START, env=None, output="x"):
     command, wine_variables = wine_env
-    run = run_host(windows_hosts[version], folder, mode, stop, SCENE.output_interval, start,
-                   env={**wine_variables, **(env or {})}, wrapper=[command], resources=resources)
+    run = run_host(windows_hosts[version], folder, mode, stop, SCENE.output_interval, start, output=output,
+                   env={**wine_variables, **(env or {})}, wrapper=[command])
     assert run.completed, f"exit {run.returncode}: {run.lines[-3:]} {run.logs} {run.stderr[-2000:]}"
     return run
 
 
-def linux_run(linux_hosts, version, folder, mode, stop, start=START, env=None):
-    run = run_host(linux_hosts[version], folder, mode, stop, SCENE.output_interval, start, env=env)
+def linux_run(linux_hosts, version, folder, mode, stop, start=START, env=None, output="x"):
+    run = run_host(linux_hosts[version], folder, mode, stop, SCENE.output_interval, start, output=output, env=env)
     assert run.completed, f"exit {run.returncode}: {run.lines[-3:]} {run.logs} {run.stderr[-2000:]}"
     return run
 
@@ -159,3 +159,20 @@ def test_without_the_cross_compiler_the_fmus_have_no_windows_binaries(tmp_path, 
         with zipfile.ZipFile(fmu) as archive:
             assert not [name for name in archive.namelist() if name.startswith(tuple(WINDOWS_FOLDERS.values()))]
             assert any(name.endswith("/sbf_start_guard.so") for name in archive.namelist())  # the Linux loader
+
+
+@pytest.mark.parametrize("mode, tags", [("state", "xrd"), ("two", "ab"), ("threads", "ab")])
+def test_states_and_two_instances_under_wine_equal_linux(wine_env, windows_hosts, linux_hosts, folders, mode, tags):
+    """FMU states got, set, serialized and deserialized; two instances on one thread and on two threads."""
+    windows = windows_run(wine_env, windows_hosts, 2, folders[2], mode, SHORT)
+    linux = linux_run(linux_hosts, 2, folders[2], mode, SHORT)
+    for tag in tags:
+        assert_same_motion(windows, linux, tag)
+
+
+def test_the_coupling_fmu_under_wine_equals_linux(wine_env, windows_hosts, linux_hosts, unzipped_coupling):
+    start = {"kc_left": 2.0, "kc_right": 3.0, "x_left": 0.3, "x": 0.05, "x_right": -0.1}  # N/m, m
+    runs = [run(*hosts, 2, unzipped_coupling[0], "run", SHORT, start=start, output="F")
+            for run, hosts in ((windows_run, (wine_env, windows_hosts)), (linux_run, (linux_hosts,)))]
+    assert runs[0].series("x") == runs[1].series("x")
+    assert runs[0].series("x")[1][-1] == pytest.approx(2.0 * (0.3 - 0.05) + 3.0 * (-0.1 - 0.05), abs=1e-15)

@@ -94,8 +94,9 @@ def compile_windows_loader(dest, inner_name, slave_survives_release, fmi_version
     if shutil.which(compiler) is None:
         return f"no Windows cross-compiler ({compiler!r} not found; install mingw-w64 or set {WINDOWS_CC_VARIABLE})"
     soname = f"python{sys.version_info[0]}{sys.version_info[1]}.dll"
-    command = [compiler, "-O2", "-shared", "-static", "-s", "-Wl,--no-insert-timestamp,--disable-auto-image-base", "-o", str(dest),
-               *_loader_sources(fmi_version, "windows"),
+    # no time stamp, a fixed image base: the same sources give the same bytes in any folder
+    command = [compiler, "-O2", "-shared", "-static", "-s", "-Wl,--no-insert-timestamp,--disable-auto-image-base",
+               "-o", str(dest), *_loader_sources(fmi_version, "windows"),
                *_loader_defines(inner_name, token, slave_survives_release, soname)]
     return _run_compiler(compiler, (command,))
 

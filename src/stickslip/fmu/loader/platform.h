@@ -79,8 +79,8 @@ int sbf_read_first_line(const char *path, char *line, size_t size);
 /* Whether the FMI library's binary can open files under the folder `path` by that path (Linux: always; Windows:
  * if it is ASCII, since PythonFMU's and pythonfmu3's DLLs open files through the ANSI code page) */
 int sbf_library_can_open(const char *path);
-/* Another path to the folder `folder` that the FMI library's binary can open and that has neither "%20" nor "file://" in it, into `path`; 0 with the cause in
- * `why` if the system has none. */
+/* Another path to the folder `folder` that the FMI library's binary can open and that has neither "%20" nor "file://"
+ * in it, into `path`; 0 with the cause in `why` if the system has none. */
 int sbf_folder_alias(const char *folder, char *path, size_t size, char *why, size_t why_size);
 
 #endif

@@ -26,7 +26,10 @@
 
 /* ---- libraries ---- */
 
-void *sbf_open_library(const char *path, int global) { return dlopen(path, RTLD_NOW | (global ? RTLD_GLOBAL : RTLD_LOCAL)); }
+void *sbf_open_library(const char *path, int global)
+{
+    return dlopen(path, RTLD_NOW | (global ? RTLD_GLOBAL : RTLD_LOCAL));
+}
 
 void *sbf_symbol(void *library, const char *name) { return dlsym(library, name); }
 
@@ -158,14 +161,16 @@ int sbf_process_lock(char *why, size_t why_size)
 {
     char path[4096];
     if (!process_lock) {
-        if (!sbf_loader_path(path, sizeof path)) return snprintf(why, why_size, "cannot locate the FMU's binaries folder"), 0;
+        if (!sbf_loader_path(path, sizeof path))
+            return snprintf(why, why_size, "cannot locate the FMU's binaries folder"), 0;
         char *slash = strrchr(path, '/');
         snprintf(slash ? slash + 1 : path, sizeof path - (slash ? slash + 1 - path : 0), "%s", SBF_START_GUARD);
         if (!dlopen(path, RTLD_NOW | RTLD_GLOBAL | RTLD_NODELETE))
             return snprintf(why, why_size, "cannot load the FMU's start guard %s: %s", path, dlerror()), 0;
         process_lock = dlsym(RTLD_DEFAULT, "sbf_python_start_lock");
         if (!process_lock)
-            return snprintf(why, why_size, "the FMU's start guard %s lacks sbf_python_start_lock: %s", path, dlerror()), 0;
+            return snprintf(why, why_size, "the FMU's start guard %s lacks sbf_python_start_lock: %s", path,
+                            dlerror()), 0;
     }
     pthread_mutex_lock(process_lock);
     return 1;
@@ -174,16 +179,17 @@ int sbf_process_lock(char *why, size_t why_size)
 void sbf_process_unlock(void) { pthread_mutex_unlock(process_lock); }
 
 static const int kept_signals[] = {SIGINT, SIGPIPE, SIGXFSZ};
-static struct sigaction host_handlers[sizeof kept_signals / sizeof *kept_signals];
+#define N_KEPT (sizeof kept_signals / sizeof *kept_signals)
+static struct sigaction host_handlers[N_KEPT];
 
 void sbf_save_host_signals(void)
 {
-    for (size_t i = 0; i < sizeof kept_signals / sizeof *kept_signals; ++i) sigaction(kept_signals[i], NULL, &host_handlers[i]);
+    for (size_t i = 0; i < N_KEPT; ++i) sigaction(kept_signals[i], NULL, &host_handlers[i]);
 }
 
 void sbf_restore_host_signals(void)
 {
-    for (size_t i = 0; i < sizeof kept_signals / sizeof *kept_signals; ++i) sigaction(kept_signals[i], &host_handlers[i], NULL);
+    for (size_t i = 0; i < N_KEPT; ++i) sigaction(kept_signals[i], &host_handlers[i], NULL);
 }
 
 /* ---- Ctrl-C during a call into the model ----
