@@ -77,11 +77,12 @@ def linux_hosts(host, host3):
     return {2: host, 3: host3}
 
 
-def windows_run(wine_env, windows_hosts, version, folder, mode, stop, start=START, env=None, output="x"):
+def windows_run(wine_env, windows_hosts, version, folder, mode, stop, start=START, env=None, output="x",
+                resources=None, completes=True):
     command, wine_variables = wine_env
     run = run_host(windows_hosts[version], folder, mode, stop, SCENE.output_interval, start, output=output,
-                   env={**wine_variables, **(env or {})}, wrapper=[command])
-    assert run.completed, f"exit {run.returncode}: {run.lines[-3:]} {run.logs} {run.stderr[-2000:]}"
+                   env={**wine_variables, **(env or {})}, wrapper=[command], resources=resources)
+    assert run.completed == completes, f"exit {run.returncode}: {run.lines[-3:]} {run.logs} {run.stderr[-2000:]}"
     return run
 
 
@@ -176,3 +177,25 @@ def test_the_coupling_fmu_under_wine_equals_linux(wine_env, windows_hosts, linux
             for run, hosts in ((windows_run, (wine_env, windows_hosts)), (linux_run, (linux_hosts,)))]
     assert runs[0].series("x") == runs[1].series("x")
     assert runs[0].series("x")[1][-1] == pytest.approx(2.0 * (0.3 - 0.05) + 3.0 * (-0.1 - 0.05), abs=1e-15)
+
+
+@pytest.mark.parametrize("form", ["file://localhost/{drive}:/{path}", "file:///{drive}|/{path}", "{drive}:\\{windows}"])
+def test_other_forms_of_a_resource_location(wine_env, windows_hosts, linux_hosts, folders, form):
+    """RFC 8089's drive-letter forms and a plain absolute path name the same folder."""
+    resources = wine_path(Path(folders[2]) / "resources")
+    location = form.format(drive=resources.drive[0], path=resources.as_posix()[3:], windows=str(resources)[3:])
+    windows = windows_run(wine_env, windows_hosts, 2, folders[2], "run", SHORT, resources=location)
+    assert_same_motion(windows, linux_run(linux_hosts, 2, folders[2], "run", SHORT))
+
+
+@pytest.mark.parametrize("location, cause", [
+    ("file:///Z:/no/such/folder", "names the folder Z:\\no\\such\\folder, which does not exist (No such file or "
+                                    "directory)"),
+    ("file:///no/drive", "names no drive: a local file URI on Windows is file:///C:/path"),
+    ("file:///Z:/a%2", "has a '%' not followed by two hexadecimal digits (at character 6)"),
+])
+def test_a_bad_resource_location_is_refused_with_its_cause(wine_env, windows_hosts, folders, location, cause):
+    run = windows_run(wine_env, windows_hosts, 2, folders[2], "run", SHORT, resources=location, completes=False)
+    assert run.returncode == 1 and run.lines[-1] == ["failed", "fmi2Instantiate", "NULL"]
+    assert [text for status, _, text in run.logs if status == 3] == [
+        f'fmi2Instantiate: the resource location "{location}" {cause}']
