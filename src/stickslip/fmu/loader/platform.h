@@ -7,6 +7,7 @@
 #ifndef SBF_PLATFORM_H
 #define SBF_PLATFORM_H
 #include <stddef.h>
+#include <stdio.h>
 
 #ifdef _WIN32
 #define SBF_EXPORT __declspec(dllexport)
@@ -74,8 +75,8 @@ int sbf_uri_path(const char *host, size_t host_length, const char *uri_path, cha
                  size_t why_size);
 /* What is at `path`: 1 a folder, 2 a regular file, 3 something else, 0 nothing (the system's reason in `why`). */
 int sbf_path_kind(const char *path, char *why, size_t why_size);
-/* The first line of the text file `path` (without its line end) into `line`; 0 if it cannot be read. */
-int sbf_read_first_line(const char *path, char *line, size_t size);
+/* The text file `path` opened for reading, or NULL. */
+FILE *sbf_open_text(const char *path);
 /* Whether the FMI library's binary can open files under the folder `path` by that path (Linux: always; Windows:
  * if it is ASCII, since PythonFMU's and pythonfmu3's DLLs open files through the ANSI code page) */
 int sbf_library_can_open(const char *path);

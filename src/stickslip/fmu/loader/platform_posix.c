@@ -302,15 +302,7 @@ int sbf_path_kind(const char *path, char *why, size_t why_size)
     return S_ISDIR(st.st_mode) ? 1 : S_ISREG(st.st_mode) ? 2 : 3;
 }
 
-int sbf_read_first_line(const char *path, char *line, size_t size)
-{
-    FILE *file = fopen(path, "r");
-    if (!file) return 0;
-    if (!fgets(line, size, file)) line[0] = '\0';
-    fclose(file);
-    line[strcspn(line, "\r\n")] = '\0';
-    return 1;
-}
+FILE *sbf_open_text(const char *path) { return fopen(path, "r"); }
 
 int sbf_library_can_open(const char *path)
 {

@@ -270,15 +270,10 @@ int sbf_path_kind(const char *path, char *why, size_t why_size)
     return (st.st_mode & S_IFMT) == S_IFDIR ? 1 : (st.st_mode & S_IFMT) == S_IFREG ? 2 : 3;
 }
 
-int sbf_read_first_line(const char *path, char *line, size_t size)
+FILE *sbf_open_text(const char *path)
 {
     static wchar_t wide[WIDE_PATH];
-    FILE *file = to_wide(path, wide, WIDE_PATH) ? _wfopen(wide, L"r") : NULL;
-    if (!file) return 0;
-    if (!fgets(line, size, file)) line[0] = '\0';
-    fclose(file);
-    line[strcspn(line, "\r\n")] = '\0';
-    return 1;
+    return to_wide(path, wide, WIDE_PATH) ? _wfopen(wide, L"r") : NULL;
 }
 
 int sbf_library_can_open(const char *path)

@@ -409,7 +409,12 @@ static int holds_slave_module(const char *path, char *why, size_t why_size)
 {
     char file[4096 + 64], module[256] = "", cause[256];
     snprintf(file, sizeof file, "%s/slavemodule.txt", path);
-    if (!sbf_read_first_line(file, module, sizeof module)) module[0] = '\0';
+    FILE *list = sbf_open_text(file);
+    if (list) {
+        if (!fgets(module, sizeof module, list)) module[0] = '\0';
+        fclose(list);
+    }
+    module[strcspn(module, "\r\n")] = '\0';
     if (!*module) return snprintf(why, why_size, "is not this FMU's resources folder: %s is missing or empty", file), 0;
     snprintf(file, sizeof file, "%s/%s.py", path, module);
     if (sbf_path_kind(file, cause, sizeof cause) != 2)
