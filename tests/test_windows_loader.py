@@ -199,3 +199,15 @@ def test_a_bad_resource_location_is_refused_with_its_cause(wine_env, windows_hos
     assert run.returncode == 1 and run.lines[-1] == ["failed", "fmi2Instantiate", "NULL"]
     assert [text for status, _, text in run.logs if status == 3] == [
         f'fmi2Instantiate: the resource location "{location}" {cause}']
+
+
+def test_fmi3_model_exchange_under_wine_equals_linux(wine_env, windows_hosts, linux_hosts, folders, unzipped3):
+    """The FMI 3 host's own RK4 (steps of 5 ms) and event location through fmi3InstantiateModelExchange: the
+    positions at the output points and the state events (time, count) as on Linux."""
+    env = {"HOST_ME_STEP": "0.005", "HOST_ME_COUNTER": str(unzipped3[2]["n_events"].valueReference)}
+    windows = windows_run(wine_env, windows_hosts, 3, folders[3], "me-run", 100.0, env=env)
+    linux = linux_run(linux_hosts, 3, folders[3], "me-run", 100.0, env=env)
+    assert_same_motion(windows, linux)
+    (event_times, counts), (linux_times, linux_counts) = windows.series("e"), linux.series("e")
+    assert counts == linux_counts and len(counts) >= 4
+    assert max(abs(a - b) for a, b in zip(event_times, linux_times)) <= 1e-12  # s
