@@ -41,7 +41,11 @@ def runs(fmu3_path, fmu_path):
 
 @pytest.fixture(scope="module")
 def reference_events():
-    """The reference integrator's mode changes inside (0, STOP): times (s)."""
+    return reference_event_times()
+
+
+def reference_event_times():
+    """The reference integrator's mode changes of the scene inside (0, STOP): times (s)."""
     params = parameters_from_values({"M": 40.0, "kappa": 1.0, "kinetic.law": "lubricated", "kinetic.gamma1": 3.0,
                                      "kinetic.gamma2": 0.1, "kinetic.v_tilde": 0.2, "kinetic.dv": 0.05,
                                      "static.law": "constant", "static.F0": 1.0})
