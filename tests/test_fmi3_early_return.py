@@ -9,6 +9,7 @@ bit for bit (both run the same runtime, which the flags do not touch).
 """
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -29,12 +30,14 @@ VALUES = {"M": 40.0, "x_start": 1.0, "v_start": 0.1, "v_drive": 0.1, "kinetic.la
 EVENT_TIME = 1e-9
 
 
-@pytest.fixture(scope="module")
-def runs(fmu3_path, fmu_path):
+@pytest.fixture(scope="module", params=["fast path", "SBF_FAST_PATH=0"])
+def runs(request, fmu3_path, fmu_path):
+    """The runner's record, with the loader's per-step path on and off (the results do not depend on it)."""
     machine_needs.c_compiler("the FMU's loader, which answers early return, event mode and output derivatives")
     scene = json.dumps({"values": VALUES, "stop": STOP, "interval": INTERVAL})
+    env = {**os.environ, **({"SBF_FAST_PATH": "0"} if request.param != "fast path" else {})}
     run = subprocess.run([sys.executable, str(RUNNER), str(fmu3_path), str(fmu_path), scene], capture_output=True,
-                         text=True, timeout=600)
+                         text=True, timeout=600, env=env)
     assert run.returncode == 0, run.stderr[-3000:]
     return json.loads(run.stdout)
 

@@ -268,13 +268,14 @@ int sbf_slave_event_step(sbf_fast_path *fast, double t, double h, int event_mode
     fast->moved = 1; /* a failed step may have moved the state part of the way */
     fast->fresh = 0;
     int outcome = 1;
-    if (result && py.PyTuple_Size(result) == 2) {
+    if (result && py.PyTuple_Size(result) == 3) {
         double time = py.PyFloat_AsDouble(py.PyTuple_GetItem(result, 0));
         long stopped = py.PyLong_AsLong(py.PyTuple_GetItem(result, 1));
-        if (!py.PyErr_Occurred()) *reached = time, *early = stopped != 0, outcome = 0;
+        if (!py.PyErr_Occurred() && keep_outputs(fast, py.PyTuple_GetItem(result, 2)))
+            *reached = time, *early = stopped != 0, outcome = 0;
     }
     if (outcome) {
-        if (!py.PyErr_Occurred()) snprintf(why, why_size, "[doStep] step_to_event gave no (time, early) pair");
+        if (!py.PyErr_Occurred()) snprintf(why, why_size, "[doStep] step_to_event gave no (time, early, outputs)");
         else exception_text("doStep", why, why_size);
     }
     if (result) py.Py_DecRef(result);

@@ -78,8 +78,9 @@ int sbf_slave_derivatives(sbf_fast_path *fast, const char *function, const char 
 
 /* fmi3DoStep with early return: the bound slave's step_to_event (fmu_src/SpringBlockFriction_fmi3.py) from `t` by
  * `h` (s), `event_mode`: the instance uses event mode (the event is left for sbf_slave_apply_events). 0 with the time
- * reached in *reached and *early = 1 if that is short of t + h (at an event); -1 if no slave is bound (take the step
- * another way); 1 if the step failed, with the slave's exception as "[doStep] <repr>" in `why`. */
+ * reached in *reached, *early = 1 if that is short of t + h (at an event), and every output there in the buffer (the
+ * reads after the step are answered from it, as after sbf_fast_step); -1 if no slave is bound (take the step another
+ * way); 1 if the step failed, with the slave's exception as "[doStep] <repr>" in `why`. */
 int sbf_slave_event_step(sbf_fast_path *fast, double t, double h, int event_mode, double *reached, int *early,
                          char *why, size_t why_size);
 
