@@ -130,12 +130,12 @@ def _needed(data, order, offset, size, strings):
 class FmuFloors:
     """The measured needs of an FMU's ELF binaries: ``binaries`` ({archive name: :class:`BinaryNeeds`}),
     ``libpython`` (the CPython library name compiled into the loaders, or None) and ``compiled_for`` (the CPython
-    version, e.g. "3.11", its compiled extension modules are built for, or None if it carries none); ``others``: the
+    versions, e.g. ("3.11", "3.13"), its compiled extension modules are built for, oldest first); ``others``: the
     archive names of its binaries for other platforms (not ELF)."""
 
     binaries: dict
     libpython: str | None
-    compiled_for: str | None
+    compiled_for: tuple
     others: tuple
 
     def floors(self):
@@ -152,7 +152,7 @@ class FmuFloors:
 def fmu_floors(entries):
     """The :class:`FmuFloors` of an FMU's ``entries`` ({archive name: bytes}): every ``.so`` under ``binaries/``
     and ``resources/`` (NotELF if one is no ELF shared object)."""
-    binaries, libpython, compiled_for = {}, None, None
+    binaries, libpython, compiled_for = {}, None, set()
     others = tuple(name for name in sorted(entries) if name.startswith("binaries/") and not name.endswith(".so"))
     for name in sorted(entries):
         if name.endswith(".so") and name.startswith(("binaries/", "resources/")):
@@ -160,8 +160,8 @@ def fmu_floors(entries):
             found = LIBPYTHON_NAME.search(entries[name]) if name.startswith("binaries/") else None
             libpython = libpython or (found[0].decode() if found else None)
             abi = EXTENSION_ABI.search(name)
-            compiled_for = compiled_for or (f"{abi[1]}.{abi[2]}" if abi else None)
-    return FmuFloors(binaries, libpython, compiled_for, others)
+            compiled_for |= {(int(abi[1]), int(abi[2]))} if abi else set()
+    return FmuFloors(binaries, libpython, tuple(f"{major}.{minor}" for major, minor in sorted(compiled_for)), others)
 
 
 def dependencies_text(model_name, floors):
@@ -189,6 +189,6 @@ def _python_need(floors):
             + (f"{floors.libpython} (the build's; the environment variable SBF_LIBPYTHON names another)"
                if floors.libpython else "one named by the environment variable SBF_LIBPYTHON"))
     if floors.compiled_for:
-        text += (f". The runtime is compiled for CPython {floors.compiled_for}; another version runs it from its "
-                 f"Python sources, with the same results")
+        text += (f". The runtime is compiled for CPython {', '.join(floors.compiled_for)}; another version runs it "
+                 f"from its Python sources, with the same results")
     return text + "."
