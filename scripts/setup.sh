@@ -33,6 +33,7 @@ fi
 # the FMUs' runtime compiled for pyenv's newer CPythons too, where the machine has them (each in a venv of its own,
 # .venv-pythons/; skipped, saying so, where it cannot be made): the FMUs then carry those compiled files as well
 echo "setup: compiling the FMUs' runtime for the newer CPython versions pyenv has (scripts/other_pythons.py compile)"
-.venv/bin/python scripts/other_pythons.py compile | sed 's/^other pythons: /setup: /'
+.venv/bin/python scripts/other_pythons.py compile | sed 's/^other pythons: /setup: /' \
+    || echo "setup: compiling for the other CPython versions failed; the FMUs carry the runtime compiled for this one"
 echo "setup: building the FMUs (FMI 2, FMI 3) into dist/"
 .venv/bin/python build_fmu.py | sed 's/^/setup: FMU built at /'  # one line per FMU (FMI 2, FMI 3)
