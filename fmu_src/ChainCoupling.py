@@ -58,7 +58,7 @@ class ChainCoupling(Fmi2Slave):
                                         variability=Fmi2Variability.fixed, description=text))
         self.register_variable(Real("F", causality=Fmi2Causality.output, getter=self.force,
                                     description="force of the springs on the block (N, positive along +x)"))
-        offer_to_loader(self, self.resources, "linux64", NAMES.index("F"), "r")
+        offer_to_loader(self, self.resources, 2, NAMES.index("F"), "r")
 
     def to_xml(self, model_options=None):
         """PythonFMU's model description with the derivatives the C loader answers."""

@@ -52,7 +52,7 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         self._by_reference = [v.start for v in VARIABLES]  # every value by value reference; outputs may be stale
         self._outputs_stale = True  # the outputs' part needs an evaluation at the current state
         self._read_plans = {}  # (type, value references) -> (read, needs_outputs), see _read_plan
-        self.offer_to_loader("linux64")
+        self.offer_to_loader(2)
 
     def to_xml(self, model_options=None):
         """PythonFMU's model description, with the variables registered for it first, and the input and output

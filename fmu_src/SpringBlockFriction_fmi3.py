@@ -72,7 +72,7 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         self.register_variable(Float64("time", causality=Fmi3Causality.independent,
                                        variability=Fmi3Variability.continuous, description="simulation time",
                                        getter=lambda: self.time), nested=False)
-        self.offer_to_loader("x86_64-linux")
+        self.offer_to_loader(3)
 
     def to_xml(self, model_options=None):
         """pythonfmu3's model description, with the co-simulation capabilities that the C loader answers: event mode

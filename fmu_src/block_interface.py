@@ -350,11 +350,11 @@ class BlockInterface:
 
     # ---- the C loader's fast path ----------------------------------------------------
 
-    def offer_to_loader(self, platform):
+    def offer_to_loader(self, fmi_version):
         """Offer this slave to the FMU's C loader (:func:`loader_binding.offer_to_loader`), which then takes each doStep
         through :meth:`fast_step_call`, answers reads of the outputs (value references from :data:`FIRST_OUTPUT`,
         kinds :data:`OUTPUT_KINDS`) itself and the FMI 2 derivatives through the slave's methods."""
-        offer_to_loader(self, self.resources, platform, FIRST_OUTPUT, OUTPUT_KINDS)
+        offer_to_loader(self, self.resources, fmi_version, FIRST_OUTPUT, OUTPUT_KINDS)
 
     def fast_step_call(self):
         """The C loader's calls for the next doSteps: the current trajectory's :meth:`Trajectory.communicate` and

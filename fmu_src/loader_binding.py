@@ -26,18 +26,22 @@ PYTHONFMU_ENTRY_POINTS = (
 )
 
 
-def offer_to_loader(slave, resources, platform, first_output, output_kinds):
-    """Offer ``slave`` to the C loader that is instantiating it: ``binaries/<platform>/<slave's class name>.so``
-    beside the ``resources`` folder, with the value reference of its first output and its outputs' kinds ("r"
-    real, "i" integer, one letter per output). Nothing happens where that library is not loaded in this process (a
-    slave made in Python, the builder) or cannot bind."""
-    if resources is None or not hasattr(os, "RTLD_NOLOAD"):
+#: FMI version: {os.name: (the FMU's folder of this system's binaries, their file suffix)}
+BINARY_FOLDERS = {2: {"posix": ("linux64", ".so"), "nt": ("win64", ".dll")},
+                  3: {"posix": ("x86_64-linux", ".so"), "nt": ("x86_64-windows", ".dll")}}
+
+
+def offer_to_loader(slave, resources, fmi_version, first_output, output_kinds):
+    """Offer ``slave`` to the C loader that is instantiating it: ``binaries/<folder>/<slave's class name><suffix>``
+    beside the ``resources`` folder (:data:`BINARY_FOLDERS` of the FMI version ``fmi_version``), with the value
+    reference of its first output and its outputs' kinds ("r" real, "i" integer, one letter per output). Nothing
+    happens where that library is not loaded in this process (a slave made in Python, the builder) or cannot bind."""
+    if resources is None or os.name not in BINARY_FOLDERS[fmi_version]:
         return
+    platform, suffix = BINARY_FOLDERS[fmi_version][os.name]
     folder = os.path.dirname(os.path.abspath(resources))
-    path = os.path.join(folder, "binaries", platform, f"{type(slave).__name__}.so")
-    try:
-        loader = ctypes.PyDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_LOCAL)  # the GIL stays held in the call
-    except OSError:
+    loader = _loaded_library(os.path.join(folder, "binaries", platform, f"{type(slave).__name__}{suffix}"))
+    if loader is None:
         return
     try:
         bind = getattr(loader, "sbf_bind_slave", None)
@@ -46,8 +50,25 @@ def offer_to_loader(slave, resources, platform, first_output, output_kinds):
             bind(slave, first_output, output_kinds.encode("ascii"))
             take_resources_folder(slave, loader)
     finally:
-        # the reference this lookup took; the host holds its own
-        ctypes.CDLL(None).dlclose(ctypes.c_void_p(loader._handle))
+        if os.name == "posix":  # the reference this lookup took; the host holds its own
+            ctypes.CDLL(None).dlclose(ctypes.c_void_p(loader._handle))
+
+
+def _loaded_library(path):
+    """The library at ``path`` if this process has loaded it (``ctypes.PyDLL``: the GIL stays held in its calls),
+    else None. POSIX: a reference is taken (dlclose it); Windows: none is."""
+    if os.name == "nt":  # by its long path: the FMI library may have been handed a short (8.3) one
+        kernel32 = ctypes.WinDLL("kernel32", use_last_error=True)
+        kernel32.GetModuleHandleW.argtypes, kernel32.GetModuleHandleW.restype = (ctypes.c_wchar_p,), ctypes.c_void_p
+        long_path = ctypes.create_unicode_buffer(32768)
+        if kernel32.GetLongPathNameW(path, long_path, len(long_path)):
+            path = long_path.value
+        handle = kernel32.GetModuleHandleW(path)
+        return ctypes.PyDLL(path, handle=handle) if handle else None
+    try:
+        return ctypes.PyDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_LOCAL)
+    except OSError:
+        return None
 
 
 def take_resources_folder(slave, loader):

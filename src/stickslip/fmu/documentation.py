@@ -22,22 +22,24 @@ LICENSES = "documentation/licenses"
 #: distribution: (its licence as the page names it, what of it an FMU carries)
 CARRIED = {
     "stickslip": ("MIT", "the model: the runtime (resources/sbf_runtime_*), the slave (resources/sbf_slave_*) and "
-                         "the C loader that is the FMU's Linux binary"),
+                         "the C loader that is the FMU's Linux and Windows binaries"),
     "pythonfmu": ("MIT", "PythonFMU 0.7: its Python package (resources/pythonfmu.zip) and its binaries, which the "
-                         "loader forwards to (binaries/linux64/*_pythonfmu.so, binaries/win64/*.dll)"),
+                         "loader forwards to (binaries/linux64/*_pythonfmu.so, binaries/win64/*_pythonfmu.dll)"),
     "pythonfmu3": ("MIT", "pythonfmu3: its Python package (resources/pythonfmu3.zip) and its binaries, which the "
-                          "loader forwards to (binaries/x86_64-linux/*_pythonfmu.so, binaries/x86_64-windows/*.dll)"),
+                          "loader forwards to (binaries/x86_64-linux/*_pythonfmu.so, "
+                          "binaries/x86_64-windows/*_pythonfmu.dll)"),
     "mypy": ("MIT, with parts of mypyc's C runtime under the PSF License 2 (CPython's)",
              "mypyc's C runtime, compiled into the runtime's compiled modules (resources/*__mypyc*.so)"),
 }
 #: where the binaries' sources are: the FMU ships none (``sources/`` would be taken for a source-code FMU, which a
 #: Python FMU cannot be: the binaries start the Python that runs the slave)
 BINARY_SOURCES = (
-    "The FMU ships no sources/ folder: its binaries need the Python of resources/ to do anything. The Linux binary "
-    "(binaries/*/{model}.so) is stickslip's C loader, compiled when the FMU is built from runtime.c, fast_path.c and "
+    "The FMU ships no sources/ folder: its binaries need the Python of resources/ to do anything. The Linux and "
+    "Windows binaries (binaries/*/{model}.so, {model}.dll) are stickslip's C loader, compiled when the FMU is built "
+    "(for Windows with MinGW-w64) from runtime.c, fast_path.c, platform_posix.c or platform_windows.c and "
     "fmi{version}_front.c in the stickslip package (stickslip/fmu/loader/; stickslip.fmu.loader.install says how). "
     "It loads the CPython shared library and forwards what it does not answer itself to the FMI library's own "
-    "binary ({model}_pythonfmu.so), which, like the Windows binary, is {library}'s, built from its C++ sources.")
+    "binary ({model}_pythonfmu.so, {model}_pythonfmu.dll), which is {library}'s, built from its C++ sources.")
 
 
 def split_description(description):

@@ -2,10 +2,11 @@
 #define _GNU_SOURCE
 #include "fast_path.h"
 
-#include <dlfcn.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include "platform.h"
 
 /* ---- CPython: the functions the fast path calls (stable C API) ---- */
 typedef void PyObject;
@@ -39,23 +40,23 @@ void sbf_fast_resolve(void *lib)
 {
     const char *setting = getenv(SBF_FAST_PATH_VARIABLE);
     stepping = !(setting && strcmp(setting, "0") == 0); /* off: steps and reads go the inner library's way */
-#define RESOLVE(symbol) (*(void **)&py.symbol = dlsym(lib, #symbol)) != NULL
+#define RESOLVE(symbol) (*(void **)&py.symbol = sbf_symbol(lib, #symbol)) != NULL
     available = RESOLVE(PyGILState_Ensure) && RESOLVE(PyGILState_Release) && RESOLVE(PyObject_CallMethod) &&
                 RESOLVE(PyObject_CallFunctionObjArgs) && RESOLVE(PyFloat_FromDouble) && RESOLVE(PyFloat_AsDouble) &&
                 RESOLVE(PyLong_FromLong) && RESOLVE(PyTuple_New) && RESOLVE(PyTuple_SetItem) &&
                 RESOLVE(PyLong_AsLong) && RESOLVE(PyTuple_Size) && RESOLVE(PyTuple_GetItem) && RESOLVE(Py_IncRef) &&
                 RESOLVE(Py_DecRef) && RESOLVE(PyErr_Occurred) && RESOLVE(PyErr_Fetch) &&
                 RESOLVE(PyErr_NormalizeException) && RESOLVE(PyErr_Clear) && RESOLVE(PyObject_Repr) &&
-                RESOLVE(PyUnicode_AsUTF8) && (py_none = dlsym(lib, "_Py_NoneStruct")) != NULL;
+                RESOLVE(PyUnicode_AsUTF8) && (py_none = sbf_symbol(lib, "_Py_NoneStruct")) != NULL;
 #undef RESOLVE
 }
 
 /* ---- binding: the slave offers itself while the inner library constructs it ---- */
-static __thread sbf_fast_path *binding;
+static SBF_THREAD_LOCAL sbf_fast_path *binding;
 
 void sbf_fast_binding(sbf_fast_path *fast) { binding = fast; }
 
-__attribute__((visibility("default"))) const char *sbf_bound_folder(void) { return binding ? binding->folder : NULL; }
+SBF_EXPORT const char *sbf_bound_folder(void) { return binding ? binding->folder : NULL; }
 
 /* Forget the step and outputs calls (under the GIL) */
 static void drop_step_call(sbf_fast_path *fast)
@@ -69,7 +70,7 @@ static void drop_step_call(sbf_fast_path *fast)
  * `slave` is the slave object, `first` the value reference of its first output, `kinds` one letter per output
  * ('r' real, 'i' integer). 1 if bound; 0 if no instance of this library is being made here or the offer is
  * malformed. */
-__attribute__((visibility("default"))) int sbf_bind_slave(PyObject *slave, unsigned first, const char *kinds)
+SBF_EXPORT int sbf_bind_slave(PyObject *slave, unsigned first, const char *kinds)
 {
     sbf_fast_path *fast = binding;
     size_t n = kinds ? strlen(kinds) : 0;

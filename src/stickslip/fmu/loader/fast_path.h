@@ -43,8 +43,8 @@ typedef struct {
     const char *folder; /* the instance's resources folder (owned by the instance; kept when the slave is dropped) */
 } sbf_fast_path;
 
-/* Resolve the CPython functions the fast path calls from `libpython` (a dlopen handle or RTLD_DEFAULT); without
- * them the fast path stays off. Called once, from sbf_start. */
+/* Resolve the CPython functions the fast path calls from `libpython` (sbf_open_library's or sbf_process_python's
+ * handle); without them the fast path stays off. Called once, from sbf_start. */
 void sbf_fast_resolve(void *libpython);
 
 /* The instance whose slave the inner library constructs next on this thread (NULL when done): set around the

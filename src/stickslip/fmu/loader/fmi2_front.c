@@ -8,8 +8,6 @@
  * instantiated with logging on, and this library filters: warnings, discards, errors and fatals always
  * reach the host's logger, other messages only as the host asked (loggingOn, fmi2SetDebugLogging categories).
  */
-#define _GNU_SOURCE
-#include <dlfcn.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -38,7 +36,7 @@ typedef struct {
     fmi2ComponentEnvironment componentEnvironment;
 } fmi2CallbackFunctions;
 
-#define EXPORT __attribute__((visibility("default")))
+#define EXPORT SBF_EXPORT
 
 /* ---- the functions forwarded: X(name, failure, parameters, arguments after the component) ----
  * failure RECOVERABLE: PythonFMU reports an exception of the slave method it calls as fmi2Fatal; with
@@ -148,12 +146,12 @@ static void relay_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Status 
 /* sbf_start's resolver: PythonFMU's entry points */
 static int resolve_inner(void *lib, const char *path)
 {
-#define LOAD(name, failure, params, args, ...) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
+#define LOAD(name, failure, params, args, ...) && (*(void **)&inner.name = sbf_symbol(lib, #name)) != NULL
     if (1 READERS(LOAD) FORWARDED(LOAD) TRACKED(LOAD) STATE_USED(LOAD) LOAD(fmi2Instantiate, , , ) LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , )
             LOAD(fmi2FreeFMUstate, , , ))
         return 1;
 #undef LOAD
-    sbf_fail("%s lacks an FMI 2 function: %s", path, dlerror());
+    sbf_fail("%s lacks an FMI 2 function: %s", path, sbf_library_error());
     return 0;
 }
 

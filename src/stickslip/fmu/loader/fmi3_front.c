@@ -11,8 +11,6 @@
  * logging on and no categories, and this library filters: warnings, discards, errors and fatals always reach
  * the host's logMessage, other messages only as the host asked (loggingOn, fmi3SetDebugLogging categories).
  */
-#define _GNU_SOURCE
-#include <dlfcn.h>
 #include <math.h>
 #include <stdbool.h>
 #include <stdint.h>
@@ -52,7 +50,7 @@ typedef void (*fmi3ClockUpdateCallback)(fmi3InstanceEnvironment);
 typedef void (*fmi3LockPreemptionCallback)(void);
 typedef void (*fmi3UnlockPreemptionCallback)(void);
 
-#define EXPORT __attribute__((visibility("default")))
+#define EXPORT SBF_EXPORT
 
 /* parameters of fmi3Get<T> and fmi3Set<T> */
 #define GETTER(T) (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, T *values, size_t n)
@@ -237,14 +235,14 @@ static void relay_log(fmi3InstanceEnvironment env, fmi3Status status, fmi3String
 /* sbf_start's resolver: pythonfmu3's entry points */
 static int resolve_inner(void *lib, const char *path)
 {
-#define LOAD(name, failure, params, args, ...) && (*(void **)&inner.name = dlsym(lib, #name)) != NULL
+#define LOAD(name, failure, params, args, ...) && (*(void **)&inner.name = sbf_symbol(lib, #name)) != NULL
     if (1 READERS(LOAD) FORWARDED(LOAD) EXCHANGE_ONLY(LOAD) TRACKED(LOAD) STATE_USED(LOAD)
             LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
             LOAD(fmi3FreeInstance, , , ) LOAD(fmi3GetContinuousStateDerivatives, , , )
             LOAD(fmi3FreeFMUState, , , ))
         return 1;
 #undef LOAD
-    sbf_fail("%s lacks an FMI 3 function: %s", path, dlerror());
+    sbf_fail("%s lacks an FMI 3 function: %s", path, sbf_library_error());
     return 0;
 }
 

@@ -1,15 +1,21 @@
-"""Compile the loader and put it into a PythonFMU (FMI 2) or pythonfmu3 (FMI 3) FMU as its Linux binary.
+"""Compile the loader and put it into a PythonFMU (FMI 2) or pythonfmu3 (FMI 3) FMU as its Linux and Windows binary.
 
 The loader is ``runtime.c`` (CPython and the inner library) and ``fast_path.c`` (steps and output reads
-without the inner library) with the front of the
-FMU's FMI version (``fmi2_front.c`` or ``fmi3_front.c``). It becomes
-``binaries/<linux folder>/<model identifier>.so``; the library's own binary stays
-beside it as ``<model identifier>_pythonfmu.so``, and the start guard (``start_guard.c``, the lock under which
-the first loader of a process starts CPython, shared by every FMU with this loader) as ``sbf_start_guard.so``. The loader
-records the CPython shared library of the Python that builds the FMU (path and
-soname) as the ones to try after ``$SBF_LIBPYTHON``. The compiler is ``$CC``
-(default ``cc``); without a working one the FMU keeps its library's binary, which
-loads only inside a Python process, and the build says so on stderr.
+without the inner library) with the front of the FMU's FMI version (``fmi2_front.c`` or ``fmi3_front.c``) and
+the platform layer of the target (``platform_posix.c`` or ``platform_windows.c``).
+
+- Linux: ``binaries/<linux folder>/<model identifier>.so``; the library's own binary stays beside it as
+  ``<model identifier>_pythonfmu.so``, and the start guard (``start_guard.c``, the lock under which the first
+  loader of a process starts CPython, shared by every FMU with this loader) as ``sbf_start_guard.so``. The loader
+  records the CPython shared library of the Python that builds the FMU (path and soname) as the ones to try after
+  ``$SBF_LIBPYTHON``. The compiler is ``$CC`` (default ``cc``); without a working one the FMU keeps its library's
+  binary, which loads only inside a Python process, and the build says so on stderr.
+- Windows (x86_64): ``binaries/<windows folder>/<model identifier>.dll``, the library's own as
+  ``<model identifier>_pythonfmu.dll`` (the start lock is a named mutex: no guard library). It tries the process's
+  own CPython, ``$SBF_LIBPYTHON``, then ``python3XY.dll`` of the building Python's version. The compiler is
+  ``$SBF_WINDOWS_CC`` (default ``x86_64-w64-mingw32-gcc``, Debian's ``gcc-mingw-w64-x86-64``); without it the FMU
+  has no Windows binaries (the library's own would not do what the model description declares), and the build
+  says so on stderr.
 """
 
 import os
@@ -27,12 +33,18 @@ HERE = Path(__file__).resolve().parent
 #: FMI version: (the front's source, the FMU's folder of Linux binaries, the library that built the FMU)
 FRONTS = {2: (HERE / "fmi2_front.c", "binaries/linux64", "PythonFMU"),
           3: (HERE / "fmi3_front.c", "binaries/x86_64-linux", "pythonfmu3")}
-RUNTIME = (HERE / "runtime.c", HERE / "runtime.h", HERE / "fast_path.c", HERE / "fast_path.h")
+#: FMI version: the FMU's folder of Windows (x86_64) binaries
+WINDOWS_FOLDERS = {2: "binaries/win64", 3: "binaries/x86_64-windows"}
+RUNTIME = (HERE / "runtime.c", HERE / "runtime.h", HERE / "fast_path.c", HERE / "fast_path.h", HERE / "platform.h")
+PLATFORMS = {"linux": HERE / "platform_posix.c", "windows": HERE / "platform_windows.c"}
+#: the variable naming the cross-compiler of the Windows binaries, and its default
+WINDOWS_CC_VARIABLE, WINDOWS_CC = "SBF_WINDOWS_CC", "x86_64-w64-mingw32-gcc"
 START_GUARD = HERE / "start_guard.c"
 #: the start guard's file name beside the loader
 START_GUARD_NAME = "sbf_start_guard.so"
 #: what a built binary depends on
-SOURCES = (*RUNTIME, START_GUARD, *(front for front, _, _ in FRONTS.values()), Path(__file__).resolve())
+SOURCES = (*RUNTIME, START_GUARD, *PLATFORMS.values(), *(front for front, _, _ in FRONTS.values()),
+           Path(__file__).resolve())
 LIBPYTHON_VARIABLE = "SBF_LIBPYTHON"  # the loader's override: path or name of a CPython shared library
 
 
@@ -57,7 +69,7 @@ def model_token(model_description, fmi_version):
 
 
 def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, token=""):
-    """Compile the loader of ``fmi_version`` to ``dest``, forwarding to ``inner_name`` beside it and accepting
+    """Compile the Linux loader of ``fmi_version`` to ``dest``, forwarding to ``inner_name`` beside it and accepting
     the GUID or instantiation token ``token`` only, and the start guard beside ``dest`` (``START_GUARD_NAME``);
     None on success, else why not."""
     compiler = os.environ.get("CC") or "cc"
@@ -66,15 +78,42 @@ def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, toke
     path, soname = build_libpython()
     command = [
         compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o", str(dest),
-        str(FRONTS[fmi_version][0]), str(RUNTIME[0]), str(RUNTIME[2]),
-        f"-DSBF_INNER_LIBRARY={_c_string(inner_name)}", f"-DSBF_TOKEN={_c_string(token)}",
-        f"-DSBF_START_GUARD={_c_string(START_GUARD_NAME)}",
-        f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
-        f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}", "-ldl", "-lpthread",
-    ] + (["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else [])
+        *_loader_sources(fmi_version, "linux"), *_loader_defines(inner_name, token, slave_survives_release, soname),
+        f"-DSBF_START_GUARD={_c_string(START_GUARD_NAME)}", f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
+        "-ldl", "-lpthread"]
     guard = [compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o",
              str(Path(dest).with_name(START_GUARD_NAME)), str(START_GUARD), "-lpthread"]
-    for step in (command, guard):
+    return _run_compiler(compiler, (command, guard))
+
+
+def compile_windows_loader(dest, inner_name, slave_survives_release, fmi_version=2, token=""):
+    """Cross-compile the Windows (x86_64) loader of ``fmi_version`` to ``dest`` (arguments as
+    :func:`compile_loader`), linked statically (it needs only Windows' own kernel32.dll and msvcrt.dll); None on
+    success, else why not."""
+    compiler = os.environ.get(WINDOWS_CC_VARIABLE) or WINDOWS_CC
+    if shutil.which(compiler) is None:
+        return f"no Windows cross-compiler ({compiler!r} not found; install mingw-w64 or set {WINDOWS_CC_VARIABLE})"
+    soname = f"python{sys.version_info[0]}{sys.version_info[1]}.dll"
+    # no time stamp, a fixed image base: the same sources give the same bytes in any folder
+    command = [compiler, "-O2", "-shared", "-static", "-s", "-Wl,--no-insert-timestamp,--disable-auto-image-base",
+               "-o", str(dest), *_loader_sources(fmi_version, "windows"),
+               *_loader_defines(inner_name, token, slave_survives_release, soname)]
+    return _run_compiler(compiler, (command,))
+
+
+def _loader_sources(fmi_version, platform):
+    return [str(FRONTS[fmi_version][0]), str(RUNTIME[0]), str(RUNTIME[2]), str(PLATFORMS[platform])]
+
+
+def _loader_defines(inner_name, token, slave_survives_release, soname):
+    return [f"-DSBF_INNER_LIBRARY={_c_string(inner_name)}", f"-DSBF_TOKEN={_c_string(token)}",
+            f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}"] + (
+        ["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else [])
+
+
+def _run_compiler(compiler, commands):
+    """Run each of ``commands``; None if all succeed, else the compiler's complaint."""
+    for step in commands:
         result = subprocess.run(step, capture_output=True, text=True)
         if result.returncode != 0:
             return f"{compiler} failed: {result.stderr.strip()[-2000:]}"
@@ -82,31 +121,57 @@ def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, toke
 
 
 def install(fmu_path, model_identifier, slave_survives_release=False, fmi_version=2):
-    """Replace the Linux binary of the FMI ``fmi_version`` FMU at ``fmu_path`` (rewritten in place) by the loader.
+    """Replace the Linux and Windows binaries of the FMI ``fmi_version`` FMU at ``fmu_path`` (rewritten in place) by
+    the loader.
 
     ``slave_survives_release``: the slave's methods balance PythonFMU's release of the slave on an exception
     (as ``fmu_src/SpringBlockFriction.py`` does); the loader then reports their failures as fmi2Error, which
     lets the host reset or free the instance, instead of the library's fatal status.
 
     The FMU is written again as :func:`stickslip.fmu.archive.write_entries` writes it (reproducibly).
-    Returns True if the loader was installed; False (after a notice on stderr) if the FMU keeps
-    its library's binary because no C compiler works.
+    Returns True if the Linux loader was installed; False (after a notice on stderr) if the FMU keeps
+    its library's Linux binary because no C compiler works. Without a Windows cross-compiler the FMU loses its
+    Windows binaries (a notice on stderr).
     """
     fmu_path = Path(fmu_path)
-    _, folder, library = FRONTS[fmi_version]
-    binary = f"{folder}/{model_identifier}.so"
-    inner_name = f"{model_identifier}_pythonfmu.so"
     entries = read_entries(fmu_path)
     token = model_token(entries["modelDescription.xml"], fmi_version)
+    arguments = (slave_survives_release, fmi_version, token)
     with tempfile.TemporaryDirectory(prefix="sbf_loader_") as tmp:
-        loader = Path(tmp) / binary.rsplit("/", 1)[1]
-        why_not = compile_loader(loader, inner_name, slave_survives_release, fmi_version, token)
-        if why_not is not None:
-            print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads "
-                  f"only inside a Python process: {why_not}", file=sys.stderr)
-            return False
-        entries[f"{folder}/{inner_name}"] = entries[binary]
-        entries[binary] = loader.read_bytes()
-        entries[f"{folder}/{START_GUARD_NAME}"] = loader.with_name(START_GUARD_NAME).read_bytes()
+        installed = _install_linux(entries, Path(tmp), model_identifier, arguments)
+        _install_windows(entries, Path(tmp), model_identifier, arguments)
         write_entries(fmu_path, entries)
+    return installed
+
+
+def _install_linux(entries, tmp, model_identifier, arguments):
+    _, folder, library = FRONTS[arguments[1]]
+    binary = f"{folder}/{model_identifier}.so"
+    inner_name = f"{model_identifier}_pythonfmu.so"
+    loader = tmp / binary.rsplit("/", 1)[1]
+    why_not = compile_loader(loader, inner_name, *arguments)
+    if why_not is not None:
+        print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads "
+              f"only inside a Python process: {why_not}", file=sys.stderr)
+        return False
+    entries[f"{folder}/{inner_name}"] = entries[binary]
+    entries[binary] = loader.read_bytes()
+    entries[f"{folder}/{START_GUARD_NAME}"] = loader.with_name(START_GUARD_NAME).read_bytes()
     return True
+
+
+def _install_windows(entries, tmp, model_identifier, arguments):
+    folder = WINDOWS_FOLDERS[arguments[1]]
+    binary = f"{folder}/{model_identifier}.dll"
+    if binary not in entries:
+        return
+    inner_name = f"{model_identifier}_pythonfmu.dll"
+    loader = tmp / f"{model_identifier}.dll"
+    why_not = compile_windows_loader(loader, inner_name, *arguments)
+    if why_not is not None:
+        for name in [name for name in entries if name.startswith(f"{folder}/")]:
+            del entries[name]
+        print(f"note: the {model_identifier} FMU has no Windows binaries: {why_not}", file=sys.stderr)
+        return
+    entries[f"{folder}/{inner_name}"] = entries[binary]
+    entries[binary] = loader.read_bytes()

@@ -10,15 +10,16 @@
 #include <string.h>
 
 #include "fast_path.h"
+#include "platform.h"
 
-/* Called once, under the start lock, with the inner library (dlopen'ed beside this one) and its path:
+/* Called once, under the start lock, with the inner library (loaded from beside this one) and its path:
  * resolves the front's entry points; returns 0 after sbf_fail() if one is missing. */
 typedef int (*sbf_resolve_inner)(void *library, const char *path);
 
 /* Python and the inner library ready (once per process); 0 with sbf_start_error() saying why if not. */
 int sbf_start(sbf_resolve_inner resolve);
 const char *sbf_start_error(void);
-void sbf_fail(const char *format, ...) __attribute__((format(printf, 1, 2)));
+void sbf_fail(const char *format, ...) __attribute__((format(gnu_printf, 1, 2)));
 
 /* Give this host thread a Python thread state for its life (the inner library's per-call
  * PyGILState_Ensure/Release then only take and give back the GIL); a state made here is deleted when the
@@ -122,7 +123,7 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
  * the one and leave the other). Status 0 is OK and 1 warning in both. */
 #define SBF_FREE_STATE(Status, error, fatal, name, State)                                                      \
     SBF_FORWARD_AS(static, forward_free_state, Status, error, fatal, name, KEPT, (void *c, State *s), (s))    \
-    __attribute__((visibility("default"))) Status name(void *c, State *s)                                     \
+    SBF_EXPORT Status name(void *c, State *s)                                     \
     {                                                                                                          \
         if (!s || !*s) return c ? 0 : error;                                                                   \
         Status status = forward_free_state(c, s);                                                              \
@@ -134,7 +135,7 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
  * else forwarded by forward_<name> as a call that only reads. */
 #define SBF_READER(Status, ok, error, fatal, name, failure, params, args, read)                                  \
     SBF_FORWARD_WITH(static, forward_##name, Status, error, fatal, name, failure, 0, params, args)              \
-    __attribute__((visibility("default"))) Status name params                                                  \
+    SBF_EXPORT Status name params                                                  \
     {                                                                                                           \
         sbf_call_begin();                                                                                       \
         int answered = c && read(&((Instance *)c)->fast SBF_FORWARD_ARGS args);                                 \
@@ -144,13 +145,13 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
     }
 /* The exported FMI function `name`, forwarded as is. */
 #define SBF_FORWARD(Status, error, fatal, name, failure, params, args) \
-    SBF_FORWARD_AS(__attribute__((visibility("default"))), name, Status, error, fatal, name, failure, params, args)
+    SBF_FORWARD_AS(SBF_EXPORT, name, Status, error, fatal, name, failure, params, args)
 
 /* The exported FMU-state function `name` (its FMU state parameter named `s`), forwarded by `forward` (an
  * SBF_FORWARD_AS function) unless the state is NULL (none was got into it, or it was freed): that is refused with
  * `error` and a message naming `name` (PythonFMU crashed the host, pythonfmu3 failed fatally). */
 #define SBF_STATE_USED(Status, error, name, forward, params, args)                                                 \
-    __attribute__((visibility("default"))) Status name params                                                    \
+    SBF_EXPORT Status name params                                                    \
     {                                                                                                             \
         if (c && !s) {                                                                                            \
             host_log(c, error, #name ": the FMU state is NULL (no state was got into it, or it was freed)");     \
@@ -168,7 +169,7 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
  * reason, the instance unharmed. */
 #define SBF_REFUSED_STATE "refused FMU state: "
 #define SBF_DESERIALIZE(Status, error, warning, Byte, name, forward, size_of, serialize, free_state)              \
-    __attribute__((visibility("default"))) Status name(void *c, const Byte *bytes, size_t size, void **state)    \
+    SBF_EXPORT Status name(void *c, const Byte *bytes, size_t size, void **state)    \
     {                                                                                                             \
         sbf_call_begin();                                                                                         \
         Status status = forward(c, bytes, size, state);                                                           \

@@ -3,25 +3,30 @@ RK4 integrator and event locator of its own), that run an FMU outside any Python
 
 They stand for the C/C++ system simulators: they open the FMU's binary with
 ``dlopen(RTLD_NOW | RTLD_LOCAL)`` and nothing preloaded. :func:`compile_host`
-builds one with the system C compiler (``$CC``, default ``cc``); :func:`run_host`
+builds one with the system C compiler (``$CC``, default ``cc``), or for Windows (x86_64) with MinGW-w64
+(``host_windows.h`` stands in for dlopen there); :func:`run_host`
 runs one of its modes (see the sources) in a child process, so that a crash only
-shows as a return code, and parses what it printed.
+shows as a return code, and parses what it printed; a Windows host runs under Wine (``wrapper``).
 """
 
 import os
 import shutil
 import subprocess
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PureWindowsPath
 
 import fmpy
 
 HERE = Path(__file__).resolve().parent
 #: FMI version: the host's source
 SOURCES = {2: HERE / "host.c", 3: HERE / "host3.c"}
-COMMON = HERE / "host_common.h"
+COMMON = (HERE / "host_common.h", HERE / "host_windows.h")
 #: FMI version: the folder of the FMU's Linux binaries
 BINARY_FOLDERS = {2: "linux64", 3: "x86_64-linux"}
+#: FMI version: the folder of the FMU's Windows (x86_64) binaries
+WINDOWS_BINARY_FOLDERS = {2: "win64", 3: "x86_64-windows"}
+#: the cross-compiler of the hosts' Windows build: MinGW-w64 with POSIX threads (winpthreads), as the hosts use them
+WINDOWS_CC = "x86_64-w64-mingw32-gcc-posix"
 #: the model description's types of the variables the hosts set as integers ("i" settings): FMI 3's host sets them
 #: with fmi3SetInt64 (its integer parameters are the law selectors, Enumerations), FMI 2's with fmi2SetInteger
 INTEGER_TYPES = ("Integer", "Int32", "Int64", "Enumeration")
@@ -31,19 +36,21 @@ class HostBuildError(RuntimeError):
     """The C host cannot be compiled here."""
 
 
-def compile_host(build_dir, fmi_version=2):
+def compile_host(build_dir, fmi_version=2, windows=False):
     """Compile the host of ``fmi_version`` into ``build_dir`` (unless it is newer than its sources); return the
-    executable's path."""
+    executable's path. ``windows``: a Windows (x86_64) executable, statically linked, made with :data:`WINDOWS_CC`."""
     source = SOURCES[fmi_version]
-    dest = Path(build_dir) / f"sbf_c_host{'' if fmi_version == 2 else fmi_version}"
-    if dest.is_file() and dest.stat().st_mtime >= max(source.stat().st_mtime, COMMON.stat().st_mtime):
+    dest = Path(build_dir) / f"sbf_c_host{'' if fmi_version == 2 else fmi_version}{'.exe' if windows else ''}"
+    if dest.is_file() and dest.stat().st_mtime >= max(path.stat().st_mtime for path in (source, *COMMON)):
         return dest
-    compiler = os.environ.get("CC") or "cc"
+    compiler = WINDOWS_CC if windows else os.environ.get("CC") or "cc"
     if shutil.which(compiler) is None:
-        raise HostBuildError(f"no C compiler: {compiler!r} not found (set CC)")
+        raise HostBuildError(f"no C compiler: {compiler!r} not found " + (
+            "(install Debian's mingw-w64)" if windows else "(set CC)"))
     dest.parent.mkdir(parents=True, exist_ok=True)
     partial = dest.with_name(f".{dest.name}.{os.getpid()}")
-    result = subprocess.run([compiler, "-O2", "-o", str(partial), str(source), "-ldl", "-lpthread", "-lm"],
+    libraries = ["-static", "-lm"] if windows else ["-ldl", "-lpthread", "-lm"]
+    result = subprocess.run([compiler, "-O2", "-o", str(partial), str(source), *libraries],
                             capture_output=True, text=True)
     if result.returncode != 0:
         raise HostBuildError(f"{compiler} failed to compile {source.name}:\n{result.stderr}")
@@ -83,7 +90,8 @@ def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x
     one out of its second instance). ``resources``: the resource location passed to the FMU instead of its
     ``resources`` folder (FMI 2: as a file URI, FMI 3: as a path with a trailing slash).
     The child gets only ``PATH`` from this process's environment, plus ``env``. ``wrapper``: a command that runs
-    the host, e.g. ``["valgrind"]``.
+    the host, e.g. ``["valgrind"]``, or Wine for a Windows host (an ``.exe``: it is given the FMU's Windows binary,
+    and paths on Wine's drive Z:).
     """
     command = host_command(host, fmu_folder, mode, stop_time, step, start_values, output, resources)
     result = subprocess.run([*wrapper, *command], capture_output=True, text=True, env=host_env(env),
@@ -112,8 +120,16 @@ def host_command(host, fmu_folder, mode, stop_time, step, start_values=(), outpu
                 f"={value!r}"
                 for name, value in (start_values.items() if hasattr(start_values, "items") else start_values)]
     version = int(description.fmiVersion[0])
-    binary = folder / "binaries" / BINARY_FOLDERS[version] / f"{description.coSimulation.modelIdentifier}.so"
+    windows = Path(host).suffix == ".exe"
+    folders, suffix, path = (WINDOWS_BINARY_FOLDERS, ".dll", wine_path) if windows else (BINARY_FOLDERS, ".so", Path)
+    binary = path(folder / "binaries" / folders[version] / f"{description.coSimulation.modelIdentifier}{suffix}")
     if resources is None:
-        resources = (folder / "resources").as_uri() if version == 2 else f"{folder / 'resources'}/"
+        base, separator = path(folder / "resources"), "\\" if windows else "/"
+        resources = base.as_uri() if version == 2 else f"{base}{separator}"
     return [str(host), str(binary), resources, description.guid, mode, repr(stop_time), repr(step),
             str(variables[output].valueReference), *settings]
+
+
+def wine_path(path):
+    """The Windows path under which Wine shows the Linux path ``path``: on its drive Z:, the root folder."""
+    return PureWindowsPath("Z:\\", *Path(path).resolve().parts[1:])

@@ -30,10 +30,12 @@
  *        default start values, another binary: FMI 2, or FMI 3 co-simulation if BINARY is in an x86_64-linux
  *        folder, RESOURCES then a path) on another, both instantiated at the same time:
  *        "a T X" and "b T X" (its output) at the end of each run
+ * ramp   as run, but after initialization sets the first time derivative of the real input ($HOST_RAMP: "VR RATE")
+ *        with fmi2SetRealInputDerivatives and prints "status ramp CODE" before the "x" lines
+ * With $HOST_LOGGING=1 every instance is made with loggingOn (else off).
  * Every line is flushed. The exit code is 0 when the mode ran to its end (a
  * failing FMI call ends the program with "failed FUNCTION STATUS" and code 1). */
 #define _GNU_SOURCE
-#include <dlfcn.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdarg.h>
@@ -76,13 +78,14 @@ typedef struct {
     Status (*state_size)(Component, void *, size_t *);
     Status (*serialize)(Component, void *, char *, size_t);
     Status (*deserialize)(Component, const char *, size_t, void **);
+    Status (*set_input_derivatives)(Component, const VR *, size_t, const int *, const double *);
 } Functions;
 
 static const char *const function_names[] = {
     "fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
     "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2Reset", "fmi2DoStep", "fmi2GetReal", "fmi2SetReal",
     "fmi2SetInteger", "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate",
-    "fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate"};
+    "fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate", "fmi2SetRealInputDerivatives"};
 #define N_FUNCTIONS (sizeof function_names / sizeof *function_names)
 
 static Functions fmi; /* the FMU's (the second FMU of mode "pair" has its own) */
@@ -104,7 +107,8 @@ static const Callbacks callbacks = {logger, calloc, free, NULL, NULL};
 
 static Component instantiate(const char *name)
 {
-    Component c = fmi.instantiate(name, 1, token, resources, &callbacks, 0, 0);
+    const char *logging = getenv("HOST_LOGGING");
+    Component c = fmi.instantiate(name, 1, token, resources, &callbacks, 0, logging && !strcmp(logging, "1"));
     if (!c) {
         say("failed fmi2Instantiate NULL\n");
         exit(1);
@@ -245,6 +249,22 @@ static void mode_bad(void)
     fmi.free_instance(c);
     --n_settings;
     run_one("good", "x");
+}
+
+static void mode_ramp(void)
+{
+    const char *ramp = getenv("HOST_RAMP");
+    VR vr;
+    int order = 1;
+    double rate;
+    if (!ramp || sscanf(ramp, "%u %lf", &vr, &rate) != 2) {
+        say("failed HOST_RAMP \"VR RATE\" not set\n");
+        exit(1);
+    }
+    Component c = instantiate("ramp");
+    check("fmi2ExitInitializationMode", initialize(c, n_settings));
+    say("status ramp %d\n", fmi.set_input_derivatives(c, &vr, 1, &order, &rate));
+    run_initialized(c, "x");
 }
 
 static void mode_reset(void)
@@ -404,6 +424,7 @@ int main(int argc, char **argv)
     if (!strcmp(mode, "run")) run_one("run", "x");
     else if (!strcmp(mode, "bad")) mode_bad();
     else if (!strcmp(mode, "reset")) mode_reset();
+    else if (!strcmp(mode, "ramp")) mode_ramp();
     else if (!strcmp(mode, "two")) mode_two();
     else if (!strcmp(mode, "threads")) mode_threads();
     else if (!strcmp(mode, "state")) mode_state();

@@ -27,10 +27,10 @@
  *         after 100 steps and at the end ("rss_kb_warm K", "rss_kb_end K"), then "x T X" at the end
  * unload  two threads each run a co-simulation instance ("x" lines) and then wait; the FMU is unloaded
  *         (dlclose) and only then do the threads end
+ * With $HOST_LOGGING=1 every instance is made with loggingOn (else off).
  * Every line is flushed. The exit code is 0 when the mode ran to its end (a failing FMI call ends the
  * program with "failed FUNCTION STATUS" and code 1). */
 #define _GNU_SOURCE
-#include <dlfcn.h>
 #include <stdbool.h>
 #include <stdint.h>
 #include <string.h>
@@ -86,9 +86,11 @@ static void log_message(void *environment, Status status, const char *category, 
 
 static Instance instantiate(const char *name)
 {
+    const char *logging_text = getenv("HOST_LOGGING");
+    bool logging = logging_text && !strcmp(logging_text, "1");
     Instance c = model_exchange
-        ? fmi.instantiate_me(name, token, resources, false, false, (void *)name, log_message)
-        : fmi.instantiate(name, token, resources, false, false, event_mode, early_return, NULL, 0, (void *)name,
+        ? fmi.instantiate_me(name, token, resources, false, logging, (void *)name, log_message)
+        : fmi.instantiate(name, token, resources, false, logging, event_mode, early_return, NULL, 0, (void *)name,
                           log_message, NULL);
     if (!c) {
         say("failed %s NULL\n", model_exchange ? "fmi3InstantiateModelExchange" : "fmi3InstantiateCoSimulation");

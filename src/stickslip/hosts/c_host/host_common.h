@@ -1,7 +1,11 @@
 /* What the C hosts (host.c: FMI 2, host3.c: FMI 3) share: printing, failing, FMPy's communication points. */
 #ifndef SBF_HOST_COMMON_H
 #define SBF_HOST_COMMON_H
+#ifdef _WIN32
+#include "host_windows.h"
+#else
 #include <dlfcn.h>
+#endif
 #include <math.h>
 #include <pthread.h>
 #include <stdarg.h>
@@ -56,6 +60,9 @@ static int start_host(int argc, char **argv, const char *const *names, size_t n,
         fprintf(stderr, "usage: %s BINARY RESOURCES TOKEN MODE STOP STEP OUTPUT_VR [rVR=VALUE|iVR=VALUE ...]\n", argv[0]);
         return 0;
     }
+#ifdef _WIN32
+    argv = utf8_arguments(argc);
+#endif
     if (!(fmu_library = load_fmu(argv[1], names, n, slots))) return 0;
     resources = argv[2];
     token = argv[3];
@@ -93,6 +100,7 @@ static double next_point(long n, double stop)
     return next > stop && !close_to(next, stop) ? stop : next;
 }
 
+#ifndef _WIN32
 /* The process's resident memory in kB (Linux /proc/self/statm), or -1 */
 static long resident_kb(void)
 {
@@ -104,6 +112,7 @@ static long resident_kb(void)
     }
     return resident < 0 ? -1 : resident * (sysconf(_SC_PAGESIZE) / 1024);
 }
+#endif
 
 /* call(argument) on a new thread, created and joined */
 static void on_new_thread(void *(*call)(void *), void *argument)

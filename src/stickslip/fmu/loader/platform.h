@@ -1,0 +1,87 @@
+/* What differs between the operating systems the loader runs on, behind one interface: loading a library and
+ * finding its symbols, the path of the loader's own binary, file-system paths and the resource location's file
+ * URIs, thread-local storage and thread-exit callbacks, the process-wide lock under which CPython is started once,
+ * the host's signal handlers, and Ctrl-C during a call into the model. platform_posix.c implements it for Linux
+ * (glibc), platform_windows.c for Windows (x86_64, built with MinGW-w64); the rest of the loader is the same source
+ * on both. Paths are UTF-8 text throughout; the Windows side hands them to the system as UTF-16. */
+#ifndef SBF_PLATFORM_H
+#define SBF_PLATFORM_H
+#include <stddef.h>
+#include <stdio.h>
+
+#ifdef _WIN32
+#define SBF_EXPORT __declspec(dllexport)
+#else
+#define SBF_EXPORT __attribute__((visibility("default")))
+#endif
+/* a variable of which each thread has its own copy */
+#define SBF_THREAD_LOCAL _Thread_local
+
+/* ---- libraries ---- */
+/* The library at `path` loaded (its symbols visible to libraries loaded later where `global`, as RTLD_GLOBAL), or
+ * NULL with the system's reason in sbf_library_error(). */
+void *sbf_open_library(const char *path, int global);
+/* The symbol `name` of `library`, NULL if it has none. */
+void *sbf_symbol(void *library, const char *name);
+/* The function `name` of `library` (loaded from `path`): its exported symbol, or where the system allows, its entry
+ * in the file's full symbol table; NULL if neither. */
+void *sbf_find_function(void *library, const char *path, const char *name);
+/* Why the last sbf_open_library or sbf_symbol of this thread failed */
+const char *sbf_library_error(void);
+/* 1 with the CPython library already in this process (a Python host) in *library, else 0. */
+int sbf_process_python(void **library);
+/* Make the CPython library `python` (a handle as above) the one the inner library, loaded next, binds to; 0 with the
+ * reason in `why`. (Linux: it binds through the global scope. Windows: PythonFMU's binaries import python3.dll, the
+ * stable ABI's forwarder, which is loaded from beside `python` first.) */
+int sbf_bind_inner_to_python(void *python, char *why, size_t why_size);
+/* The path of the loader's own binary into `path`; 0 if it cannot be found. */
+int sbf_loader_path(char *path, size_t size);
+/* Keep the loader's binary loaded until the process ends (see runtime.c, sbf_start); 0 with the reason in `why`. */
+int sbf_pin_loader(char *why, size_t why_size);
+/* The program name CPython derives its prefix from, for the CPython library holding `python_function` (one of its
+ * functions): the interpreter executable of that installation, so that the library and the standard library
+ * found belong together. */
+void sbf_python_program_name(void *python_function, char *name, size_t size);
+
+/* ---- starting CPython once per process ---- */
+/* Take and give back this loader copy's own lock (sbf_start's) */
+void sbf_loader_lock(void);
+void sbf_loader_unlock(void);
+/* Take the lock that every copy of the loader in the process shares (every FMU with this loader ships its own
+ * copy); 0 with the reason in `why` if it cannot be had. sbf_process_unlock gives it back. */
+int sbf_process_lock(char *why, size_t why_size);
+void sbf_process_unlock(void);
+/* Around CPython's start: the host's handlers of the signals Python would take over are saved, then restored. */
+void sbf_save_host_signals(void);
+void sbf_restore_host_signals(void);
+/* Once Python is ready (under the process lock): Ctrl-C during calls into the model reaches the host after them
+ * (see sbf_call_begin in runtime.h). */
+void sbf_defer_interrupts(void);
+/* The interrupt bookkeeping of sbf_call_begin/sbf_call_end; `interrupt_pending` (may be NULL) tells whether Python
+ * has noted an interrupt it has not acted on (it takes it back). */
+void sbf_interrupts_begin(int (*interrupt_pending)(void));
+void sbf_interrupts_end(void);
+
+/* ---- threads ---- */
+/* Call `destructor(value)` when the calling thread ends (once per thread; `value` not NULL). */
+void sbf_at_thread_exit(void (*destructor)(void *), void *value);
+
+/* ---- paths and resource locations ---- */
+/* Whether `location` is an absolute path of the system (/x on Linux; C:\x, C:/x, \\host\share on Windows) */
+int sbf_is_absolute_path(const char *location);
+/* The path of a file URI whose authority is `host` (`host_length` bytes, 0 for file:/// or file:/x) and whose
+ * percent-decoded path is `uri_path` (starting with '/') into `path`; 0 with the cause in `why`. */
+int sbf_uri_path(const char *host, size_t host_length, const char *uri_path, char *path, size_t size, char *why,
+                 size_t why_size);
+/* What is at `path`: 1 a folder, 2 a regular file, 3 something else, 0 nothing (the system's reason in `why`). */
+int sbf_path_kind(const char *path, char *why, size_t why_size);
+/* The text file `path` opened for reading, or NULL. */
+FILE *sbf_open_text(const char *path);
+/* Whether the FMI library's binary can open files under the folder `path` by that path (Linux: always; Windows:
+ * if it is ASCII, since PythonFMU's and pythonfmu3's DLLs open files through the ANSI code page) */
+int sbf_library_can_open(const char *path);
+/* Another path to the folder `folder` that the FMI library's binary can open and that has neither "%20" nor "file://"
+ * in it, into `path`; 0 with the cause in `why` if the system has none. */
+int sbf_folder_alias(const char *folder, char *path, size_t size, char *why, size_t why_size);
+
+#endif

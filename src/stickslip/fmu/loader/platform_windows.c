@@ -1,0 +1,296 @@
+/* platform.h for Windows (x86_64, MinGW-w64): LoadLibraryExW and GetProcAddress, module handles, a named mutex per
+ * process, fiber-local storage for thread-exit callbacks, and paths handed to the system as UTF-16. */
+#define WIN32_LEAN_AND_MEAN
+#define UNICODE
+#include "platform.h"
+
+#include <windows.h>
+#include <psapi.h>
+
+#include <ctype.h>
+#include <errno.h>
+#include <signal.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <wchar.h>
+
+#define WIDE_PATH 32768 /* the longest path Windows takes, in UTF-16 units */
+
+static SBF_THREAD_LOCAL char library_error[512];
+
+/* `text` (UTF-8) as UTF-16 into `wide` (`size` units); 0 if it is not UTF-8 or does not fit */
+static int to_wide(const char *text, wchar_t *wide, int size)
+{
+    return MultiByteToWideChar(CP_UTF8, MB_ERR_INVALID_CHARS, text, -1, wide, size) > 0;
+}
+
+/* `wide` (UTF-16) as UTF-8 into `text`; 0 if it does not fit */
+static int from_wide(const wchar_t *wide, char *text, size_t size)
+{
+    return WideCharToMultiByte(CP_UTF8, 0, wide, -1, text, (int)size, NULL, NULL) > 0;
+}
+
+/* The system's text of the error `code` into library_error */
+static void note_error(DWORD code)
+{
+    wchar_t text[256];
+    char utf8[512];
+    DWORD n = FormatMessageW(FORMAT_MESSAGE_FROM_SYSTEM | FORMAT_MESSAGE_IGNORE_INSERTS, NULL, code, 0, text,
+                             sizeof text / sizeof *text, NULL);
+    while (n > 0 && (text[n - 1] == L'\r' || text[n - 1] == L'\n' || text[n - 1] == L'.')) text[--n] = L'\0';
+    if (n == 0 || !from_wide(text, utf8, sizeof utf8)) snprintf(utf8, sizeof utf8, "error");
+    snprintf(library_error, sizeof library_error, "%s (Windows error %lu)", utf8, (unsigned long)code);
+}
+
+/* ---- libraries ---- */
+
+/* A path with a folder is loaded with its own folder searched first for the libraries it needs (the CPython
+ * library's vcruntime140.dll, say); a bare name is searched as Windows searches for any library. */
+void *sbf_open_library(const char *path, int global)
+{
+    (void)global; /* a Windows library's symbols are looked up in it, never in a global scope */
+    static wchar_t wide[WIDE_PATH];
+    HMODULE library = NULL;
+    if (!to_wide(path, wide, WIDE_PATH)) {
+        snprintf(library_error, sizeof library_error, "the path is not UTF-8 text");
+        return NULL;
+    }
+    int has_folder = wcschr(wide, L'\\') || wcschr(wide, L'/');
+    library = LoadLibraryExW(wide, NULL, has_folder ? LOAD_WITH_ALTERED_SEARCH_PATH : 0);
+    if (!library) note_error(GetLastError());
+    return library;
+}
+
+void *sbf_symbol(void *library, const char *name)
+{
+    void *symbol = (void *)GetProcAddress((HMODULE)library, name);
+    if (!symbol) note_error(GetLastError());
+    return symbol;
+}
+
+void *sbf_find_function(void *library, const char *path, const char *name)
+{
+    (void)path;
+    return (void *)GetProcAddress((HMODULE)library, name);
+}
+
+const char *sbf_library_error(void) { return *library_error ? library_error : "unknown error"; }
+
+/* Whether `name` is the file name of a CPython library (python3XY.dll, not the forwarder python3.dll) */
+static int is_python_library(const wchar_t *name)
+{
+    size_t n = wcslen(name);
+    return n > 11 && _wcsnicmp(name, L"python3", 7) == 0 && _wcsicmp(name + n - 4, L".dll") == 0 &&
+           iswdigit(name[7]) && !_wcsnicmp(name + n - 6, L"_d.dll", 6) == 0;
+}
+
+int sbf_process_python(void **library)
+{
+    HMODULE modules[1024];
+    DWORD bytes = 0;
+    wchar_t name[MAX_PATH];
+    if (!K32EnumProcessModules(GetCurrentProcess(), modules, sizeof modules, &bytes)) return 0;
+    for (size_t i = 0; i < bytes / sizeof *modules && i < sizeof modules / sizeof *modules; ++i)
+        if (K32GetModuleBaseNameW(GetCurrentProcess(), modules[i], name, MAX_PATH) && is_python_library(name) &&
+            GetProcAddress(modules[i], "Py_IsInitialized")) {
+            *library = modules[i];
+            return 1;
+        }
+    return 0;
+}
+
+/* The path (UTF-8) of the module holding `address` into `path`; 0 if there is none */
+static int module_path(const void *address, char *path, size_t size)
+{
+    HMODULE module;
+    static wchar_t wide[WIDE_PATH];
+    if (!GetModuleHandleExW(GET_MODULE_HANDLE_EX_FLAG_FROM_ADDRESS | GET_MODULE_HANDLE_EX_FLAG_UNCHANGED_REFCOUNT,
+                            (LPCWSTR)address, &module))
+        return 0;
+    DWORD n = GetModuleFileNameW(module, wide, WIDE_PATH);
+    return n > 0 && n < WIDE_PATH && from_wide(wide, path, size);
+}
+
+int sbf_loader_path(char *path, size_t size) { return module_path((const void *)&sbf_loader_path, path, size); }
+
+int sbf_pin_loader(char *why, size_t why_size)
+{
+    HMODULE module;
+    if (GetModuleHandleExW(GET_MODULE_HANDLE_EX_FLAG_FROM_ADDRESS | GET_MODULE_HANDLE_EX_FLAG_PIN,
+                           (LPCWSTR)(const void *)&sbf_pin_loader, &module))
+        return 1;
+    note_error(GetLastError());
+    snprintf(why, why_size, "%s", library_error);
+    return 0;
+}
+
+/* The length of the folder part of `path` (with its last separator) */
+static size_t folder_length(const char *path)
+{
+    const char *slash = strrchr(path, '/'), *backslash = strrchr(path, '\\');
+    if (backslash > slash) slash = backslash;
+    return slash ? (size_t)(slash - path + 1) : 0;
+}
+
+int sbf_bind_inner_to_python(void *python, char *why, size_t why_size)
+{
+    char path[4096];
+    if (GetModuleHandleW(L"python3.dll")) return 1;
+    if (!module_path((const void *)GetProcAddress((HMODULE)python, "Py_IsInitialized"), path, sizeof path))
+        return snprintf(why, why_size, "cannot locate the CPython library"), 0;
+    snprintf(path + folder_length(path), sizeof path - folder_length(path), "python3.dll");
+    if (sbf_open_library(path, 0)) return 1;
+    snprintf(why, why_size, "it needs python3.dll, which is not beside the CPython library (%s: %s)", path,
+             library_error);
+    return 0;
+}
+
+/* python.exe in the CPython library's folder (the layout of python.org's installers and embeddable packages) */
+void sbf_python_program_name(void *python_function, char *name, size_t size)
+{
+    char path[4096];
+    if (!module_path(python_function, path, sizeof path)) {
+        snprintf(name, size, "python.exe");
+        return;
+    }
+    snprintf(name, size, "%.*spython.exe", (int)folder_length(path), path);
+}
+
+static SRWLOCK loader_lock = SRWLOCK_INIT;
+
+void sbf_loader_lock(void) { AcquireSRWLockExclusive(&loader_lock); }
+
+void sbf_loader_unlock(void) { ReleaseSRWLockExclusive(&loader_lock); }
+
+/* ---- the process-wide start lock: a mutex named after the process, which every loader copy opens ---- */
+static HANDLE process_lock;
+
+int sbf_process_lock(char *why, size_t why_size)
+{
+    if (!process_lock) {
+        wchar_t name[64];
+        swprintf(name, sizeof name / sizeof *name, L"Local\\sbf_python_start_lock.%lu",
+                 (unsigned long)GetCurrentProcessId());
+        process_lock = CreateMutexW(NULL, FALSE, name);
+        if (!process_lock) {
+            note_error(GetLastError());
+            return snprintf(why, why_size, "cannot create the process's start lock: %s", library_error), 0;
+        }
+    }
+    if (WaitForSingleObject(process_lock, INFINITE) == WAIT_FAILED) {
+        note_error(GetLastError());
+        return snprintf(why, why_size, "cannot take the process's start lock: %s", library_error), 0;
+    }
+    return 1;
+}
+
+void sbf_process_unlock(void) { ReleaseMutex(process_lock); }
+
+static void (*host_sigint)(int);
+
+void sbf_save_host_signals(void)
+{
+    host_sigint = signal(SIGINT, SIG_DFL);
+    signal(SIGINT, host_sigint);
+}
+
+void sbf_restore_host_signals(void) { signal(SIGINT, host_sigint); }
+
+/* Ctrl-C reaches a Windows process on a thread of its own, which runs the handler at once; its deferral is not
+ * implemented here: an interrupt during a call into the model acts in the model's Python code. */
+void sbf_defer_interrupts(void) {}
+
+void sbf_interrupts_begin(int (*interrupt_pending)(void)) { (void)interrupt_pending; }
+
+void sbf_interrupts_end(void) {}
+
+/* ---- threads: a fiber-local slot whose callback runs when the thread ends ---- */
+static DWORD exit_slot = FLS_OUT_OF_INDEXES;
+static void (*exit_destructor)(void *);
+static INIT_ONCE exit_slot_once = INIT_ONCE_STATIC_INIT;
+
+static void WINAPI run_exit_destructor(void *value)
+{
+    if (value) exit_destructor(value);
+}
+
+static BOOL CALLBACK create_exit_slot(INIT_ONCE *once, void *parameter, void **context)
+{
+    (void)once, (void)parameter, (void)context;
+    exit_slot = FlsAlloc(run_exit_destructor);
+    return TRUE;
+}
+
+void sbf_at_thread_exit(void (*destructor)(void *), void *value)
+{
+    exit_destructor = destructor;
+    InitOnceExecuteOnce(&exit_slot_once, create_exit_slot, NULL, NULL);
+    if (exit_slot != FLS_OUT_OF_INDEXES) FlsSetValue(exit_slot, value);
+}
+
+/* ---- paths ---- */
+
+static int has_drive(const char *path) { return isalpha((unsigned char)path[0]) && (path[1] == ':' || path[1] == '|'); }
+
+int sbf_is_absolute_path(const char *location)
+{
+    return (has_drive(location) && location[1] == ':' && (location[2] == '\\' || location[2] == '/')) ||
+           ((location[0] == '\\' || location[0] == '/') && (location[1] == '\\' || location[1] == '/'));
+}
+
+/* file:///C:/x and file://localhost/C:/x: C:\x; file://host/share/x and file:////host/share/x: \\host\share\x */
+int sbf_uri_path(const char *host, size_t host_length, const char *uri_path, char *path, size_t size, char *why,
+                 size_t why_size)
+{
+    int local = host_length == 0 || (host_length == 9 && _strnicmp(host, "localhost", 9) == 0);
+    int written;
+    if (local && has_drive(uri_path + 1) && (uri_path[3] == '/' || uri_path[3] == '\0'))
+        written = snprintf(path, size, "%c:%s", uri_path[1], uri_path[3] ? uri_path + 3 : "/");
+    else if (local && uri_path[1] == '/')
+        written = snprintf(path, size, "%s", uri_path); /* file:////host/share: the UNC path in the URI's path */
+    else if (!local)
+        written = snprintf(path, size, "//%.*s%s", (int)host_length, host, uri_path);
+    else
+        return snprintf(why, why_size, "names no drive: a local file URI on Windows is file:///C:/path"), 0;
+    if (written < 0 || (size_t)written >= size) return snprintf(why, why_size, "is too long"), 0;
+    for (char *c = path; *c; ++c)
+        if (*c == '/') *c = '\\';
+    return 1;
+}
+
+int sbf_path_kind(const char *path, char *why, size_t why_size)
+{
+    static wchar_t wide[WIDE_PATH];
+    struct _stat64 st;
+    if (!to_wide(path, wide, WIDE_PATH)) return snprintf(why, why_size, "the path is not UTF-8 text"), 0;
+    size_t n = wcslen(wide); /* _wstat64 finds no folder whose name ends with a separator, save a drive's root */
+    while (n > 3 && (wide[n - 1] == L'\\' || wide[n - 1] == L'/')) wide[--n] = L'\0';
+    if (_wstat64(wide, &st) != 0) return snprintf(why, why_size, "%s", strerror(errno)), 0;
+    return (st.st_mode & S_IFMT) == S_IFDIR ? 1 : (st.st_mode & S_IFMT) == S_IFREG ? 2 : 3;
+}
+
+FILE *sbf_open_text(const char *path)
+{
+    static wchar_t wide[WIDE_PATH];
+    return to_wide(path, wide, WIDE_PATH) ? _wfopen(wide, L"r") : NULL;
+}
+
+int sbf_library_can_open(const char *path)
+{
+    for (const unsigned char *c = (const unsigned char *)path; *c; ++c)
+        if (*c >= 0x80) return 0;
+    return 1;
+}
+
+/* The folder's short (8.3) path, where the volume keeps short names (ASCII names) */
+int sbf_folder_alias(const char *folder, char *path, size_t size, char *why, size_t why_size)
+{
+    static wchar_t wide[WIDE_PATH], short_path[WIDE_PATH];
+    DWORD n = to_wide(folder, wide, WIDE_PATH) ? GetShortPathNameW(wide, short_path, WIDE_PATH) : 0;
+    if (n > 0 && n < WIDE_PATH && from_wide(short_path, path, size) && !strstr(path, "%20") &&
+        !strstr(path, "file://") && sbf_library_can_open(path))
+        return 1;
+    snprintf(why, why_size, "its volume has no short name for it");
+    return 0;
+}
