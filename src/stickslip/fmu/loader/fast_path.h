@@ -76,6 +76,14 @@ int sbf_fast_integers(sbf_fast_path *fast, const unsigned *vr, size_t n, int *va
 int sbf_slave_derivatives(sbf_fast_path *fast, const char *function, const char *method, const unsigned *vr, size_t n,
                           const int *order, double *values, int writes, char *why, size_t why_size);
 
+/* The FMI 2 model-exchange call `function` (fmi2GetDerivatives...), which the inner library lacks, answered by the
+ * bound slave's model_exchange(function, values, count) (fmu_src/SpringBlockFriction.py): `in[0..n_in)` the numbers
+ * the host gave, `count` the length of the call's array, the `n_out` numbers the slave answers into out[0..n_out).
+ * 0 if done; 1 if refused, with the slave's exception as "[<function>] <repr>" in `why` (no Python exception is
+ * left pending). Needs a bound slave, whether or not the fast path steps. */
+int sbf_slave_exchange(sbf_fast_path *fast, const char *function, const double *in, size_t n_in, size_t count,
+                       double *out, size_t n_out, char *why, size_t why_size);
+
 /* The time the FMU is at (s), the bound slave's answer to fmu_time() (fmu_src/block_interface.py): the end of the
  * last step or of the part of a failed step it went, whichever path took it, or a restored state's time. 1 with it
  * in *t; 0 if there is no bound slave or its answer is no number (no Python exception is left pending). */

@@ -56,10 +56,16 @@ def model_token(model_description, fmi_version):
     return ElementTree.fromstring(model_description).get("guid" if fmi_version == 2 else "instantiationToken")
 
 
-def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, token=""):
+def offers_model_exchange(model_description):
+    """True if the bytes of a ``modelDescription.xml`` declare model exchange (a ModelExchange element)."""
+    return ElementTree.fromstring(model_description).find("ModelExchange") is not None
+
+
+def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, token="", model_exchange=False):
     """Compile the loader of ``fmi_version`` to ``dest``, forwarding to ``inner_name`` beside it and accepting
     the GUID or instantiation token ``token`` only, and the start guard beside ``dest`` (``START_GUARD_NAME``);
-    None on success, else why not."""
+    ``model_exchange``: an FMI 2 loader that makes model-exchange instances (the inner library has none, the slave
+    answers them); None on success, else why not."""
     compiler = os.environ.get("CC") or "cc"
     if shutil.which(compiler) is None:
         return f"no C compiler ({compiler!r} not found; set CC)"
@@ -71,7 +77,8 @@ def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, toke
         f"-DSBF_START_GUARD={_c_string(START_GUARD_NAME)}",
         f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
         f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}", "-ldl", "-lpthread",
-    ] + (["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else [])
+    ] + (["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else []) + (
+        ["-DSBF_MODEL_EXCHANGE"] if model_exchange and fmi_version == 2 else [])
     guard = [compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o",
              str(Path(dest).with_name(START_GUARD_NAME)), str(START_GUARD), "-lpthread"]
     for step in (command, guard):
@@ -100,7 +107,8 @@ def install(fmu_path, model_identifier, slave_survives_release=False, fmi_versio
     token = model_token(entries["modelDescription.xml"], fmi_version)
     with tempfile.TemporaryDirectory(prefix="sbf_loader_") as tmp:
         loader = Path(tmp) / binary.rsplit("/", 1)[1]
-        why_not = compile_loader(loader, inner_name, slave_survives_release, fmi_version, token)
+        why_not = compile_loader(loader, inner_name, slave_survives_release, fmi_version, token,
+                                 offers_model_exchange(entries["modelDescription.xml"]))
         if why_not is not None:
             print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads "
                   f"only inside a Python process: {why_not}", file=sys.stderr)
