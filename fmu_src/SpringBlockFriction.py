@@ -206,11 +206,11 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
         is not the FMU's, or a non-finite answer; the shared model exchange's errors, each naming its value)."""
         array, call = _EXCHANGE_CALLS[function]
         if array is not None and count != _ARRAY_LENGTHS[array][0]:
-            raise ValueError(f"{array} = {count}, but this FMU has {_ARRAY_LENGTHS[array][0]} "
+            raise ValueError(f"{function}: {array} = {count}, but this FMU has {_ARRAY_LENGTHS[array][0]} "
                              f"{_ARRAY_LENGTHS[array][1]}")
         answer = tuple(float(value) for value in call(self, values) or ())
         if not all(math.isfinite(value) for value in answer):
-            raise ValueError(f"the model answered {answer!r}: not every value is finite")
+            raise ValueError(f"{function}: the model answered {answer!r}: not every value is finite")
         return answer
 
     def _get_fmu_state(self):

@@ -454,7 +454,9 @@ class ExchangeInterface:
             self.block.set_inputs(self.values["v_drive"], self.values["F_ext"])
 
     def current_state(self):
-        return self.block if self.exchange else self.current_trajectory()
+        """What the outputs are read from: the trajectory until the first model-exchange call, then the block (during
+        initialization, the one the current values start)."""
+        return self._block_now() if self.exchange else self.current_trajectory()
 
     def _new_block(self):
         """The ExchangeBlock the current values start at :attr:`time` (ParameterError for a bad parameter)."""

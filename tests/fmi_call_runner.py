@@ -356,7 +356,8 @@ class Fmi2(Binary):
     TYPES = {"Real": c_double, "Integer": c_int, "Boolean": c_int, "String": c_char_p}
     NAMES = {"GetFMUState": "fmi2GetFMUstate", "SetFMUState": "fmi2SetFMUstate", "FreeFMUState": "fmi2FreeFMUstate",
              "SerializedFMUStateSize": "fmi2SerializedFMUstateSize", "SerializeFMUState": "fmi2SerializeFMUstate",
-             "DeserializeFMUState": "fmi2DeSerializeFMUstate"}
+             "DeserializeFMUState": "fmi2DeSerializeFMUstate", "GetContinuousStateDerivatives": "fmi2GetDerivatives",
+             "UpdateDiscreteStates": "fmi2NewDiscreteStates"}
 
     def __init__(self, folder):
         super().__init__(folder, "linux64", _fmi2_signatures())
