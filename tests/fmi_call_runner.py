@@ -344,6 +344,25 @@ def log_from_the_slave(b, c, before):
     return {message: int(status) for message, status in queued.items()}
 
 
+def exchange_round(b, c, boolean):
+    """Continuous-time mode of an initialized stuck block after its first event update: its states, nominals and
+    derivatives at t = 0; then t = 0.5 s, x = 0.05 m, v = 0.1 m/s: its indicators and an integrator step (``boolean``:
+    the version's Boolean type); event mode again. Returns what the calls gave."""
+    b(b.fn("EnterContinuousTimeMode"), c)
+    states, derivatives, nominals, indicators = (c_double * 2)(), (c_double * 2)(), (c_double * 2)(), (c_double * 3)()
+    b(b.fn("GetContinuousStates"), c, states, 2)
+    b(b.fn("GetNominalsOfContinuousStates"), c, nominals, 2)
+    b(b.fn("GetContinuousStateDerivatives"), c, derivatives, 2)
+    b(b.fn("SetTime"), c, 0.5)
+    b(b.fn("SetContinuousStates"), c, (c_double * 2)(0.05, 0.1), 2)
+    b(b.fn("GetEventIndicators"), c, indicators, 3)
+    flags = [boolean(True), boolean(True)]
+    b(b.fn("CompletedIntegratorStep"), c, True, *map(byref, flags))
+    b(b.fn("EnterEventMode"), c)
+    return {"states": list(states), "nominals": list(nominals), "derivatives": list(derivatives),
+            "indicators": list(indicators), "completed": [flag.value for flag in flags]}
+
+
 # ---- FMI 2 ----------------------------------------------------------------------------------------------------
 
 FMI2_DO_STEP_STATUS, FMI2_PENDING_STATUS, FMI2_LAST_SUCCESSFUL_TIME, FMI2_TERMINATED = range(4)
@@ -480,17 +499,7 @@ def fmi2_model_exchange(b):
     co-simulation calls on the model-exchange instance; terminate."""
     c = b.initialized(STUCK, interface="ModelExchange")
     first_update = b.update(c)
-    b("fmi2EnterContinuousTimeMode", c)
-    states, derivatives, nominals, indicators = (c_double * 2)(), (c_double * 2)(), (c_double * 2)(), (c_double * 3)()
-    b("fmi2GetContinuousStates", c, states, 2)
-    b("fmi2GetNominalsOfContinuousStates", c, nominals, 2)
-    b("fmi2GetDerivatives", c, derivatives, 2)
-    b("fmi2SetTime", c, 0.5)
-    b("fmi2SetContinuousStates", c, (c_double * 2)(0.05, 0.1), 2)
-    b("fmi2GetEventIndicators", c, indicators, 3)
-    flags = [c_int(1), c_int(1)]
-    b("fmi2CompletedIntegratorStep", c, 1, *map(byref, flags))
-    b("fmi2EnterEventMode", c)
+    values = exchange_round(b, c, c_int)
     second_update = b.update(c, label="fmi2NewDiscreteStates at t=0.5")
     outputs = b.get(c, "Real", "x", "v", "t_stick", label="fmi2GetReal at t=0.5")
     der = b.get(c, "Real", "der(x)", "der(v)", label="fmi2GetReal of der(x), der(v)")
@@ -502,10 +511,7 @@ def fmi2_model_exchange(b):
       label="fmi2GetRealOutputDerivatives in model exchange")
     b("fmi2Terminate", c, label="fmi2Terminate in model exchange")
     b("fmi2FreeInstance", c)
-    return {"first_update": first_update, "states": list(states), "nominals": list(nominals),
-            "derivatives": list(derivatives), "indicators": list(indicators),
-            "completed": [flag.value for flag in flags], "second_update": second_update, "outputs": outputs,
-            "der": der}
+    return {"first_update": first_update, **values, "second_update": second_update, "outputs": outputs, "der": der}
 
 
 def fmi2_exchange_refusals(b):
@@ -667,27 +673,16 @@ def fmi3_model_exchange(b):
     derivatives, nominals, indicators at t = 0.5 s, an integrator step, event mode again; terminate."""
     c = b.initialized(STUCK, interface="ModelExchange")
     first_update = b.update(c)
-    b("fmi3EnterContinuousTimeMode", c)
     counts = [c_size_t(), c_size_t()]
     b("fmi3GetNumberOfContinuousStates", c, byref(counts[0]))
     b("fmi3GetNumberOfEventIndicators", c, byref(counts[1]))
-    states, derivatives, nominals, indicators = (c_double * 2)(), (c_double * 2)(), (c_double * 2)(), (c_double * 3)()
-    b("fmi3GetContinuousStates", c, states, 2)
-    b("fmi3GetNominalsOfContinuousStates", c, nominals, 2)
-    b("fmi3GetContinuousStateDerivatives", c, derivatives, 2)
-    b("fmi3SetTime", c, 0.5)
-    b("fmi3SetContinuousStates", c, (c_double * 2)(0.05, 0.1), 2)
-    b("fmi3GetEventIndicators", c, indicators, 3)
-    flags = [c_bool(True), c_bool(True)]
-    b("fmi3CompletedIntegratorStep", c, True, *map(byref, flags))
-    b("fmi3EnterEventMode", c)
+    values = exchange_round(b, c, c_bool)
     second_update = b.update(c, label="fmi3UpdateDiscreteStates at t=0.5")
     outputs = b.get(c, "Float64", "x", "v", "t_stick", label="fmi3GetFloat64 at t=0.5")
     b("fmi3Terminate", c)
     b("fmi3FreeInstance", c)
-    return {"first_update": first_update, "counts": [n.value for n in counts], "states": list(states),
-            "nominals": list(nominals), "derivatives": list(derivatives), "indicators": list(indicators),
-            "completed": [flag.value for flag in flags], "second_update": second_update, "outputs": outputs}
+    return {"first_update": first_update, "counts": [n.value for n in counts], **values,
+            "second_update": second_update, "outputs": outputs}
 
 
 def fmi3_log(b, logging_on, debug_logging_calls):

@@ -362,28 +362,25 @@ def test_after_refused_calls_the_instance_steps_as_before(results, fmi_version, 
         assert values["step"] == [False, False, False, H]
 
 
-def test_fmi3_co_simulation_refuses_the_model_exchange_calls_and_its_outputs_survive_them(results):
-    """FMI 3.0 section 2.3: the model-exchange functions are "not allowed in Co-Simulation": each is refused with a
-    message naming it and why; fmi3SetTime(0.5) and fmi3SetContinuousStates(x = 0.05 m) change nothing, so one
-    step of H from t = 0 gives the stuck block's x = x_start + v_drive H."""
-    record = case(results, 3, "cs_exchange_calls")
-    for name in FMI3_EXCHANGE_ONLY:
-        [call] = calls(record, f"{name} in co-simulation")
-        assert call["result"] == ERROR and [message[2] for message in call["messages"]] == [
-            f"{name} is not allowed for a co-simulation instance: it is a model-exchange function (FMI 3.0: not "
-            "allowed in co-simulation; the instance was made by fmi3InstantiateCoSimulation)"], call
-    assert record["values"]["x"] == pytest.approx([X_START + V_DRIVE * H], rel=0, abs=EXACT)
+#: FMI version: (its model-exchange functions, why each is refused on a co-simulation instance)
+EXCHANGE_REFUSALS = {
+    2: (FMI2_EXCHANGE_ONLY, "(the instance was made by fmi2Instantiate with fmuType = fmi2CoSimulation)"),
+    3: (FMI3_EXCHANGE_ONLY, "(FMI 3.0: not allowed in co-simulation; the instance was made by "
+                            "fmi3InstantiateCoSimulation)"),
+}
 
 
-def test_fmi2_co_simulation_refuses_the_model_exchange_calls_and_its_outputs_survive_them(results):
-    """As in FMI 3: each model-exchange function on a co-simulation instance is refused with a message naming it
-    and why; fmi2SetTime(0.5) and fmi2SetContinuousStates(x = 0.05 m) change nothing."""
-    record = case(results, 2, "cs_exchange_calls")
-    for name in FMI2_EXCHANGE_ONLY:
+@pytest.mark.parametrize("fmi_version", [2, 3])
+def test_co_simulation_refuses_the_model_exchange_calls_and_its_outputs_survive_them(results, fmi_version):
+    """FMI 3.0 section 2.3, and FMI 2 alike: the model-exchange functions are "not allowed in Co-Simulation": each
+    is refused with a message naming it and why; fmi<N>SetTime(0.5) and fmi<N>SetContinuousStates(x = 0.05 m)
+    change nothing, so one step of H from t = 0 gives the stuck block's x = x_start + v_drive H."""
+    record = case(results, fmi_version, "cs_exchange_calls")
+    names, why = EXCHANGE_REFUSALS[fmi_version]
+    for name in names:
         [call] = calls(record, f"{name} in co-simulation")
         assert call["result"] == ERROR and [message[2] for message in call["messages"]] == [
-            f"{name} is not allowed for a co-simulation instance: it is a model-exchange function (the instance was "
-            "made by fmi2Instantiate with fmuType = fmi2CoSimulation)"], call
+            f"{name} is not allowed for a co-simulation instance: it is a model-exchange function {why}"], call
     assert record["values"]["x"] == pytest.approx([X_START + V_DRIVE * H], rel=0, abs=EXACT)
 
 
