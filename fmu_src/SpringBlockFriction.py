@@ -68,7 +68,7 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
         self._by_reference = [v.start for v in VARIABLES] + [0.0] * len(DERIVATIVES)
         self._outputs_stale = True  # the outputs' part needs an evaluation at the current state
         self._derivatives_stale = True  # and the state derivatives' part
-        self._read_plans = {}  # (type, value references) -> (read, needs_outputs), see _read_plan
+        self._read_plans = {}  # (type, value references) -> (read, needs), see _read_plan
         self.offer_to_loader("linux64")
 
     def to_xml(self, model_options=None):
@@ -143,8 +143,8 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
         _check_kind(kind, references)
         if max(references, default=-1) >= FIRST_OUTPUT:
             reference = next(r for r in references if r >= FIRST_OUTPUT)
-            kind = "an output" if reference < FIRST_DERIVATIVE else "a state derivative"
-            raise TypeError(f"{_NAMES[reference]} (valueReference={reference}) is {kind}: it cannot be set")
+            what = "an output" if reference < FIRST_DERIVATIVE else "a state derivative"
+            raise TypeError(f"{_NAMES[reference]} (valueReference={reference}) is {what}: it cannot be set")
         self.set_values([VARIABLES[r].name for r in references], values)
 
     def set_variable(self, name, value):

@@ -380,11 +380,6 @@ class BlockInterface:
         return {"values": dict(self.values), "start_time": self.start_time, "trajectory": snapshot,
                 "pending": sorted(self._inputs_set)}
 
-    def restore_block_state(self, state):
-        """Undo to a state from :meth:`block_state` (which stays usable for another restore):
-        :meth:`checked_block_state`, then :meth:`take_block_state`; a refused state leaves the instance as it was."""
-        self.take_block_state(self.checked_block_state(state))
-
     def checked_block_state(self, state):
         """``(values, start time, trajectory, parameters, pending inputs)`` of a state from :meth:`block_state`, every
         value checked and nothing taken: the parameters and inputs (:func:`check_values`), the start time, the

@@ -17,8 +17,9 @@
  * The outputs are the very values the slave's getters answer (the same conversions as the inner library's),
  * so results do not depend on which path a call takes. Where the slave offers nothing (a pythonfmu binary
  * without this loader's symbol, a CPython without the functions below) or SBF_FAST_PATH=0 is in the environment,
- * every step and read goes the inner library's way. The input and output derivatives, which the inner library
- * lacks, go to the bound slave's methods either way (sbf_slave_derivatives).
+ * every step and read goes the inner library's way. The input and output derivatives and FMI 2's model exchange,
+ * which the inner library lacks, go to the bound slave's methods either way (sbf_slave_derivatives,
+ * sbf_slave_exchange).
  */
 #ifndef SBF_FAST_PATH_H
 #define SBF_FAST_PATH_H
