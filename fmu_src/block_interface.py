@@ -5,7 +5,8 @@ bookkeeping between FMI variables and the runtime.
 start value, unit, description and inclusive bounds, in the order the FMUs declare them; each slave
 registers them with its own library's classes. :class:`BlockInterface` keeps the parameter and input
 values by FMU name, builds the runtime's parameters and :class:`Trajectory` from them, and saves and
-restores them. No physics here: it is all in the runtime, which the builders bundle under a name only
+restores them; :class:`ExchangeInterface` is both slaves' model exchange (the runtime's :class:`ExchangeBlock`,
+answered by pythonfmu3 in FMI 3 and by the C loader in FMI 2). No physics here: it is all in the runtime, which the builders bundle under a name only
 their FMU uses (they rewrite the import below).
 """
 
