@@ -21,8 +21,8 @@ from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, 
                         ModelExchange)
 
 from block_interface import (
-    DERIVATIVES, EXCHANGE_STATE_KINDS, INDICATORS, BlockInterface, ExchangeInterface, balance_release, saved_state,
-    serialized_states,
+    DERIVATIVES, EXCHANGE_STATE_KINDS, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, BlockInterface, ExchangeInterface,
+    balance_release, saved_state, serialized_states,
 )
 
 _CAUSALITY = {"parameter": Fmi3Causality.parameter, "input": Fmi3Causality.input, "output": Fmi3Causality.output}
@@ -65,6 +65,17 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
                                        variability=Fmi3Variability.continuous, description="simulation time",
                                        getter=lambda: self.time), nested=False)
         self.offer_to_loader("x86_64-linux")
+
+    def to_xml(self, model_options=None):
+        """pythonfmu3's model description, with the co-simulation capabilities that the C loader answers: event mode
+        and early return from fmi3DoStep (hasEventMode, mightReturnEarlyFromDoStep) and the output derivatives
+        (maxOutputDerivativeOrder)."""
+        root = super().to_xml(model_options or {})
+        co_simulation = root.find("CoSimulation")
+        co_simulation.set("hasEventMode", "true")
+        co_simulation.set("mightReturnEarlyFromDoStep", "true")
+        co_simulation.set("maxOutputDerivativeOrder", str(MAX_OUTPUT_DERIVATIVE_ORDER))
+        return root
 
     def _local(self, name, unit, description, getter, derivative=None):
         self.variable_units[name] = unit
@@ -138,11 +149,47 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
         """Hold the inputs and advance to ``current_time + step_size`` s (raises on failure, never discards). Each
         step starts where the last ended (:meth:`Trajectory.communicate`); the first starts the trajectory at
         ``current_time`` unless the host gave the start time (fmi3SetTime during initialization)."""
+        self._start_at(current_time)
+        self.advance(current_time, step_size)
+        return True
+
+    def _start_at(self, current_time):
+        """Before a step from ``current_time`` (s): the first starts the trajectory there unless the host gave the
+        start time."""
         if not self._stepped and current_time != self.trajectory.t:
             self.trajectory = self.new_trajectory(t0=current_time)
         self._stepped = True
-        self.advance(current_time, step_size)
-        return True
+
+    def step_to_event(self, current_time, step_size, event_mode):
+        """fmi3DoStep with early return (the C loader calls it for an instance made with earlyReturnAllowed): the step
+        of :meth:`do_step` that stops at the first stick, breakaway or overshoot inside it. ``event_mode``: the
+        instance uses event mode, so the event is left for :meth:`apply_step_events` (the outputs are its left
+        limit); else it is applied at once. ``(time reached (s), True if it stopped short of the step's end, every
+        output there)`` (:meth:`Trajectory.outputs`, the values the getters answer: the loader keeps them)."""
+        self._start_at(current_time)
+        self.outputs_changed()
+        trajectory = self.current_trajectory()
+        early = trajectory.communicate_to_event(current_time, step_size)
+        if early and not event_mode:
+            trajectory.apply_events()
+        return trajectory.t, early, trajectory.outputs()
+
+    def apply_step_events(self):
+        """fmi3UpdateDiscreteStates of a co-simulation instance in event mode (the C loader calls it): the inputs set
+        in event mode and the events due now applied."""
+        self.outputs_changed()
+        self.current_trajectory().apply_events()
+
+    def get_output_derivatives(self, vrs, orders):
+        """fmi3GetOutputDerivatives (the C loader calls it): see :meth:`BlockInterface.output_derivatives`."""
+        return self.output_derivatives([self._variable(reference).name for reference in vrs], orders)
+
+    def _variable(self, reference):
+        """The variable of value reference ``reference`` (ValueError naming it if there is none)."""
+        variable = self.vars.get(reference)
+        if variable is None:
+            raise ValueError(f"no variable has valueReference={reference}")
+        return variable
 
     def fast_step_call(self):
         """The C loader's call for the next doSteps (:meth:`BlockInterface.fast_step_call`); None before the first

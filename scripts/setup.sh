@@ -3,7 +3,8 @@
 # compiles the runtime's hot modules) from PyPI, then build the FMUs into dist/. An argument names more extras to
 # install (scripts/test.sh passes "test"). Needs python3 >= 3.11 with venv. Safe to run again.
 # Takes about 5 minutes on 2 busy cores, most of it mypyc compiling the runtime twice at once (for the package and
-# for the FMUs). It says what it does as it goes: pip's steps in short (scripts/pip_progress.py; pip's whole log is
+# for the FMUs); with STICKSLIP_OTHER_PYTHONS=1, about 3 minutes more for each CPython newer than the build's that
+# pyenv has (the FMUs' runtime compiled for it too, once per runtime; for FMUs to hand out). It says what it does as it goes: pip's steps in short (scripts/pip_progress.py; pip's whole log is
 # .venv/pip-install.log), each C extension as it is compiled, and each FMU.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -28,6 +29,14 @@ fi
 # the FMUs' generationDateAndTime and the dates of their files: the last commit's time, unless set (reproducible builds)
 if [ -z "${SOURCE_DATE_EPOCH:-}" ] && git rev-parse --git-dir >/dev/null 2>&1; then
     SOURCE_DATE_EPOCH="$(git log -1 --format=%ct)" && export SOURCE_DATE_EPOCH
+fi
+# with STICKSLIP_OTHER_PYTHONS=1: the FMUs' runtime compiled for pyenv's newer CPythons too, where the machine has
+# them (each in a venv of its own, .venv-pythons/; skipped, saying so, where it cannot be made): the FMUs then carry
+# those compiled files as well
+if [ "${STICKSLIP_OTHER_PYTHONS:-0}" = 1 ]; then
+    echo "setup: compiling the FMUs' runtime for the newer CPython versions pyenv has (scripts/other_pythons.py compile)"
+    .venv/bin/python scripts/other_pythons.py compile | sed 's/^other pythons: /setup: /' \
+        || echo "setup: compiling for the other CPython versions failed; the FMUs carry the runtime compiled for this one"
 fi
 echo "setup: building the FMUs (FMI 2, FMI 3) into dist/"
 .venv/bin/python build_fmu.py | sed 's/^/setup: FMU built at /'  # one line per FMU (FMI 2, FMI 3)

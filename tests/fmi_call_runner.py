@@ -576,12 +576,13 @@ class Fmi3(Binary):
                                              self.received(status, category, message))
         self.resources = (str(self.folder / "resources") + "/").encode()
 
-    def instantiate(self, interface="CoSimulation", logging_on=False, event_mode_used=False, label=None):
+    def instantiate(self, interface="CoSimulation", logging_on=False, event_mode_used=False, early_return=False,
+                    label=None):
         """A new instance of ``interface`` (fmi3Instantiate<interface>) or None."""
         token = self.description.guid.encode()
         if interface == "CoSimulation":
             return self("fmi3InstantiateCoSimulation", b"calls", token, self.resources, False, logging_on,
-                        event_mode_used, False, None, 0, None, self._log_message, None, label=label)
+                        event_mode_used, early_return, None, 0, None, self._log_message, None, label=label)
         return self("fmi3InstantiateModelExchange", b"calls", token, self.resources, False, logging_on, None,
                     self._log_message)
 
@@ -612,24 +613,31 @@ def fmi3_version(b):
 
 def fmi3_refused(b):
     """Every function pythonfmu3 leaves out, called with zeroed arguments of the right types on an initialized
-    co-simulation instance; then the derivative calls the model description rules out."""
+    co-simulation instance; then the directional derivatives, which the model description rules out, and the
+    output derivatives it offers (maxOutputDerivativeOrder = 2), of an order and an output it does not."""
     c = b.initialized(STUCK)
     for name in FMI3_REFUSED:
         function = getattr(b.lib, name)
         args = [c] + [typ() if typ is not c_void_p else None for typ in function.argtypes[1:]]
         b(name, *args)
-    seed, out, order = (c_double * 1)(1.0), (c_double * 1)(), (c_int32 * 1)(1)
+    seed, out, order = (c_double * 2)(1.0), (c_double * 2)(), (c_int32 * 2)(1, 2)
     b("fmi3GetDirectionalDerivative", c, b.vrs("x"), 1, b.vrs("v_drive"), 1, seed, 1, out, 1)
-    b("fmi3GetOutputDerivatives", c, b.vrs("x"), 1, order, out, 1)
+    b("fmi3GetOutputDerivatives", c, b.vrs("x", "v"), 2, order, out, 2)
+    derivatives = list(out)
+    b("fmi3GetOutputDerivatives", c, b.vrs("x"), 1, (c_int32 * 1)(3), out, 1,
+      label="fmi3GetOutputDerivatives of order 3")
+    b("fmi3GetOutputDerivatives", c, b.vrs("mode"), 1, order, out, 1, label="fmi3GetOutputDerivatives of mode")
+    b("fmi3GetOutputDerivatives", c, b.vrs("x", "v"), 2, order, out, 1,
+      label="fmi3GetOutputDerivatives with nValues short")
     step = b.do_step(c, 0.0, 0.5, label="fmi3DoStep after the refusals")
     b("fmi3FreeInstance", c)
-    return {"step": step}
+    return {"step": step, "derivatives": derivatives}
 
 
 def fmi3_modes(b):
     """The mode changes a co-simulation instance without event mode must refuse: configuration mode (the model
-    has no structural parameter), event mode and step mode (eventModeUsed = false); an instance asking for
-    event mode (the model description has no hasEventMode); scheduled execution (not offered)."""
+    has no structural parameter), event mode and step mode (eventModeUsed = false); scheduled execution (not
+    offered)."""
     c = b.instantiate()
     b("fmi3EnterConfigurationMode", c)
     b("fmi3ExitConfigurationMode", c)
@@ -639,12 +647,40 @@ def fmi3_modes(b):
     step = b.do_step(c, 0.0, 0.5, label="fmi3DoStep after the refusals")
     x = b.get(c, "Float64", "x", label="fmi3GetFloat64 after the refusals")
     b("fmi3FreeInstance", c)
-    with_event_mode = b.instantiate(event_mode_used=True, label="fmi3InstantiateCoSimulation with event mode")
-    if with_event_mode:
-        b("fmi3FreeInstance", with_event_mode)
     b("fmi3InstantiateScheduledExecution", b"calls", b.description.guid.encode(), b.resources, False, False, None,
       b._log_message, None, None, None)
     return {"step": step, "x": x}
+
+
+#: a block of the elmer-fig3 preset (M = 40 kg, lubricated friction) breaking away at x = 1 m: it sticks at t = 29.27 s
+SLIDING = {"M": 40.0, "x_start": 1.0, "v_start": 0.1, "kinetic.law": 4, "kinetic.gamma1": 3.0, "kinetic.gamma2": 0.1,
+           "kinetic.v_tilde": 0.2, "kinetic.dv": 0.05}
+
+
+def fmi3_event_mode(b):
+    """A co-simulation instance with event mode and early return (fmusim's calls): Event Mode after initialization
+    (fmi3UpdateDiscreteStates, fmi3EnterStepMode); a step of 40 s that returns early at the first stick, there the
+    calls Step Mode refuses (fmi3UpdateDiscreteStates, fmi3EnterStepMode), then Event Mode (a step refused in it,
+    the output derivatives), fmi3UpdateDiscreteStates, fmi3EnterStepMode and the rest of the step."""
+    c = b.instantiate(event_mode_used=True, early_return=True, label="fmi3InstantiateCoSimulation with event mode")
+    b.initialize(c, SLIDING, after="with event mode")
+    first = b.update(c, label="fmi3UpdateDiscreteStates after initialization")
+    b("fmi3EnterStepMode", c, label="fmi3EnterStepMode after initialization")
+    early = b.do_step(c, 0.0, 40.0, label="fmi3DoStep to the first event")
+    before = b.get(c, "Float64", "v", label="fmi3GetFloat64 before the event")
+    mode_before = b.get(c, "Int32", "mode", label="fmi3GetInt32 before the event")
+    b.update(c, label="fmi3UpdateDiscreteStates in Step Mode")
+    b("fmi3EnterStepMode", c, label="fmi3EnterStepMode in Step Mode")
+    b("fmi3EnterEventMode", c, label="fmi3EnterEventMode at the event")
+    b.do_step(c, early[3], 1.0, label="fmi3DoStep in Event Mode")
+    b("fmi3EnterEventMode", c, label="fmi3EnterEventMode in Event Mode")
+    update = b.update(c, label="fmi3UpdateDiscreteStates at the event")
+    mode_after = b.get(c, "Int32", "mode", label="fmi3GetInt32 after the event")
+    b("fmi3EnterStepMode", c, label="fmi3EnterStepMode after the event")
+    rest = b.do_step(c, early[3], 40.0 - early[3], label="fmi3DoStep after the event")
+    b("fmi3FreeInstance", c)
+    return {"first_update": first, "early": early, "v_before": before, "modes": [mode_before, mode_after],
+            "update": update, "rest": rest}
 
 
 def fmi3_cs_exchange_calls(b):
@@ -710,6 +746,7 @@ def fmi3_log(b, logging_on, debug_logging_calls):
 FMI3_CASES = {"version": fmi3_version, "cs_stuck_step": stuck_step, "reset": reset, "fmu_state": fmu_state,
               "other_types": lambda b: other_types(b, FMI3_OTHER_TYPES),
               "refused": fmi3_refused, "modes": fmi3_modes, "cs_exchange_calls": fmi3_cs_exchange_calls,
+              "event_mode": fmi3_event_mode,
               "model_exchange": fmi3_model_exchange, "log": fmi3_log}
 
 if __name__ == "__main__":

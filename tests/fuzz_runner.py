@@ -46,12 +46,14 @@ class Sequence:
 
 
 def instantiate(s, variant="plain"):
-    """A new instance; ``variant``: "plain", "logging" (loggingOn), "me-plain" (model exchange), "me-logging"."""
+    """A new instance; ``variant``: "plain", "logging" (loggingOn), "me-plain" (model exchange), "me-logging",
+    "early" (FMI 3 co-simulation with earlyReturnAllowed), "events" (with eventModeUsed as well)."""
     interface = "ModelExchange" if variant.startswith("me") else "CoSimulation"
     if s.b.PREFIX == "fmi2":
         s.c = s.b.instantiate(logging_on=variant.endswith("logging"), interface=interface)
     else:
-        s.c = s.b.instantiate(interface, logging_on=variant.endswith("logging"))
+        s.c = s.b.instantiate(interface, logging_on=variant.endswith("logging"), event_mode_used=variant == "events",
+                              early_return=variant in ("early", "events"))
 
 
 def enter_initialization(s, tolerance_defined=False, tolerance=0.0, start=0.0, stop_defined=False, stop=0.0):
@@ -151,9 +153,14 @@ def set_input_derivatives(s, names, orders, values):
 
 
 def get_output_derivatives(s, names, orders):
-    """fmi2GetRealOutputDerivatives of ``names`` (any variables) at ``orders``; the values written and past them."""
+    """fmi2GetRealOutputDerivatives or fmi3GetOutputDerivatives of ``names`` (any variables) at ``orders``; the values
+    written and past them."""
     buffer = (c_double * (len(names) + SLACK))(*[SENTINEL] * (len(names) + SLACK))
-    s.call("GetRealOutputDerivatives", s.b.vrs(*names), len(names), (ctypes.c_int * len(names))(*orders), buffer)
+    references, order_array = s.b.vrs(*names), (ctypes.c_int * len(names))(*orders)
+    if s.b.PREFIX == "fmi2":
+        s.call("GetRealOutputDerivatives", references, len(names), order_array, buffer)
+    else:
+        s.call("GetOutputDerivatives", references, len(names), order_array, buffer, len(names))
     s.record({"values": list(buffer[:len(names)]), "past the end": [v for v in buffer[len(names):] if v != SENTINEL]})
 
 
@@ -220,6 +227,7 @@ OPERATIONS = {
     # model exchange (counts: FMI 3 only)
     "set_time": set_time, "set_states": set_states, "counts": counts, "update": update, "completed": completed,
     "enter_event_mode": plain("EnterEventMode"), "enter_continuous_time_mode": plain("EnterContinuousTimeMode"),
+    "enter_step_mode": plain("EnterStepMode"),
     **{f"read {name}": (lambda s, n, name=name: reals_out(s, name, n)) for name in (
         "GetContinuousStates", "GetContinuousStateDerivatives", "GetEventIndicators",
         "GetNominalsOfContinuousStates")},

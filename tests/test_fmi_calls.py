@@ -105,18 +105,29 @@ FMI3_EXPECTED = {
         "fmi3GetNumberOfEventIndicators", "fmi3GetContinuousStates", "fmi3GetNominalsOfContinuousStates",
         "fmi3GetContinuousStateDerivatives", "fmi3SetTime", "fmi3SetContinuousStates", "fmi3GetEventIndicators",
         "fmi3CompletedIntegratorStep", "fmi3EnterEventMode", "fmi3UpdateDiscreteStates at t=0.5",
+        "fmi3GetOutputDerivatives",  # maxOutputDerivativeOrder = 2: x and v, orders 1 and 2
+        # co-simulation with event mode and early return
+        "fmi3InstantiateCoSimulation with event mode", "fmi3EnterInitializationMode with event mode",
+        "fmi3ExitInitializationMode with event mode", "fmi3UpdateDiscreteStates after initialization",
+        "fmi3EnterStepMode after initialization", "fmi3DoStep to the first event", "fmi3GetFloat64 before the event",
+        "fmi3GetInt32 before the event", "fmi3EnterEventMode at the event", "fmi3UpdateDiscreteStates at the event",
+        "fmi3GetInt32 after the event", "fmi3EnterStepMode after the event", "fmi3DoStep after the event",
     ], "ok"),
     **dict.fromkeys([
         *FMI3_REFUSED,
         *(f"fmi3{way}{kind} of a Float64" for kind in FMI3_OTHER_TYPES for way in ("Get", "Set")),
         "fmi3GetDirectionalDerivative",  # providesDirectionalDerivatives is not set
-        "fmi3GetOutputDerivatives",  # maxOutputDerivativeOrder = 0
+        "fmi3GetOutputDerivatives of order 3", "fmi3GetOutputDerivatives of mode",  # only x and v, orders 1 and 2
+        "fmi3GetOutputDerivatives with nValues short",  # scalars: nValues = nValueReferences
         "fmi3EnterConfigurationMode", "fmi3ExitConfigurationMode",  # the model has no structural parameter
-        "fmi3EnterStepMode",  # co-simulation without event mode (no hasEventMode) never is in event mode
+        "fmi3EnterStepMode",  # a co-simulation instance made with eventModeUsed = false never is in event mode
         "fmi3EnterEventMode in co-simulation", "fmi3UpdateDiscreteStates in co-simulation",  # likewise
+        # with eventModeUsed: each call in the mode it belongs to (FMI 3.0 section 4.2)
+        "fmi3UpdateDiscreteStates in Step Mode", "fmi3EnterStepMode in Step Mode", "fmi3DoStep in Event Mode",
+        "fmi3EnterEventMode in Event Mode",
         *(f"{name} in co-simulation" for name in FMI3_EXCHANGE_ONLY),  # FMI 3.0 section 2.3
     ], "refused"),
-    **dict.fromkeys(["fmi3InstantiateScheduledExecution", "fmi3InstantiateCoSimulation with event mode"], "null"),
+    **dict.fromkeys(["fmi3InstantiateScheduledExecution"], "null"),
 }
 
 #: calls against the standard, left to the loader's state tracking (issue 20's misuse list)
@@ -197,7 +208,7 @@ def _plain_cases(fmi_version):
     names = {2: ("version", "stuck_step", "reset", "fmu_state", "boolean_string", "derivatives", "status",
                  "cs_exchange_calls", "model_exchange", "exchange_refusals"),
              3: ("version", "cs_stuck_step", "reset", "fmu_state", "other_types", "refused", "modes",
-                 "cs_exchange_calls", "model_exchange")}
+                 "cs_exchange_calls", "model_exchange", "event_mode")}
     return names[fmi_version]
 
 
@@ -499,3 +510,30 @@ def test_every_message_has_a_category_the_model_description_lists(results, fmi_v
     records = (case(results, fmi_version, name) for name in results[fmi_version])
     categories = {message[1] for record in records for message in _messages(record)}
     assert categories <= set(LISTED), categories
+
+
+#: s: the first stick of the runner's SLIDING block (the reference integrator's, tests/test_fmi3_early_return.py
+#: checks every event of the scene against it); the stepper locates it to its event precision
+FIRST_STICK = 29.26831861812952
+
+
+def test_fmi3_output_derivatives_of_the_stuck_block(results):
+    """fmi3GetOutputDerivatives of x and v, orders 1 and 2, of the stuck block (SPEC section 2: x moves with the
+    drive, v is held): v_drive, 0, 0, 0 for der(x), der(x, 2), der(v), der(v, 2) asked for as (x, 1), (v, 2)."""
+    assert case(results, 3, "refused")["values"]["derivatives"] == [V_DRIVE, 0.0]
+
+
+def test_fmi3_event_mode_and_early_return_follow_the_state_machine(results):
+    """With eventModeUsed and earlyReturnAllowed: Event Mode after initialization needs no update; a step of 40 s
+    returns early at the first stick with eventHandlingNeeded, lastSuccessfulTime there and the state before it
+    (slipping, v = v_drive); fmi3UpdateDiscreteStates in Event Mode applies it (stuck) and asks for nothing more;
+    the rest of the step completes."""
+    values = case(results, 3, "event_mode")["values"]
+    assert values["first_update"] == [False, False, False, False, False, 0.0]
+    handling, terminate, early, last = values["early"]
+    assert (handling, terminate, early) == (True, False, True)
+    assert last == pytest.approx(FIRST_STICK, rel=1e-12)
+    assert values["v_before"] == pytest.approx([V_DRIVE], rel=1e-9)
+    assert values["modes"] == [[1], [0]]
+    assert values["update"] == [False, False, False, False, False, 0.0]
+    assert values["rest"][:3] == [False, False, False] and values["rest"][3] == pytest.approx(40.0, rel=1e-15)

@@ -280,8 +280,9 @@ def me_call(now, version=3):
                         + ([["counts"]] if version == 3 else [])))
 
 
-def derivative_call(model):
-    """fmi2SetRealInputDerivatives or fmi2GetRealOutputDerivatives of a few variables (mostly inputs or outputs), at
+def derivative_call(model, version=2):
+    """fmi2SetRealInputDerivatives (FMI 2 only) or fmi2GetRealOutputDerivatives / fmi3GetOutputDerivatives of a few
+    variables (mostly inputs or outputs), at
     orders mostly 1 or 2, with values from the edges or near 0."""
     names = st.lists(st.one_of(st.sampled_from(model.inputs or model.names), st.sampled_from(model.outputs),
                                st.sampled_from(model.names)), min_size=1, max_size=3)
@@ -290,6 +291,8 @@ def derivative_call(model):
     set_call = names.flatmap(lambda n: st.tuples(st.just(n), st.lists(order, min_size=len(n), max_size=len(n)),
                                                  st.lists(value, min_size=len(n), max_size=len(n))))
     get_call = names.flatmap(lambda n: st.tuples(st.just(n), st.lists(order, min_size=len(n), max_size=len(n))))
+    if version == 3:
+        return get_call.map(lambda a: ["get_output_derivatives", *a])
     return st.one_of(set_call.map(lambda a: ["set_input_derivatives", *a]),
                      get_call.map(lambda a: ["get_output_derivatives", *a]))
 
@@ -303,26 +306,29 @@ def any_call(model, version, now):
              model.set_call(model.names), model.get_call(), state_call()]
     if version == 2:
         calls += [start_arguments().map(lambda a: ["setup_experiment", *a]), derivative_call(model)]
+    else:
+        calls += [derivative_call(model, 3), st.just(["enter_step_mode"])]
     calls.append(me_call(now, version))
     return st.one_of(calls)
 
 
 def running_call(model, version, interface, now):
     """A call of a running instance: mostly steps (co-simulation) or model-exchange calls, inputs and outputs."""
-    usual = [model.set_call(model.inputs), model.get_call(), state_call()]
-    if version == 2:
-        usual.append(derivative_call(model))
+    usual = [model.set_call(model.inputs), model.get_call(), state_call(), derivative_call(model, version)]
     if interface == "me":
         usual += [me_call(now, version)] * 3
     else:
         usual += [time_step(now).map(lambda th: ["step", *th])] * 3
+    if version == 3 and interface == "cs":  # event mode of an instance made with eventModeUsed, or refused
+        usual.append(st.sampled_from([["enter_event_mode"], ["update"], ["enter_step_mode"]]))
     return st.one_of(*usual, any_call(model, version, now))
 
 
 @st.composite
 def sequences(draw, model, version, interface):
     """An instantiation, then either an initialization (some parameters set) and running calls, or any calls."""
-    variant = draw(st.sampled_from(["plain", "logging"]))
+    variant = draw(st.sampled_from(["plain", "logging", *(["early", "events"] if version == 3 and interface == "cs"
+                                                          else [])]))
     calls = [["instantiate", f"me-{variant}" if interface == "me" else variant]]
     now = 0.0
     if draw(st.integers(0, 3)):  # three in four: initialized first
@@ -331,6 +337,7 @@ def sequences(draw, model, version, interface):
         calls += [["enter_initialization", *start], *draw(st.lists(model.set_call(), max_size=4)),
                   ["exit_initialization"]]
         calls += [["update"], ["enter_continuous_time_mode"]] if interface == "me" else []
+        calls += [["update"], ["enter_step_mode"]] if variant == "events" else []
     for _ in range(draw(st.integers(0, 12))):
         call = draw(running_call(model, version, interface, now))
         if call[0] == "step" and math.isfinite(call[1] + call[2]):

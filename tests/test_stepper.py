@@ -218,6 +218,30 @@ def test_result_does_not_depend_on_the_communication_step():
                 assert (fine.x, fine.v, fine.mode) == (coarse.x, coarse.v, coarse.mode)
 
 
+@pytest.mark.parametrize("law", [Coulomb(F0=0.045), Lubricated()])
+def test_a_step_that_stops_at_each_event_stops_at_every_one_and_changes_nothing(law):
+    """communicate_to_event (FMI 3's early return): each stop is the next event of the uninterrupted run (record_events),
+    in the mode before it, at v_rel = 0 for a stick; apply_events gives the mode after it; the state on the
+    communication points is that of the uninterrupted run, bit for bit."""
+    p = Parameters(1.0 if isinstance(law, Coulomb) else 40.0, 1.0, law, Constant(F0=1.0))
+    start = (5.0, 0.0, 0.0) if isinstance(law, Coulomb) else (0.0, 0.1, 0.1)  # overshoots; stick-slip
+    whole = Trajectory(p, *start[:2], v_drive=start[2], record_events=True)
+    stopping = Trajectory(p, *start[:2], v_drive=start[2])
+    stops, points = [], []
+    for k in range(1, 431):  # communication points every 0.7 s: no event falls on one
+        point = 0.7 * k
+        whole.advance_to(point)
+        while stopping.communicate_to_event(stopping.t, point - stopping.t):
+            mode_before = stopping.mode
+            stopping.apply_events()
+            stops.append((stopping.t, mode_before, stopping.mode))
+            if stopping.mode == STUCK:
+                assert stopping.v == start[2]
+        points.append(stopping.t == point and (stopping.x, stopping.v, stopping.mode) == (whole.x, whole.v, whole.mode))
+    assert len(stops) >= 8 and stops == [event for event in whole.events if event[0] > 0.0]
+    assert all(points)
+
+
 def test_snapshot_restores_the_continuation_bit_for_bit():
     p = Parameters(40.0, 1.0, Lubricated(), Constant(F0=1.0))
     traj = Trajectory(p, 0.0, 0.0, v_drive=0.3)

@@ -7,6 +7,8 @@ Usage (the whole contract the FMU slave and the Python API rely on)::
     traj.set_inputs(v_drive, F_ext, F_ext_rate)   # F_ext(t) = F_ext + F_ext_rate (t - traj.t) from now on
     traj.advance_to(t)                # t >= traj.t; processes every event up to and at t
     traj.communicate(t, h)            # a co-simulation step from t == traj.t by h >= 0; (x, v) after it
+    traj.communicate_to_event(t, h)   # the same, stopping before the first event inside it: True if it did
+    traj.apply_events()               # the events due at traj.t applied (after such a stop)
     xs, vs = traj.sample(times)       # advance_to each of the increasing times, collecting x and v
     traj.x, traj.v, traj.mode, ...    # state at traj.t (see the properties below)
     a, jerk = traj.acceleration()     # dv/dt and d2v/dt2 at traj.t (the FMI output derivatives)
@@ -195,13 +197,7 @@ class Trajectory:
         ``t``, or :data:`_SETTLE_SEGMENTS` where floats space times at ``t`` by more than the block's time scale
         ``sqrt(M/kappa)`` (there only a last phase that lasts, a rest or a stick without drive, can be followed).
         The trajectory then stays at the start of the segment reached, a valid state to go on from."""
-        left = self.max_segments
-        if not abs(t) <= self._last_time:
-            if not _finite(t):
-                raise SolverError(f"cannot advance from t = {self.t!r} s to t = {t!r} s: the end time must be finite")
-            left = min(left, _SETTLE_SEGMENTS)
-        if not t >= self.t:
-            raise SolverError(f"cannot advance from t = {self.t!r} s back to t = {t!r} s")
+        left = self._segments_allowed(t)
         end = float(t)
         while self._segment.t1 <= end:
             self._finish_segment()
@@ -212,6 +208,43 @@ class Trajectory:
         self._x, self._v = self._segment.state(self.t)
         if not (_finite(self._x) and _finite(self._v)):
             raise SolverError(f"the state overflowed at t = {self.t!r} s (x = {self._x!r}, v = {self._v!r})")
+
+    def _segments_allowed(self, t: float) -> int:
+        """The most segments an advance to ``t`` (s) may go through (see :meth:`advance_to`); SolverError for an end
+        time that is not finite or lies before ``self.t``."""
+        left = self.max_segments
+        if not abs(t) <= self._last_time:
+            if not _finite(t):
+                raise SolverError(f"cannot advance from t = {self.t!r} s to t = {t!r} s: the end time must be finite")
+            left = min(left, _SETTLE_SEGMENTS)
+        if not t >= self.t:
+            raise SolverError(f"cannot advance from t = {self.t!r} s back to t = {t!r} s")
+        return left
+
+    def advance_to_event(self, t: float) -> bool:
+        """Advance towards ``t >= self.t`` (s) as :meth:`advance_to` does, but stop at the first event (stick,
+        breakaway or overshoot) strictly between ``self.t`` and ``t``: True, ``self.t`` the event's time and the
+        state its left limit (the mode before it, the event not yet applied: :meth:`apply_events` applies it, and
+        so does any later advance). False if no event lies inside: then at ``t``, every event up to and at it
+        applied. The segments are the same as :meth:`advance_to`'s, so stopping changes no result."""
+        left = self._segments_allowed(t)
+        start, end = self.t, float(t)
+        while self._segment.t1 < end:
+            segment = self._segment
+            if segment.ends_in_event and segment.t1 > start:
+                self.t = segment.t1
+                self._x, self._v = segment.end_state()
+                return True
+            self._finish_segment()
+            left -= 1
+            if left == 0:
+                self._stop_short(end)
+        self.advance_to(end)
+        return False
+
+    def apply_events(self) -> None:
+        """Apply every event due at ``self.t`` (after :meth:`advance_to_event` stopped at one): the mode after it."""
+        self.advance_to(self.t)
 
     def _stop_short(self, end: float) -> None:
         """Stay at the start of the current segment and raise SolverError: the segments allowed to
@@ -273,6 +306,12 @@ class Trajectory:
         if self._drift == 0.0:
             return self._x, self._v
         return self.x, self.v
+
+    def communicate_to_event(self, current_time: float, step_size: float) -> bool:
+        """A co-simulation step as :meth:`communicate`, that stops at the first event inside it (FMI 3's early
+        return): :meth:`advance_to_event` to ``current_time + step_size`` (s); True if it stopped there."""
+        check_step(current_time, step_size, self.t)
+        return self.advance_to_event(current_time + step_size)
 
     # ------------------------------------------------------------------
     # state and outputs at self.t

@@ -21,7 +21,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import archive, documentation, loader, model_description, trim
+from . import archive, documentation, floors, loader, model_description, trim
 from .sources import MODEL_NAME, RUNTIME, INTERFACE, SLAVES, is_current, runtime_tag, source_tag
 from .python_path import preserved_sys_path
 from .staging import LOADERS, stage_runtime
@@ -107,7 +107,7 @@ def build(dest=None, fmi_version=2, pure=False):
         entries.update(documentation.entries(entries["modelDescription.xml"], SUMMARY,
                                              ("stickslip", library.module, *(("mypy",) if compiled else ())),
                                              instance.variable_enumerations))
-        _write_with_loader(dest, entries, fmi_version)
+        write_with_loader(dest, entries, MODEL_NAME, fmi_version)
     return dest
 
 
@@ -118,10 +118,15 @@ def forget_modules(tags, module):
         del sys.modules[name]
 
 
-def _write_with_loader(dest, entries, fmi_version):
-    """Write the FMU's ``entries`` (``{name: bytes}``) to ``dest`` (replaced atomically, reproducibly:
-    :mod:`stickslip.fmu.archive`), with the loader as its Linux binary."""
+def write_with_loader(dest, entries, model_name, fmi_version=2):
+    """Write the FMU ``model_name`` of ``fmi_version`` with the ``entries`` (``{name: bytes}``) to ``dest``
+    (replaced atomically, reproducibly: :mod:`stickslip.fmu.archive`), with the loader as its Linux binary and,
+    in its documentation, what the host machine needs of the binaries it ends up with (:mod:`stickslip.fmu.floors`).
+    """
     partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
     archive.write_entries(partial, entries)
-    loader.install(partial, MODEL_NAME, slave_survives_release=True, fmi_version=fmi_version)
+    loader.install(partial, model_name, slave_survives_release=True, fmi_version=fmi_version)
+    built = archive.read_entries(partial)
+    built[floors.DEPENDENCIES_FILE] = floors.dependencies_text(model_name, floors.fmu_floors(built)).encode()
+    archive.write_entries(partial, built)
     os.replace(partial, dest)

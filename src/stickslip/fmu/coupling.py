@@ -8,15 +8,14 @@ follows from the sources (:func:`coupling_tag`), and its Linux binary becomes th
 refusals as fmi2Error with the instance going on (the slave balances PythonFMU's release of it).
 """
 
-import os
 import shutil
 import tempfile
 import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from . import archive, documentation, loader, model_description, trim
-from .build import default_fmu_path, forget_modules
+from . import archive, documentation, model_description, trim
+from .build import default_fmu_path, forget_modules, write_with_loader
 from .python_path import preserved_sys_path
 from .sources import BUILDERS, LOADER_BINDING, SLAVE_FOLDER, files_tag
 from .staging import FMI2_TEMPLATE, LIBRARY_ARCHIVE, byte_compile, rewrite_once
@@ -103,8 +102,5 @@ def build_coupling(dest=None):
             entries.setdefault(name, path.read_bytes())
         trim.trim(entries, 2, package.name)
         entries.update(documentation.entries(entries["modelDescription.xml"], SUMMARY, ("stickslip", "pythonfmu")))
-        partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
-        archive.write_entries(partial, entries)
-        loader.install(partial, COUPLING_NAME, slave_survives_release=True)
-        os.replace(partial, dest)
+        write_with_loader(dest, entries, COUPLING_NAME)
     return dest

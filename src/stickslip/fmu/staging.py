@@ -13,8 +13,9 @@ In the FMU's ``resources/``:
 - the hot modules of the runtime compiled by mypyc under that package name, for the building
   Python (:mod:`stickslip.fmu.compile_runtime`; the group library ``<hash>__mypyc`` goes to the top
   of ``resources/``), unless the build is pure or cannot compile (no C compiler: the FMU is then
-  pure Python, and the build says so on stderr). A host that cannot load them (another Python
-  version or platform) runs the sources (``core/_implementation.py``). Compiled files are cached
+  pure Python, and the build says so on stderr), and for the other CPython versions it finds compiled in
+  :data:`OTHER_PYTHONS` (their files' names carry the version: each Python loads its own). A host that cannot
+  load them (another Python version or platform) runs the sources (``core/_implementation.py``). Compiled files are cached
   in the user's cache folder (``$XDG_CACHE_HOME/stickslip/fmu-runtime``, default
   ``~/.cache/...``) by package name (the runtime tag: one compilation serves both FMUs), Python and toolchain (mypy, setuptools, compiler
   and flags);
@@ -32,6 +33,7 @@ import re
 import shutil
 import subprocess
 import sys
+import sysconfig
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,6 +46,10 @@ from .sources import LOADER_BINDING
 #: the FMI 2 and FMI 3 FMUs share one compilation and a process that loads both shares one copy) and the slave
 SLAVE_PREFIX = "sbf_slave_"
 CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stickslip" / "fmu-runtime"
+#: the runtime compiled for other CPython versions of this platform, one folder per
+#: :func:`~stickslip.fmu.compile_runtime.prebuilt_key` of that version (``scripts/other_pythons.py compile`` makes
+#: them): an FMU carries every one of its runtime package besides the building Python's
+OTHER_PYTHONS = CACHE / "other-pythons"
 
 
 @dataclass(frozen=True)
@@ -167,6 +173,8 @@ def rewrite_once(path, pattern, replacement, what, code=None, optional=False):
 
 #: {runtime package: why it stays pure Python}, for the builds of this process (said once, on the first)
 _NOT_COMPILED = {}
+#: the runtime packages whose compiled versions this process has said
+_ANNOUNCED = set()
 
 
 def _compiled(folder, package):
@@ -189,13 +197,27 @@ def _compiled(folder, package):
             return {}
         print(f"stickslip: ... compiled in {time.monotonic() - start:.0f} s", file=sys.stderr)
         store(files, folder, cache)
+    others = sorted(other for other in OTHER_PYTHONS.glob(f"{package}-*-{sysconfig.get_platform()}")
+                    if (other / COMPLETE).is_file() and other.name != prebuilt_key(package))
+    if package not in _ANNOUNCED:
+        _ANNOUNCED.add(package)
+        versions = [_python_version(sys.implementation.cache_tag), *(_python_version(o.name) for o in others)]
+        print(f"stickslip: the FMUs' runtime {package} is compiled for CPython {', '.join(versions)} (other versions "
+              f"run its sources; more: python scripts/other_pythons.py compile)", file=sys.stderr)
     out = {}
-    for path in cache.rglob("*"):
-        if path.is_file() and path.name not in (COMPLETE, MYPY_LICENSE):
-            relative = path.relative_to(cache)
-            shutil.copy2(path, folder / relative)
-            out[f"resources/{relative.as_posix()}"] = folder / relative
+    for source in (cache, *others):
+        for path in source.rglob("*"):
+            if path.is_file() and path.name not in (COMPLETE, MYPY_LICENSE):
+                relative = path.relative_to(source)
+                shutil.copy2(path, folder / relative)
+                out[f"resources/{relative.as_posix()}"] = folder / relative
     return out
+
+
+def _python_version(tag):
+    """"3.13" of a name holding the cache tag ``cpython-313``."""
+    digits = re.search(r"cpython-(\d)(\d+)", tag)
+    return f"{digits[1]}.{digits[2]}"
 
 
 def byte_compile(package_dir):

@@ -212,10 +212,13 @@ class ExtractedFMU:
             raise KeyError(f"not parameters or inputs of the FMU: {sorted(unknown)}")
         return {**self.defaults, **overrides}
 
-    def new_instance(self, name=None, interface="cs", logging_on=True, fmi_call_logger=None):
+    def new_instance(self, name=None, interface="cs", logging_on=True, fmi_call_logger=None, event_mode_used=False,
+                     early_return_allowed=False):
         """A new instance (``fmi2Instantiate`` with fmuType fmi2CoSimulation or fmi2ModelExchange,
-        ``fmi3InstantiateCoSimulation`` or ``fmi3InstantiateModelExchange``, for ``interface`` "cs" or "me") named ``name`` (default: a new name),
-        logging into the process log; FMUError if the FMU has no such interface."""
+        ``fmi3InstantiateCoSimulation`` or ``fmi3InstantiateModelExchange``, for ``interface`` "cs" or "me") named
+        ``name`` (default: a new name), logging into the process log; FMUError if the FMU has no such interface.
+        ``event_mode_used``, ``early_return_allowed``: fmi3InstantiateCoSimulation's eventModeUsed and
+        earlyReturnAllowed (FMI 3 co-simulation only)."""
         _, attribute, *classes = INTERFACES[interface]
         cls = classes[self.fmi_version - 2]
         if getattr(self.model_description, attribute) is None:
@@ -229,7 +232,9 @@ class ExtractedFMU:
             if self.fmi_version == 2:
                 fmu.instantiate(callbacks=fmi2_callbacks(), loggingOn=logging_on)
             else:
-                fmu.instantiate(loggingOn=logging_on, logMessage=fmi3_logger(name))
+                flags = ({"eventModeUsed": event_mode_used, "earlyReturnAllowed": early_return_allowed}
+                         if interface == "cs" else {})
+                fmu.instantiate(loggingOn=logging_on, logMessage=fmi3_logger(name), **flags)
         return self.instance_type(self, fmu, name)
 
     def simulate(self, start_values, stop_time, output_interval, outputs=None, **options):

@@ -256,6 +256,49 @@ int sbf_slave_time(sbf_fast_path *fast, double *t)
     return answered;
 }
 
+/* ---- FMI 3's early return and event mode ---- */
+
+int sbf_slave_event_step(sbf_fast_path *fast, double t, double h, int event_mode, double *reached, int *early,
+                         char *why, size_t why_size)
+{
+    if (!fast->slave) return -1;
+    int gil = py.PyGILState_Ensure();
+    drop_step_call(fast); /* the first step may start a new trajectory */
+    PyObject *result = py.PyObject_CallMethod(fast->slave, "step_to_event", "(ddi)", t, h, event_mode);
+    fast->moved = 1; /* a failed step may have moved the state part of the way */
+    fast->fresh = 0;
+    int outcome = 1;
+    if (result && py.PyTuple_Size(result) == 3) {
+        double time = py.PyFloat_AsDouble(py.PyTuple_GetItem(result, 0));
+        long stopped = py.PyLong_AsLong(py.PyTuple_GetItem(result, 1));
+        if (!py.PyErr_Occurred() && keep_outputs(fast, py.PyTuple_GetItem(result, 2)))
+            *reached = time, *early = stopped != 0, outcome = 0;
+    }
+    if (outcome) {
+        if (!py.PyErr_Occurred()) snprintf(why, why_size, "[doStep] step_to_event gave no (time, early, outputs)");
+        else exception_text("doStep", why, why_size);
+    }
+    if (result) py.Py_DecRef(result);
+    py.PyGILState_Release(gil);
+    return outcome;
+}
+
+int sbf_slave_apply_events(sbf_fast_path *fast, char *why, size_t why_size)
+{
+    if (!fast->slave) {
+        snprintf(why, why_size, "[updateDiscreteStates] not available: the slave did not bind to this library");
+        return 1;
+    }
+    int gil = py.PyGILState_Ensure();
+    PyObject *result = py.PyObject_CallMethod(fast->slave, "apply_step_events", NULL);
+    fast->moved = 1;
+    fast->fresh = 0;
+    if (!result) exception_text("updateDiscreteStates", why, why_size);
+    else py.Py_DecRef(result);
+    py.PyGILState_Release(gil);
+    return result == NULL;
+}
+
 /* ---- the derivatives ---- */
 
 /* A tuple of the `n` numbers `value(i)`, or NULL (an exception set) */

@@ -85,6 +85,18 @@ int sbf_slave_derivatives(sbf_fast_path *fast, const char *function, const char 
 int sbf_slave_exchange(sbf_fast_path *fast, const char *function, const double *in, size_t n_in, size_t count,
                        double *out, size_t n_out, char *why, size_t why_size);
 
+/* fmi3DoStep with early return: the bound slave's step_to_event (fmu_src/SpringBlockFriction_fmi3.py) from `t` by
+ * `h` (s), `event_mode`: the instance uses event mode (the event is left for sbf_slave_apply_events). 0 with the time
+ * reached in *reached, *early = 1 if that is short of t + h (at an event), and every output there in the buffer (the
+ * reads after the step are answered from it, as after sbf_fast_step); -1 if no slave is bound (take the step another
+ * way); 1 if the step failed, with the slave's exception as "[doStep] <repr>" in `why`. */
+int sbf_slave_event_step(sbf_fast_path *fast, double t, double h, int event_mode, double *reached, int *early,
+                         char *why, size_t why_size);
+
+/* fmi3UpdateDiscreteStates of a co-simulation instance in Event Mode: the bound slave's apply_step_events. 0 if done,
+ * 1 if it failed (the slave's exception as "[updateDiscreteStates] <repr>" in `why`, or no slave is bound). */
+int sbf_slave_apply_events(sbf_fast_path *fast, char *why, size_t why_size);
+
 /* The time the FMU is at (s), the bound slave's answer to fmu_time() (fmu_src/block_interface.py): the end of the
  * last step or of the part of a failed step it went, whichever path took it, or a restored state's time. 1 with it
  * in *t; 0 if there is no bound slave or its answer is no number (no Python exception is left pending). */

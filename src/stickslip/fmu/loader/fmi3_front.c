@@ -77,11 +77,7 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
     X(fmi3GetDirectionalDerivative, KEPT,                                                                         \
       (fmi3Instance c, const fmi3ValueReference *unknowns, size_t nUnknowns, const fmi3ValueReference *knowns,    \
        size_t nKnowns, const fmi3Float64 *seed, size_t nSeed, fmi3Float64 *sensitivity, size_t nSensitivity),    \
-      (unknowns, nUnknowns, knowns, nKnowns, seed, nSeed, sensitivity, nSensitivity))                             \
-    X(fmi3GetOutputDerivatives, KEPT,                                                                             \
-      (fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, const fmi3Int32 *orders, fmi3Float64 *values,   \
-       size_t n),                                                                                                 \
-      (vr, nvr, orders, values, n))
+      (unknowns, nUnknowns, knowns, nKnowns, seed, nSeed, sensitivity, nSensitivity))
 
 /* The model-exchange functions forwarded as they are, refused for a co-simulation instance (FMI 3.0 section
  * 2.3: "Not allowed in Co-Simulation"): forwarded by forward_<name>, exported below (the model-exchange arrays
@@ -142,11 +138,9 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
     X(fmi3SerializeFMUState, KEPT, (fmi3Instance c, fmi3FMUState s, fmi3Byte *bytes, size_t size), (s, bytes, size))
 
 /* ---- the functions pythonfmu3 does not implement, and the mode changes this FMU never allows (pythonfmu3
- * answers them with fmi3OK): configuration mode (the model has no structural parameter) and step mode (no event
- * mode in co-simulation, the model description has no hasEventMode; none in model exchange). X(name, parameters) */
+ * answers them with fmi3OK): configuration mode (the model has no structural parameter). X(name, parameters) */
 #define UNSUPPORTED(X)                                                                                             \
     X(fmi3EnterConfigurationMode, (fmi3Instance c)) X(fmi3ExitConfigurationMode, (fmi3Instance c))               \
-    X(fmi3EnterStepMode, (fmi3Instance c))                                                                        \
     X(fmi3GetFloat32, GETTER(fmi3Float32)) X(fmi3SetFloat32, SETTER(fmi3Float32))                                 \
     X(fmi3GetInt8, GETTER(fmi3Int8)) X(fmi3SetInt8, SETTER(fmi3Int8))                                             \
     X(fmi3GetUInt8, GETTER(fmi3UInt8)) X(fmi3SetUInt8, SETTER(fmi3UInt8))                                         \
@@ -213,6 +207,8 @@ typedef struct {
     int fatal_is_error; /* during a RECOVERABLE call: pythonfmu3's fmi3Fatal is reported as fmi3Error */
     sbf_fast_path fast; /* steps and output reads without pythonfmu3 (fast_path.h) */
     char folder[4096]; /* the resources folder, as the host named it (fast.folder) */
+    int early_return;  /* co-simulation, earlyReturnAllowed: fmi3DoStep stops at the first event inside a step */
+    int event_mode;    /* co-simulation, eventModeUsed: that event is handled in Event Mode */
 } Instance;
 
 static void host_log(const Instance *inst, fmi3Status status, const char *text)
@@ -300,8 +296,9 @@ static Instance *instantiated(Instance *inst)
     return inst;
 }
 
-/* pythonfmu3 has no intermediate update, event mode or early return in co-simulation (the model description
- * says so); the host's intermediateUpdate callback is not passed on. */
+/* pythonfmu3 has no intermediate update, event mode or early return in co-simulation: this library answers event
+ * mode and early return itself (fmi3DoStep, fmi3EnterEventMode, fmi3UpdateDiscreteStates, fmi3EnterStepMode); the
+ * host's intermediateUpdate callback is not passed on (the model description offers no intermediate update). */
 EXPORT fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
                                                 fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
                                                 fmi3Boolean eventModeUsed, fmi3Boolean earlyReturnAllowed,
@@ -315,13 +312,8 @@ EXPORT fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3Str
     (void)intermediateUpdate;
     Instance *inst = new_instance("fmi3InstantiateCoSimulation", instanceName, instantiationToken, resourcePath, path,
                                   sizeof path, loggingOn, instanceEnvironment, logMessage);
-    if (inst && eventModeUsed) {
-        host_log(inst, fmi3Error, "fmi3InstantiateCoSimulation: eventModeUsed = true, but this FMU has no event mode in "
-                                  "co-simulation (its model description does not set hasEventMode)");
-        free_instance(inst);
-        return NULL;
-    }
     if (inst) {
+        inst->early_return = earlyReturnAllowed, inst->event_mode = eventModeUsed;
         sbf_call_begin();
         sbf_fast_binding(&inst->fast);
         inst->inner = inner.fmi3InstantiateCoSimulation(instanceName, instantiationToken, path, visible, true,
@@ -464,9 +456,11 @@ EXPORT fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean tolera
     return moved(c, status, SBF_INITIALIZING);
 }
 
+/* FMI 3.0 section 4.2: a co-simulation instance that uses event mode goes on in Event Mode, any other in Step Mode */
 EXPORT fmi3Status fmi3ExitInitializationMode(fmi3Instance c)
 {
-    return moved(c, forward_fmi3ExitInitializationMode(c), SBF_STEPPING);
+    fmi3Status status = forward_fmi3ExitInitializationMode(c);
+    return moved(c, status, c && ((Instance *)c)->event_mode ? SBF_EVENT : SBF_STEPPING);
 }
 
 /* True (and a logged error naming `function` and `reason`) if `c` is a co-simulation instance */
@@ -478,7 +472,6 @@ static int refused_in_co_simulation(fmi3Instance c, const char *function, const 
     host_log(c, fmi3Error, why);
     return 1;
 }
-#define NO_EVENT_MODE "this FMU has no event mode in co-simulation"
 #define EXCHANGE_FUNCTION \
     "it is a model-exchange function (FMI 3.0: not allowed in co-simulation; the instance was made by " \
     "fmi3InstantiateCoSimulation)"
@@ -492,20 +485,74 @@ static int refused_in_co_simulation(fmi3Instance c, const char *function, const 
 EXCHANGE_ONLY(EXPORT_EXCHANGE_ONLY)
 #undef EXPORT_EXCHANGE_ONLY
 
-EXPORT fmi3Status fmi3EnterEventMode(fmi3Instance c)
+/* 1 (after a message naming `function`) unless the co-simulation instance `c` uses event mode and is in `mode`
+ * (SBF_STEPPING or SBF_EVENT), which `where` names */
+static int refused_event_call(fmi3Instance c, const char *function, sbf_mode mode, const char *where)
 {
-    if (refused_in_co_simulation(c, "fmi3EnterEventMode", NO_EVENT_MODE)) return fmi3Error;
-    return forward_fmi3EnterEventMode(c);
+    char why[512];
+    Instance *inst = c;
+    if (!inst->event_mode)
+        snprintf(why, sizeof why, "%s is not allowed: this co-simulation instance was made with eventModeUsed = false",
+                 function);
+    else if (inst->mode != mode)
+        snprintf(why, sizeof why, "%s is allowed only in %s", function, where);
+    else
+        return 0;
+    host_log(c, fmi3Error, why);
+    return 1;
 }
 
+/* Co-simulation (eventModeUsed): from Step Mode to Event Mode, at the time the last fmi3DoStep reached */
+EXPORT fmi3Status fmi3EnterEventMode(fmi3Instance c)
+{
+    if (!c) return fmi3Error;
+    if (((Instance *)c)->mode == SBF_EXCHANGING) return forward_fmi3EnterEventMode(c);
+    if (refused_event_call(c, "fmi3EnterEventMode", SBF_STEPPING, "Step Mode")) return fmi3Error;
+    ((Instance *)c)->mode = SBF_EVENT;
+    return fmi3OK;
+}
+
+/* Co-simulation in Event Mode: the event an early return stopped at, and the inputs set in Event Mode, applied by
+ * the slave; nothing more to update, no state jumps, no time event. */
 EXPORT fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *discreteStatesNeedUpdate,
                                            fmi3Boolean *terminateSimulation, fmi3Boolean *nominalsChanged,
                                            fmi3Boolean *valuesChanged, fmi3Boolean *nextEventTimeDefined,
                                            fmi3Float64 *nextEventTime)
 {
-    if (refused_in_co_simulation(c, "fmi3UpdateDiscreteStates", NO_EVENT_MODE)) return fmi3Error;
-    return forward_fmi3UpdateDiscreteStates(c, discreteStatesNeedUpdate, terminateSimulation, nominalsChanged,
-                                            valuesChanged, nextEventTimeDefined, nextEventTime);
+    char why[4096];
+    Instance *inst = c;
+    if (!inst) return fmi3Error;
+    if (inst->mode == SBF_EXCHANGING)
+        return forward_fmi3UpdateDiscreteStates(c, discreteStatesNeedUpdate, terminateSimulation, nominalsChanged,
+                                                valuesChanged, nextEventTimeDefined, nextEventTime);
+    if (refused_event_call(c, "fmi3UpdateDiscreteStates", SBF_EVENT, "Event Mode")) return fmi3Error;
+    sbf_keep_thread_state();
+    sbf_call_begin();
+    sbf_fast_forward(&inst->fast, 1);
+    int failed = sbf_slave_apply_events(&inst->fast, why, sizeof why);
+    sbf_call_end();
+    if (failed) {
+        host_log(c, fmi3Error, why);
+        return fmi3Error;
+    }
+    *discreteStatesNeedUpdate = *terminateSimulation = *nominalsChanged = *valuesChanged = false;
+    *nextEventTimeDefined = false;
+    *nextEventTime = 0.0;
+    return fmi3OK;
+}
+
+/* Co-simulation: from Event Mode back to Step Mode (FMI 3.0: not allowed in model exchange) */
+EXPORT fmi3Status fmi3EnterStepMode(fmi3Instance c)
+{
+    if (!c) return fmi3Error;
+    if (((Instance *)c)->mode == SBF_EXCHANGING) {
+        host_log(c, fmi3Error, "fmi3EnterStepMode is not allowed for a model-exchange instance: it is a "
+                               "co-simulation function (FMI 3.0)");
+        return fmi3Error;
+    }
+    if (refused_event_call(c, "fmi3EnterStepMode", SBF_EVENT, "Event Mode")) return fmi3Error;
+    ((Instance *)c)->mode = SBF_STEPPING;
+    return fmi3OK;
 }
 
 EXPORT fmi3Status fmi3Terminate(fmi3Instance c) { return moved(c, forward_fmi3Terminate(c), SBF_TERMINATED); }
@@ -519,13 +566,32 @@ EXPORT fmi3Status fmi3Reset(fmi3Instance c)
     return moved(c, status, SBF_INSTANTIATED);
 }
 
+/* fmi3DoStep of an instance made with earlyReturnAllowed, by the slave's step_to_event (sbf_slave_event_step):
+ * fmi3OK with *early and the time reached in *reached, fmi3Error after a message (and the time where the failed
+ * step left the FMU), or fmi3Discard, nothing done, if no slave is bound (the step goes the usual way). */
+static fmi3Status event_step(Instance *inst, double t, double h, char *why, size_t size, fmi3Boolean *early,
+                             fmi3Float64 *reached)
+{
+    int stopped = 0;
+    sbf_call_begin();
+    sbf_fast_forward(&inst->fast, 1);
+    int outcome = sbf_slave_event_step(&inst->fast, t, h, inst->event_mode, reached, &stopped, why, size);
+    sbf_call_end();
+    if (outcome < 0) return fmi3Discard;
+    *early = outcome == 0 && stopped;
+    if (outcome == 0) return fmi3OK;
+    host_log(inst, fmi3Error, why);
+    sbf_slave_time(&inst->fast, reached);
+    return fmi3Error;
+}
+
 EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
                              fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation,
                              fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime)
 {
     char why[4096];
-    /* pythonfmu3 writes only terminateSimulation, and only if the slave's do_step returns one; this FMU needs no
-     * event handling and never returns early or terminates */
+    /* pythonfmu3 writes only terminateSimulation, and only if the slave's do_step returns one; this FMU never
+     * terminates, and returns early (at an event, handled in Event Mode if the instance uses it) only if allowed */
     *eventHandlingNeeded = *terminateSimulation = *earlyReturn = false;
     if (!c) return fmi3Error;
     if (sbf_step_refused(((Instance *)c)->mode, "fmi3DoStep", t, why, sizeof why)) {
@@ -533,6 +599,13 @@ EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3B
         return fmi3Error;
     }
     sbf_keep_thread_state();
+    if (((Instance *)c)->early_return) {
+        fmi3Status status = event_step(c, t, h, why, sizeof why, earlyReturn, lastSuccessfulTime);
+        if (status != fmi3Discard) {
+            *eventHandlingNeeded = *earlyReturn && ((Instance *)c)->event_mode;
+            return status;
+        }
+    }
     fmi3Status status;
     switch (sbf_model_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
     case 0: status = fmi3OK; break;
@@ -596,6 +669,38 @@ EXPORT fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 
     for (size_t i = 0; i < n && status <= fmi3Warning; i++)
         if (!isfinite(dx[i])) status = fmi3Error;
     return status;
+}
+
+/* The output derivatives (maxOutputDerivativeOrder), which pythonfmu3 lacks: answered by the slave's
+ * get_output_derivatives through its binding (fast_path.h), for scalar outputs (n = nvr), in co-simulation only
+ * (FMI 3.0), not after fmi3Terminate (as the FMI 2 FMU answers fmi2GetRealOutputDerivatives). */
+EXPORT fmi3Status fmi3GetOutputDerivatives(fmi3Instance c, const fmi3ValueReference *vr, size_t nvr,
+                                           const fmi3Int32 *orders, fmi3Float64 *values, size_t n)
+{
+    char why[4096];
+    Instance *inst = c;
+    if (!inst) return fmi3Error;
+    if (inst->mode == SBF_EXCHANGING)
+        snprintf(why, sizeof why, "fmi3GetOutputDerivatives is not allowed for a model-exchange instance: it is a "
+                 "co-simulation function (FMI 3.0)");
+    else if (n != nvr)
+        snprintf(why, sizeof why, "fmi3GetOutputDerivatives: nValues = %zu, but the %zu outputs asked for are scalars "
+                 "(nValues = nValueReferences)", n, nvr);
+    else if (nvr && (!vr || !orders || !values))
+        snprintf(why, sizeof why, "fmi3GetOutputDerivatives: a NULL array for %zu variables", nvr);
+    else if (inst->mode == SBF_TERMINATED)
+        snprintf(why, sizeof why, "fmi3GetOutputDerivatives: not allowed after fmi3Terminate");
+    else {
+        sbf_keep_thread_state();
+        sbf_call_begin();
+        sbf_fast_forward(&inst->fast, 0);
+        int outcome = sbf_slave_derivatives(&inst->fast, "fmi3GetOutputDerivatives", "get_output_derivatives", vr, nvr,
+                                            orders, values, 0, why, sizeof why);
+        sbf_call_end();
+        if (outcome == 0) return fmi3OK;
+    }
+    host_log(c, fmi3Error, why);
+    return fmi3Error;
 }
 
 SBF_FREE_STATE(fmi3Status, fmi3Error, fmi3Fatal, fmi3FreeFMUState, fmi3FMUState)

@@ -680,7 +680,8 @@ int sbf_step_refused(sbf_mode mode, const char *function, double t, char *why, s
         [SBF_INITIALIZING] = "during initialization (exiting initialization mode has not succeeded)",
         [SBF_STEPPING] = NULL,
         [SBF_TERMINATED] = "after termination (reset the instance to start again)",
-        [SBF_EXCHANGING] = "for a model-exchange instance"};
+        [SBF_EXCHANGING] = "for a model-exchange instance",
+        [SBF_EVENT] = "in Event Mode (call fmi3EnterStepMode first)"};
     if (!refusal[mode]) return 0;
     snprintf(why, why_size, "%s at t = %g s is not allowed %s", function, t, refusal[mode]);
     return 1;

@@ -45,8 +45,9 @@ void sbf_call_end(void);
 int sbf_model_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size);
 
 /* The states of FMI's co-simulation state machine that the fronts tell apart (FMI 2.0 section 4.2.4, FMI 3.0
- * section 4.2); a model-exchange instance is SBF_EXCHANGING throughout. */
-typedef enum { SBF_INSTANTIATED, SBF_INITIALIZING, SBF_STEPPING, SBF_TERMINATED, SBF_EXCHANGING } sbf_mode;
+ * section 4.2; SBF_EVENT: FMI 3's Event Mode of a co-simulation instance made with eventModeUsed); a model-exchange
+ * instance is SBF_EXCHANGING throughout. */
+typedef enum { SBF_INSTANTIATED, SBF_INITIALIZING, SBF_STEPPING, SBF_TERMINATED, SBF_EXCHANGING, SBF_EVENT } sbf_mode;
 /* 0 if a communication step (`function` at `t` s) is allowed in `mode` (only in SBF_STEPPING), else 1 with the
  * message saying why not in `why`. */
 int sbf_step_refused(sbf_mode mode, const char *function, double t, char *why, size_t why_size);

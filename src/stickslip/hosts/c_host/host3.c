@@ -15,6 +15,14 @@
  *         at the output points (after any event there) and, with $HOST_ME_COUNTER (the value reference of an
  *         Int32 output), "e T N" after each state event: its time and that output.
  * me-bad  as bad, with model-exchange instances
+ * early   as run, with earlyReturnAllowed, driven as fmusim --early-return-allowed does (Reference-FMUs'
+ *         FMI3CSSimulation.c): after an early return the next step starts at lastSuccessfulTime and ends on the
+ *         next output point. Prints "early T" at each early return, then "x T X" there too.
+ * events  as early, with eventModeUsed as well (fmusim --early-return-allowed --event-mode-used): Event Mode after
+ *         initialization and at each early return that asks for event handling (fmi3EnterEventMode,
+ *         fmi3UpdateDiscreteStates until no more update is needed, fmi3EnterStepMode). At such an event, "x T X"
+ *         before Event Mode and again after it, each followed by "m T MODE" ($HOST_MODE_VR: the value reference of
+ *         the Int32 output read, default none).
  * thread_steps  one co-simulation instance, each fmi3DoStep from a new thread: prints the resident memory
  *         after 100 steps and at the end ("rss_kb_warm K", "rss_kb_end K"), then "x T X" at the end
  * unload  two threads each run a co-simulation instance ("x" lines) and then wait; the FMU is unloaded
@@ -58,9 +66,11 @@ static struct {
     Status (*set_states)(Instance, const double *, size_t);
     Status (*get_derivatives)(Instance, double *, size_t);
     Status (*get_indicators)(Instance, double *, size_t);
+    Status (*enter_step_mode)(Instance);
 } fmi;
 
 static bool model_exchange; /* the mode's instances are model-exchange ones */
+static bool early_return, event_mode; /* co-simulation instances: earlyReturnAllowed, eventModeUsed */
 
 
 /* the instance environment is the instance's name */
@@ -78,8 +88,8 @@ static Instance instantiate(const char *name)
 {
     Instance c = model_exchange
         ? fmi.instantiate_me(name, token, resources, false, false, (void *)name, log_message)
-        : fmi.instantiate(name, token, resources, false, false, false, false, NULL, 0, (void *)name, log_message,
-                          NULL);
+        : fmi.instantiate(name, token, resources, false, false, event_mode, early_return, NULL, 0, (void *)name,
+                          log_message, NULL);
     if (!c) {
         say("failed %s NULL\n", model_exchange ? "fmi3InstantiateModelExchange" : "fmi3InstantiateCoSimulation");
         exit(1);
@@ -123,6 +133,59 @@ static void run_cs(Instance c)
                                         &last_successful));
         t = next;
         say("x %.17g %.17g\n", t, read_output(c));
+    }
+}
+
+/* "x T X" and, with $HOST_MODE_VR, "m T MODE" at time t */
+static void sample(Instance c, double t)
+{
+    const char *mode_vr = getenv("HOST_MODE_VR");
+    say("x %.17g %.17g\n", t, read_output(c));
+    if (mode_vr) {
+        VR vr = (VR)strtoul(mode_vr, NULL, 10);
+        int32_t value;
+        check("fmi3GetInt32", fmi.get_int32(c, &vr, 1, &value, 1));
+        say("m %.17g %d\n", t, (int)value);
+    }
+}
+
+/* fmi3UpdateDiscreteStates until the FMU needs no more update (Event Mode) */
+static void update_discrete_states(Instance c)
+{
+    bool again = true, terminate, nominals_changed, values_changed, next_defined;
+    double next_time;
+    while (again)
+        check("fmi3UpdateDiscreteStates", fmi.update(c, &again, &terminate, &nominals_changed, &values_changed,
+                                                     &next_defined, &next_time));
+}
+
+/* fmusim's co-simulation loop with early return (modes early and events) */
+static void run_cs_early(Instance c)
+{
+    double t = 0.0;
+    if (event_mode) { /* FMI 3.0 section 4.2: Event Mode after initialization */
+        update_discrete_states(c);
+        check("fmi3EnterStepMode", fmi.enter_step_mode(c));
+    }
+    sample(c, t);
+    for (long n = 0; !done(t, stop_time);) {
+        double next = next_point(n, stop_time), last_successful;
+        bool event_needed, terminate, returned;
+        check("fmi3DoStep", fmi.do_step(c, t, next - t, true, &event_needed, &terminate, &returned,
+                                        &last_successful));
+        if (returned && last_successful < next) {
+            t = last_successful;
+            say("early %.17g\n", t);
+        } else {
+            t = next, ++n;
+        }
+        sample(c, t);
+        if (event_mode && event_needed) {
+            check("fmi3EnterEventMode", fmi.enter_event_mode(c));
+            update_discrete_states(c);
+            check("fmi3EnterStepMode", fmi.enter_step_mode(c));
+            sample(c, t);
+        }
     }
 }
 
@@ -314,6 +377,8 @@ static void run_one(const char *name)
     check("fmi3ExitInitializationMode", initialize(c, n_settings));
     if (model_exchange)
         run_me(c);
+    else if (early_return)
+        run_cs_early(c);
     else
         run_cs(c);
     check("fmi3Terminate", fmi.terminate(c));
@@ -362,11 +427,13 @@ int main(int argc, char **argv)
         "fmi3InstantiateModelExchange", "fmi3GetInt32", "fmi3GetNumberOfContinuousStates",
         "fmi3GetNumberOfEventIndicators", "fmi3UpdateDiscreteStates", "fmi3EnterEventMode",
         "fmi3EnterContinuousTimeMode", "fmi3SetTime", "fmi3GetContinuousStates", "fmi3SetContinuousStates",
-        "fmi3GetContinuousStateDerivatives", "fmi3GetEventIndicators"};
+        "fmi3GetContinuousStateDerivatives", "fmi3GetEventIndicators", "fmi3EnterStepMode"};
     if (!start_host(argc, argv, names, sizeof names / sizeof *names, (void **)&fmi)) return argc < 8 ? 2 : 1;
     model_exchange = !strncmp(mode, "me-", 3);
     const char *what = model_exchange ? mode + 3 : mode;
-    if (!strcmp(what, "run")) run_one("run");
+    early_return = !strcmp(mode, "early") || !strcmp(mode, "events");
+    event_mode = !strcmp(mode, "events");
+    if (!strcmp(what, "run") || early_return) run_one("run");
     else if (!strcmp(what, "bad")) mode_bad();
     else if (!strcmp(mode, "thread_steps")) mode_thread_steps();
     else if (!strcmp(mode, "unload")) unload_after_runs(run_on_thread);

@@ -1,0 +1,194 @@
+"""What a host machine needs to run an FMU's ELF binaries (Linux): the oldest glibc, libstdc++ and libgcc_s each
+binary accepts, read from its ELF symbol version needs (the section ``.gnu.version_r``: for each shared library,
+the versions of it whose symbols the binary uses, e.g. ``GLIBC_2.34`` of ``libc.so.6``), the libraries it names
+(``DT_NEEDED``), and the CPython shared library the loader starts in a process without Python.
+
+:func:`fmu_floors` measures an FMU's entries; :func:`dependencies_text` is the FMU's
+``documentation/externalDependencies.txt`` (the FMI 2.0.3 / 3.0 place for what the host must provide), which the
+builder writes from them. Only the standard library: no binutils needed.
+"""
+
+import re
+import struct
+from dataclasses import dataclass
+
+#: the file the FMI standards name for the FMU's external dependencies
+DEPENDENCIES_FILE = "documentation/externalDependencies.txt"
+#: version prefix: what provides it, as the host's administrator knows it
+FAMILIES = {"GLIBC": "glibc (libc.so.6, libm.so.6, ld-linux)", "GLIBCXX": "libstdc++ (libstdc++.so.6)",
+            "CXXABI": "libstdc++'s C++ ABI (libstdc++.so.6)", "GCC": "libgcc_s (libgcc_s.so.1)"}
+#: a numbered symbol version, e.g. GLIBC_2.34 or CXXABI_1.3.9 (GLIBC_PRIVATE and the like carry no floor)
+VERSION_NAME = re.compile(r"([A-Z]+)_(\d+(?:\.\d+)*)")
+#: the CPython shared library's name compiled into the loader (the one it tries after $SBF_LIBPYTHON)
+LIBPYTHON_NAME = re.compile(rb"libpython3\.\d+[a-z]*\.so\.1\.0")
+#: the CPython version a compiled extension module is built for, from its file name (``.cpython-311-...so``)
+EXTENSION_ABI = re.compile(r"\.cpython-(\d)(\d+)")
+SHT_DYNAMIC, SHT_GNU_VERNEED, DT_NEEDED = 6, 0x6FFFFFFE, 1
+
+
+class NotELF(ValueError):
+    """The bytes are no ELF shared object this module can read."""
+
+
+@dataclass(frozen=True)
+class BinaryNeeds:
+    """What one ELF binary needs: ``libraries`` (its DT_NEEDED names, in order) and ``versions``
+    ({library: sorted version names of it that its symbols use})."""
+
+    libraries: tuple
+    versions: dict
+
+    def floors(self):
+        """{version prefix: the newest numbered version of it this binary needs, as ``(name, number tuple)``}."""
+        return newest(name for names in self.versions.values() for name in names)
+
+
+def newest(version_names):
+    """{prefix: ``(name, number tuple)``} of the highest-numbered name per prefix among ``version_names``."""
+    out = {}
+    for name in version_names:
+        match = VERSION_NAME.fullmatch(name)
+        if match:
+            number = tuple(int(part) for part in match[2].split("."))
+            if match[1] not in out or number > out[match[1]][1]:
+                out[match[1]] = (name, number)
+    return out
+
+
+def binary_needs(data):
+    """The :class:`BinaryNeeds` of the ELF shared object in ``data`` (bytes); NotELF if it is none, or is cut
+    short."""
+    try:
+        sections, order = _sections(data)
+        needs, libraries = {}, ()
+        for kind, offset, size, link, info in sections:
+            strings = sections[link][1] if link < len(sections) else 0
+            if kind == SHT_GNU_VERNEED:
+                needs = _version_needs(data, order, offset, info, strings)
+            elif kind == SHT_DYNAMIC:
+                libraries = _needed(data, order, offset, size, strings)
+    except (struct.error, IndexError, UnicodeDecodeError) as exc:
+        raise NotELF(f"a truncated or damaged ELF file ({exc})") from None
+    return BinaryNeeds(libraries, needs)
+
+
+def _sections(data):
+    """``([(type, offset, size, link, info)] of every section header, struct byte order and ELF class)``."""
+    if data[:4] != b"\x7fELF" or len(data) < 64 or data[4] not in (1, 2) or data[5] not in (1, 2):
+        raise NotELF("no ELF header")
+    order = ("<" if data[5] == 1 else ">") + ("Q" if data[4] == 2 else "I")
+    wide = data[4] == 2
+    shoff = struct.unpack_from(order[0] + order[1], data, 0x28 if wide else 0x20)[0]
+    entsize, count = struct.unpack_from(order[0] + "HH", data, 0x3A if wide else 0x2E)
+    if shoff == 0 or count == 0:
+        raise NotELF("no section headers")
+    layout = order[0] + ("IIQQQQII" if wide else "IIIIIIII")
+    sections = []
+    for index in range(count):
+        _, kind, _, _, offset, size, link, info = struct.unpack_from(layout, data, shoff + index * entsize)
+        sections.append((kind, offset, size, link, info))
+    return sections, order
+
+
+def _string(data, table, offset):
+    """The NUL-terminated string at ``offset`` in the string table at ``table``."""
+    end = data.find(b"\0", table + offset)
+    if end < 0:
+        raise IndexError("a string runs past the end of the file")
+    return data[table + offset:end].decode()
+
+
+def _version_needs(data, order, offset, count, strings):
+    """{library: sorted version names} from the Verneed entries at ``offset`` (``count`` of them)."""
+    needs = {}
+    for _ in range(count):
+        _, aux_count, file, aux, following = struct.unpack_from(order[0] + "HHIII", data, offset)
+        names, at = set(), offset + aux
+        for _ in range(aux_count):
+            _, _, _, name, next_aux = struct.unpack_from(order[0] + "IHHII", data, at)
+            names.add(_string(data, strings, name))
+            at += next_aux
+        needs[_string(data, strings, file)] = sorted(names)
+        offset += following
+    return needs
+
+
+def _needed(data, order, offset, size, strings):
+    """The DT_NEEDED names of the dynamic section at ``offset``."""
+    entry = struct.Struct(order[0] + ("qQ" if order[1] == "Q" else "iI"))
+    names = []
+    for at in range(offset, offset + size, entry.size):
+        tag, value = entry.unpack_from(data, at)
+        if tag == 0:
+            break
+        if tag == DT_NEEDED:
+            names.append(_string(data, strings, value))
+    return tuple(names)
+
+
+@dataclass(frozen=True)
+class FmuFloors:
+    """The measured needs of an FMU's ELF binaries: ``binaries`` ({archive name: :class:`BinaryNeeds`}),
+    ``libpython`` (the CPython library name compiled into the loaders, or None) and ``compiled_for`` (the CPython
+    versions, e.g. ("3.11", "3.13"), its compiled extension modules are built for, oldest first); ``others``: the
+    archive names of its binaries for other platforms (not ELF)."""
+
+    binaries: dict
+    libpython: str | None
+    compiled_for: tuple
+    others: tuple
+
+    def floors(self):
+        """{version prefix: ``(name, numbers)``}: the newest needed version per prefix over every binary."""
+        return newest(name for needs in self.binaries.values() for names in needs.versions.values()
+                      for name in names)
+
+    def needed_by(self, version_name):
+        """The archive names of the binaries that need ``version_name``."""
+        return [name for name, needs in self.binaries.items()
+                if any(version_name in names for names in needs.versions.values())]
+
+
+def fmu_floors(entries):
+    """The :class:`FmuFloors` of an FMU's ``entries`` ({archive name: bytes}): every ``.so`` under ``binaries/``
+    and ``resources/`` (NotELF if one is no ELF shared object)."""
+    binaries, libpython, compiled_for = {}, None, set()
+    others = tuple(name for name in sorted(entries) if name.startswith("binaries/") and not name.endswith(".so"))
+    for name in sorted(entries):
+        if name.endswith(".so") and name.startswith(("binaries/", "resources/")):
+            binaries[name] = binary_needs(entries[name])
+            found = LIBPYTHON_NAME.search(entries[name]) if name.startswith("binaries/") else None
+            libpython = libpython or (found[0].decode() if found else None)
+            abi = EXTENSION_ABI.search(name)
+            compiled_for |= {(int(abi[1]), int(abi[2]))} if abi else set()
+    return FmuFloors(binaries, libpython, tuple(f"{major}.{minor}" for major, minor in sorted(compiled_for)), others)
+
+
+def dependencies_text(model_name, floors):
+    """The text of the FMU's :data:`DEPENDENCIES_FILE` from its measured ``floors`` (:class:`FmuFloors`): what
+    the host machine must provide, then what each binary needs."""
+    lines = [f"What the host machine needs to run {model_name} on Linux x86_64, measured from the symbol version",
+             "needs of the FMU's binaries when it was built (the oldest versions that have every symbol they use):",
+             ""]
+    measured = floors.floors()
+    for prefix in sorted(measured, key=lambda p: (list(FAMILIES) + [p]).index(p)):
+        name = measured[prefix][0]
+        lines.append(f"- {FAMILIES.get(prefix, prefix)}: {name} or newer (for {', '.join(floors.needed_by(name))})")
+    lines.append(f"- a CPython 3 shared library with its standard library: {_python_need(floors)}")
+    lines += ["", "Each binary: the libraries it names, then the newest version it needs of each.", ""]
+    for name, needs in floors.binaries.items():
+        newest_names = ", ".join(found for found, _ in sorted(needs.floors().values())) or "no versioned symbols"
+        lines.append(f"{name}: {', '.join(needs.libraries) or 'no libraries'}; {newest_names}")
+    lines += [f"{name}: not a Linux binary; not covered by this file" for name in floors.others]
+    return "\n".join(lines) + "\n"
+
+
+def _python_need(floors):
+    """The sentence on the CPython the FMU needs."""
+    text = ("the host process's own CPython (3.8 or newer) if it runs one, else "
+            + (f"{floors.libpython} (the build's; the environment variable SBF_LIBPYTHON names another)"
+               if floors.libpython else "one named by the environment variable SBF_LIBPYTHON"))
+    if floors.compiled_for:
+        text += (f". The runtime is compiled for CPython {', '.join(floors.compiled_for)}; another version runs it "
+                 f"from its Python sources, with the same results")
+    return text + "."

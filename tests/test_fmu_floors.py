@@ -1,0 +1,90 @@
+"""Each built FMU's ``documentation/externalDependencies.txt`` lists what its ELF binaries need of the host: the
+newest glibc, libstdc++ (GLIBCXX, CXXABI) and libgcc_s versions over all of them, each binary's libraries and
+newest versions, and the CPython shared library; checked against binutils' ``objdump`` (``-T``: the versions of
+the undefined dynamic symbols; ``-p``: the NEEDED entries), not against the builder's own ELF reader."""
+
+import re
+import shutil
+import subprocess
+import sys
+import zipfile
+
+import pytest
+
+from stickslip.fmu.floors import DEPENDENCIES_FILE, NotELF, binary_needs
+from stickslip.fmu.loader.install import build_libpython
+
+VERSION = re.compile(r"\(?\b([A-Z]+)_(\d+(?:\.\d+)*)\)?")
+
+
+def objdump(flag, path):
+    run = subprocess.run(["objdump", flag, str(path)], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    return run.stdout
+
+
+def objdump_needs(path):
+    """``(NEEDED names in order, {prefix: newest version name})`` of the ELF file at ``path``, from objdump."""
+    newest = {}
+    for line in objdump("-T", path).splitlines():
+        match = VERSION.search(line) if "*UND*" in line else None
+        if match:
+            number = tuple(map(int, match[2].split(".")))
+            if match[1] not in newest or number > newest[match[1]][1]:
+                newest[match[1]] = (f"{match[1]}_{match[2]}", number)
+    needed = re.findall(r"^\s*NEEDED\s+(\S+)", objdump("-p", path), re.M)
+    return tuple(needed), {prefix: name for prefix, (name, _) in newest.items()}
+
+
+@pytest.fixture(scope="module")
+def has_objdump():
+    if shutil.which("objdump") is None:
+        pytest.skip("objdump (binutils) is not installed: the check reads the binaries' version needs with it")
+
+
+@pytest.mark.parametrize("fmu", ["fmu_path", "fmu3_path", "coupling_path"])
+def test_the_fmu_lists_the_floors_objdump_finds(request, fmu, tmp_path, has_objdump):
+    path = request.getfixturevalue(fmu)
+    with zipfile.ZipFile(path) as archive:
+        archive.extractall(tmp_path)
+    text = (tmp_path / DEPENDENCIES_FILE).read_text()
+    summary, _, per_binary = text.partition("\nEach binary:")
+    overall = {}
+    binaries = sorted(p for p in tmp_path.rglob("*.so") if p.relative_to(tmp_path).parts[0] in ("binaries",
+                                                                                                  "resources"))
+    assert any("binaries" in p.parts for p in binaries) and binaries
+    for binary in binaries:
+        needed, newest = objdump_needs(binary)
+        name = binary.relative_to(tmp_path).as_posix()
+        line = next(line for line in per_binary.splitlines() if line.startswith(f"{name}: "))
+        assert line == f"{name}: {', '.join(needed) or 'no libraries'}; " + (
+            ", ".join(sorted(newest.values())) or "no versioned symbols")
+        for prefix, version in newest.items():
+            if prefix not in overall or _number(version) > _number(overall[prefix]):
+                overall[prefix] = version
+    assert {"GLIBC", "GLIBCXX", "CXXABI"} <= set(overall)
+    assert sorted(re.findall(r": ([A-Z]+_[0-9.]+) or newer", summary)) == sorted(overall.values())
+
+
+def _number(version):
+    return tuple(map(int, VERSION.fullmatch(version)[2].split(".")))
+
+
+@pytest.mark.parametrize("fmu", ["fmu_path", "coupling_path"])
+def test_the_fmu_names_the_cpython_library_its_loader_starts(request, fmu):
+    with zipfile.ZipFile(request.getfixturevalue(fmu)) as archive:
+        text = archive.read(DEPENDENCIES_FILE).decode()
+        tags = {re.search(r"\.cpython-3(\d+)-", name)[1] for name in archive.namelist()
+                if name.startswith("resources/") and name.endswith(".so")}
+    assert f"else {build_libpython()[1]} (the build's;" in text
+    versions = ", ".join(f"3.{minor}" for minor in sorted(tags, key=int))
+    assert (f"The runtime is compiled for CPython {versions};" in text) == bool(tags), text
+    assert not tags or str(sys.version_info[1]) in tags
+
+
+@pytest.mark.parametrize("data", [b"", b"MZ\x90\x00" + bytes(60), b"\x7fELF\x02\x01\x01" + bytes(57),
+                                  b"\x7fELF\x02\x01\x01" + bytes(33) + b"\x40" + bytes(14) + b"\x40\x00\x05"],
+                         ids=["empty", "windows", "no-sections", "truncated"])
+def test_what_is_no_elf_shared_object_is_refused_with_the_reason(data):
+    with pytest.raises(NotELF):
+        binary_needs(data)
