@@ -1,4 +1,5 @@
-"""SpringBlockFriction: FMI 2.0 co-simulation slave of the spring-block dry-friction model.
+"""SpringBlockFriction: FMI 2.0 slave (co-simulation, and model exchange through the C loader) of the spring-block
+dry-friction model.
 
 A thin adapter between PythonFMU and the runtime's :class:`Trajectory`, which
 does all the physics and its own event location (SPEC sections 1, 2 and 4).
@@ -13,6 +14,10 @@ evaluation of the state per state change (:meth:`SpringBlockFriction.get_real`
 and friends): PythonFMU's per-variable getters are made only to write the model
 description.
 
+Model exchange, which PythonFMU lacks, is answered by the FMU's C loader through :meth:`model_exchange`, with the
+FMI 3 slave's model exchange (``block_interface.ExchangeInterface``): the states ``x`` and ``v``, their derivatives
+``der(x)`` and ``der(v)`` (the two variables after the table) and three event indicators.
+
 PythonFMU (0.7.0) reports every exception of the slave as ``fmi2Fatal``. Its
 only other failure status, ``fmi2Discard`` for a ``do_step`` that returns
 False, comes with ``fmi2Terminated = true``, which FMPy's ``simulate_fmu``
@@ -22,13 +27,15 @@ here (``balance_release``): an importer that terminates and frees the
 instance after the error, as libcosim does, does not crash.
 """
 
+import math
 import operator
+from xml.etree.ElementTree import Element
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
 from block_interface import (
-    BLOCK_STATE_KEYS, FIRST_OUTPUT, MAX_OUTPUT_DERIVATIVE_ORDER, PYTHONFMU_ENTRY_POINTS, VARIABLES, BlockInterface,
-    balance_release, check_state, serialized_states,
+    DERIVATIVES, EXCHANGE_STATE_KINDS, FIRST_OUTPUT, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, PYTHONFMU_ENTRY_POINTS,
+    STATES, VARIABLES, BlockInterface, ExchangeInterface, balance_release, saved_state, serialized_states,
 )
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input, "output": Fmi2Causality.output}
@@ -36,11 +43,16 @@ _VARIABILITY = {name: getattr(Fmi2Variability, name) for name in ("fixed", "cont
 _KIND = {"real": Real, "integer": Integer}
 
 _REFERENCE_OF = {v.name: reference for reference, v in enumerate(VARIABLES)}
-_REFERENCES = {kind: frozenset(r for r, v in enumerate(VARIABLES) if _KIND[v.kind] is kind) for kind in (Real, Integer)}
+#: the state derivatives' value references follow the table's (model exchange: der(x), der(v))
+FIRST_DERIVATIVE = len(VARIABLES)
+_NAMES = tuple(v.name for v in VARIABLES) + tuple(name for name, _, _ in DERIVATIVES)
+_REFERENCES = {Real: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "real") | frozenset(
+    range(FIRST_DERIVATIVE, len(_NAMES))), Integer: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "integer")}
+_FMU_STATE_KINDS = {"block": saved_state.NESTED, **EXCHANGE_STATE_KINDS}  # the fields of _get_fmu_state's dict
 _MAX_READ_PLANS = 64  # distinct sets of value references whose checked reader an instance keeps
 
 
-class SpringBlockFriction(Fmi2Slave, BlockInterface):
+class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
     """Block of mass M on a moving surface, tied to a wall by a spring; dry friction with stick, slip and aging."""
 
     author = "stickslip"
@@ -49,19 +61,41 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.init_block()
-        self._by_reference = [v.start for v in VARIABLES]  # every value by value reference; outputs may be stale
+        self.init_exchange()
+        for name, unit, _ in DERIVATIVES:
+            self.variable_units[name], self.variable_bounds[name] = unit, (None, None)
+        # every value by value reference, the state derivatives last; outputs and derivatives may be stale
+        self._by_reference = [v.start for v in VARIABLES] + [0.0] * len(DERIVATIVES)
         self._outputs_stale = True  # the outputs' part needs an evaluation at the current state
-        self._read_plans = {}  # (type, value references) -> (read, needs_outputs), see _read_plan
+        self._derivatives_stale = True  # and the state derivatives' part
+        self._read_plans = {}  # (type, value references) -> (read, needs), see _read_plan
         self.offer_to_loader(2)
 
     def to_xml(self, model_options=None):
-        """PythonFMU's model description, with the variables registered for it first, and the input and output
-        derivatives that the C loader answers (canInterpolateInputs, maxOutputDerivativeOrder)."""
+        """PythonFMU's model description, with the variables registered for it first, and what the C loader answers:
+        the input and output derivatives (canInterpolateInputs, maxOutputDerivativeOrder) and model exchange (a
+        ModelExchange element of the same model identifier, the state derivatives, the event indicators)."""
         if not self.vars:
             self.register_variables(_KIND, _CAUSALITY, _VARIABILITY)
+            for index, (name, _, text) in enumerate(DERIVATIVES):
+                self.register_variable(Real(name, causality=Fmi2Causality.local, variability=Fmi2Variability.continuous,
+                                            description=text, getter=lambda i=index: self._state_derivative(i)),
+                                       nested=False)
         root = super().to_xml({**(model_options or {}), "canInterpolateInputs": True})
-        root.find("CoSimulation").set("maxOutputDerivativeOrder", str(MAX_OUTPUT_DERIVATIVE_ORDER))
+        co_simulation = root.find("CoSimulation")
+        co_simulation.set("maxOutputDerivativeOrder", str(MAX_OUTPUT_DERIVATIVE_ORDER))
+        exchange = {key: co_simulation.get(key) for key in ("modelIdentifier", "canNotUseMemoryManagementFunctions")}
+        exchange["completedIntegratorStepNotNeeded"] = "true"  # the FMU state capabilities: the builder's
+        root.insert(list(root).index(co_simulation), Element("ModelExchange", exchange))
+        root.set("numberOfEventIndicators", str(len(INDICATORS)))
+        for (name, _, _), state in zip(DERIVATIVES, STATES):
+            self._scalar(root, name).find("Real").set("derivative", str(_REFERENCE_OF[state] + 1))
         return root
+
+    @staticmethod
+    def _scalar(root, name):
+        """The ScalarVariable ``name`` of the model description ``root``."""
+        return next(v for v in root.find("ModelVariables") if v.get("name") == name)
 
     # ---- values of any set of variables ------------------------------------------
 
@@ -71,21 +105,33 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         plan = self._read_plans.get(key)
         if plan is None:
             plan = self._read_plan(kind, key[1])
-        read, needs_outputs = plan
-        if needs_outputs and self._outputs_stale:
-            self._by_reference[FIRST_OUTPUT:] = self.current_trajectory().outputs()
+        read, needs = plan
+        if needs >= FIRST_OUTPUT and self._outputs_stale:
+            self._by_reference[FIRST_OUTPUT:FIRST_DERIVATIVE] = self.current_state().outputs()
             self._outputs_stale = False
+        if needs >= FIRST_DERIVATIVE and self._derivatives_stale:
+            self._by_reference[FIRST_DERIVATIVE:] = [self._state_derivative(i) for i in range(len(DERIVATIVES))]
+            self._derivatives_stale = False
         return read(self._by_reference)
 
+    def _state_derivative(self, index):
+        """``der(x)`` (m/s, index 0) or ``der(v)`` (m/s2, index 1) at the current state: the model-exchange block's
+        once the host made a model-exchange call, else as the trajectory's mode continues."""
+        if self.exchange:
+            return self._block_now().derivatives()[index]
+        trajectory = self.current_trajectory()
+        return trajectory.v if index == 0 else trajectory.acceleration()[0]
+
     def _read_plan(self, kind, references):
-        """``(read, needs_outputs)`` for a set of value references, checked once and remembered."""
+        """``(read, needs)`` for a set of value references, checked once and remembered: ``needs`` is the highest
+        reference (the outputs or the state derivatives need an evaluation at the current state, see :meth:`_read`)."""
         _check_kind(kind, references)
         if len(references) == 1:
             reference = references[0]
-            plan = (lambda values: [values[reference]]), reference >= FIRST_OUTPUT
+            plan = (lambda values: [values[reference]]), reference
         else:
             pick = operator.itemgetter(*references) if references else lambda values: ()
-            plan = (lambda values: list(pick(values))), max(references, default=-1) >= FIRST_OUTPUT
+            plan = (lambda values: list(pick(values))), max(references, default=-1)
         if len(self._read_plans) >= _MAX_READ_PLANS:  # an importer reads a few fixed sets; bound the rest
             self._read_plans.clear()
         self._read_plans[(kind, references)] = plan
@@ -97,19 +143,20 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         _check_kind(kind, references)
         if max(references, default=-1) >= FIRST_OUTPUT:
             reference = next(r for r in references if r >= FIRST_OUTPUT)
-            raise TypeError(f"{VARIABLES[reference].name} (valueReference={reference}) is an output: it cannot be set")
+            what = "an output" if reference < FIRST_DERIVATIVE else "a state derivative"
+            raise TypeError(f"{_NAMES[reference]} (valueReference={reference}) is {what}: it cannot be set")
         self.set_values([VARIABLES[r].name for r in references], values)
 
     def set_variable(self, name, value):
         """Set a parameter (before initialization ends) or an input: the outputs follow at the next read."""
         super().set_variable(name, value)
         self._by_reference[_REFERENCE_OF[name]] = value
-        self._outputs_stale = True
+        self._outputs_stale = self._derivatives_stale = True
 
     def outputs_changed(self):
-        """The state moved, or values were restored: the outputs need a new evaluation."""
+        """The state moved, or values were restored: the outputs and derivatives need a new evaluation."""
         super().outputs_changed()
-        self._outputs_stale = True
+        self._outputs_stale = self._derivatives_stale = True
 
     def get_real(self, vrs):
         """The Real variables ``vrs`` (value references), outputs from one evaluation per state."""
@@ -130,11 +177,12 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
     # ---- FMI ---------------------------------------------------------------------
 
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        """Start time in s; the solver's tolerance is the parameter ``solver.rtol``."""
-        self.start_time = float(start_time)
+        """Start time in s, of both interfaces; the solver's tolerance is the parameter ``solver.rtol``."""
+        self.time = self.start_time = float(start_time)
 
     def exit_initialization_mode(self):
         self.trajectory = self.new_trajectory()
+        self.start_exchange()
         self.outputs_changed()
 
     def do_step(self, current_time, step_size):
@@ -151,12 +199,25 @@ class SpringBlockFriction(Fmi2Slave, BlockInterface):
         """fmi2GetRealOutputDerivatives (the C loader calls it): see :meth:`BlockInterface.output_derivatives`."""
         return self.output_derivatives(_names(vrs), orders)
 
+    def model_exchange(self, function, values, count):
+        """The FMI 2 model-exchange call ``function`` ("fmi2GetDerivatives"...), which PythonFMU lacks: the C loader
+        makes it through its binding, with the numbers the host gave (``values``) and the length ``count`` of the
+        call's array (0 for none). Returns the numbers the call answers, as a tuple (ValueError for a ``count`` that
+        is not the FMU's, or a non-finite answer; the shared model exchange's errors, each naming its value)."""
+        array, call = _EXCHANGE_CALLS[function]
+        if array is not None and count != _ARRAY_LENGTHS[array][0]:
+            raise ValueError(f"{function}: {array} = {count}, but this FMU has {_ARRAY_LENGTHS[array][0]} "
+                             f"{_ARRAY_LENGTHS[array][1]}")
+        answer = tuple(float(value) for value in call(self, values) or ())
+        if not all(math.isfinite(value) for value in answer):
+            raise ValueError(f"{function}: the model answered {answer!r}: not every value is finite")
+        return answer
+
     def _get_fmu_state(self):
-        return self.block_state()
+        return {"block": self.block_state(), **self.exchange_state()}
 
     def _set_fmu_state(self, state):
-        check_state(state)
-        self.restore_block_state(state)
+        self.restore_fmu_state(state, _FMU_STATE_KINDS)
         self._by_reference[:FIRST_OUTPUT] = [self.values[v.name] for v in VARIABLES[:FIRST_OUTPUT]]
 
 
@@ -175,5 +236,22 @@ def _names(references):
     return [VARIABLES[r].name for r in references]
 
 
+#: array name in FMI 2: (its length, what it holds)
+_ARRAY_LENGTHS = {"nx": (len(STATES), "continuous states"), "ni": (len(INDICATORS), "event indicators")}
+#: FMI 2 model-exchange function: (the name of its array's length or None, the slave's answer to it)
+_EXCHANGE_CALLS = {
+    "fmi2SetTime": (None, lambda slave, values: slave.set_time(values[0])),
+    "fmi2SetContinuousStates": ("nx", lambda slave, values: slave.set_continuous_states(values)),
+    "fmi2GetContinuousStates": ("nx", lambda slave, values: slave.get_continuous_states()),
+    "fmi2GetDerivatives": ("nx", lambda slave, values: slave.continuous_state_derivatives()),
+    "fmi2GetNominalsOfContinuousStates": ("nx", lambda slave, values: slave.get_nominals_of_continuous_states()),
+    "fmi2GetEventIndicators": ("ni", lambda slave, values: slave.get_event_indicators()),
+    # fmi2EventInfo: newDiscreteStatesNeeded, terminateSimulation, nominalsOfContinuousStatesChanged,
+    # valuesOfContinuousStatesChanged, nextEventTimeDefined, nextEventTime (FMI 3's DiscreteUpdate, in order)
+    "fmi2NewDiscreteStates": (None, lambda slave, values: slave.update_discrete_states()),
+    # the indicators locate every event: enterEventMode and terminateSimulation false
+    "fmi2CompletedIntegratorStep": (None, lambda slave, values: (False, False)),
+}
+
 balance_release(SpringBlockFriction, PYTHONFMU_ENTRY_POINTS)
-serialized_states(SpringBlockFriction, BLOCK_STATE_KEYS)
+serialized_states(SpringBlockFriction, tuple(_FMU_STATE_KINDS))

@@ -5,8 +5,8 @@ A thin adapter between pythonfmu3 and the runtime, with the variables of the FMI
 indicators. Co-simulation steps the runtime's :class:`Trajectory`, as the FMI 2 FMU does (the same
 results). Model exchange hands the states ``x``, ``v`` and the indicators ``indicator.stick``,
 ``indicator.breakaway`` and ``indicator.graze`` to the host's solver and applies the transitions in
-``update_discrete_states``; all of it is the runtime's :class:`ExchangeBlock`. Which interface the host
-uses shows in its calls: the outputs follow the trajectory until the first model-exchange call.
+``update_discrete_states``: all of it is the runtime's :class:`ExchangeBlock`, shared with the FMI 2 slave
+(``block_interface.ExchangeInterface``, first among the bases so that pythonfmu3's defaults do not hide it).
 ``build_fmu.py`` bundles the runtime and the shared table under names only this FMU uses.
 
 pythonfmu3 0.3.4 passes no start time to the slave: a co-simulation starts at the first ``do_step``'s
@@ -16,20 +16,19 @@ time, model exchange at t = 0, unless the host (or the FMU's loader) calls ``fmi
 """
 
 import math
-from collections import namedtuple
 
 from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, Fmi3Variability, Float64, Int32, Int64,
                         ModelExchange)
 
-from block_interface import (INPUTS, MAX_OUTPUT_DERIVATIVE_ORDER, BlockInterface, balance_release, check_state, saved_state,
-                             serialized_states)
-from stickslip.core.exchange import INDICATORS, ExchangeBlock  # one import of the runtime (staging)
+from block_interface import (
+    DERIVATIVES, EXCHANGE_STATE_KINDS, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, BlockInterface, ExchangeInterface,
+    balance_release, saved_state, serialized_states,
+)
 
 _CAUSALITY = {"parameter": Fmi3Causality.parameter, "input": Fmi3Causality.input, "output": Fmi3Causality.output}
 _VARIABILITY = {name: getattr(Fmi3Variability, name) for name in ("fixed", "continuous", "discrete")}
 
-# model exchange only: name, unit, description
-DERIVATIVES = (("der(x)", "m/s", "dx/dt"), ("der(v)", "m/s2", "dv/dt"))
+# model exchange only: the indicators' unit, description
 INDICATOR_VARIABLES = {
     "stick": ("m/s", "event indicator: mode * v_rel while slipping (zero: v_rel reaches 0), 1 while stuck"),
     "breakaway": ("N", "event indicator: F_S(t_stick) - |kappa x - F_ext| while stuck, 1 while slipping"),
@@ -37,24 +36,17 @@ INDICATOR_VARIABLES = {
 }
 
 # the fields of _get_fmu_state's dict and their kinds (the runtime's saved_state)
-_FMU_STATE_KINDS = {"block": saved_state.NESTED, "exchange": saved_state.NESTED, "time": saved_state.REAL,
-                    "interface": saved_state.FLAG, "stepped": saved_state.FLAG}
-
-DiscreteUpdate = namedtuple(
-    "DiscreteUpdate", "discreteStatesNeedUpdate terminateSimulation nominalContinuousStatesChanged "
-                      "valuesOfContinuousStatesChanged nextEventTimeDefined nextEventTime")
+_FMU_STATE_KINDS = {"block": saved_state.NESTED, **EXCHANGE_STATE_KINDS, "stepped": saved_state.FLAG}
 
 
-class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInterface):
+class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInterface):
     """Block of mass M on a moving surface, tied to a wall by a spring; dry friction with stick, slip and aging."""
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.author = "stickslip"
         self.description = "Spring-block dry friction (Elmer 1997) with exact stick-slip events"
-        self.time = 0.0
-        self.block = None  # the ExchangeBlock, built when initialization ends
-        self.exchange = False  # True once the host made a model-exchange call
+        self.init_exchange()
         self._stepped = False  # a co-simulation step was taken, or the host gave the start time
         self.init_block()
         # the law selectors as Int64, the type of an Enumeration's values (pythonfmu3 0.3.4's Enumeration cannot be
@@ -136,45 +128,20 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
         for reference, value in zip(references, values):
             self.check_setting(self.vars[reference].name, value)
 
-    def set_variable(self, name, value):
-        """A parameter or an input (:meth:`BlockInterface.set_variable`: checked first, ParameterError naming it and
-        its range, fmi3Error, the value kept); after initialization an input is also held by the model-exchange
-        block, both interfaces alike."""
-        super().set_variable(name, value)
-        if name in INPUTS and self.block is not None:
-            self.block.set_inputs(self.values["v_drive"], self.values["F_ext"])
-
-    def current_state(self):
-        return self.block if self.exchange else self.current_trajectory()
-
     # ---- FMI: both interfaces ------------------------------------------------------
 
     def exit_initialization_mode(self):
         self.trajectory = self.new_trajectory()  # raises ParameterError for a bad parameter
-        self.block = self._new_block()
+        self.start_exchange()
         self.outputs_changed()
 
-    def _new_block(self):
-        """The ExchangeBlock the current values start (ParameterError for a bad parameter)."""
-        v = self.values
-        return ExchangeBlock(self.parameters(), v["x_start"], v["v_start"], v["v_drive"], v["F_ext"], self.time)
-
     def _get_fmu_state(self):
-        block = None if self.block is None else self.block.snapshot()
-        return {"block": self.block_state(), "exchange": block, "time": self.time, "interface": self.exchange,
-                "stepped": self._stepped}
+        return {"block": self.block_state(), **self.exchange_state(), "stepped": self._stepped}
 
     def _set_fmu_state(self, state):
         """Undo to a state from :meth:`_get_fmu_state`, each field checked before any is taken (StateError or
         ParameterError naming the first out of place or range; bytes that were no state: StateError)."""
-        check_state(state)
-        fields = saved_state.record("", state, _FMU_STATE_KINDS)
-        checked = self.checked_block_state(fields["block"])
-        saved = fields["exchange"]
-        block = None if saved is None else ExchangeBlock.from_snapshot(checked[3], saved)
-        self.take_block_state(checked)
-        self.time, self.exchange, self._stepped = fields["time"], fields["interface"], fields["stepped"]
-        self.block = block
+        self._stepped = self.restore_fmu_state(state, _FMU_STATE_KINDS)["stepped"]
 
     # ---- FMI: co-simulation ----------------------------------------------------------
 
@@ -231,57 +198,22 @@ class SpringBlockFriction(Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInter
 
     # ---- FMI: model exchange ---------------------------------------------------------
 
-    def _block_now(self):
-        """The ExchangeBlock at the current state; before initialization ends, the one the current values start
-        (ParameterError naming a bad parameter)."""
-        return self._new_block() if self.block is None else self.block
-
-    def _exchange_call(self):
-        """The block a model-exchange call reads; during initialization, the one the current values start."""
-        self.exchange = True
-        self.outputs_changed()
-        return self._block_now()
-
     def set_time(self, time):
-        """The model's time (s); before initialization ends, the start time of both interfaces (a co-simulation
-        then starts there, not at its first doStep): ParameterError for a time the block cannot take."""
-        if not math.isfinite(time):
-            raise ValueError(f"time = {time!r} s is out of range: allowed is a finite value")
+        """The model's time (s) (:meth:`ExchangeInterface.set_time`); before initialization ends, a co-simulation then
+        starts there, not at its first doStep."""
+        super().set_time(time)
         if self.block is None:
-            self.time = self.start_time = float(time)
             self._stepped = True  # the first doStep starts at the start time, not wherever it says
-        else:
-            self._exchange_call().set_time(time)
-            self.time = float(time)
-
-    def get_continuous_states(self):
-        return self._exchange_call().states()
-
-    def set_continuous_states(self, values):
-        if self.block is None:
-            raise RuntimeError("the continuous states are set after initialization; during it, set x_start and "
-                               "v_start")
-        self._exchange_call().set_states(values[0], values[1])
 
     def get_continuous_state_derivatives(self):
         """``[der(x), der(v)]``; never raises: pythonfmu3 0.3.4 crashes the host when this method raises (any
         other reports the exception), so a failure is logged as an error and answered with NaN, which the
         FMU's binary returns as fmi3Error."""
         try:
-            return self._exchange_call().derivatives()
+            return self.continuous_state_derivatives()
         except Exception as exc:  # noqa: BLE001 - every failure must become a status, see the docstring
             self.log(f"[getContinuousStateDerivatives] {exc!r}", Fmi3Status.error)
             return [math.nan, math.nan]
-
-    def get_nominals_of_continuous_states(self, size):
-        return self._exchange_call().nominals()
-
-    def get_event_indicators(self):
-        return self._exchange_call().indicators()
-
-    def update_discrete_states(self):
-        changed = self._exchange_call().update()
-        return DiscreteUpdate(False, False, False, changed, False, 0.0)
 
 
 # The methods pythonfmu3's C++ wrapper calls on the slave (PyObject_CallMethod(pInstance_, ...) in PySlaveInstance.cpp)

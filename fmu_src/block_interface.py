@@ -5,12 +5,14 @@ bookkeeping between FMI variables and the runtime.
 start value, unit, description and inclusive bounds, in the order the FMUs declare them; each slave
 registers them with its own library's classes. :class:`BlockInterface` keeps the parameter and input
 values by FMU name, builds the runtime's parameters and :class:`Trajectory` from them, and saves and
-restores them. No physics here: it is all in the runtime, which the builders bundle under a name only
+restores them; :class:`ExchangeInterface` is both slaves' model exchange (the runtime's :class:`ExchangeBlock`,
+answered by pythonfmu3 in FMI 3 and by the C loader in FMI 2). No physics here: it is all in the runtime, which the builders bundle under a name only
 their FMU uses (they rewrite the import below).
 """
 
 import copy
 import functools
+import math
 from collections import namedtuple
 
 from stickslip.fmu_src.loader_binding import (  # the slaves take these from here (one import of this module)
@@ -18,8 +20,8 @@ from stickslip.fmu_src.loader_binding import (  # the slaves take these from her
 )
 
 from stickslip.core import (
-    ANY_FINITE, KINETIC_LAWS, OUTPUT_NAMES, POSITIVE, RTOL_RANGE, STATIC_LAWS, ParameterError, Parameters, StateError,
-    Trajectory, check, check_input, check_rate_scale, kinetic_law, saved_state, static_law,
+    ANY_FINITE, INDICATORS, KINETIC_LAWS, OUTPUT_NAMES, POSITIVE, RTOL_RANGE, STATIC_LAWS, ExchangeBlock, ParameterError,
+    Parameters, StateError, Trajectory, check, check_input, check_rate_scale, kinetic_law, saved_state, static_law,
 )
 
 #: causality "parameter" (fixed), "input" or "output"; kind "real" or "integer"; variability "fixed",
@@ -379,11 +381,6 @@ class BlockInterface:
         return {"values": dict(self.values), "start_time": self.start_time, "trajectory": snapshot,
                 "pending": sorted(self._inputs_set)}
 
-    def restore_block_state(self, state):
-        """Undo to a state from :meth:`block_state` (which stays usable for another restore):
-        :meth:`checked_block_state`, then :meth:`take_block_state`; a refused state leaves the instance as it was."""
-        self.take_block_state(self.checked_block_state(state))
-
     def checked_block_state(self, state):
         """``(values, start time, trajectory, parameters, pending inputs)`` of a state from :meth:`block_state`, every
         value checked and nothing taken: the parameters and inputs (:func:`check_values`), the start time, the
@@ -414,6 +411,121 @@ class BlockInterface:
         self.outputs_changed()
 
 
+#: The model-exchange form's state derivatives (name, unit, description), each of the state its name holds, and the
+#: number of its event indicators (:data:`INDICATORS`, the runtime's ExchangeBlock)
+DERIVATIVES = (("der(x)", "m/s", "dx/dt"), ("der(v)", "m/s2", "dv/dt"))
+STATES = ("x", "v")
+#: What fmi2NewDiscreteStates (FMI 2's fmi2EventInfo) and fmi3UpdateDiscreteStates answer, in FMI 3's names
+DiscreteUpdate = namedtuple(
+    "DiscreteUpdate", "discreteStatesNeedUpdate terminateSimulation nominalContinuousStatesChanged "
+                      "valuesOfContinuousStatesChanged nextEventTimeDefined nextEventTime")
+#: The fields of an FMU state that :meth:`ExchangeInterface.exchange_state` adds, and their kinds
+EXCHANGE_STATE_KINDS = {"exchange": saved_state.NESTED, "time": saved_state.REAL, "interface": saved_state.FLAG}
+
+
+class ExchangeInterface:
+    """Model exchange beside co-simulation, whatever FMI version fronts it (FMI 3: pythonfmu3's calls; FMI 2: the C
+    loader's, since PythonFMU has none): the states ``x`` (m), ``v`` (m/s), their derivatives and the event indicators
+    :data:`INDICATORS` handed to the host's solver, the transitions applied in :meth:`update_discrete_states`; all
+    of it is the runtime's :class:`ExchangeBlock`. Which interface the host uses shows in its calls: the outputs
+    follow the trajectory until the first model-exchange call. A slave class puts this before
+    :class:`BlockInterface` in its bases, calls :meth:`init_exchange` in its constructor and :meth:`start_exchange`
+    when initialization ends."""
+
+    def init_exchange(self):
+        self.time = 0.0  # the model's time (s)
+        self.block = None  # the ExchangeBlock, built when initialization ends
+        self.exchange = False  # True once the host made a model-exchange call
+
+    def start_exchange(self):
+        """Initialization ends: the ExchangeBlock of the current values (ParameterError for a bad parameter)."""
+        self.block = self._new_block()
+
+    def set_variable(self, name, value):
+        """A parameter or an input (:meth:`BlockInterface.set_variable`: checked first, ParameterError naming it and
+        its range, the value kept); after initialization an input is also held by the model-exchange block, both
+        interfaces alike."""
+        super().set_variable(name, value)
+        if name in INPUTS and self.block is not None:
+            self.block.set_inputs(self.values["v_drive"], self.values["F_ext"])
+
+    def current_state(self):
+        """What the outputs are read from: the trajectory until the first model-exchange call, then the block (during
+        initialization, the one the current values start)."""
+        return self._block_now() if self.exchange else self.current_trajectory()
+
+    def _new_block(self):
+        """The ExchangeBlock the current values start at :attr:`time` (ParameterError for a bad parameter)."""
+        v = self.values
+        return ExchangeBlock(self.parameters(), v["x_start"], v["v_start"], v["v_drive"], v["F_ext"], self.time)
+
+    def _block_now(self):
+        """The ExchangeBlock at the current state; before initialization ends, the one the current values start
+        (ParameterError naming a bad parameter)."""
+        return self._new_block() if self.block is None else self.block
+
+    def _exchange_call(self):
+        """The block a model-exchange call reads; during initialization, the one the current values start."""
+        self.exchange = True
+        self.outputs_changed()
+        return self._block_now()
+
+    def set_time(self, time):
+        """The model's time (s); before initialization ends, the start time of both interfaces: ParameterError for
+        a time the block cannot take."""
+        if not math.isfinite(time):
+            raise ValueError(f"time = {time!r} s is out of range: allowed is a finite value")
+        if self.block is None:
+            self.time = self.start_time = float(time)
+        else:
+            self._exchange_call().set_time(time)
+            self.time = float(time)
+
+    def get_continuous_states(self):
+        return self._exchange_call().states()
+
+    def set_continuous_states(self, values):
+        if self.block is None:
+            raise RuntimeError("the continuous states are set after initialization; during it, set x_start and "
+                               "v_start")
+        self._exchange_call().set_states(values[0], values[1])
+
+    def continuous_state_derivatives(self):
+        """``[der(x), der(v)]`` (m/s, m/s2)."""
+        return self._exchange_call().derivatives()
+
+    def get_nominals_of_continuous_states(self, size=len(STATES)):
+        return self._exchange_call().nominals()
+
+    def get_event_indicators(self):
+        return self._exchange_call().indicators()
+
+    def update_discrete_states(self):
+        """The event update (:meth:`ExchangeBlock.update`): never another update needed, no nominals changed."""
+        changed = self._exchange_call().update()
+        return DiscreteUpdate(False, False, False, changed, False, 0.0)
+
+    # ---- FMU state -----------------------------------------------------------------
+
+    def exchange_state(self):
+        """The fields :data:`EXCHANGE_STATE_KINDS` of the FMU state: the block's snapshot, the time, the interface."""
+        block = None if self.block is None else self.block.snapshot()
+        return {"exchange": block, "time": self.time, "interface": self.exchange}
+
+    def restore_fmu_state(self, state, kinds):
+        """Undo to an FMU state ``{"block": BlockInterface.block_state(), **exchange_state(), ...}`` whose fields have
+        the kinds ``kinds``, each checked before any is taken (StateError or ParameterError naming the first out of
+        place or range; bytes that were no state: StateError); return its fields for the slave's own."""
+        check_state(state)
+        fields = saved_state.record("", state, kinds)
+        checked = self.checked_block_state(fields["block"])
+        saved = fields["exchange"]
+        block = None if saved is None else ExchangeBlock.from_snapshot(checked[3], saved)
+        self.take_block_state(checked)
+        self.time, self.exchange, self.block = fields["time"], fields["interface"], block
+        return fields
+
+
 def check_state(state):
     """Raise :class:`StateError` with the reason for a refused state (:func:`loader_binding.refusal`)."""
     reason = refusal(state)
@@ -423,8 +535,6 @@ def check_state(state):
 
 _BLOCK_STATE_KINDS = {"values": saved_state.NESTED, "start_time": saved_state.REAL, "trajectory": saved_state.NESTED,
                       "pending": saved_state.NESTED}
-#: The keys of :meth:`BlockInterface.block_state`.
-BLOCK_STATE_KEYS = tuple(_BLOCK_STATE_KINDS)
 _PENDING = frozenset(INPUTS + (F_EXT_RATE,))  # the names a state's inputs pending may hold
 
 

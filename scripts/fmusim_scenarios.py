@@ -1,6 +1,7 @@
 """The FMUs in fmusim, the Modelica Association's C simulator (Reference-FMUs v0.0.39, built by
-scripts/build_fmusim.sh): FMI 3 model exchange under fmusim's CVode (tolerances 1e-10 and 1e-6), FMI 3 and FMI 2
-co-simulation, on scenarios with constant inputs; prints max |x - reference| (m) on the scenario's output grid.
+scripts/build_fmusim.sh): FMI 3 model exchange under fmusim's CVode (tolerances 1e-10 and 1e-6), FMI 2 model exchange
+(1e-10), FMI 3 and FMI 2 co-simulation, on scenarios with constant inputs; prints max |x - reference| (m) on the
+scenario's output grid.
 
     python scripts/fmusim_scenarios.py FMUSIM SCENARIO_NAME...   (FMUs: dist/, built by `stickslip build`)
 """
@@ -26,6 +27,7 @@ for name in sys.argv[2:]:
     t_ref, x_ref = np.asarray(ref.t), np.asarray(ref.x)
     for label, fmu, args in (("fmi3-me cvode 1e-10", FMU3, ["--interface-type", "me", "--solver", "cvode", "--tolerance", "1e-10"]),
                              ("fmi3-me cvode 1e-6", FMU3, ["--interface-type", "me", "--solver", "cvode", "--tolerance", "1e-6"]),
+                             ("fmi2-me cvode 1e-10", FMU2, ["--interface-type", "me", "--solver", "cvode", "--tolerance", "1e-10"]),
                              ("fmi3-cs", FMU3, ["--interface-type", "cs"]), ("fmi2-cs", FMU2, ["--interface-type", "cs"])):
         points = sc.breakpoints()
         if len({(v, f) for _, v, f in points}) > 1:

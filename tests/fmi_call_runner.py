@@ -32,6 +32,13 @@ class Fmi2Callbacks(ctypes.Structure):
                 ("stepFinished", c_void_p), ("componentEnvironment", c_void_p)]
 
 
+class Fmi2EventInfo(ctypes.Structure):
+    """fmi2EventInfo"""
+    _fields_ = [("newDiscreteStatesNeeded", c_int), ("terminateSimulation", c_int),
+                ("nominalsOfContinuousStatesChanged", c_int), ("valuesOfContinuousStatesChanged", c_int),
+                ("nextEventTimeDefined", c_int), ("nextEventTime", c_double)]
+
+
 def _fmi2_signatures():
     """``{function: (restype, argtypes)}`` of the FMI 2 functions, as in fmi2FunctionTypes.h (c: fmi2Component)."""
     c, status = c_void_p, c_int
@@ -53,8 +60,15 @@ def _fmi2_signatures():
         "fmi2GetRealOutputDerivatives": (status, [c, VR, c_size_t, POINTER(c_int), POINTER(c_double)]),
         "fmi2DoStep": (status, [c, c_double, c_double, c_int]),
         "fmi2GetStatus": (status, [c, c_int, POINTER(c_int)]),
+        "fmi2SetTime": (status, [c, c_double]),
+        "fmi2NewDiscreteStates": (status, [c, POINTER(Fmi2EventInfo)]),
+        "fmi2CompletedIntegratorStep": (status, [c, c_int, POINTER(c_int), POINTER(c_int)]),
+        "fmi2SetContinuousStates": (status, [c, POINTER(c_double), c_size_t]),
     }
-    for name in ("EnterInitializationMode", "ExitInitializationMode", "Terminate", "Reset", "CancelStep"):
+    for name in ("GetContinuousStates", "GetDerivatives", "GetNominalsOfContinuousStates", "GetEventIndicators"):
+        out[f"fmi2{name}"] = (status, [c, POINTER(c_double), c_size_t])
+    for name in ("EnterInitializationMode", "ExitInitializationMode", "Terminate", "Reset", "CancelStep",
+                 "EnterEventMode", "EnterContinuousTimeMode"):
         out[f"fmi2{name}"] = (status, [c])
     for kind, ctype in typed.items():
         out[f"fmi2Get{kind}"] = (status, [c, VR, c_size_t, POINTER(ctype)])
@@ -330,6 +344,25 @@ def log_from_the_slave(b, c, before):
     return {message: int(status) for message, status in queued.items()}
 
 
+def exchange_round(b, c, boolean):
+    """Continuous-time mode of an initialized stuck block after its first event update: its states, nominals and
+    derivatives at t = 0; then t = 0.5 s, x = 0.05 m, v = 0.1 m/s: its indicators and an integrator step (``boolean``:
+    the version's Boolean type); event mode again. Returns what the calls gave."""
+    b(b.fn("EnterContinuousTimeMode"), c)
+    states, derivatives, nominals, indicators = (c_double * 2)(), (c_double * 2)(), (c_double * 2)(), (c_double * 3)()
+    b(b.fn("GetContinuousStates"), c, states, 2)
+    b(b.fn("GetNominalsOfContinuousStates"), c, nominals, 2)
+    b(b.fn("GetContinuousStateDerivatives"), c, derivatives, 2)
+    b(b.fn("SetTime"), c, 0.5)
+    b(b.fn("SetContinuousStates"), c, (c_double * 2)(0.05, 0.1), 2)
+    b(b.fn("GetEventIndicators"), c, indicators, 3)
+    flags = [boolean(True), boolean(True)]
+    b(b.fn("CompletedIntegratorStep"), c, True, *map(byref, flags))
+    b(b.fn("EnterEventMode"), c)
+    return {"states": list(states), "nominals": list(nominals), "derivatives": list(derivatives),
+            "indicators": list(indicators), "completed": [flag.value for flag in flags]}
+
+
 # ---- FMI 2 ----------------------------------------------------------------------------------------------------
 
 FMI2_DO_STEP_STATUS, FMI2_PENDING_STATUS, FMI2_LAST_SUCCESSFUL_TIME, FMI2_TERMINATED = range(4)
@@ -342,7 +375,8 @@ class Fmi2(Binary):
     TYPES = {"Real": c_double, "Integer": c_int, "Boolean": c_int, "String": c_char_p}
     NAMES = {"GetFMUState": "fmi2GetFMUstate", "SetFMUState": "fmi2SetFMUstate", "FreeFMUState": "fmi2FreeFMUstate",
              "SerializedFMUStateSize": "fmi2SerializedFMUstateSize", "SerializeFMUState": "fmi2SerializeFMUstate",
-             "DeserializeFMUState": "fmi2DeSerializeFMUstate"}
+             "DeserializeFMUState": "fmi2DeSerializeFMUstate", "GetContinuousStateDerivatives": "fmi2GetDerivatives",
+             "UpdateDiscreteStates": "fmi2NewDiscreteStates"}
 
     def __init__(self, folder):
         super().__init__(folder, "linux64", _fmi2_signatures())
@@ -355,11 +389,12 @@ class Fmi2(Binary):
         text = ctypes.string_at(first_argument) if message == b"%s" and first_argument else message
         self.received(status, category, text)
 
-    def instantiate(self, logging_on=False):
-        """A new co-simulation instance (fmi2Instantiate) or None."""
+    def instantiate(self, logging_on=False, interface="CoSimulation", label=None):
+        """A new instance of ``interface`` (fmi2Instantiate with fmuType fmi2CoSimulation or fmi2ModelExchange) or
+        None."""
         resources = (self.folder / "resources").as_uri().encode()
-        return self("fmi2Instantiate", b"calls", 1, self.description.guid.encode(), resources,
-                    byref(self.callbacks), 0, int(logging_on))
+        return self("fmi2Instantiate", b"calls", int(interface == "CoSimulation"), self.description.guid.encode(),
+                    resources, byref(self.callbacks), 0, int(logging_on), label=label)
 
     def initialize(self, c, values=(), after=""):
         """fmi2SetupExperiment, fmi2EnterInitializationMode, ``values`` set, fmi2ExitInitializationMode; the labels
@@ -373,6 +408,12 @@ class Fmi2(Binary):
     def do_step(self, c, t, h, label=None):
         """fmi2DoStep(t, h); no result (see fmi2GetRealStatus)."""
         self("fmi2DoStep", c, t, h, 1, label=label)
+
+    def update(self, c, label=None):
+        """fmi2NewDiscreteStates; returns its fmi2EventInfo's six fields."""
+        info = Fmi2EventInfo(1, 1, 1, 1, 1, -1.0)
+        self("fmi2NewDiscreteStates", c, byref(info), label=label)
+        return [getattr(info, name) for name, _ in Fmi2EventInfo._fields_]
 
 
 def fmi2_version(b):
@@ -427,9 +468,79 @@ def fmi2_log(b, logging_on, debug_logging_calls):
     return {"queued": queued}
 
 
+#: the model-exchange functions, each with the arguments of a stuck block's call (``values``: an array of 3)
+def fmi2_exchange_arguments(values, flags):
+    return {"fmi2EnterEventMode": (), "fmi2EnterContinuousTimeMode": (), "fmi2SetTime": (0.5,),
+            "fmi2SetContinuousStates": ((c_double * 2)(0.05, 0.1), 2), "fmi2GetContinuousStates": (values, 2),
+            "fmi2GetNominalsOfContinuousStates": (values, 2), "fmi2GetDerivatives": (values, 2),
+            "fmi2GetEventIndicators": (values, 3), "fmi2NewDiscreteStates": (byref(Fmi2EventInfo()),),
+            "fmi2CompletedIntegratorStep": (1, *map(byref, flags))}
+
+
+FMI2_EXCHANGE_ONLY = tuple(fmi2_exchange_arguments(None, [c_int(), c_int()]))
+
+
+def fmi2_cs_exchange_calls(b):
+    """The model-exchange functions with a stuck block's arguments on an initialized co-simulation instance: each
+    refused, and the next step's outputs are those of the co-simulation."""
+    c = b.initialized(STUCK)
+    arguments = fmi2_exchange_arguments((c_double * 3)(), [c_int(), c_int()])
+    for name in FMI2_EXCHANGE_ONLY:
+        b(name, c, *arguments[name], label=f"{name} in co-simulation")
+    b.do_step(c, 0.0, 0.5, label="fmi2DoStep after the refusal")
+    x = b.get(c, "Real", "x", label="fmi2GetReal after the refusal")
+    b("fmi2FreeInstance", c)
+    return {"x": x}
+
+
+def fmi2_model_exchange(b):
+    """Model exchange of a stuck block, as fmi3_model_exchange: event mode after initialization, continuous-time
+    mode, states, derivatives, nominals, indicators at t = 0.5 s, an integrator step, event mode again; then the
+    co-simulation calls on the model-exchange instance; terminate."""
+    c = b.initialized(STUCK, interface="ModelExchange")
+    first_update = b.update(c)
+    values = exchange_round(b, c, c_int)
+    second_update = b.update(c, label="fmi2NewDiscreteStates at t=0.5")
+    outputs = b.get(c, "Real", "x", "v", "t_stick", label="fmi2GetReal at t=0.5")
+    der = b.get(c, "Real", "der(x)", "der(v)", label="fmi2GetReal of der(x), der(v)")
+    b("fmi2DoStep", c, 0.5, 0.5, 1, label="fmi2DoStep in model exchange")
+    order, seed = (c_int * 1)(1), (c_double * 1)(1.0)
+    b("fmi2SetRealInputDerivatives", c, b.vrs("F_ext"), 1, order, seed,
+      label="fmi2SetRealInputDerivatives in model exchange")
+    b("fmi2GetRealOutputDerivatives", c, b.vrs("x"), 1, order, seed,
+      label="fmi2GetRealOutputDerivatives in model exchange")
+    b("fmi2Terminate", c, label="fmi2Terminate in model exchange")
+    b("fmi2FreeInstance", c)
+    return {"first_update": first_update, **values, "second_update": second_update, "outputs": outputs, "der": der}
+
+
+def fmi2_exchange_refusals(b):
+    """Refusals of a model-exchange instance: a mass out of range (fmi2GetDerivatives during initialization and
+    fmi2ExitInitializationMode), then, initialized, arrays of the wrong length, a non-finite time, a NULL array."""
+    c = b.instantiate(interface="ModelExchange", label="fmi2Instantiate of model exchange")
+    b("fmi2SetupExperiment", c, 0, 0.0, 0.0, 0, 0.0, label="fmi2SetupExperiment of model exchange")
+    b("fmi2EnterInitializationMode", c, label="fmi2EnterInitializationMode of model exchange")
+    b.set_values(c, {"M": -1.0}, label="fmi2SetReal of M = -1 kg")
+    values = (c_double * 5)()
+    b("fmi2GetDerivatives", c, values, 2, label="fmi2GetDerivatives with M = -1 kg")
+    b("fmi2ExitInitializationMode", c, label="fmi2ExitInitializationMode with M = -1 kg")
+    b("fmi2FreeInstance", c, label="fmi2FreeInstance of model exchange")
+    c = b.initialized(STUCK, interface="ModelExchange")
+    b("fmi2GetDerivatives", c, values, 5, label="fmi2GetDerivatives of nx = 5")
+    b("fmi2GetEventIndicators", c, values, 2, label="fmi2GetEventIndicators of ni = 2")
+    b("fmi2SetContinuousStates", c, values, 1, label="fmi2SetContinuousStates of nx = 1")
+    b("fmi2SetTime", c, float("nan"), label="fmi2SetTime of NaN")
+    b("fmi2GetContinuousStates", c, None, 2, label="fmi2GetContinuousStates into NULL")
+    b("fmi2SetContinuousStates", c, (c_double * 2)(float("inf"), 0.1), 2, label="fmi2SetContinuousStates of inf")
+    b("fmi2GetContinuousStates", c, values, 2, label="fmi2GetContinuousStates after the refusals")
+    b("fmi2FreeInstance", c, label="fmi2FreeInstance of model exchange")
+    return {"states": list(values)[:2]}
+
+
 FMI2_CASES = {"version": fmi2_version, "stuck_step": stuck_step, "reset": reset, "fmu_state": fmu_state,
               "boolean_string": lambda b: other_types(b, ("Boolean", "String")), "derivatives": fmi2_derivatives,
-              "status": fmi2_status, "log": fmi2_log}
+              "status": fmi2_status, "cs_exchange_calls": fmi2_cs_exchange_calls,
+              "model_exchange": fmi2_model_exchange, "exchange_refusals": fmi2_exchange_refusals, "log": fmi2_log}
 
 
 # ---- FMI 3 ----------------------------------------------------------------------------------------------------
@@ -598,27 +709,16 @@ def fmi3_model_exchange(b):
     derivatives, nominals, indicators at t = 0.5 s, an integrator step, event mode again; terminate."""
     c = b.initialized(STUCK, interface="ModelExchange")
     first_update = b.update(c)
-    b("fmi3EnterContinuousTimeMode", c)
     counts = [c_size_t(), c_size_t()]
     b("fmi3GetNumberOfContinuousStates", c, byref(counts[0]))
     b("fmi3GetNumberOfEventIndicators", c, byref(counts[1]))
-    states, derivatives, nominals, indicators = (c_double * 2)(), (c_double * 2)(), (c_double * 2)(), (c_double * 3)()
-    b("fmi3GetContinuousStates", c, states, 2)
-    b("fmi3GetNominalsOfContinuousStates", c, nominals, 2)
-    b("fmi3GetContinuousStateDerivatives", c, derivatives, 2)
-    b("fmi3SetTime", c, 0.5)
-    b("fmi3SetContinuousStates", c, (c_double * 2)(0.05, 0.1), 2)
-    b("fmi3GetEventIndicators", c, indicators, 3)
-    flags = [c_bool(True), c_bool(True)]
-    b("fmi3CompletedIntegratorStep", c, True, *map(byref, flags))
-    b("fmi3EnterEventMode", c)
+    values = exchange_round(b, c, c_bool)
     second_update = b.update(c, label="fmi3UpdateDiscreteStates at t=0.5")
     outputs = b.get(c, "Float64", "x", "v", "t_stick", label="fmi3GetFloat64 at t=0.5")
     b("fmi3Terminate", c)
     b("fmi3FreeInstance", c)
-    return {"first_update": first_update, "counts": [n.value for n in counts], "states": list(states),
-            "nominals": list(nominals), "derivatives": list(derivatives), "indicators": list(indicators),
-            "completed": [flag.value for flag in flags], "second_update": second_update, "outputs": outputs}
+    return {"first_update": first_update, "counts": [n.value for n in counts], **values,
+            "second_update": second_update, "outputs": outputs}
 
 
 def fmi3_log(b, logging_on, debug_logging_calls):

@@ -6,9 +6,10 @@ initialization at the start time ``START_JSON["start_time"]`` (default 0), set t
 initialization, then run the actions in order, each ``[name, *arguments]``:
 
 - ``["step", t_from, h]``: doStep from ``t_from`` by ``h`` s;
-- ``["time", t]``: fmi3SetTime (model exchange);
+- ``["time", t]``: fmi2SetTime / fmi3SetTime (model exchange);
 - ``["set", name, value]``: set a variable by name;
-- ``["update"]``: fmi3EnterEventMode, fmi3UpdateDiscreteStates, fmi3EnterContinuousTimeMode;
+- ``["update"]``: fmi<N>EnterEventMode, fmi2NewDiscreteStates / fmi3UpdateDiscreteStates,
+  fmi<N>EnterContinuousTimeMode;
 - ``["forge", path, value]``: serialize the current FMU state, set the field at ``path`` (a list of keys) in its
   JSON to ``value``, deserialize it and set it (value ``"nan"``, ``"inf"``, ``"-inf"`` for those floats).
 
@@ -73,7 +74,7 @@ def _act(inst, action):
         _setter(inst, arguments[0])(arguments[1])
     elif name == "update":
         inst.call(fmu.enterEventMode)
-        inst.call(fmu.updateDiscreteStates)
+        inst.call(fmu.newDiscreteStates if inst.extracted.fmi_version == 2 else fmu.updateDiscreteStates)
         inst.call(fmu.enterContinuousTimeMode)
     elif name == "forge":
         _forge(inst, *arguments)

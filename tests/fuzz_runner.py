@@ -20,7 +20,7 @@ import sys
 import threading
 from ctypes import byref, c_bool, c_char_p, c_double, c_size_t, c_void_p
 
-from fmi_call_runner import Fmi2, Fmi3
+from fmi_call_runner import Fmi2, Fmi2EventInfo, Fmi3
 
 #: doubles past the count a call was given: a call that writes beyond it changes them
 SENTINEL, SLACK = -12345.678, 4
@@ -46,12 +46,12 @@ class Sequence:
 
 
 def instantiate(s, variant="plain"):
-    """A new instance; ``variant``: "plain", "logging" (loggingOn), "me" (FMI 3 model exchange), "me-logging", "early"
-    (FMI 3 co-simulation with earlyReturnAllowed), "events" (with eventModeUsed as well)."""
+    """A new instance; ``variant``: "plain", "logging" (loggingOn), "me-plain" (model exchange), "me-logging",
+    "early" (FMI 3 co-simulation with earlyReturnAllowed), "events" (with eventModeUsed as well)."""
+    interface = "ModelExchange" if variant.startswith("me") else "CoSimulation"
     if s.b.PREFIX == "fmi2":
-        s.c = s.b.instantiate(logging_on=variant.endswith("logging"))
+        s.c = s.b.instantiate(logging_on=variant.endswith("logging"), interface=interface)
     else:
-        interface = "ModelExchange" if variant.startswith("me") else "CoSimulation"
         s.c = s.b.instantiate(interface, logging_on=variant.endswith("logging"), event_mode_used=variant == "events",
                               early_return=variant in ("early", "events"))
 
@@ -174,7 +174,7 @@ def plain(name):
     return lambda s: s.call(name)
 
 
-# ---- FMI 3: model exchange and event mode ---------------------------------------------------------------------
+# ---- model exchange (FMI 2 and 3) and event mode (FMI 3) --------------------------------------------------------
 
 
 def reals_out(s, name, n):
@@ -200,13 +200,19 @@ def counts(s):
 
 
 def update(s):
+    """fmi3UpdateDiscreteStates, fmi2NewDiscreteStates; the next event time if it says one is defined."""
+    if s.b.PREFIX == "fmi2":
+        info = Fmi2EventInfo(0, 0, 0, 0, 0, SENTINEL)
+        s.call("UpdateDiscreteStates", byref(info))
+        s.record({"nextEventTime": info.nextEventTime} if info.nextEventTimeDefined else {})
+        return
     flags, next_time = [c_bool() for _ in range(5)], c_double(SENTINEL)
     s.call("UpdateDiscreteStates", *map(byref, flags), byref(next_time))
     s.record({"nextEventTime": next_time.value} if flags[4].value else {})
 
 
 def completed(s, no_prior):
-    flags = [c_bool(), c_bool()]
+    flags = [ctypes.c_int(), ctypes.c_int()] if s.b.PREFIX == "fmi2" else [c_bool(), c_bool()]
     s.call("CompletedIntegratorStep", no_prior, *map(byref, flags))
 
 
@@ -218,7 +224,7 @@ OPERATIONS = {
     "debug_logging": set_debug_logging,
     # FMI 2
     "set_input_derivatives": set_input_derivatives, "get_output_derivatives": get_output_derivatives,
-    # FMI 3
+    # model exchange (counts: FMI 3 only)
     "set_time": set_time, "set_states": set_states, "counts": counts, "update": update, "completed": completed,
     "enter_event_mode": plain("EnterEventMode"), "enter_continuous_time_mode": plain("EnterContinuousTimeMode"),
     "enter_step_mode": plain("EnterStepMode"),

@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from fmi_call_runner import FMI3_EXCHANGE_ONLY, FMI3_OTHER_TYPES, FMI3_REFUSED
+from fmi_call_runner import FMI2_EXCHANGE_ONLY, FMI3_EXCHANGE_ONLY, FMI3_OTHER_TYPES, FMI3_REFUSED
 
 RUNNER = Path(__file__).with_name("fmi_call_runner.py")
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
@@ -55,11 +55,28 @@ FMI2_EXPECTED = {
         "fmi2GetBooleanStatus",  # fmi2Terminated: the slave never asks to terminate (fmi2False)
         "fmi2SetRealInputDerivatives",  # canInterpolateInputs = true: der(F_ext)
         "fmi2GetRealOutputDerivatives",  # maxOutputDerivativeOrder = 2: der(x)
+        "fmi2DoStep after the refusal", "fmi2GetReal after the refusal",
+        # model exchange (fmuType fmi2ModelExchange)
+        "fmi2NewDiscreteStates", "fmi2EnterContinuousTimeMode", "fmi2GetContinuousStates",
+        "fmi2GetNominalsOfContinuousStates", "fmi2GetDerivatives", "fmi2SetTime", "fmi2SetContinuousStates",
+        "fmi2GetEventIndicators", "fmi2CompletedIntegratorStep", "fmi2EnterEventMode", "fmi2NewDiscreteStates at t=0.5",
+        "fmi2GetReal at t=0.5", "fmi2GetReal of der(x), der(v)", "fmi2Terminate in model exchange",
+        *(f"fmi2{name} of model exchange" for name in ("Instantiate", "SetupExperiment", "EnterInitializationMode",
+                                                       "FreeInstance")),
+        "fmi2SetReal of M = -1 kg", "fmi2GetContinuousStates after the refusals",
     ], "ok"),
     **dict.fromkeys([
         "fmi2GetBoolean of a Real", "fmi2SetBoolean of a Real", "fmi2GetString of a Real", "fmi2SetString of a Real",
         "fmi2GetDirectionalDerivative",  # providesDirectionalDerivative is not set
         "fmi2CancelStep",  # only for an fmi2DoStep that returned fmi2Pending, which this FMU never does
+        *(f"{name} in co-simulation" for name in FMI2_EXCHANGE_ONLY),  # model-exchange functions
+        # the co-simulation functions on a model-exchange instance
+        *(f"fmi2{name} in model exchange" for name in ("DoStep", "SetRealInputDerivatives",
+                                                       "GetRealOutputDerivatives")),
+        # a mass out of range (during initialization), arrays of the wrong length, a non-finite time or state, NULL
+        "fmi2GetDerivatives with M = -1 kg", "fmi2ExitInitializationMode with M = -1 kg",
+        "fmi2GetDerivatives of nx = 5", "fmi2GetEventIndicators of ni = 2", "fmi2SetContinuousStates of nx = 1",
+        "fmi2SetTime of NaN", "fmi2GetContinuousStates into NULL", "fmi2SetContinuousStates of inf",
     ], "refused"),
     **dict.fromkeys([
         "fmi2GetStatus", "fmi2GetStringStatus",  # fmi2DoStepStatus, fmi2PendingStatus: no step is pending
@@ -188,7 +205,8 @@ def _log_case(setting):
 
 
 def _plain_cases(fmi_version):
-    names = {2: ("version", "stuck_step", "reset", "fmu_state", "boolean_string", "derivatives", "status"),
+    names = {2: ("version", "stuck_step", "reset", "fmu_state", "boolean_string", "derivatives", "status",
+                 "cs_exchange_calls", "model_exchange", "exchange_refusals"),
              3: ("version", "cs_stuck_step", "reset", "fmu_state", "other_types", "refused", "modes",
                  "cs_exchange_calls", "model_exchange", "event_mode")}
     return names[fmi_version]
@@ -274,14 +292,14 @@ def test_no_case_crashes_or_hangs_the_process(results, fmi_version, name):
     case(results, fmi_version, name)
 
 
-@pytest.mark.parametrize("fmi_version, count", [(2, 34), (3, 75)])
+@pytest.mark.parametrize("fmi_version, count", [(2, 44), (3, 75)])
 def test_the_cases_call_every_exported_function_and_no_other(results, unzipped, unzipped3, fmi_version, count):
     """A function the binary exports that no case calls, or a case calling one it does not export, fails."""
     binary = binary_path(unzipped if fmi_version == 2 else unzipped3, fmi_version)
     called = {call["function"] for record in results[fmi_version].values() for call in record.get("calls", [])}
     exported = exported_functions(binary)
     assert called == exported, (sorted(exported - called), sorted(called - exported))
-    assert len(exported) == count  # FMI 2 co-simulation: 34 functions; FMI 3: all 75 of fmi3Functions.h
+    assert len(exported) == count  # FMI 2 co-simulation and model exchange: all 44; FMI 3: all 75 of fmi3Functions.h
 
 
 @pytest.mark.parametrize("fmi_version", [2, 3])
@@ -355,17 +373,53 @@ def test_after_refused_calls_the_instance_steps_as_before(results, fmi_version, 
         assert values["step"] == [False, False, False, H]
 
 
-def test_fmi3_co_simulation_refuses_the_model_exchange_calls_and_its_outputs_survive_them(results):
-    """FMI 3.0 section 2.3: the model-exchange functions are "not allowed in Co-Simulation": each is refused with a
-    message naming it and why; fmi3SetTime(0.5) and fmi3SetContinuousStates(x = 0.05 m) change nothing, so one
-    step of H from t = 0 gives the stuck block's x = x_start + v_drive H."""
-    record = case(results, 3, "cs_exchange_calls")
-    for name in FMI3_EXCHANGE_ONLY:
+#: FMI version: (its model-exchange functions, why each is refused on a co-simulation instance)
+EXCHANGE_REFUSALS = {
+    2: (FMI2_EXCHANGE_ONLY, "(the instance was made by fmi2Instantiate with fmuType = fmi2CoSimulation)"),
+    3: (FMI3_EXCHANGE_ONLY, "(FMI 3.0: not allowed in co-simulation; the instance was made by "
+                            "fmi3InstantiateCoSimulation)"),
+}
+
+
+@pytest.mark.parametrize("fmi_version", [2, 3])
+def test_co_simulation_refuses_the_model_exchange_calls_and_its_outputs_survive_them(results, fmi_version):
+    """FMI 3.0 section 2.3, and FMI 2 alike: the model-exchange functions are "not allowed in Co-Simulation": each
+    is refused with a message naming it and why; fmi<N>SetTime(0.5) and fmi<N>SetContinuousStates(x = 0.05 m)
+    change nothing, so one step of H from t = 0 gives the stuck block's x = x_start + v_drive H."""
+    record = case(results, fmi_version, "cs_exchange_calls")
+    names, why = EXCHANGE_REFUSALS[fmi_version]
+    for name in names:
         [call] = calls(record, f"{name} in co-simulation")
         assert call["result"] == ERROR and [message[2] for message in call["messages"]] == [
-            f"{name} is not allowed for a co-simulation instance: it is a model-exchange function (FMI 3.0: not "
-            "allowed in co-simulation; the instance was made by fmi3InstantiateCoSimulation)"], call
+            f"{name} is not allowed for a co-simulation instance: it is a model-exchange function {why}"], call
     assert record["values"]["x"] == pytest.approx([X_START + V_DRIVE * H], rel=0, abs=EXACT)
+
+
+def test_fmi2_model_exchange_of_the_stuck_block_answers_as_fmi3(results):
+    """The FMI 2 FMU's model exchange gives the FMI 3 FMU's states, nominals, derivatives, indicators, integrator
+    step and event updates, bit for bit; der(x) and der(v) read as variables are the derivatives."""
+    fmi2, fmi3 = case(results, 2, "model_exchange")["values"], case(results, 3, "model_exchange")["values"]
+    for name in ("states", "nominals", "derivatives", "indicators", "outputs"):
+        assert fmi2[name] == fmi3[name], name
+    for name in ("completed", "first_update", "second_update"):  # fmi2Boolean ints, fmi3Boolean bools; the flags
+        assert [bool(a) for a in fmi2[name][:5]] == fmi3[name][:5], name  # (nextEventTime: not defined)
+    assert fmi2["der"] == [V_DRIVE, 0.0]
+
+
+def test_fmi2_model_exchange_refusals_name_the_value_and_its_range(results):
+    """A mass out of range is refused in model exchange as in co-simulation, naming M and its range; arrays of the
+    wrong length name the array and the FMU's count; the instance keeps its states through the refusals."""
+    record = case(results, 2, "exchange_refusals")
+    wanted = {"fmi2GetDerivatives with M = -1 kg": "M = -1.0 kg is out of range: allowed is a finite value in (0, inf)",
+              "fmi2ExitInitializationMode with M = -1 kg": "M = -1.0 kg is out of range",
+              "fmi2GetDerivatives of nx = 5": "nx = 5, but this FMU has 2 continuous states",
+              "fmi2GetEventIndicators of ni = 2": "ni = 2, but this FMU has 3 event indicators",
+              "fmi2SetTime of NaN": "time = nan s is out of range: allowed is a finite value",
+              "fmi2SetContinuousStates of inf": "x = inf m is out of range"}
+    for label, text in wanted.items():
+        [call] = calls(record, label)
+        assert call["result"] == ERROR and any(text in message[2] for message in call["messages"]), call
+    assert record["values"]["states"] == [X_START, V_DRIVE]
 
 
 def test_fmi2_status_inquiries_after_a_completed_step(results):

@@ -94,12 +94,15 @@ def test_spec_variables_with_units_and_declared_types(fmu_path):
 
 def test_capabilities_structure_and_default_experiment(fmu_path):
     description = fmpy.read_model_description(str(fmu_path))
-    cs = description.coSimulation
-    assert cs.modelIdentifier == "SpringBlockFriction"
-    assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
+    cs, me = description.coSimulation, description.modelExchange
+    assert cs.modelIdentifier == me.modelIdentifier == "SpringBlockFriction"  # one binary, both interfaces
+    assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate and me.canGetAndSetFMUstate and me.canSerializeFMUstate
     outputs = {v.name for v in description.modelVariables if v.causality == "output"}
     assert {u.variable.name for u in description.outputs} == outputs
-    assert {u.variable.name for u in description.initialUnknowns} == outputs
+    derivatives = [u.variable for u in description.derivatives]
+    assert [(d.name, d.derivative.name) for d in derivatives] == [("der(x)", "x"), ("der(v)", "v")]
+    assert description.numberOfEventIndicators == 3
+    assert {u.variable.name for u in description.initialUnknowns} == outputs | {"der(x)", "der(v)"}
     experiment = description.defaultExperiment
     assert (experiment.startTime, experiment.stopTime, experiment.tolerance) == ("0.0", "100.0", "1e-10")
 

@@ -1,7 +1,7 @@
 """A fuzzer of FMI call sequences and values (issue 20): hypothesis draws sequences of FMI calls, in legal and
 illegal orders, with values from the variables' ranges and edge values (0, +-tiny, subnormals, +-huge, nan,
-inf), for the FMI 2 co-simulation FMU (with its input and output derivatives), the FMI 3 FMU's co-simulation and
-model exchange, and the coupling FMU (``ChainCoupling.fmu``).
+inf), for the FMI 2 FMU's co-simulation (with its input and output derivatives) and model exchange, the FMI 3 FMU's
+co-simulation and model exchange, and the coupling FMU (``ChainCoupling.fmu``).
 
 The sequences run in a child process (``fuzz_runner.py``, ctypes with the standard's signatures), one child per
 interface kept for many sequences; a sequence that crashes or hangs it is run again alone in a new child (with
@@ -118,7 +118,9 @@ class Worker:
 RANGE = re.compile(r"allowed|range|[\[(]\s*[-+\w.]+\s*,\s*[-+\w.]+\s*[\])]|valueReference|value reference")
 FUNCTION = re.compile(r"\bfmi[23][A-Z]\w+")
 ARGUMENT = re.compile(r"FMU state|resource location|instance name|GUID|instantiation token|log categor")
-PYTHON_CALL = re.compile(r"^\[\w+\]\s*")  # the loader's "[setReal] " prefix of a slave exception names no cause
+# the loader's "[setReal] " prefix of a slave exception names no cause (the library's method); "[fmi2SetTime] " does (the
+# FMI function the loader answered through the slave)
+PYTHON_CALL = re.compile(r"^\[(?!fmi[23])\w+\]\s*")
 
 
 def names_a_cause(text, variables):
@@ -261,8 +263,9 @@ def start_arguments():
     return st.tuples(st.booleans(), number, start, st.booleans(), number).map(list)
 
 
-def me_call(now):
-    """A model-exchange call at ``now`` (the latest time set): a time, states, the arrays read, the mode changes."""
+def me_call(now, version=3):
+    """A model-exchange call at ``now`` (the latest time set): a time, states, the arrays read, the mode changes (and
+    the counts, in FMI 3)."""
     reads = st.tuples(st.sampled_from(["read GetContinuousStates", "read GetContinuousStateDerivatives",
                                        "read GetNominalsOfContinuousStates"]), st.sampled_from((2, 2, 2, 0, 1, 3)))
     indicators = st.tuples(st.just("read GetEventIndicators"), st.sampled_from((3, 3, 3, 0, 2, 4)))
@@ -273,7 +276,8 @@ def me_call(now):
         st.lists(state, min_size=2, max_size=2).map(lambda x: ["set_states", x]),
         st.lists(state, max_size=3).map(lambda x: ["set_states", x]),
         reads.map(list), indicators.map(list), st.booleans().map(lambda b: ["completed", b]),
-        st.sampled_from([["update"], ["enter_event_mode"], ["enter_continuous_time_mode"], ["counts"]]))
+        st.sampled_from([["update"], ["enter_event_mode"], ["enter_continuous_time_mode"]]
+                        + ([["counts"]] if version == 3 else [])))
 
 
 def derivative_call(model, version=2):
@@ -303,7 +307,8 @@ def any_call(model, version, now):
     if version == 2:
         calls += [start_arguments().map(lambda a: ["setup_experiment", *a]), derivative_call(model)]
     else:
-        calls += [me_call(now), derivative_call(model, 3), st.just(["enter_step_mode"])]
+        calls += [derivative_call(model, 3), st.just(["enter_step_mode"])]
+    calls.append(me_call(now, version))
     return st.one_of(calls)
 
 
@@ -311,7 +316,7 @@ def running_call(model, version, interface, now):
     """A call of a running instance: mostly steps (co-simulation) or model-exchange calls, inputs and outputs."""
     usual = [model.set_call(model.inputs), model.get_call(), state_call(), derivative_call(model, version)]
     if interface == "me":
-        usual += [me_call(now)] * 3
+        usual += [me_call(now, version)] * 3
     else:
         usual += [time_step(now).map(lambda th: ["step", *th])] * 3
     if version == 3 and interface == "cs":  # event mode of an instance made with eventModeUsed, or refused
@@ -346,8 +351,8 @@ def sequences(draw, model, version, interface):
 # ---- the test ------------------------------------------------------------------------------------------------
 
 #: target: (FMI version, interface, the session's fixture of the FMU extracted)
-TARGETS = {"fmi2-cs": (2, "cs", "unzipped"), "fmi3-cs": (3, "cs", "unzipped3"), "fmi3-me": (3, "me", "unzipped3"),
-           "coupling-cs": (2, "cs", "unzipped_coupling")}
+TARGETS = {"fmi2-cs": (2, "cs", "unzipped"), "fmi2-me": (2, "me", "unzipped"), "fmi3-cs": (3, "cs", "unzipped3"),
+           "fmi3-me": (3, "me", "unzipped3"), "coupling-cs": (2, "cs", "unzipped_coupling")}
 
 
 @pytest.fixture(scope="module")
@@ -425,6 +430,18 @@ FOUND = {
         "coupling-cs", [INSTANCE, ["enter_initialization"], ["set", "kc_left", 1e308], ["exit_initialization"],
                         ["set", "x_left", 10.0], ["set", "x", -10.0], ["get", ["F"]]], "fmi2GetReal", ERROR,
         "F = inf N is not finite"),
+    "fmi2GetReal of x after a model-exchange call during initialization (AttributeError of None)": (
+        "fmi2-me", [["instantiate", "me-plain"], ["enter_initialization"], ["read GetContinuousStates", 2],
+                    ["get", ["x", "der(v)"]]], "fmi2GetReal", OK, None),
+    "fmi3GetFloat64 of x after a model-exchange call during initialization (AttributeError of None)": (
+        "fmi3-me", [MODEL_EXCHANGE, ["enter_initialization"], ["read GetContinuousStates", 2], ["get", ["x"]]],
+        "fmi3GetFloat64", OK, None),
+    "fmi2GetDerivatives of 3": (
+        "fmi2-me", [["instantiate", "me-plain"], *INITIALIZED, ["read GetContinuousStateDerivatives", 3]],
+        "fmi2GetDerivatives", ERROR, "fmi2GetDerivatives: nx = 3, but this FMU has 2 continuous states"),
+    "fmi2GetEventIndicators on a co-simulation instance": (
+        "fmi2-cs", [INSTANCE, *INITIALIZED, ["read GetEventIndicators", 3]], "fmi2GetEventIndicators", ERROR,
+        "fmi2GetEventIndicators is not allowed for a co-simulation instance: it is a model-exchange function"),
     "fmi3GetFloat64 of der(x) and an indicator before initialization (AttributeError of None)": (
         "fmi3-cs", [INSTANCE, ["get", ["der(x)", "der(v)", "indicator.breakaway"]]], "fmi3GetFloat64", OK, None),
 }

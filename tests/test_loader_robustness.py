@@ -167,11 +167,16 @@ def test_a_null_name_or_a_wrong_token_is_null_with_a_message(extracted, argument
     assert [message.format(token=token, guid=run["guid"][0]) in text for text in errors(run)] == [True]
 
 
-def test_fmi2_model_exchange_is_refused(unzipped):
-    run = probe(unzipped[0], 'say("instance", instantiate(interface="me"))')
-    assert run["instance"] == [None]
-    assert errors(run) == ["fmi2Instantiate: this FMU offers co-simulation only (fmuType = fmi2CoSimulation, 1), "
-                           "not fmuType = 0 (fmi2ModelExchange)"]
+def test_an_fmi2_fmu_type_the_fmu_does_not_offer_is_refused(unzipped, unzipped_coupling):
+    """The block's FMU makes model-exchange instances (its model description has <ModelExchange>), the coupling FMU
+    does not; an fmuType that is neither is refused by both."""
+    case = 'say("me", instantiate(interface="me") is not None)\nsay("other", instantiate(interface=2))'
+    block, coupling = probe(unzipped[0], case), probe(unzipped_coupling[0], case)
+    assert block["me"] == [True] and block["other"] == [None] and coupling["other"] == [None]
+    assert errors(block) == ["fmi2Instantiate: fmuType = 2 is neither fmi2ModelExchange (0) nor fmi2CoSimulation (1)"]
+    assert coupling["me"] == [False]
+    assert errors(coupling) == [f"fmi2Instantiate: this FMU offers co-simulation only (fmuType = fmi2CoSimulation, "
+                                f"1), not fmuType = {code}" for code in ("0 (fmi2ModelExchange)", "2")]
 
 
 def test_a_bad_resource_location_in_the_c_host_returns(extracted, request):

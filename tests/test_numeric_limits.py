@@ -361,16 +361,19 @@ STEPPED = [["step", 0.0, 11.5]]
 
 
 @pytest.mark.parametrize("interface, fmi, path, value, text", [
-    ("cs", 2, ["trajectory", "t"], 1e300, "saved state t = 1e+300 s"),
-    ("cs", 2, ["trajectory", "segment", 5], "inf", "saved state segment (harmonic).x0 = inf"),
-    ("cs", 2, ["values", "kinetic.gamma"], "nan", "kinetic.gamma = nan N s/m is out of range"),
-    ("cs", 2, ["start_time"], "nan", "saved state start_time = nan"),
+    ("cs", 2, ["block", "trajectory", "t"], 1e300, "saved state t = 1e+300 s"),
+    ("cs", 2, ["block", "trajectory", "segment", 5], "inf", "saved state segment (harmonic).x0 = inf"),
+    ("cs", 2, ["block", "values", "kinetic.gamma"], "nan", "kinetic.gamma = nan N s/m is out of range"),
+    ("cs", 2, ["block", "start_time"], "nan", "saved state start_time = nan"),
     ("cs", 3, ["block", "trajectory", "v_drive"], "-inf", "saved state v_drive = -inf"),
     ("cs", 3, ["time"], "inf", "saved state time = inf"),
     ("me", 3, ["exchange", "_x"], 1e300, "kappa * |saved state x| = 1e+300 N"),
     ("me", 3, ["exchange", "t_stuck"], "nan", "saved state t_stuck = nan"),
+    ("me", 2, ["exchange", "_x"], 1e300, "kappa * |saved state x| = 1e+300 N"),
+    ("me", 2, ["exchange", "t_stuck"], "nan", "saved state t_stuck = nan"),
+    ("me", 2, ["time"], "inf", "saved state time = inf"),
 ], ids=["fmi2-t", "fmi2-segment-x0", "fmi2-unused-law-value", "fmi2-start-time", "fmi3-cs-v_drive", "fmi3-cs-time",
-        "fmi3-me-x", "fmi3-me-t_stuck"])
+        "fmi3-me-x", "fmi3-me-t_stuck", "fmi2-me-x", "fmi2-me-t_stuck", "fmi2-me-time"])
 def test_forged_fmu_state_is_refused_by_field_and_the_instance_goes_on(fmu_path, fmu3_path, interface, fmi, path,
                                                                        value, text):
     """A well-formed serialized FMU state holding a non-finite or overflowing value: fmi2Error/fmi3Error from

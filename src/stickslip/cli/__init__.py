@@ -26,8 +26,9 @@ def add_run(subparsers):
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default: 2)")
     p.add_argument("--fmu", help="FMU to test (default: dist/SpringBlockFriction.fmu, built if missing or stale)")
     p.add_argument("--interface", choices=("cs", "me"),
-                   help="test the FMI 3 FMU (--fmu, default dist/SpringBlockFriction-fmi3.fmu) through co-simulation "
-                        "or model exchange (FMPy's CVode, tolerances from each scenario's [model_exchange])")
+                   help="test the FMU of --fmu (default: the FMI 3 FMU dist/SpringBlockFriction-fmi3.fmu) through "
+                        "co-simulation or model exchange (FMPy's CVode, tolerances from each scenario's "
+                        "[model_exchange]); the FMI 2 FMU has both too")
     p.set_defaults(handler=_run)
 
 

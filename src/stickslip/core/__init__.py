@@ -14,6 +14,7 @@ IMPLEMENTATION = _select(__name__, _os.path.dirname(__file__))
 
 from . import saved_state
 from .errors import ParameterError, SolverError, StateError, StickSlipError
+from .exchange import INDICATORS, ExchangeBlock
 from .laws import (
     KINETIC_LAWS,
     STATIC_LAWS,
@@ -35,7 +36,7 @@ from .ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, check
 from .trajectory import OUTPUT_NAMES, RTOL_RANGE, Trajectory
 
 __all__ = [
-    "ANY_FINITE", "BACKWARD", "FORWARD", "IMPLEMENTATION", "NON_NEGATIVE", "POSITIVE", "STUCK", "KINETIC_LAWS",
+    "ANY_FINITE", "BACKWARD", "FORWARD", "IMPLEMENTATION", "INDICATORS", "ExchangeBlock", "NON_NEGATIVE", "POSITIVE", "STUCK", "KINETIC_LAWS",
     "OUTPUT_NAMES", "STATIC_LAWS",
     "CallableKinetic", "CallableStatic", "Constant", "Coulomb", "Logarithmic", "Lubricated",
     "Parameters", "ParameterError", "RTOL_RANGE", "Saturating", "Sigmoid", "SolverError", "StateError",

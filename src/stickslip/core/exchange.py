@@ -71,6 +71,7 @@ from .model import (
 )
 from .ranges import ANY_FINITE, check
 from .stuck import breakaway_delay
+from .trajectory import OUTPUT_NAMES
 
 INACTIVE = 1.0  # value of an event indicator in the modes where it does not apply (never crosses zero)
 LEAVING = 2.0 ** -52  # of an indicator's nominal: its value at a zero where the mode lasts (module docstring)
@@ -270,6 +271,11 @@ class ExchangeBlock:
     def n_steps(self):
         """The host's solver takes the steps: 0."""
         return 0
+
+    def outputs(self):
+        """Every output named in :data:`.trajectory.OUTPUT_NAMES`, in that order, as
+        :meth:`.trajectory.Trajectory.outputs` gives them."""
+        return tuple(getattr(self, name) for name in OUTPUT_NAMES)
 
     # ---- save and restore --------------------------------------------------------
 

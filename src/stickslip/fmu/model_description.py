@@ -3,8 +3,9 @@
 The libraries write names, causalities and start values. :func:`complete` adds what an importer needs: units
 and declared types, the enumeration types of the law selectors (their codes as items, so that a tool offers the
 laws by name), the bounds the slave checks (``min``/``max``), a DefaultExperiment and, for FMI 2, the
-ModelStructure's Outputs and InitialUnknowns; and it replaces the libraries' random GUID and the time of the
-build by values that depend on the sources alone (:func:`stickslip.fmu.archive.identity`).
+ModelStructure's Outputs, Derivatives and InitialUnknowns and the ModelExchange element's capabilities; and it
+replaces the libraries' random GUID and the time of the build by values that depend on the sources alone
+(:func:`stickslip.fmu.archive.identity`).
 """
 
 from xml.etree import ElementTree as ET
@@ -51,6 +52,7 @@ def complete(xml, units, bounds, fmi_version, guid, generated=None, dependencies
         used = _annotate(variables, units, bounds, enumerations, lambda variable: variable[0])
         _insert_definitions(root, used, enumerations, _add_simple_type, _add_fmi2_enumeration)
         _fmi2_structure(root.find("ModelStructure"), variables, dependencies or {})
+        _fmi2_exchange_capabilities(root)
     else:
         used = _annotate(variables, units, bounds, enumerations, lambda variable: variable)
         for old in root.findall("UnitDefinitions") + root.findall("TypeDefinitions"):
@@ -128,15 +130,36 @@ def _add_fmi3_enumeration(type_definitions, name, items):
     _add_items(ET.SubElement(type_definitions, "EnumerationType", name=name), items)
 
 
+#: the capabilities FMI 2's ModelExchange element shares with its CoSimulation element
+SHARED_CAPABILITIES = ("needsExecutionTool", "canBeInstantiatedOnlyOncePerProcess", "canGetAndSetFMUstate",
+                       "canSerializeFMUstate")
+
+
+def _fmi2_exchange_capabilities(root):
+    """A ModelExchange element (an FMI 2 FMU that offers both interfaces through one binary) takes the capabilities
+    :data:`SHARED_CAPABILITIES` of the CoSimulation element, which the library's builder wrote."""
+    exchange, co_simulation = root.find("ModelExchange"), root.find("CoSimulation")
+    if exchange is None:
+        return
+    for name in SHARED_CAPABILITIES:
+        if co_simulation.get(name) is not None:
+            exchange.set(name, co_simulation.get(name))
+
+
 def _fmi2_structure(structure, variables, dependencies):
     """FMI 2's ModelStructure: every output in Outputs and InitialUnknowns; its direct dependencies on inputs in
-    Outputs where ``dependencies`` names them, else omitted (it may depend on every input)."""
+    Outputs where ``dependencies`` names them, else omitted (it may depend on every input); for model exchange,
+    every state derivative (a Real with a ``derivative`` attribute) in Derivatives and InitialUnknowns."""
     structure.clear()
     index = {v.get("name"): str(i) for i, v in enumerate(variables, start=1)}
     outputs = [v.get("name") for v in variables if v.get("causality") == "output"]
-    for section in ("Outputs", "InitialUnknowns"):
+    derivatives = [v.get("name") for v in variables if v.find("Real") is not None and v.find("Real").get("derivative")]
+    sections = {"Outputs": outputs, "Derivatives": derivatives, "InitialUnknowns": outputs + derivatives}
+    for section, names in sections.items():
+        if section == "Derivatives" and not names:
+            continue
         node = ET.SubElement(structure, section)
-        for name in outputs:
+        for name in names:
             unknown = ET.SubElement(node, "Unknown", index=index[name])
             if section == "Outputs" and name in dependencies:
                 unknown.set("dependencies", " ".join(index[source] for source in dependencies[name]))

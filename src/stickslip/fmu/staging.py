@@ -88,7 +88,7 @@ FMI3_LOADER = LoaderModule("springblockfriction3_", _LIBRARY_ON_PATH + (
     '    """The slave (fmu_slave), named where pythonfmu3 looks for it."""\n'))
 #: the slave package's ``__init__.py`` (``{runtime}``: the runtime's package). A process may have imported the
 #: runtime's package from another FMU of the same runtime, whose files a host may have removed since: a module it
-#: imports later (``exchange``, which only the FMI 3 slave needs) is then found in this FMU's copy.
+#: imports later (one the other FMU's slave never imported) is then found in this FMU's copy.
 SLAVE_PACKAGE_INIT = (
     '"""The FMU\'s slave and the variable table it shares; this FMU\'s copy of the runtime first on its path."""\n\n'
     "import os\n\nimport {runtime}\n\n"

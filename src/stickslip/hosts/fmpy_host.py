@@ -1,5 +1,5 @@
-"""Host the SpringBlockFriction FMUs under FMPy: FMI 2.0 co-simulation, FMI 3.0 co-simulation and model exchange,
-with one error type (:class:`FMUError`) and one log.
+"""Host the SpringBlockFriction FMUs under FMPy: co-simulation and model exchange of FMI 2.0 and FMI 3.0, with one
+error type (:class:`FMUError`) and one log.
 
 - :class:`ExtractedFMU`: an FMU file read and extracted once: its model description, its variables by name and
   the start values of its parameters and inputs. :meth:`~ExtractedFMU.new_instance` makes an :class:`Instance`
@@ -32,7 +32,7 @@ from ctypes import byref
 
 import fmpy
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Fatal
+from fmpy.fmi2 import FMU2Model, FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Fatal
 from fmpy.fmi3 import FMU3Model, FMU3Slave, fmi3Fatal, fmi3LogMessageCallback
 from fmpy.logging import addLoggerProxy
 
@@ -42,7 +42,7 @@ from .interrupts import count as interrupt_count
 
 #: interface: (FMPy's fmi_type, the model description's attribute, FMI 2 class, FMI 3 class)
 INTERFACES = {"cs": ("CoSimulation", "coSimulation", FMU2Slave, FMU3Slave),
-              "me": ("ModelExchange", "modelExchange", None, FMU3Model)}
+              "me": ("ModelExchange", "modelExchange", FMU2Model, FMU3Model)}
 #: FMI version: the status ``Fatal``
 FATAL = {2: fmi2Fatal, 3: fmi3Fatal}
 #: FMI status code: its name
@@ -107,8 +107,8 @@ def messages_since(mark, instance_name):
 
 
 class Instance:
-    """One instance of an :class:`ExtractedFMU` (``extracted``): FMPy's object ``fmu`` (FMU2Slave, FMU3Slave or
-    FMU3Model), logging into the process log under ``name``.
+    """One instance of an :class:`ExtractedFMU` (``extracted``): FMPy's object ``fmu`` (FMU2Slave, FMU2Model,
+    FMU3Slave or FMU3Model), logging into the process log under ``name``.
 
     ``fatal`` is set once a call reported ``Fatal``; :meth:`free` then leaves the instance alone (see the module
     text). Use as a context manager to free it at the end.
@@ -214,14 +214,14 @@ class ExtractedFMU:
 
     def new_instance(self, name=None, interface="cs", logging_on=True, fmi_call_logger=None, event_mode_used=False,
                      early_return_allowed=False):
-        """A new instance (``fmi2Instantiate``, ``fmi3InstantiateCoSimulation`` or
-        ``fmi3InstantiateModelExchange`` for ``interface`` "cs" or "me") named ``name`` (default: a new name),
-        logging into the process log; FMUError if the FMU has no such interface. ``event_mode_used``,
-        ``early_return_allowed``: fmi3InstantiateCoSimulation's eventModeUsed and earlyReturnAllowed (FMI 3
-        co-simulation only)."""
+        """A new instance (``fmi2Instantiate`` with fmuType fmi2CoSimulation or fmi2ModelExchange,
+        ``fmi3InstantiateCoSimulation`` or ``fmi3InstantiateModelExchange``, for ``interface`` "cs" or "me") named
+        ``name`` (default: a new name), logging into the process log; FMUError if the FMU has no such interface.
+        ``event_mode_used``, ``early_return_allowed``: fmi3InstantiateCoSimulation's eventModeUsed and
+        earlyReturnAllowed (FMI 3 co-simulation only)."""
         _, attribute, *classes = INTERFACES[interface]
         cls = classes[self.fmi_version - 2]
-        if cls is None or getattr(self.model_description, attribute) is None:
+        if getattr(self.model_description, attribute) is None:
             raise FMUError(f"the FMI {self.fmi_version} FMU {self.model_description.modelName} has no "
                            f"{'model exchange' if interface == 'me' else 'co-simulation'}")
         name = name or f"run{next(_INSTANCE_NUMBERS)}"
@@ -264,7 +264,7 @@ def run_fmu(fmu_path, start_values, stop_time, output_interval, interface=None, 
     """Simulate the FMU at ``fmu_path`` from t = 0 to ``stop_time`` s, sampled every ``output_interval`` s.
 
     ``interface``: "cs" (co-simulation: the FMU's own exact stepper, communication step ``output_interval``;
-    the default) or "me" (FMI 3 model exchange under FMPy's CVode at relative tolerance ``rtol``, outputs at
+    the default) or "me" (model exchange, FMI 2 or 3, under FMPy's CVode at relative tolerance ``rtol``, outputs at
     the grid points only). ``start_values``: {FMU variable name: value}. ``input_signal``: a numpy structured
     array with fields ``time`` and any of ``v_drive``, ``F_ext`` (interpolated linearly, applied at the start
     of each step and held during it). ``outputs``: names to record (default: all outputs).

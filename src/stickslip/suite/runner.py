@@ -46,8 +46,8 @@ class SuiteResult:
 def simulate(scenario, fmu_path, interface=None):
     """Run the FMU and the reference for ``scenario``: ``(fmu_result, ref_result, fmu_s, ref_s)``.
 
-    ``interface``: None for the FMI 2 FMU; "cs" or "me" for the FMI 3 FMU's co-simulation (driven as the
-    FMI 2 one) or model exchange (FMPy's CVode at the scenario's ``model_exchange.rtol``, the inputs held
+    ``interface``: None for the FMI 2 FMU's co-simulation; "cs" for the FMI 3 FMU's (driven as the FMI 2 one);
+    "me" for either FMU's model exchange (FMPy's CVode at the scenario's ``model_exchange.rtol``, the inputs held
     between the breakpoints the co-simulation sees, so the reference is the same).
 
     The reference's laws are its own, built from the scenario file's numbers (``scenario.law_values``).
@@ -106,9 +106,10 @@ def run_suite(paths, out_dir, jobs=2, fmu_path=None, interface=None):
     """Run the scenarios in ``paths`` (files or directories) with ``jobs`` worker processes.
 
     ``fmu_path``: the FMU to test; by default ``dist/SpringBlockFriction.fmu``, built
-    if missing or stale (an explicit path is used as it is). ``interface`` "cs" or "me" tests the
-    FMI 3 FMU (default ``dist/SpringBlockFriction-fmi3.fmu``, built if missing or stale) through that
-    interface; None (default) the FMU at ``fmu_path`` through the interface it has (FMI 2: co-simulation).
+    if missing or stale (an explicit path is used as it is). ``interface`` "cs" or "me" tests the FMU at
+    ``fmu_path`` (default: the FMI 3 FMU ``dist/SpringBlockFriction-fmi3.fmu``, built if missing or stale)
+    through that interface (an FMI 2 FMU's "cs" is its default); None (default) the FMU at ``fmu_path`` through
+    co-simulation.
 
     Writes the per-scenario files and ``report.md`` into ``out_dir``, prints a summary
     within 100 columns (:func:`~stickslip.suite.report.console_summary`), and returns a :class:`SuiteResult` (``.ok`` is False if any
@@ -177,14 +178,17 @@ def _run_task(task):
 
 
 def interface_of(fmu_path, interface):
-    """The interface to drive: None for an FMI 2 FMU, "cs" or "me" for an FMI 3 one (its default: "cs").
+    """The interface to drive: None for an FMI 2 FMU's co-simulation, "cs" for an FMI 3 one's (its default), "me"
+    for either's model exchange.
 
     Without ``fmu_path``, ``interface`` None means the default FMI 2 FMU and "cs"/"me" the default FMI 3 one.
     """
     if fmu_path is None:
         return interface
-    if read_model_description(fmu_path, needs=(*OUTPUTS, *variables.START_VALUES)).fmiVersion.startswith("3"):
+    description = read_model_description(fmu_path, needs=(*OUTPUTS, *variables.START_VALUES))
+    if interface == "me" and description.modelExchange is None:
+        raise StickSlipError(f"{fmu_path} is an FMI {description.fmiVersion} co-simulation FMU: it has no model "
+                             f"exchange")
+    if description.fmiVersion.startswith("3"):
         return interface or "cs"
-    if interface == "me":
-        raise StickSlipError(f"{fmu_path} is an FMI 2 co-simulation FMU: it has no model exchange")
-    return None
+    return "me" if interface == "me" else None

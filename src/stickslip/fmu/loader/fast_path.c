@@ -342,14 +342,19 @@ static int derivatives_answer(PyObject *result, const char *function, size_t n, 
     return 1;
 }
 
+/* 1 (`why` saying so) if no slave is bound to answer `function` */
+static int unbound(const sbf_fast_path *fast, const char *function, char *why, size_t why_size)
+{
+    if (fast->slave) return 0;
+    snprintf(why, why_size, "%s: not available: the slave did not bind to this library (a CPython without the "
+             "functions the loader calls, or the inner library's own binary)", function);
+    return 1;
+}
+
 int sbf_slave_derivatives(sbf_fast_path *fast, const char *function, const char *method, const unsigned *vr, size_t n,
                           const int *order, double *values, int writes, char *why, size_t why_size)
 {
-    if (!fast->slave) {
-        snprintf(why, why_size, "%s: not available: the slave did not bind to this library (a CPython without the "
-                 "functions the loader calls, or the inner library's own binary)", function);
-        return 1;
-    }
+    if (unbound(fast, function, why, why_size)) return 1;
     int gil = py.PyGILState_Ensure();
     PyObject *references, *orders, *given = NULL, *result = NULL;
 #define REFERENCE(i) py.PyLong_FromLong((long)vr[i])
@@ -365,6 +370,26 @@ int sbf_slave_derivatives(sbf_fast_path *fast, const char *function, const char 
         result = py.PyObject_CallMethod(fast->slave, method, writes ? "(OOO)" : "(OO)", references, orders, given);
     int outcome = derivatives_answer(result, function, n, values, writes, why, why_size);
     PyObject *held[] = {references, orders, given, result};
+    for (size_t i = 0; i < sizeof held / sizeof *held; ++i)
+        if (held[i]) py.Py_DecRef(held[i]);
+    py.PyGILState_Release(gil);
+    return outcome;
+}
+
+/* ---- model exchange (FMI 2) ---- */
+
+int sbf_slave_exchange(sbf_fast_path *fast, const char *function, const double *in, size_t n_in, size_t count,
+                       double *out, size_t n_out, char *why, size_t why_size)
+{
+    if (unbound(fast, function, why, why_size)) return 1;
+    int gil = py.PyGILState_Ensure();
+    PyObject *given, *result = NULL;
+#define VALUE(i) py.PyFloat_FromDouble(in[i])
+    NEW_TUPLE(given, n_in, VALUE);
+#undef VALUE
+    if (given) result = py.PyObject_CallMethod(fast->slave, "model_exchange", "(sOn)", function, given, (ptrdiff_t)count);
+    int outcome = derivatives_answer(result, function, n_out, out, 0, why, why_size);
+    PyObject *held[] = {given, result};
     for (size_t i = 0; i < sizeof held / sizeof *held; ++i)
         if (held[i]) py.Py_DecRef(held[i]);
     py.PyGILState_Release(gil);

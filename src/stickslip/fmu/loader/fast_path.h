@@ -17,8 +17,9 @@
  * The outputs are the very values the slave's getters answer (the same conversions as the inner library's),
  * so results do not depend on which path a call takes. Where the slave offers nothing (a pythonfmu binary
  * without this loader's symbol, a CPython without the functions below) or SBF_FAST_PATH=0 is in the environment,
- * every step and read goes the inner library's way. The input and output derivatives, which the inner library
- * lacks, go to the bound slave's methods either way (sbf_slave_derivatives).
+ * every step and read goes the inner library's way. The input and output derivatives and FMI 2's model exchange,
+ * which the inner library lacks, go to the bound slave's methods either way (sbf_slave_derivatives,
+ * sbf_slave_exchange).
  */
 #ifndef SBF_FAST_PATH_H
 #define SBF_FAST_PATH_H
@@ -75,6 +76,14 @@ int sbf_fast_integers(sbf_fast_path *fast, const unsigned *vr, size_t n, int *va
  * exception as "[<function>] <repr>" in `why`). Needs a bound slave, whether or not the fast path steps. */
 int sbf_slave_derivatives(sbf_fast_path *fast, const char *function, const char *method, const unsigned *vr, size_t n,
                           const int *order, double *values, int writes, char *why, size_t why_size);
+
+/* The FMI 2 model-exchange call `function` (fmi2GetDerivatives...), which the inner library lacks, answered by the
+ * bound slave's model_exchange(function, values, count) (fmu_src/SpringBlockFriction.py): `in[0..n_in)` the numbers
+ * the host gave, `count` the length of the call's array, the `n_out` numbers the slave answers into out[0..n_out).
+ * 0 if done; 1 if refused, with the slave's exception as "[<function>] <repr>" in `why` (no Python exception is
+ * left pending). Needs a bound slave, whether or not the fast path steps. */
+int sbf_slave_exchange(sbf_fast_path *fast, const char *function, const double *in, size_t n_in, size_t count,
+                       double *out, size_t n_out, char *why, size_t why_size);
 
 /* fmi3DoStep with early return: the bound slave's step_to_event (fmu_src/SpringBlockFriction_fmi3.py) from `t` by
  * `h` (s), `event_mode`: the instance uses event mode (the event is left for sbf_slave_apply_events). 0 with the time

@@ -1,4 +1,5 @@
-/* The FMI 2 FMU's linux64 binary: an FMI 2.0 co-simulation front for PythonFMU's binary.
+/* The FMI 2 FMU's linux64 binary: an FMI 2.0 front (co-simulation, and model exchange where the FMU declares it) for
+ * PythonFMU's binary.
  *
  * PythonFMU's binary (shipped beside this one as SBF_INNER_LIBRARY) leaves every Py* symbol unresolved
  * and so loads only inside a Python process. This library needs nothing but libc: on the first
@@ -7,6 +8,11 @@
  * FORWARDED). PythonFMU logs only when its debug logging is on, errors included; it is therefore always
  * instantiated with logging on, and this library filters: warnings, discards, errors and fatals always
  * reach the host's logger, other messages only as the host asked (loggingOn, fmi2SetDebugLogging categories).
+ * PythonFMU has no model exchange: built with SBF_MODEL_EXCHANGE (an FMU whose model description has <ModelExchange>),
+ * this library makes a model-exchange instance from a PythonFMU co-simulation instance and answers the
+ * model-exchange calls through the slave's binding (sbf_slave_exchange), as it answers the input and output
+ * derivatives; the model-exchange functions are refused on a co-simulation instance, and the co-simulation ones on a
+ * model-exchange instance, with a message naming the call.
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -27,6 +33,11 @@ typedef char fmi2Byte;
 typedef enum { fmi2OK, fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pending } fmi2Status;
 typedef enum { fmi2ModelExchange, fmi2CoSimulation } fmi2Type;
 typedef enum { fmi2DoStepStatus, fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated } fmi2StatusKind;
+typedef struct {
+    fmi2Boolean newDiscreteStatesNeeded, terminateSimulation, nominalsOfContinuousStatesChanged,
+        valuesOfContinuousStatesChanged, nextEventTimeDefined;
+    fmi2Real nextEventTime;
+} fmi2EventInfo;
 typedef void (*fmi2CallbackLogger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, ...);
 typedef struct {
     fmi2CallbackLogger logger;
@@ -107,7 +118,7 @@ static struct {
 /* ---- one instance ---- */
 typedef struct {
     fmi2Component inner;
-    sbf_mode mode; /* where FMI 2.0's co-simulation state machine is */
+    sbf_mode mode; /* where FMI 2.0's co-simulation state machine is, or SBF_EXCHANGING */
     fmi2CallbackFunctions host;   /* the importer's callbacks */
     fmi2CallbackFunctions relay;  /* handed to PythonFMU: logs through relay_log */
     char *name;
@@ -179,13 +190,17 @@ static int instantiable(Instance *inst, fmi2String name, fmi2Type type, fmi2Stri
         host_log(inst, fmi2Error, why);
         return 0;
     }
-    if (type != fmi2CoSimulation) {
-        snprintf(why, sizeof why, "fmi2Instantiate: this FMU offers co-simulation only (fmuType = fmi2CoSimulation, "
-                 "1), not fmuType = %d%s", (int)type, type == fmi2ModelExchange ? " (fmi2ModelExchange)" : "");
-        host_log(inst, fmi2Error, why);
-        return 0;
-    }
-    return 1;
+#ifdef SBF_MODEL_EXCHANGE
+    if (type == fmi2ModelExchange || type == fmi2CoSimulation) return 1;
+    snprintf(why, sizeof why, "fmi2Instantiate: fmuType = %d is neither fmi2ModelExchange (0) nor fmi2CoSimulation (1)",
+             (int)type);
+#else
+    snprintf(why, sizeof why, "fmi2Instantiate: this FMU offers co-simulation only (fmuType = fmi2CoSimulation, "
+             "1), not fmuType = %d%s", (int)type, type == fmi2ModelExchange ? " (fmi2ModelExchange)" : "");
+    if (type == fmi2CoSimulation) return 1;
+#endif
+    host_log(inst, fmi2Error, why);
+    return 0;
 }
 
 EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
@@ -214,7 +229,9 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
     sbf_keep_thread_state();
     sbf_call_begin();
     sbf_fast_binding(&inst->fast);
-    inst->inner = inner.fmi2Instantiate(name, type, guid, path, &inst->relay, visible, 1);
+    /* a model-exchange instance is PythonFMU's co-simulation instance, the model-exchange calls answered here */
+    inst->mode = type == fmi2ModelExchange ? SBF_EXCHANGING : SBF_INSTANTIATED;
+    inst->inner = inner.fmi2Instantiate(name, fmi2CoSimulation, guid, path, &inst->relay, visible, 1);
     sbf_fast_binding(NULL);
     sbf_call_end();
     if (!inst->inner) {
@@ -282,7 +299,8 @@ STATE_USED(FORWARD)
 /* `status` of a call that moves the instance `c` to `mode` when it succeeds */
 static fmi2Status moved(fmi2Component c, fmi2Status status, sbf_mode mode)
 {
-    if (c && status <= fmi2Warning) ((Instance *)c)->mode = mode;
+    Instance *inst = c;
+    if (inst && inst->mode != SBF_EXCHANGING && status <= fmi2Warning) inst->mode = mode;
     return status;
 }
 
@@ -360,8 +378,10 @@ static fmi2Status derivatives(fmi2Component c, const char *function, const char 
         host_log(c, fmi2Error, why);
         return fmi2Error;
     }
-    if (inst->mode == SBF_TERMINATED) {
-        snprintf(why, sizeof why, "%s: not allowed after fmi2Terminate", function);
+    if (inst->mode == SBF_TERMINATED || inst->mode == SBF_EXCHANGING) {
+        snprintf(why, sizeof why, "%s: not allowed %s", function,
+                 inst->mode == SBF_TERMINATED ? "after fmi2Terminate"
+                                              : "for a model-exchange instance: it is a co-simulation function");
         host_log(c, fmi2Error, why);
         return fmi2Error;
     }
@@ -392,3 +412,95 @@ EXPORT fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueR
 
 SBF_DESERIALIZE(fmi2Status, fmi2Error, fmi2Warning, fmi2Byte, fmi2DeSerializeFMUstate, forward_fmi2DeSerializeFMUstate,
                 fmi2SerializedFMUstateSize, fmi2SerializeFMUstate, fmi2FreeFMUstate)
+
+/* ---- model exchange ---- */
+
+/* 1 (and a logged error naming `function`) unless `c` is a model-exchange instance */
+static int refused_in_co_simulation(fmi2Component c, const char *function)
+{
+    char why[512];
+    if (c && ((Instance *)c)->mode == SBF_EXCHANGING) return 0;
+    if (!c) return 1;
+    snprintf(why, sizeof why, "%s is not allowed for a co-simulation instance: it is a model-exchange function (the "
+             "instance was made by fmi2Instantiate with fmuType = fmi2CoSimulation)", function);
+    host_log(c, fmi2Error, why);
+    return 1;
+}
+
+/* The model-exchange call `function` answered by the slave (sbf_slave_exchange): `n_in` numbers given, `count` the
+ * length of the call's array, `n_out` numbers answered; refused on a co-simulation instance or for a NULL array. */
+static fmi2Status exchanged(fmi2Component c, const char *function, const double *in, size_t n_in, size_t count,
+                            double *out, size_t n_out)
+{
+    char why[4096];
+    Instance *inst = c;
+    if (refused_in_co_simulation(c, function)) return fmi2Error;
+    if ((n_in && !in) || (n_out && !out)) {
+        snprintf(why, sizeof why, "%s: a NULL array for %zu values", function, n_in + n_out);
+        host_log(c, fmi2Error, why);
+        return fmi2Error;
+    }
+    sbf_keep_thread_state();
+    sbf_call_begin();
+    sbf_fast_forward(&inst->fast, 1);
+    int outcome = sbf_slave_exchange(&inst->fast, function, in, n_in, count, out, n_out, why, sizeof why);
+    sbf_call_end();
+    if (outcome == 0) return fmi2OK;
+    host_log(c, fmi2Error, why);
+    return fmi2Error;
+}
+
+EXPORT fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) { return exchanged(c, "fmi2SetTime", &time, 1, 0, NULL, 0); }
+
+EXPORT fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx)
+{
+    return exchanged(c, "fmi2SetContinuousStates", x, nx, nx, NULL, 0);
+}
+
+/* The exported model-exchange getter `name` of an array of `n` numbers */
+#define ARRAY_GETTER(name, n)                                                    \
+    EXPORT fmi2Status name(fmi2Component c, fmi2Real values[], size_t n)         \
+    {                                                                            \
+        return exchanged(c, #name, NULL, 0, n, values, n);                       \
+    }
+ARRAY_GETTER(fmi2GetContinuousStates, nx)
+ARRAY_GETTER(fmi2GetDerivatives, nx)
+ARRAY_GETTER(fmi2GetNominalsOfContinuousStates, nx)
+ARRAY_GETTER(fmi2GetEventIndicators, ni)
+#undef ARRAY_GETTER
+
+/* The mode changes need nothing of the slave: the event update is fmi2NewDiscreteStates */
+EXPORT fmi2Status fmi2EnterEventMode(fmi2Component c)
+{
+    return refused_in_co_simulation(c, "fmi2EnterEventMode") ? fmi2Error : fmi2OK;
+}
+
+EXPORT fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c)
+{
+    return refused_in_co_simulation(c, "fmi2EnterContinuousTimeMode") ? fmi2Error : fmi2OK;
+}
+
+EXPORT fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *info)
+{
+    double answer[6];
+    if (refused_in_co_simulation(c, "fmi2NewDiscreteStates")) return fmi2Error;
+    if (!info) return exchanged(c, "fmi2NewDiscreteStates", NULL, 0, 0, NULL, 1); /* refused: a NULL fmi2EventInfo */
+    fmi2Status status = exchanged(c, "fmi2NewDiscreteStates", NULL, 0, 0, answer, 6);
+    if (status > fmi2Warning) return status;
+    *info = (fmi2EventInfo){answer[0] != 0.0, answer[1] != 0.0, answer[2] != 0.0, answer[3] != 0.0, answer[4] != 0.0,
+                            answer[5]};
+    return status;
+}
+
+EXPORT fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean noSetFMUStatePriorToCurrentPoint,
+                                              fmi2Boolean *enterEventMode, fmi2Boolean *terminateSimulation)
+{
+    double answer[2];
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (refused_in_co_simulation(c, "fmi2CompletedIntegratorStep")) return fmi2Error;
+    if (!enterEventMode || !terminateSimulation)
+        return exchanged(c, "fmi2CompletedIntegratorStep", NULL, 0, 0, NULL, 2); /* refused: a NULL argument */
+    fmi2Status status = exchanged(c, "fmi2CompletedIntegratorStep", NULL, 0, 0, answer, 2);
+    if (status <= fmi2Warning) *enterEventMode = answer[0] != 0.0, *terminateSimulation = answer[1] != 0.0;
+    return status;
+}

@@ -68,17 +68,24 @@ def model_token(model_description, fmi_version):
     return ElementTree.fromstring(model_description).get("guid" if fmi_version == 2 else "instantiationToken")
 
 
-def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, token=""):
+def offers_model_exchange(model_description):
+    """True if the bytes of a ``modelDescription.xml`` declare model exchange (a ModelExchange element)."""
+    return ElementTree.fromstring(model_description).find("ModelExchange") is not None
+
+
+def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, token="", model_exchange=False):
     """Compile the Linux loader of ``fmi_version`` to ``dest``, forwarding to ``inner_name`` beside it and accepting
     the GUID or instantiation token ``token`` only, and the start guard beside ``dest`` (``START_GUARD_NAME``);
-    None on success, else why not."""
+    ``model_exchange``: an FMI 2 loader that makes model-exchange instances (the inner library has none, the slave
+    answers them); None on success, else why not."""
     compiler = os.environ.get("CC") or "cc"
     if shutil.which(compiler) is None:
         return f"no C compiler ({compiler!r} not found; set CC)"
     path, soname = build_libpython()
     command = [
         compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o", str(dest),
-        *_loader_sources(fmi_version, "linux"), *_loader_defines(inner_name, token, slave_survives_release, soname),
+        *_loader_sources(fmi_version, "linux"),
+        *_loader_defines(inner_name, token, slave_survives_release, soname, model_exchange and fmi_version == 2),
         f"-DSBF_START_GUARD={_c_string(START_GUARD_NAME)}", f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
         "-ldl", "-lpthread"]
     guard = [compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o",
@@ -86,7 +93,7 @@ def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, toke
     return _run_compiler(compiler, (command, guard))
 
 
-def compile_windows_loader(dest, inner_name, slave_survives_release, fmi_version=2, token=""):
+def compile_windows_loader(dest, inner_name, slave_survives_release, fmi_version=2, token="", model_exchange=False):
     """Cross-compile the Windows (x86_64) loader of ``fmi_version`` to ``dest`` (arguments as
     :func:`compile_loader`), linked statically (it needs only Windows' own kernel32.dll and msvcrt.dll); None on
     success, else why not."""
@@ -97,7 +104,7 @@ def compile_windows_loader(dest, inner_name, slave_survives_release, fmi_version
     # no time stamp, a fixed image base: the same sources give the same bytes in any folder
     command = [compiler, "-O2", "-shared", "-static", "-s", "-Wl,--no-insert-timestamp,--disable-auto-image-base",
                "-o", str(dest), *_loader_sources(fmi_version, "windows"),
-               *_loader_defines(inner_name, token, slave_survives_release, soname)]
+               *_loader_defines(inner_name, token, slave_survives_release, soname, model_exchange and fmi_version == 2)]
     return _run_compiler(compiler, (command,))
 
 
@@ -105,10 +112,11 @@ def _loader_sources(fmi_version, platform):
     return [str(FRONTS[fmi_version][0]), str(RUNTIME[0]), str(RUNTIME[2]), str(PLATFORMS[platform])]
 
 
-def _loader_defines(inner_name, token, slave_survives_release, soname):
+def _loader_defines(inner_name, token, slave_survives_release, soname, model_exchange):
     return [f"-DSBF_INNER_LIBRARY={_c_string(inner_name)}", f"-DSBF_TOKEN={_c_string(token)}",
             f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}"] + (
-        ["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else [])
+        ["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else []) + (
+        ["-DSBF_MODEL_EXCHANGE"] if model_exchange else [])
 
 
 def _run_compiler(compiler, commands):
@@ -136,7 +144,7 @@ def install(fmu_path, model_identifier, slave_survives_release=False, fmi_versio
     fmu_path = Path(fmu_path)
     entries = read_entries(fmu_path)
     token = model_token(entries["modelDescription.xml"], fmi_version)
-    arguments = (slave_survives_release, fmi_version, token)
+    arguments = (slave_survives_release, fmi_version, token, offers_model_exchange(entries["modelDescription.xml"]))
     with tempfile.TemporaryDirectory(prefix="sbf_loader_") as tmp:
         installed = _install_linux(entries, Path(tmp), model_identifier, arguments)
         _install_windows(entries, Path(tmp), model_identifier, arguments)
