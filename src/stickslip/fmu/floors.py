@@ -5,12 +5,15 @@ the versions of it whose symbols the binary uses, e.g. ``GLIBC_2.34`` of ``libc.
 
 :func:`fmu_floors` measures an FMU's entries; :func:`dependencies_text` is the FMU's
 ``documentation/externalDependencies.txt`` (the FMI 2.0.3 / 3.0 place for what the host must provide), which the
-builder writes from them. Only the standard library: no binutils needed.
+builder writes from them, with the Windows DLLs' needs from :mod:`stickslip.fmu.windows_needs`. Only the standard
+library: no binutils needed.
 """
 
 import re
 import struct
 from dataclasses import dataclass
+
+from .windows_needs import windows_needs, windows_text
 
 #: the file the FMI standards name for the FMU's external dependencies
 DEPENDENCIES_FILE = "documentation/externalDependencies.txt"
@@ -130,12 +133,14 @@ def _needed(data, order, offset, size, strings):
 class FmuFloors:
     """The measured needs of an FMU's ELF binaries: ``binaries`` ({archive name: :class:`BinaryNeeds`}),
     ``libpython`` (the CPython library name compiled into the loaders, or None) and ``compiled_for`` (the CPython
-    versions, e.g. ("3.11", "3.13"), its compiled extension modules are built for, oldest first); ``others``: the
-    archive names of its binaries for other platforms (not ELF)."""
+    versions, e.g. ("3.11", "3.13"), its compiled extension modules are built for, oldest first); ``windows``: the
+    needs of its Windows DLLs ({archive name: :class:`~stickslip.fmu.windows_needs.WindowsNeeds`}); ``others``:
+    the archive names of its binaries for other platforms (neither ELF nor DLL)."""
 
     binaries: dict
     libpython: str | None
     compiled_for: tuple
+    windows: dict
     others: tuple
 
     def floors(self):
@@ -151,9 +156,13 @@ class FmuFloors:
 
 def fmu_floors(entries):
     """The :class:`FmuFloors` of an FMU's ``entries`` ({archive name: bytes}): every ``.so`` under ``binaries/``
-    and ``resources/`` (NotELF if one is no ELF shared object)."""
+    and ``resources/`` (NotELF if one is no ELF shared object), every ``.dll`` under ``binaries/`` (NotPE if one is no
+    PE binary)."""
     binaries, libpython, compiled_for = {}, None, set()
-    others = tuple(name for name in sorted(entries) if name.startswith("binaries/") and not name.endswith(".so"))
+    windows = {name: windows_needs(entries[name]) for name in sorted(entries)
+               if name.startswith("binaries/") and name.endswith(".dll")}
+    others = tuple(name for name in sorted(entries)
+                   if name.startswith("binaries/") and not name.endswith((".so", ".dll")))
     for name in sorted(entries):
         if name.endswith(".so") and name.startswith(("binaries/", "resources/")):
             binaries[name] = binary_needs(entries[name])
@@ -161,7 +170,8 @@ def fmu_floors(entries):
             libpython = libpython or (found[0].decode() if found else None)
             abi = EXTENSION_ABI.search(name)
             compiled_for |= {(int(abi[1]), int(abi[2]))} if abi else set()
-    return FmuFloors(binaries, libpython, tuple(f"{major}.{minor}" for major, minor in sorted(compiled_for)), others)
+    return FmuFloors(binaries, libpython, tuple(f"{major}.{minor}" for major, minor in sorted(compiled_for)),
+                     windows, others)
 
 
 def dependencies_text(model_name, floors):
@@ -179,8 +189,8 @@ def dependencies_text(model_name, floors):
     for name, needs in floors.binaries.items():
         newest_names = ", ".join(found for found, _ in sorted(needs.floors().values())) or "no versioned symbols"
         lines.append(f"{name}: {', '.join(needs.libraries) or 'no libraries'}; {newest_names}")
-    lines += [f"{name}: not a Linux binary; not covered by this file" for name in floors.others]
-    return "\n".join(lines) + "\n"
+    lines += [f"{name}: neither a Linux nor a Windows binary; not covered by this file" for name in floors.others]
+    return "\n".join(lines) + "\n" + ("\n" + windows_text(model_name, floors.windows) if floors.windows else "")
 
 
 def _python_need(floors):
