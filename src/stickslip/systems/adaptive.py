@@ -296,7 +296,9 @@ class _Run:
             delta = times[1] - times[0]
             change = max(float(np.max(np.abs(attempt.X - X))), float(np.max(np.abs(attempt.V - V))) * delta)
             attempt.sweeps += 1
-            unswept = attempt.sweeps == 1 and np.any(~slipping & ~settled)  # a hold had an event: swept next
+            # with early return: a hold that had an event is swept before the attempt converges (the cubic predictor
+            # can make the first sweep's change tiny on a short step)
+            unswept = self.blocks.early_return and attempt.sweeps == 1 and np.any(~slipping & ~settled)
             attempt.converged = change <= floor and not unswept
             attempt.error = self._estimate(attempt, residual, slipping)
             if attempt.error > 4.0 * self.tol * (T - self.t):
@@ -389,7 +391,7 @@ class _Run:
             return False
         change = float(np.max(np.abs(forces - last)))
         unchanged = change * (attempt.T - self.t) ** 2 / self.M[i] <= 0.1 * floor
-        self.stats["sweeps of a block skipped"] += unchanged
+        self.stats["sweeps of a block skipped"] += int(unchanged)
         return unchanged
 
     def _forces(self, attempt):
