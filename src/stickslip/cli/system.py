@@ -20,8 +20,8 @@ def add_system(subparsers):
     run.add_argument("file", metavar="FILE.toml", help=FILE_HELP)
     run.add_argument("--master", required=True, choices=sorted(MASTER_NAMES),
                      help="zoh: fixed step, held inputs (FMI 2 co-simulation); me: FMI 3 model exchange of all "
-                          "blocks in one solver; adaptive: FMI 2 co-simulation with events landed, step rejection and "
-                          "iterated coupling")
+                          "blocks in one solver; adaptive: FMI 2 co-simulation (--fmi 3: FMI 3 with early return) "
+                          "with events landed, step rejection and iterated coupling")
     run.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     run.add_argument("--step", type=step_seconds,
                      help="zoh: communication step in s (default: the file's output_interval)")

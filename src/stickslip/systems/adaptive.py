@@ -27,6 +27,13 @@ another block's event first brackets that one) until the event lies within ``EVE
 (after ``MAX_REDOS`` tries the last one is kept and counted). A step never ends just before an event: a slipping
 block whose ``v_rel`` has crossed zero by less than its FMU's event location would start the next step on the
 wrong side (a spurious overshoot). Every communication point of the output grid is one.
+
+With ``fmi=3`` the blocks are instances of the FMI 3 FMU made with ``earlyReturnAllowed``: a block's ``doStep``
+that returns early at an event more than ``EVENT_TOL`` before the step's end (after the first sweep) stops the
+attempt, which is redone to end on that event; the sweeps are Gauss-Seidel (the stuck blocks first), a block whose
+forces did not change since it was last stepped in the attempt is not stepped again, and the first sweep's
+waveforms are cubic (each slipping block's ``d2v/dt2`` from ``fmi3GetOutputDerivatives``). The FMI 2 scheme is
+the one above.
 """
 
 import dataclasses
@@ -53,7 +60,8 @@ _READ_INT = ("mode", "n_events")
 
 class AdaptiveMaster:
     """Tolerance ``rtol`` (default ``DEFAULT_RTOL``): the estimated error per second of simulated time, as a
-    fraction of the chain's length scale (largest ``F_S / kappa`` of its blocks)."""
+    fraction of the chain's length scale (largest ``F_S / kappa`` of its blocks). ``fmi``: the FMU it runs, 2
+    (default) or 3 (with early return; see the module text)."""
 
     NAME = "adaptive"
     FMI_VERSION = 2
