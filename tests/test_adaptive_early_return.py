@@ -1,6 +1,6 @@
 """The ``adaptive`` master on the FMI 3 FMU (``fmi=3``, ``--fmi 3``): early return from ``fmi3DoStep`` at each
-block's event, Gauss-Seidel sweeps, the output derivatives' cubic predictor, against the chain's reference; the
-choice of the FMU and its errors. The FMI 2 scheme is held by ``tests/test_systems.py``."""
+block's event, blocks whose forces did not change not stepped again, the output derivatives' cubic predictor,
+against the chain's reference; the choice of the FMU and its errors. The FMI 2 scheme is held by ``tests/test_systems.py``."""
 
 import numpy as np
 import pytest

@@ -30,8 +30,8 @@ wrong side (a spurious overshoot). Every communication point of the output grid 
 
 With ``fmi=3`` the blocks are instances of the FMI 3 FMU made with ``earlyReturnAllowed``: a block's ``doStep``
 that returns early at an event more than ``EVENT_TOL`` before the step's end (after the first sweep) stops the
-attempt, which is redone to end on that event; the sweeps are Gauss-Seidel (the stuck blocks first), a block whose
-forces did not change since it was last stepped in the attempt is not stepped again, and the first sweep's
+attempt, which is redone to end on that event; a block whose forces did not change since it was last stepped in
+the attempt is not stepped again, and the first sweep's
 waveforms are cubic (each slipping block's ``d2v/dt2`` from ``fmi3GetOutputDerivatives``). The FMI 2 scheme is
 the one above.
 """
@@ -318,27 +318,19 @@ class _Run:
     def _sweep(self, attempt, slipping, settled, floor):
         """Step every block not ``settled`` (updated: True for a block stuck at ``t`` that stayed stuck without an
         event) once over ``attempt``; return the force residuals (:meth:`_forces`) of the waveforms before it.
-        FMI 2: Jacobi (every block's forces from the waveforms before the sweep). With early return (FMI 3):
-        Gauss-Seidel, the stuck blocks first, each block's forces from its neighbours' waveforms as they are when
-        it is stepped; a block whose forces did not change is not stepped again (:meth:`_unchanged`)."""
+        Jacobi: every block's forces from the waveforms before the sweep. With early return (FMI 3), a block whose
+        forces did not change is not stepped again (:meth:`_unchanged`)."""
         c1, c2, f_start, residual = self._forces(attempt)
-        order, moved = np.flatnonzero(~settled), np.zeros(self.system.n, bool)
-        if self.blocks.early_return:
-            order = sorted(order, key=lambda i: bool(slipping[i]))
-        for i in order:
+        for i in np.flatnonzero(~settled):
             if slipping[i] or attempt.sweeps > 0:
-                if self.blocks.early_return and np.any(moved & (self.K[i] != 0.0)):
-                    c1, c2, f_start, _ = self._forces(attempt)
-                    moved[:] = False
                 used = np.concatenate([c1[i], c2[i]]) if slipping[i] else f_start[i]
                 if not self._unchanged(i, attempt, used, floor):
                     self.blocks.restore(i)
                     self._sweep_block(i, attempt, c1[i], c2[i] if slipping[i] else f_start[i], slipping[i])
-                    attempt.forces[i], moved[i] = used, True
+                    attempt.forces[i] = used
             else:  # its motion does not depend on the force: stepped again only after an event
                 self.blocks.restore(i)
                 settled[i] = self._hold_block(i, attempt, f_start[i, 0])
-                moved[i] = True
         return residual
 
     def _predicted_acceleration(self):
