@@ -34,10 +34,12 @@ def test_order_is_the_slope_of_the_log_error():
 
 
 def test_the_command_reports_consistent_numbers(tmp_path):
-    """chain2 over 12 s (two slips of each block): zoh at 0.1 and 0.01 s, adaptive and me at two rtol values."""
+    """chain2 over 12 s (two slips of each block): zoh at 0.1 and 0.01 s, adaptive and me at two rtol values,
+    adaptive on the FMI 3 FMU (early return) at one of them, side by side with the FMI 2 run."""
     out = tmp_path / "bench"
     code = main(["bench-systems", str(CHAIN2), "--stop-time", "12", "--zoh-steps", "0.1", "0.01",
-                 "--adaptive-rtols", "1e-5", "1e-9", "--me-rtols", "1e-6", "1e-10", "--out", str(out)])
+                 "--adaptive-rtols", "1e-5", "1e-9", "--adaptive-fmi3-rtols", "1e-9", "--me-rtols", "1e-6", "1e-10",
+                 "--out", str(out)])
     assert code == 0
     assert all((out / name).is_file() for name in ("systems.json", "systems.md", "systems.png"))
     record = json.loads((out / "systems.json").read_text())["scenes"][0]
@@ -52,8 +54,14 @@ def test_the_command_reports_consistent_numbers(tmp_path):
         assert row["adaptive_error"] <= row["zoh_error"]
         assert min(r["wall"] for r in adaptive) <= row["adaptive_wall"] <= max(r["wall"] for r in adaptive)
         assert row["ratio"] == pytest.approx(row["zoh_wall"] / row["adaptive_wall"])
+    early = record["runs"]["adaptive-fmi3"]
+    assert [r["setting"] for r in early] == [1e-9] and early[0]["error"] < 1e-8 and early[0]["events_paired"]
+    (side,) = record["early_return"]
+    assert (side["fmi2_wall"], side["fmi3_wall"]) == (adaptive[1]["wall"], early[0]["wall"])
+    assert side["ratio"] == pytest.approx(early[0]["wall"] / adaptive[1]["wall"])
     text = (out / "systems.md").read_text()
     assert "## chain2-coulomb (12 s" in text and "| zoh | h = 0.01 |" in text and "| adaptive | rtol = 1e-09 |" in text
+    assert "| adaptive-fmi3 | rtol = 1e-09 |" in text and "| FMI 3 wall / FMI 2 wall |" in text
 
 
 def test_the_command_refuses_a_stop_time_off_the_grid(capsys):

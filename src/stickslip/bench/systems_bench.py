@@ -21,8 +21,10 @@ from ..reference import simulate_chain
 from ..systems.compare import compare
 from ..systems.masters import make_master
 
-#: master: (its option, the option's name in the report)
-SETTINGS = {"zoh": ("step", "h"), "adaptive": ("rtol", "rtol"), "me": ("rtol", "rtol")}
+#: run label: (the master, its option varied, the option's name in the report, the master's other options);
+#: ``adaptive`` runs the FMI 2 FMU (events landed by root search), ``adaptive-fmi3`` the FMI 3 FMU with early return
+SETTINGS = {"zoh": ("zoh", "step", "h", {}), "adaptive": ("adaptive", "rtol", "rtol", {}),
+            "adaptive-fmi3": ("adaptive", "rtol", "rtol", {"fmi": 3}), "me": ("me", "rtol", "rtol", {})}
 
 
 def bench_system(system, fmu_paths, settings, progress=print):
@@ -39,14 +41,16 @@ def bench_system(system, fmu_paths, settings, progress=print):
                                   for value in values]
     record["orders"] = {master: order(runs) for master, runs in record["runs"].items()}
     record["matched"] = matched(record["runs"].get("zoh", []), record["runs"].get("adaptive", []))
+    record["early_return"] = side_by_side(record["runs"].get("adaptive", []), record["runs"].get("adaptive-fmi3", []))
     return record
 
 
 def timed_run(system, master, value, fmu_paths, reference, progress):
-    """One run of ``master`` with its option at ``value``: ``{"setting", "error", "wall", "events_paired"}``
-    (``error``: of the amplitude; ``events_paired``: every block's events pair with the reference's)."""
-    option, label = SETTINGS[master]
-    runner = make_master(master, **{option: value})
+    """One run labelled ``master`` (a key of :data:`SETTINGS`) with its option at ``value``: ``{"setting", "error",
+    "wall", "events_paired"}`` (``error``: of the amplitude; ``events_paired``: every block's events pair with the
+    reference's)."""
+    name, option, label, others = SETTINGS[master]
+    runner = make_master(name, **{option: value}, **others)
     start = time.perf_counter()
     result = runner.run(system, fmu_paths[runner.FMI_VERSION])
     wall = time.perf_counter() - start
@@ -57,6 +61,15 @@ def timed_run(system, master, value, fmu_paths, reference, progress):
     progress(f"{system.name}: {master} {label} = {value:g}: error {run['error']:.3g} of the amplitude, "
              f"{wall:.2f} s (load {os.getloadavg()[0]:.2f})")
     return run
+
+
+def side_by_side(fmi2_runs, fmi3_runs):
+    """Per ``rtol`` run by both ``adaptive`` schemes: ``{"rtol", "fmi2_error", "fmi3_error", "fmi2_wall", "fmi3_wall",
+    "ratio"}``, ``ratio`` the FMI 3 (early return) wall over the FMI 2 wall."""
+    by_rtol = {r["setting"]: r for r in fmi2_runs}
+    return [{"rtol": r["setting"], "fmi2_error": by_rtol[r["setting"]]["error"], "fmi3_error": r["error"],
+             "fmi2_wall": by_rtol[r["setting"]]["wall"], "fmi3_wall": r["wall"],
+             "ratio": r["wall"] / by_rtol[r["setting"]]["wall"]} for r in fmi3_runs if r["setting"] in by_rtol]
 
 
 def order(runs):

@@ -33,7 +33,7 @@ def markdown(meta, records):
                   "|---|---|---|---|---|---|"]
         for master, runs in record["runs"].items():
             for run in runs:
-                lines.append(f"| {master} | {SETTINGS[master][1]} = {run['setting']:g} | {_g(run['error'])} | "
+                lines.append(f"| {master} | {SETTINGS[master][2]} = {run['setting']:g} | {_g(run['error'])} | "
                              f"{run['wall']:.3g} | {'yes' if run['events_paired'] else 'no'} | "
                              f"{_g(run['max_event_dt'])} |")
         lines += ["", "Orders (slope of log10 error against log10 of the setting; fit, then between neighbours): "
@@ -44,6 +44,13 @@ def markdown(meta, records):
                       "zoh wall / adaptive wall |", "|---|---|---|---|---|---|"]
             lines += [f"| {m['h']:g} | {_g(m['zoh_error'])} | {m['zoh_wall']:.3g} | {_g(m['adaptive_error'])} | "
                       f"{_g(m['adaptive_wall'], 3)} | {_g(m['ratio'], 3)} |" for m in record["matched"]]
+            lines.append("")
+        if record.get("early_return"):
+            lines += ["adaptive's two schemes at the same rtol: FMI 2 (events landed by root search) and FMI 3 "
+                      "(early return).", "", "| rtol | FMI 2 error | FMI 3 error | FMI 2 wall (s) | FMI 3 wall (s) | "
+                      "FMI 3 wall / FMI 2 wall |", "|---|---|---|---|---|---|"]
+            lines += [f"| {r['rtol']:g} | {_g(r['fmi2_error'])} | {_g(r['fmi3_error'])} | {r['fmi2_wall']:.3g} | "
+                      f"{r['fmi3_wall']:.3g} | {_g(r['ratio'], 3)} |" for r in record["early_return"]]
             lines.append("")
     return "\n".join(lines) + "\n"
 

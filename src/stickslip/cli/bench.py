@@ -126,6 +126,9 @@ def add_systems_parser(subparsers):
                    help=f"zoh's steps in s, each dividing the output interval (default: {ZOH_STEPS})")
     p.add_argument("--adaptive-rtols", type=float, nargs="*", default=list(ADAPTIVE_RTOLS), metavar="RTOL",
                    help=f"adaptive's rtol values (default: {ADAPTIVE_RTOLS})")
+    p.add_argument("--adaptive-fmi3-rtols", type=float, nargs="*", default=list(ADAPTIVE_RTOLS), metavar="RTOL",
+                   help="adaptive's rtol values on the FMI 3 FMU with early return, beside the FMI 2 runs (default: "
+                        "as --adaptive-rtols)")
     p.add_argument("--me-rtols", type=float, nargs="*", default=list(ME_RTOLS), metavar="RTOL",
                    help=f"me's rtol values (default: {ME_RTOLS})")
     p.set_defaults(handler=run_systems)
@@ -152,7 +155,8 @@ def run_systems(args):
               f"interval of {bad}", file=sys.stderr)
         return 2
     settings = {master: values for master, values in
-                (("zoh", args.zoh_steps), ("adaptive", args.adaptive_rtols), ("me", args.me_rtols)) if values}
+                (("zoh", args.zoh_steps), ("adaptive", args.adaptive_rtols),
+                 ("adaptive-fmi3", args.adaptive_fmi3_rtols), ("me", args.me_rtols)) if values}
     meta = {"date": datetime.datetime.now().isoformat(timespec="seconds"),
             "machine": f"{platform.platform()}, {os.cpu_count()} CPUs",
             "load_start": [round(x, 2) for x in os.getloadavg()], "settings": settings}

@@ -20,8 +20,8 @@ def add_system(subparsers):
     run.add_argument("file", metavar="FILE.toml", help=FILE_HELP)
     run.add_argument("--master", required=True, choices=sorted(MASTER_NAMES),
                      help="zoh: fixed step, held inputs (FMI 2 co-simulation); me: FMI 3 model exchange of all "
-                          "blocks in one solver; adaptive: FMI 2 co-simulation with events landed, step rejection and "
-                          "iterated coupling")
+                          "blocks in one solver; adaptive: FMI 2 co-simulation (--fmi 3: FMI 3 with early return) "
+                          "with events landed, step rejection and iterated coupling")
     run.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     run.add_argument("--step", type=step_seconds,
                      help="zoh: communication step in s (default: the file's output_interval)")
@@ -30,6 +30,9 @@ def add_system(subparsers):
                           "(default: FMPy with the coupling computed by the master)")
     run.add_argument("--rtol", type=float, help="me: the solver's relative tolerance (default 1e-10); "
                      "adaptive: error per second as a fraction of the largest F_S/kappa (default 3e-10)")
+    run.add_argument("--fmi", type=int, choices=(2, 3),
+                     help="adaptive: the FMU it runs: 2 (default; events landed by root search) or 3 (early return "
+                          "from doStep at each event)")
     run.add_argument("--fmu", help="the FMU to run (default: the built FMU of the master's FMI version)")
     run.add_argument("--quiet", action="store_true", help="no progress bars")
     run.set_defaults(handler=_run)
@@ -57,7 +60,7 @@ def _run(args):
     from ..systems.run import run_system
     from .named_files import SYSTEMS, local_paths, resolve
 
-    options = {"step": args.step, "rtol": args.rtol, "engine": args.engine}
+    options = {"step": args.step, "rtol": args.rtol, "engine": args.engine, "fmi": args.fmi}
     with local_paths([resolve(args.file, SYSTEMS)]) as (path,):
         outcome = run_system(path, args.master, args.out, options, args.fmu, show_progress=not args.quiet)
     print(outcome.summary)

@@ -27,6 +27,13 @@ another block's event first brackets that one) until the event lies within ``EVE
 (after ``MAX_REDOS`` tries the last one is kept and counted). A step never ends just before an event: a slipping
 block whose ``v_rel`` has crossed zero by less than its FMU's event location would start the next step on the
 wrong side (a spurious overshoot). Every communication point of the output grid is one.
+
+With ``fmi=3`` the blocks are instances of the FMI 3 FMU made with ``earlyReturnAllowed``: a block's ``doStep``
+that returns early at an event more than ``EVENT_TOL`` before the step's end (after the first sweep) stops the
+attempt, which is redone to end on that event; a block whose forces did not change since it was last stepped in
+the attempt is not stepped again, and the first sweep's
+waveforms are cubic (each slipping block's ``d2v/dt2`` from ``fmi3GetOutputDerivatives``). The FMI 2 scheme is
+the one above.
 """
 
 import dataclasses
@@ -36,7 +43,7 @@ import time
 import numpy as np
 
 from ..hosts.fmpy_host import FmuCallError, FMUError
-from .master import SystemResult, block_instances, checked_rtol, read_values, references, step_events
+from .master import ACCESSORS, SystemResult, block_instances, checked_rtol, read_values, references, step_events
 
 DEFAULT_RTOL = 3e-10  # keeps the 2- and 3-block chains' event times within 1e-8 s (1e-9: 4e-8 s)
 EVENT_TOL = 1e-10  # s: an event this close before a step's end has landed on it
@@ -53,20 +60,26 @@ _READ_INT = ("mode", "n_events")
 
 class AdaptiveMaster:
     """Tolerance ``rtol`` (default ``DEFAULT_RTOL``): the estimated error per second of simulated time, as a
-    fraction of the chain's length scale (largest ``F_S / kappa`` of its blocks)."""
+    fraction of the chain's length scale (largest ``F_S / kappa`` of its blocks). ``fmi``: the FMU it runs, 2
+    (default) or 3 (with early return; see the module text)."""
 
     NAME = "adaptive"
     FMI_VERSION = 2
-    OPTIONS = ("rtol",)
+    OPTIONS = ("rtol", "fmi")
 
-    def __init__(self, rtol=None):
+    def __init__(self, rtol=None, fmi=None):
         self.rtol = checked_rtol("adaptive", rtol, default=DEFAULT_RTOL, lowest=1e-14)
+        if fmi not in (None, 2, 3):
+            raise FMUError(f"adaptive: fmi = {fmi!r}: allowed are 2 and 3")
+        self.FMI_VERSION = fmi or AdaptiveMaster.FMI_VERSION  # the FMU this instance runs
 
     def run(self, system, fmu_path, progress=lambda t: None):
         system = block_tolerances(system, self.rtol)
+        early_return = self.FMI_VERSION == 3
+        flags = {"early_return_allowed": True} if early_return else {}
         try:
-            with block_instances(self, system, fmu_path) as (fmu, instances):
-                return _Run(system, _Blocks(fmu, instances), self.rtol, progress).run()
+            with block_instances(self, system, fmu_path, **flags) as (fmu, instances):
+                return _Run(system, _Blocks(fmu, instances, early_return), self.rtol, progress).run()
         except FmuCallError as exc:
             raise FMUError(f"adaptive: {own_tolerance_advice(str(exc), self.rtol)}") from None
 
@@ -110,16 +123,18 @@ def coupling_matrix(system):
 
 class _Blocks:
     """The instances: their saved states, inputs, steps and outputs. A block is restored only if it was stepped
-    since its state was saved or last restored."""
+    since its state was saved or last restored. ``early_return``: FMI 3 instances made with ``earlyReturnAllowed``
+    (their ``doStep`` stops at the first event inside it)."""
 
-    def __init__(self, fmu, instances):
-        self.instances = instances
+    def __init__(self, fmu, instances, early_return=False):
+        self.instances, self.early_return = instances, early_return
+        self.get_real, self.get_integer, self.set_real = ACCESSORS[fmu.fmi_version]
         self.cell_refs, self.end_refs = references(fmu, _READ_CELL), references(fmu, _READ_END)
         self.int_refs, self.F_ext = references(fmu, _READ_INT), references(fmu, ("F_ext",))
-        self.n_events_ref = references(fmu, ("n_events",))
+        self.n_events_ref, self.v_ref = references(fmu, ("n_events",)), references(fmu, ("v",))
         self.states = [None] * len(instances)
         self.moved = [False] * len(instances)  # stepped since the save or the last restore
-        self.do_steps = self.restores = 0
+        self.do_steps = self.restores = self.early_returns = 0
 
     def save(self):
         """Save every block's FMU state (the previous one freed)."""
@@ -144,22 +159,32 @@ class _Blocks:
         self.states = [None] * len(self.instances)
 
     def step(self, i, t, h, force):
-        """Block ``i`` from ``t`` over ``h`` s with ``F_ext = force`` (N)."""
+        """Block ``i`` from ``t`` over ``h`` s with ``F_ext = force`` (N): None, or the time (s) of the event inside
+        the step where it returned early (its state there the event's left limit; the next step starts there)."""
         b = self.instances[i]
-        b.call(b.fmu.setReal, self.F_ext, [float(force)])
-        b.call(b.fmu.doStep, t, h)
+        b.call(getattr(b.fmu, self.set_real), self.F_ext, [float(force)])
+        answer = b.call(b.fmu.doStep, t, h)
         self.moved[i] = True
         self.do_steps += 1
+        if self.early_return and answer[2]:  # (eventHandlingNeeded, terminateSimulation, earlyReturn, lastSuccessfulTime)
+            self.early_returns += 1
+            return float(answer[3])
+        return None
 
     def cell(self, i):
         """``(x, v, F_friction, F_spring)`` of block ``i``."""
         b = self.instances[i]
-        return b.call(b.fmu.getReal, self.cell_refs)
+        return b.call(getattr(b.fmu, self.get_real), self.cell_refs)
+
+    def jerk(self, i):
+        """Block ``i``'s ``d2v/dt2`` (m/s^3) now, with the force it holds (``fmi3GetOutputDerivatives``)."""
+        b = self.instances[i]
+        return b.call(b.fmu.getOutputDerivatives, self.v_ref, [2])[0]
 
     def n_events(self, i):
         """Block ``i``'s ``n_events``."""
         b = self.instances[i]
-        return b.call(b.fmu.getInteger, self.n_events_ref)[0]
+        return b.call(getattr(b.fmu, self.get_integer), self.n_events_ref)[0]
 
     def end(self):
         """``(z_slip, z_stick, t_last_event, mode, n_events)`` of every block, each an array over blocks."""
@@ -177,6 +202,8 @@ class _Attempt:
         self.held = np.zeros(X.shape[0])  # N: each block's F_ext over its last cell
         self.error, self.sweeps, self.converged = 0.0, 0, False
         self.end = None
+        self.cut = None  # (t_e, block): the first event a block's early return showed inside the step
+        self.forces = {}  # block: the forces (N) it was last stepped with in this attempt
 
     @property
     def T(self):
@@ -199,12 +226,14 @@ class _Run:
         self.x, self.v = first[:, 0], first[:, 1]
         self.a = (first[:, 3] + first[:, 2] + self.K @ self.x) / self.M
         self.end = blocks.end()
+        self.jerk = self._jerk()
         self.margin = self.end[0]  # N: each block's true z_slip at t (F_ext set from the positions there)
         self.rows = [(self.x.copy(), self.v.copy(), self.end[3].copy())]
         self.events, self.complete = [], True
         self.h = self.h_slip / 4.0
+        self.cutting = blocks.early_return  # an early return more than EVENT_TOL before a step's end stops it
         self.stats = {"communication steps": 0, "rejected steps": 0, "event redos": 0, "events not landed": 0,
-                      "sweeps": 0}
+                      "sweeps": 0, **({"sweeps of a block skipped": 0} if blocks.early_return else {})}
 
     def run(self):
         start = time.perf_counter()
@@ -217,6 +246,8 @@ class _Run:
         xs, vs, modes = (np.array(column) for column in zip(*self.rows))
         self.stats["doStep calls"] = self.blocks.do_steps
         self.stats["state restores"] = self.blocks.restores
+        if self.blocks.early_return:
+            self.stats["early returns"] = self.blocks.early_returns
         return SystemResult(AdaptiveMaster.NAME, self.grid[:len(xs)].copy(), xs, vs, modes, self.events,
                             self.complete, np.array(self.end[4]), time.perf_counter() - start,
                             {"rtol": self.tol / self.system.length_scale,
@@ -232,7 +263,7 @@ class _Run:
             T = min(self.t + h, float(next_grid))
             clipped = T < self.t + h
             attempt = self._attempt(T, CELLS if slipping else 1)
-            if attempt.converged and attempt.error <= 2.0 * self.tol * (T - self.t):
+            if attempt.cut is not None or (attempt.converged and attempt.error <= 2.0 * self.tol * (T - self.t)):
                 break
             self.stats["rejected steps"] += 1
             self.h = (T - self.t) * (0.5 if not attempt.converged else self._factor(attempt))
@@ -259,24 +290,24 @@ class _Run:
         if not np.all(np.diff(times) > 0.0):  # a step of a few ulp (an event landed just before a grid point)
             times = np.array([self.t, T])
         tau = times - self.t
-        attempt = _Attempt(times, self.x[:, None] + self.v[:, None] * tau + 0.5 * self.a[:, None] * tau ** 2,
-                           self.v[:, None] + self.a[:, None] * tau)
+        a, j = self._predicted_acceleration()[:, None], self.jerk[:, None]
+        attempt = _Attempt(times, self.x[:, None] + self.v[:, None] * tau + a * tau ** 2 / 2 + j * tau ** 3 / 6,
+                           self.v[:, None] + a * tau + j * tau ** 2 / 2)
         slipping = self.end[3] != 0
         floor = max(0.01 * self.tol * (T - self.t), 1e-14 * (1.0 + float(np.max(np.abs(self.x)))))
         settled = np.zeros(self.system.n, bool)  # stuck at t and still stuck, without an event, after a sweep
         while attempt.sweeps < MAX_SWEEPS and not attempt.converged:
-            c1, c2, f_start, residual = self._forces(attempt)
             X, V = attempt.X.copy(), attempt.V.copy()
-            for i in np.flatnonzero(~settled):
-                self.blocks.restore(i)
-                if slipping[i] or attempt.sweeps > 0:
-                    self._sweep_block(i, attempt, c1[i], c2[i] if slipping[i] else f_start[i], slipping[i])
-                else:  # its motion does not depend on the force: stepped again only after an event
-                    settled[i] = self._hold_block(i, attempt, f_start[i, 0])
+            residual = self._sweep(attempt, slipping, settled, floor)
+            if attempt.cut is not None:
+                break  # redone to end at the event (_land)
             delta = times[1] - times[0]
             change = max(float(np.max(np.abs(attempt.X - X))), float(np.max(np.abs(attempt.V - V))) * delta)
             attempt.sweeps += 1
-            attempt.converged = change <= floor
+            # with early return: a hold that had an event is swept before the attempt converges (the cubic predictor
+            # can make the first sweep's change tiny on a short step)
+            unswept = self.blocks.early_return and attempt.sweeps == 1 and np.any(~slipping & ~settled)
+            attempt.converged = change <= floor and not unswept
             attempt.error = self._estimate(attempt, residual, slipping)
             if attempt.error > 4.0 * self.tol * (T - self.t):
                 break  # rejected whatever the sweeps give
@@ -284,11 +315,37 @@ class _Run:
         attempt.end = self.blocks.end()
         return attempt
 
+    def _sweep(self, attempt, slipping, settled, floor):
+        """Step every block not ``settled`` (updated: True for a block stuck at ``t`` that stayed stuck without an
+        event) once over ``attempt``; return the force residuals (:meth:`_forces`) of the waveforms before it.
+        Jacobi: every block's forces from the waveforms before the sweep. With early return (FMI 3), a block whose
+        forces did not change is not stepped again (:meth:`_unchanged`)."""
+        c1, c2, f_start, residual = self._forces(attempt)
+        for i in np.flatnonzero(~settled):
+            if slipping[i] or attempt.sweeps > 0:
+                used = np.concatenate([c1[i], c2[i]]) if slipping[i] else f_start[i]
+                if not self._unchanged(i, attempt, used, floor):
+                    self.blocks.restore(i)
+                    self._sweep_block(i, attempt, c1[i], c2[i] if slipping[i] else f_start[i], slipping[i])
+                    attempt.forces[i] = used
+            else:  # its motion does not depend on the force: stepped again only after an event
+                self.blocks.restore(i)
+                settled[i] = self._hold_block(i, attempt, f_start[i, 0])
+        return residual
+
+    def _predicted_acceleration(self):
+        """Each block's acceleration (m/s^2) at ``t`` for the first sweep's waveforms: with early return (FMI 3),
+        0 for a stuck block (it moves with the surface, as its first sweep gives it: a slipping neighbour's forces
+        are then unchanged in the second sweep and it is not stepped again)."""
+        if self.blocks.early_return:
+            return np.where(self.end[3] == 0, 0.0, self.a)
+        return self.a
+
     def _hold_block(self, i, attempt, force):
         """Step block ``i``, stuck at ``t``, over the whole of ``attempt`` in one ``doStep`` with ``F_ext = force``
         (N); True if it stayed stuck: its cell ends are then on the line from its start to its end (it moves with
         the surface)."""
-        self.blocks.step(i, self.t, attempt.T - self.t, force)
+        self._step(i, self.t, attempt.T, force, attempt, may_cut=False)
         x, v, friction, spring = self.blocks.cell(i)
         u = (attempt.times[1:] - self.t) / (attempt.T - self.t)
         attempt.X[i, 1:], attempt.V[i, 1:] = self.x[i] + u * (x - self.x[i]), v
@@ -299,18 +356,43 @@ class _Run:
         """Step block ``i`` over every cell of ``attempt``: two halves with ``first[k]``, ``second[k]`` while it
         slips, one step with ``second[k]`` (the force at the cell's start) while it sticks (or over a cell too
         short to halve); read the cell ends."""
-        times = attempt.times
+        times, may_cut = attempt.times, attempt.sweeps > 0 and self.cutting
         for k in range(times.size - 1):
             t0, t1 = float(times[k]), float(times[k + 1])
             mid = 0.5 * (t0 + t1)
             if slipping and t0 < mid < t1:
-                self.blocks.step(i, t0, mid - t0, first[k])
-                self.blocks.step(i, mid, t1 - mid, second[k])
-            else:
-                self.blocks.step(i, t0, t1 - t0, second[k])
+                if (self._step(i, t0, mid, first[k], attempt, may_cut)
+                        or self._step(i, mid, t1, second[k], attempt, may_cut)):
+                    return
+            elif self._step(i, t0, t1, second[k], attempt, may_cut):
+                return
             x, v, friction, spring = self.blocks.cell(i)
             attempt.X[i, k + 1], attempt.V[i, k + 1], attempt.friction[i, k + 1] = x, v, friction
             attempt.spring[i], attempt.held[i] = spring, second[k]
+
+    def _step(self, i, t0, t1, force, attempt, may_cut):
+        """Block ``i`` from ``t0`` to ``t1`` (s) with ``F_ext = force`` (N); True if it returned early at an event
+        more than ``EVENT_TOL`` before the attempt's end and ``may_cut``: the event is then ``attempt.cut`` (the
+        earliest of such) and the block stays there. Any other early return is stepped on from (the event applied)."""
+        t_e = self.blocks.step(i, t0, t1 - t0, force)
+        while t_e is not None:
+            if may_cut and attempt.T - t_e > EVENT_TOL:
+                attempt.cut = min(attempt.cut or (math.inf, -1), (t_e, int(i)))
+                return True
+            t_e = self.blocks.step(i, t_e, t1 - t_e, force)
+        return False
+
+    def _unchanged(self, i, attempt, forces, floor):
+        """True if block ``i`` need not be stepped again: with early return (FMI 3), when the ``forces`` (N) it would
+        be stepped with differ from those it was last stepped with in ``attempt`` by so little that its cell ends
+        could move by at most a tenth of the convergence ``floor`` (m): ``|dF| (T - t)^2 / M``."""
+        last = attempt.forces.get(i)
+        if not self.blocks.early_return or last is None:
+            return False
+        change = float(np.max(np.abs(forces - last)))
+        unchanged = change * (attempt.T - self.t) ** 2 / self.M[i] <= 0.1 * floor
+        self.stats["sweeps of a block skipped"] += int(unchanged)
+        return unchanged
 
     def _forces(self, attempt):
         """Per block and cell (arrays ``(N, cells)``): the two half-cell forces (N) carrying the interpolated
@@ -349,7 +431,18 @@ class _Run:
         self.t, self.end, self.margin = attempt.T, end, self._held_margin(attempt)
         self.x, self.v = attempt.X[:, -1].copy(), attempt.V[:, -1].copy()
         self.a = (attempt.spring + attempt.friction[:, -1] + self.K @ self.x) / self.M
+        self.jerk = self._jerk()
         self.stats["communication steps"] += 1
+
+    def _jerk(self):
+        """Each block's ``d2v/dt2`` (m/s^3) at ``t`` for the first sweep's waveforms: with early return (FMI 3), a
+        slipping block's from its output derivative (which holds its force) plus the coupling force's rate
+        ``(K v) / M``; else (and while stuck) 0."""
+        jerk = np.zeros(self.system.n)
+        if self.blocks.early_return:
+            for i in np.flatnonzero(self.end[3] != 0):
+                jerk[i] = self.blocks.jerk(i) + (self.K[i] @ self.v) / self.M[i]
+        return jerk
 
     def _held_margin(self, attempt):
         """Each block's ``z_slip`` (N) at the step's end with the true coupling force there (the FMU's is with the
@@ -359,8 +452,11 @@ class _Run:
 
     def _crossing(self, attempt):
         """``(block, t_e)`` of the first event in ``attempt``, None if none: a block's own (``n_events`` moved; ``t_e``
-        its time, or the step's middle for two or more) or a block stuck at ``t`` whose true margin at the end is
-        negative (``t_e`` None; its time, for the order, on the line between its margins at ``t`` and the end)."""
+        its time, or the step's middle for two or more; or where its early return stopped the attempt) or a block
+        stuck at ``t`` whose true margin at the end is negative (``t_e`` None; its time, for the order, on the line
+        between its margins at ``t`` and the end)."""
+        if attempt.cut is not None:
+            return attempt.cut[1], attempt.cut[0]
         moved = attempt.end[4] != self.end[4]
         found = [(attempt.end[2][i] if attempt.end[4][i] == self.end[4][i] + 1 else 0.5 * (self.t + attempt.T),
                   int(i), True) for i in np.flatnonzero(moved)]
@@ -423,4 +519,8 @@ class _Run:
                                                                                  -1e-300)
                 psi_lo, side = (psi_lo * 0.5 if side == 1 else psi_lo), 1
         self.stats["events not landed"] += 1  # events that keep moving (triggering each other): the last try
+        if attempt.cut is not None:  # the last try stopped at its event: redone to its end, through the event
+            self.cutting = False
+            attempt = self._attempt(attempt.T, CELLS if np.any(self.end[3] != 0) else 1)
+            self.cutting = True
         return attempt

@@ -26,6 +26,8 @@ from ..reference import ChainEvent
 #: selectors are Enumerations: FMI 2 sets them as Integers, FMI 3 as Int64)
 _SETTERS = {2: {"Real": "setReal", "Integer": "setInteger", "Enumeration": "setInteger"},
             3: {"Float64": "setFloat64", "Int32": "setInt32", "Enumeration": "setInt64"}}
+#: FMI version: the names of FMPy's (getter of reals, getter of integers, setter of reals) on an instance
+ACCESSORS = {2: ("getReal", "getInteger", "setReal"), 3: ("getFloat64", "getInt32", "setFloat64")}
 
 
 def checked_rtol(master, rtol, default, lowest):
@@ -93,11 +95,12 @@ def step_events(t_last, mode, new_mode, count, new_count):
 
 
 @contextlib.contextmanager
-def block_instances(master, system, fmu_path, interface="cs"):
+def block_instances(master, system, fmu_path, interface="cs", **flags):
     """``(extracted FMU, [an initialized instance per block])`` for ``master`` (its ``NAME`` and ``FMI_VERSION``):
     the FMU at ``fmu_path`` extracted once, each block's parameters, ``v_drive`` and its ``F_ext`` at the start
-    positions set. The instances are freed and the folder removed at the end. FMUError naming the file if it is no
-    SpringBlockFriction FMU of the master's FMI version."""
+    positions set; ``flags``: FMI 3 co-simulation's instantiation flags (``early_return_allowed``, see
+    :meth:`~stickslip.hosts.fmpy_host.ExtractedFMU.new_instance`). The instances are freed and the folder removed at
+    the end. FMUError naming the file if it is no SpringBlockFriction FMU of the master's FMI version."""
     with ExtractedFMU(fmu_path, needs=START_VALUES) as fmu:
         if fmu.fmi_version != master.FMI_VERSION:
             raise FMUError(f"{master.NAME}: {fmu_path} is an FMI {fmu.fmi_version} FMU; the master runs the FMI "
@@ -107,18 +110,18 @@ def block_instances(master, system, fmu_path, interface="cs"):
             forces = system.forces([b["x_start"] for b in system.blocks])
             for i, (values, F) in enumerate(zip(system.blocks, forces)):
                 start = {**values, "v_drive": system.v_drive, "F_ext": F}
-                instances.append(start_block(fmu, f"b{i + 1}", start, interface))
+                instances.append(start_block(fmu, f"b{i + 1}", start, interface, **flags))
             yield fmu, instances
         finally:
             for instance in instances:
                 instance.free()
 
 
-def start_block(extracted, name, values, interface="cs", role="block"):
-    """An instance named ``name`` (block ``i``, 1-based: ``b<i>``) of ``extracted`` (an ExtractedFMU), its parameters
-    and inputs ``values`` (FMU names) set in initialization mode, initialization done. FMUError naming the
-    ``role`` and ``name`` if it fails."""
-    instance = extracted.new_instance(name=name, interface=interface)
+def start_block(extracted, name, values, interface="cs", role="block", **flags):
+    """An instance named ``name`` (block ``i``, 1-based: ``b<i>``) of ``extracted`` (an ExtractedFMU), made with the
+    instantiation ``flags``, its parameters and inputs ``values`` (FMU names) set in initialization mode,
+    initialization done. FMUError naming the ``role`` and ``name`` if it fails."""
+    instance = extracted.new_instance(name=name, interface=interface, **flags)
     variables, setters = extracted.variables, _SETTERS[extracted.fmi_version]
     try:
         if extracted.fmi_version == 2:
@@ -145,5 +148,9 @@ def references(extracted, names):
 def read_values(instances, reals, integers):
     """``[[value of each instance] for each variable]``: the Real variables then the Integer variables whose value
     references are ``reals`` and ``integers``, read now from every instance in ``instances``."""
-    values = [i.call(i.fmu.getReal, reals) + i.call(i.fmu.getInteger, integers) for i in instances]
+    values = []
+    for instance in instances:
+        get_real, get_integer, _ = ACCESSORS[instance.extracted.fmi_version]
+        values.append(list(instance.call(getattr(instance.fmu, get_real), reals))
+                      + list(instance.call(getattr(instance.fmu, get_integer), integers)))
     return [list(column) for column in zip(*values)]

@@ -2,7 +2,8 @@
 
 Writes ``<out>/<run>.csv`` (the master's samples), ``<out>/<run>.md`` (the report), ``<out>/<run>.png``
 (each block's ``x(t)``, master against reference) and ``<out>/<run>-spacetime.png`` (which block slips when),
-``<run>`` being the file's stem, the master and its engine (``chain2-coulomb-zoh-libcosim``, ``chain2-coulomb-me``):
+``<run>`` being the file's stem, the master and its engine or FMI version (``chain2-coulomb-zoh-libcosim``,
+``chain2-coulomb-adaptive-fmi3``, ``chain2-coulomb-me``):
 runs of different masters share a folder.
 """
 
@@ -44,7 +45,8 @@ def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress
     """
     system = load_system(path)
     runner = make_master(master, **(options or {}))
-    files = output_files(out_dir, run_name(system.name, master, (options or {}).get("engine")))
+    variant = (options or {}).get("engine") or ("fmi3" if (options or {}).get("fmi") == 3 else None)
+    files = output_files(out_dir, run_name(system.name, master, variant))
     fmu_path = fmu_path or ensure_fmu(fmi_version=runner.FMI_VERSION)
     with _progress(f"{system.name} {master}", system.stop_time, show_progress) as step:
         result = runner.run(system, fmu_path, step)
@@ -64,10 +66,10 @@ def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress
     return SystemOutcome(result, comparison, summary(system, result, comparison), tuple(files.values()))
 
 
-def run_name(system_name, master, engine=None):
-    """The stem of a run's files: the system's name, the master and, if given, the engine (``None``: the master's
-    own stepping)."""
-    return "-".join(part for part in (system_name, master, engine) if part)
+def run_name(system_name, master, variant=None):
+    """The stem of a run's files: the system's name, the master and, if given, its variant: zoh's engine (``None``:
+    the master's own stepping) or ``fmi3`` for adaptive on the FMI 3 FMU."""
+    return "-".join(part for part in (system_name, master, variant) if part)
 
 
 def output_files(out_dir, name):

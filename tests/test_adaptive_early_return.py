@@ -1,0 +1,57 @@
+"""The ``adaptive`` master on the FMI 3 FMU (``fmi=3``, ``--fmi 3``): early return from ``fmi3DoStep`` at each
+block's event, blocks whose forces did not change not stepped again, the output derivatives' cubic predictor,
+against the chain's reference; the choice of the FMU and its errors. The FMI 2 scheme is held by ``tests/test_systems.py``."""
+
+import numpy as np
+import pytest
+
+from stickslip.cli import main
+from stickslip.hosts.fmpy_host import FMUError
+from stickslip.systems import load_system, make_master
+from stickslip.systems.compare import compare
+from test_systems import CHAIN2, scene
+
+
+@pytest.mark.parametrize("name", ["chain2-coulomb", "chain3-coulomb", "chain3-stribeck-aging"])
+def test_early_return_keeps_the_chains_exact(name, fmu3_path):
+    """Every chain of systems/ over its whole stop time at the default rtol: within 1e-8 of the amplitude, the
+    reference's events and no others, paired within 1e-8 s, with early returns that stopped steps and blocks not
+    stepped again. chain2-coulomb holds the first sweep's convergence: at 95.25 s a landing redo of 6e-4 s had
+    b1's hold break away at the redo's end, and the cubic predictor made the first sweep converge before b1 was
+    swept with its cells' forces: the breakaway landed 4.5e-4 s late (1.8e-4 of the amplitude)."""
+    system, reference = scene(name)
+    result = make_master("adaptive", fmi=3).run(system, fmu3_path)
+    comparison = compare(result, reference, system.tolerances["adaptive"])
+    assert comparison.ok and comparison.max_rel_dx < 1e-8, comparison
+    assert list(comparison.master_events) == list(comparison.reference_events)
+    assert np.all(comparison.max_event_dt < 1e-8), comparison.max_event_dt
+    assert not any(e.kind == "overshoot" for e in result.events)
+    assert result.stats["early returns"] > 0 and result.stats["sweeps of a block skipped"] > 0
+    assert result.stats["events not landed"] == 0
+
+
+def test_the_fmu_is_chosen_by_fmi(fmu_path, fmu3_path):
+    """``fmi`` picks the FMU (default 2, the scheme without early return); a wrong value or the other FMU's file
+    is refused, naming it."""
+    assert make_master("adaptive").FMI_VERSION == 2 and make_master("adaptive", fmi=3).FMI_VERSION == 3
+    with pytest.raises(FMUError, match=r"adaptive: fmi = 4: allowed are 2 and 3"):
+        make_master("adaptive", fmi=4)
+    with pytest.raises(FMUError, match=r"master 'zoh' takes no option 'fmi' \(the masters \['adaptive'\] do\)"):
+        make_master("zoh", fmi=3)
+    with pytest.raises(FMUError, match=r"adaptive: .* is an FMI 2 FMU; the master runs the FMI 3 FMU"):
+        make_master("adaptive", fmi=3).run(load_system(CHAIN2), fmu_path)
+
+
+def test_the_command_runs_the_fmi3_scheme(tmp_path, capsys):
+    """``stickslip system run --master adaptive --fmi 3``: its own files beside the FMI 2 run's, within the
+    file's tolerance (exit 0)."""
+    text = CHAIN2.read_text().replace("stop_time = 100.0", "stop_time = 20.0")
+    assert "stop_time = 20.0" in text
+    path = tmp_path / "chain2-coulomb.toml"
+    path.write_text(text)
+    assert main(["system", "run", str(path), "--master", "adaptive", "--fmi", "3", "--out", str(tmp_path),
+                 "--quiet"]) == 0
+    assert ": PASS" in capsys.readouterr().out
+    report = (tmp_path / "chain2-coulomb-adaptive-fmi3.md").read_text()
+    assert "early returns" in report
+    assert not (tmp_path / "chain2-coulomb-adaptive.md").exists()
