@@ -195,8 +195,9 @@ class _Attempt:
     """One communication step ``[t, T]`` tried: the cell times, each block's ``x``, ``v`` (arrays ``(N, cells + 1)``)
     and ``F_friction`` at the cell ends, the end outputs, the error estimate (m) and the sweeps it took."""
 
-    def __init__(self, times, X, V):
+    def __init__(self, times, X, V, cuttable):
         self.times, self.X, self.V = times, X, V
+        self.cuttable = cuttable  # an early return more than EVENT_TOL before T (after the first sweep) stops it
         self.friction = np.zeros_like(X)
         self.spring = np.zeros(X.shape[0])
         self.held = np.zeros(X.shape[0])  # N: each block's F_ext over its last cell
@@ -231,7 +232,6 @@ class _Run:
         self.rows = [(self.x.copy(), self.v.copy(), self.end[3].copy())]
         self.events, self.complete = [], True
         self.h = self.h_slip / 4.0
-        self.cutting = blocks.early_return  # an early return more than EVENT_TOL before a step's end stops it
         self.stats = {"communication steps": 0, "rejected steps": 0, "event redos": 0, "events not landed": 0,
                       "sweeps": 0, **({"sweeps of a block skipped": 0} if blocks.early_return else {})}
 
@@ -284,15 +284,16 @@ class _Run:
         ratio = self.tol * (attempt.T - self.t) / max(attempt.error, 1e-300)
         return min(2.0, max(0.2, 0.8 * ratio ** (1.0 / 3.0)))
 
-    def _attempt(self, T, cells):
-        """The step ``[t, T]`` in ``cells`` cells, swept until the waveforms converge (or ``MAX_SWEEPS``)."""
+    def _attempt(self, T, cells, cuttable=True):
+        """The step ``[t, T]`` in ``cells`` cells, swept until the waveforms converge (or ``MAX_SWEEPS``); with early
+        return (FMI 3) and ``cuttable``, stopped at the first event a block's early return shows inside it."""
         times = np.linspace(self.t, T, cells + 1)
         if not np.all(np.diff(times) > 0.0):  # a step of a few ulp (an event landed just before a grid point)
             times = np.array([self.t, T])
         tau = times - self.t
         a, j = self._predicted_acceleration()[:, None], self.jerk[:, None]
         attempt = _Attempt(times, self.x[:, None] + self.v[:, None] * tau + a * tau ** 2 / 2 + j * tau ** 3 / 6,
-                           self.v[:, None] + a * tau + j * tau ** 2 / 2)
+                           self.v[:, None] + a * tau + j * tau ** 2 / 2, cuttable and self.blocks.early_return)
         slipping = self.end[3] != 0
         floor = max(0.01 * self.tol * (T - self.t), 1e-14 * (1.0 + float(np.max(np.abs(self.x)))))
         settled = np.zeros(self.system.n, bool)  # stuck at t and still stuck, without an event, after a sweep
@@ -356,7 +357,7 @@ class _Run:
         """Step block ``i`` over every cell of ``attempt``: two halves with ``first[k]``, ``second[k]`` while it
         slips, one step with ``second[k]`` (the force at the cell's start) while it sticks (or over a cell too
         short to halve); read the cell ends."""
-        times, may_cut = attempt.times, attempt.sweeps > 0 and self.cutting
+        times, may_cut = attempt.times, attempt.sweeps > 0 and attempt.cuttable
         for k in range(times.size - 1):
             t0, t1 = float(times[k]), float(times[k + 1])
             mid = 0.5 * (t0 + t1)
@@ -520,7 +521,5 @@ class _Run:
                 psi_lo, side = (psi_lo * 0.5 if side == 1 else psi_lo), 1
         self.stats["events not landed"] += 1  # events that keep moving (triggering each other): the last try
         if attempt.cut is not None:  # the last try stopped at its event: redone to its end, through the event
-            self.cutting = False
-            attempt = self._attempt(attempt.T, CELLS if np.any(self.end[3] != 0) else 1)
-            self.cutting = True
+            attempt = self._attempt(attempt.T, CELLS if np.any(self.end[3] != 0) else 1, cuttable=False)
         return attempt

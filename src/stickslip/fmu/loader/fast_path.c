@@ -257,6 +257,15 @@ int sbf_slave_time(sbf_fast_path *fast, double *t)
     return answered;
 }
 
+/* 1 (`why` saying so) if no slave is bound to answer `function` */
+static int unbound(const sbf_fast_path *fast, const char *function, char *why, size_t why_size)
+{
+    if (fast->slave) return 0;
+    snprintf(why, why_size, "%s: not available: the slave did not bind to this library (a CPython without the "
+             "functions the loader calls, or the inner library's own binary)", function);
+    return 1;
+}
+
 /* ---- FMI 3's early return and event mode ---- */
 
 int sbf_slave_event_step(sbf_fast_path *fast, double t, double h, int event_mode, double *reached, int *early,
@@ -286,10 +295,7 @@ int sbf_slave_event_step(sbf_fast_path *fast, double t, double h, int event_mode
 
 int sbf_slave_apply_events(sbf_fast_path *fast, char *why, size_t why_size)
 {
-    if (!fast->slave) {
-        snprintf(why, why_size, "[updateDiscreteStates] not available: the slave did not bind to this library");
-        return 1;
-    }
+    if (unbound(fast, "[updateDiscreteStates]", why, why_size)) return 1;
     int gil = py.PyGILState_Ensure();
     PyObject *result = py.PyObject_CallMethod(fast->slave, "apply_step_events", NULL);
     fast->moved = 1;
@@ -339,15 +345,6 @@ static int derivatives_answer(PyObject *result, const char *function, size_t n, 
         }
     }
     exception_text(function, why, why_size); /* the exception pending */
-    return 1;
-}
-
-/* 1 (`why` saying so) if no slave is bound to answer `function` */
-static int unbound(const sbf_fast_path *fast, const char *function, char *why, size_t why_size)
-{
-    if (fast->slave) return 0;
-    snprintf(why, why_size, "%s: not available: the slave did not bind to this library (a CPython without the "
-             "functions the loader calls, or the inner library's own binary)", function);
     return 1;
 }
 

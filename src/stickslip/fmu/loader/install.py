@@ -162,8 +162,7 @@ def _install_linux(entries, tmp, model_identifier, arguments):
         print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads "
               f"only inside a Python process: {why_not}", file=sys.stderr)
         return False
-    entries[f"{folder}/{inner_name}"] = entries[binary]
-    entries[binary] = loader.read_bytes()
+    _front(entries, binary, inner_name, loader)
     entries[f"{folder}/{START_GUARD_NAME}"] = loader.with_name(START_GUARD_NAME).read_bytes()
     return True
 
@@ -181,5 +180,10 @@ def _install_windows(entries, tmp, model_identifier, arguments):
             del entries[name]
         print(f"note: the {model_identifier} FMU has no Windows binaries: {why_not}", file=sys.stderr)
         return
-    entries[f"{folder}/{inner_name}"] = entries[binary]
+    _front(entries, binary, inner_name, loader)
+
+
+def _front(entries, binary, inner_name, loader):
+    """The FMU's ``binary`` kept beside it as ``inner_name``, and the compiled ``loader`` (a path) in its place."""
+    entries[f"{binary.rsplit('/', 1)[0]}/{inner_name}"] = entries[binary]
     entries[binary] = loader.read_bytes()
