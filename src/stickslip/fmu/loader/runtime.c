@@ -2,9 +2,10 @@
  *
  * On the first instantiation a front calls sbf_start, which
  *   1. finds a CPython: the process's own if it has one (never a second one), else the shared library
- *      named by $SBF_LIBPYTHON, else the one the FMU was built with (SBF_BUILD_LIBPYTHON), else its
- *      soname (SBF_LIBPYTHON_SONAME); it is loaded with RTLD_GLOBAL so that Python's extension modules
- *      find its symbols;
+ *      named by $SBF_LIBPYTHON, else the one the FMU carries (SBF_BUNDLED_LIBPYTHON, a path relative to this
+ *      library's folder, where the build bundled one), else the one the FMU was built with
+ *      (SBF_BUILD_LIBPYTHON), else its soname (SBF_LIBPYTHON_SONAME); it is loaded with RTLD_GLOBAL so that
+ *      Python's extension modules find its symbols;
  *   2. starts that Python if nobody has, with the standard library of the library's own installation,
  *      through PyConfig, so that a broken installation (a wrong PYTHONHOME) is an error status and a
  *      logged message, not an exit of the host; the host's handlers of SIGINT, SIGPIPE and SIGXFSZ are kept;
@@ -44,6 +45,9 @@
 #endif
 #ifndef SBF_LIBPYTHON_SONAME
 #define SBF_LIBPYTHON_SONAME ""
+#endif
+#ifndef SBF_BUNDLED_LIBPYTHON
+#define SBF_BUNDLED_LIBPYTHON ""
 #endif
 #define LIBPYTHON_VARIABLE "SBF_LIBPYTHON"
 
@@ -104,6 +108,21 @@ static int resolve_config_api(void *lib)
 #undef RESOLVE
 }
 
+/* The path of the file `name` beside this library into `path`; 0 after sbf_fail() if this library cannot be found. */
+static int beside_this_library(const char *name, char *path, size_t size)
+{
+    char self[4096];
+    if (!sbf_loader_path(self, sizeof self)) {
+        sbf_fail("cannot locate the FMU's binaries folder");
+        return 0;
+    }
+    const char *slash = strrchr(self, '/'), *backslash = strrchr(self, '\\');
+    if (backslash > slash) slash = backslash;
+    int dir_length = slash ? (int)(slash - self + 1) : 0;
+    snprintf(path, size, "%.*s%s", dir_length, self, name);
+    return 1;
+}
+
 /* A CPython library: the process's own (RTLD_DEFAULT), or the first that loads (RTLD_GLOBAL). 0 after sbf_fail(). */
 static int find_libpython(void **lib_out, const char **where)
 {
@@ -123,7 +142,12 @@ static int find_libpython(void **lib_out, const char **where)
         *lib_out = lib;
         return lib != NULL;
     }
-    const char *candidates[] = {SBF_BUILD_LIBPYTHON, SBF_LIBPYTHON_SONAME};
+    static char bundled[4096];
+    char why[1024];
+    if (*SBF_BUNDLED_LIBPYTHON && (!beside_this_library(SBF_BUNDLED_LIBPYTHON, bundled, sizeof bundled) ||
+                                   sbf_path_kind(bundled, why, sizeof why) != 2))
+        *bundled = '\0'; /* the FMU carries none for this platform */
+    const char *candidates[] = {bundled, SBF_BUILD_LIBPYTHON, SBF_LIBPYTHON_SONAME};
     char tried[1024] = "";
     for (size_t i = 0; i < sizeof candidates / sizeof *candidates; ++i) {
         if (!*candidates[i]) continue;
@@ -180,21 +204,6 @@ static void initialize_python(const char *where)
 static void (*inner_reset_python_state)(void);
 
 static void reset_inner_python_state(void) { inner_reset_python_state(); }
-
-/* The path of the file `name` beside this library into `path`; 0 after sbf_fail() if this library cannot be found. */
-static int beside_this_library(const char *name, char *path, size_t size)
-{
-    char self[4096];
-    if (!sbf_loader_path(self, sizeof self)) {
-        sbf_fail("cannot locate the FMU's binaries folder");
-        return 0;
-    }
-    const char *slash = strrchr(self, '/'), *backslash = strrchr(self, '\\');
-    if (backslash > slash) slash = backslash;
-    int dir_length = slash ? (int)(slash - self + 1) : 0;
-    snprintf(path, size, "%.*s%s", dir_length, self, name);
-    return 1;
-}
 
 /* Keep this library loaded until the process ends (0 after sbf_fail() if it cannot be). Once sbf_start has run, the
  * library has code that runs after any call of the host: the destructor of every host thread's Python thread state
