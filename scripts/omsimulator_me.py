@@ -173,22 +173,36 @@ def main(argv=None):
     return 1 if failed else 0
 
 
+def positive(text):
+    """A number > 0 from the command line (argparse's type)."""
+    value = float(text)
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r}: allowed is a finite number > 0")
+    return value
+
+
+def scene_names(text):
+    """Comma-separated names of :data:`STARTS` (argparse's type)."""
+    names = text.split(",")
+    unknown = [name for name in names if name not in STARTS]
+    if unknown:
+        raise argparse.ArgumentTypeError(f"{unknown[0]!r}: allowed are {list(STARTS)}")
+    return names
+
+
 def parse(argv):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("omsimulator", help="the OMSimulator binary")
-    parser.add_argument("--scenes", type=lambda s: s.split(","), default=list(STARTS),
-                        help=f"comma-separated, of {list(STARTS)}")
-    parser.add_argument("--tolerance", type=float, default=1e-10, help="CVODE's relative tolerance")
-    parser.add_argument("--stop-time", type=float, default=2000.0, help="s")
-    parser.add_argument("--interval", type=float, default=1.0, help="the output grid's interval and CVODE's largest "
-                        "step (s)")
-    parser.add_argument("--initial-step", type=float, default=1e-6, help="CVODE's first step (s)")
-    parser.add_argument("--min-step", type=float, default=1e-12, help="CVODE's smallest step (s)")
+    parser.add_argument("--scenes", type=scene_names, default=list(STARTS), help=f"comma-separated, of {list(STARTS)}")
+    for option, default, text in (("--tolerance", 1e-10, "CVODE's relative tolerance"), ("--stop-time", 2000.0, "s"),
+                                  ("--interval", 1.0, "the output grid's interval and CVODE's largest step (s)"),
+                                  ("--initial-step", 1e-6, "CVODE's first step (s)"),
+                                  ("--min-step", 1e-12, "CVODE's smallest step (s)")):
+        parser.add_argument(option, type=positive, default=default, help=f"{text} (default {default:g})")
     parser.add_argument("--out", help="folder for the SSP and result files (default: a new temporary folder)")
     args = parser.parse_args(argv)
-    unknown = sorted(set(args.scenes) - set(STARTS))
-    if unknown:
-        parser.error(f"--scenes {unknown[0]!r}: allowed are {list(STARTS)}")
+    if abs(args.stop_time / args.interval - round(args.stop_time / args.interval)) > 1e-9:
+        parser.error(f"--stop-time {args.stop_time!r}: allowed is a whole number of --interval ({args.interval!r} s)")
     return args
 
 

@@ -86,3 +86,13 @@ def test_cvodes_statistics_are_read_from_omsimulators_message():
             "NumNonlinSolvIters = 2899 NumNonlinSolvConvFails = 0 NumErrTestFails = 41")
     assert oms_me.statistics(text) == {"NumSteps": 2117, "NumRhsEvals": 2903, "NumErrTestFails": 41,
                                        "NumNonlinSolvConvFails": 0}
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--scenes", "stick-slip,sliding"], "--scenes: 'sliding': allowed are ['stick-slip', 'from-rest']"),
+    (["--tolerance", "0"], "--tolerance: '0': allowed is a finite number > 0"),
+    (["--stop-time", "10.5"], "--stop-time 10.5: allowed is a whole number of --interval (1.0 s)")])
+def test_bad_options_are_refused_with_the_allowed_values(capsys, argv, message):
+    with pytest.raises(SystemExit) as refused:
+        oms_me.parse(["OMSimulator", *argv])
+    assert refused.value.code == 2 and message in capsys.readouterr().err
