@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Build OMSimulator (its command-line binary and its Python package) without internet, from local git
-# mirrors, into OUT (default /work/build/oms): OUT/install/bin/OMSimulator. By-hand runs only
-# (scripts/omsimulator_chain.py); CI cannot build it (its PyPI sdist downloads binaries).
+# Build OMSimulator (its command-line binary and, unless BINARY_ONLY=1, its Python package) without internet, from
+# local git mirrors, into OUT (default /work/build/oms): OUT/install/bin/OMSimulator. By-hand runs only
+# (scripts/omsimulator_chain.py, scripts/omsimulator_me.py); CI cannot build it (its PyPI sdist downloads binaries).
 # usage: [JOBS=N] [BINARY_ONLY=1] scripts/build_omsimulator.sh OMSIMULATOR_GIT OMSIMULATOR_3RDPARTY_GIT SUNDIALS_GIT
 #            [OUT [SUNDIALS_PREFIX]]
 # OMSimulator's HEAD (after its "Update SUNDIALS to 7.8.0") calls the SUNDIALS 7 API (SUNContext_Create with

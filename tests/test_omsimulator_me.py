@@ -81,11 +81,11 @@ def test_a_grid_time_without_a_row_is_named():
         oms_me.grid_rows(np.array([0.0, 1.0, 1.5]), np.array([0.0, 1.0, 2.0]))
 
 
-def test_cvodes_statistics_are_read_from_omsimulators_message():
-    text = ("info:    Final Statistics for 'm.m':\nNumSteps = 2117 NumRhsEvals  = 2903 NumLinSolvSetups = 380\n"
-            "NumNonlinSolvIters = 2899 NumNonlinSolvConvFails = 0 NumErrTestFails = 41")
-    assert oms_me.statistics(text) == {"NumSteps": 2117, "NumRhsEvals": 2903, "NumErrTestFails": 41,
-                                       "NumNonlinSolvConvFails": 0}
+def test_omsimulators_warnings_and_errors_are_counted():
+    text = ("info:    Final Statistics for 'm.m':\n         NumSteps = 153 NumRhsEvals  = 178\n"
+            "warning: Bad return code at time 12.000000\ninfo:    1 warnings\ninfo:    2 errors\n")
+    assert oms_me.diagnostics(text) == {"warnings": 1, "errors": 2}
+    assert oms_me.diagnostics("info:    Result file: x.mat (bufferSize=1)\n") == {"warnings": 0, "errors": 0}
 
 
 @pytest.mark.parametrize("argv, message", [
