@@ -4,8 +4,8 @@ integrates with its own CVODE (BDF, dense Newton, root finding on the FMU's even
 v_drive 0.1 m/s from x_start 1 m, v_start 0.1 m/s (stick-slip) and from rest (it settles into steady sliding); each
 run compared with the project's reference (stickslip.reference, as `stickslip run` compares) on its output grid.
 One table row per scene: max |x - reference| over the amplitude (half the reference's range of x) and in m, events
-(OMSimulator's block / reference, their kinds paired in order, the largest event-time error), CVODE's statistics
-OMSimulator's warnings and errors (a CVODE failure stops the run with an error), wall time.
+(OMSimulator's block / reference, their kinds paired in order, the largest event-time error), OMSimulator's
+warnings and errors (a CVODE failure stops the run with an error, and the script exits 1), wall time.
 
     python scripts/omsimulator_me.py OMSIMULATOR [--tolerance 1e-10] [--stop-time 2000] [--interval 1]
         [--initial-step H] [--min-step H] [--scenes stick-slip,from-rest] [--out DIR]
