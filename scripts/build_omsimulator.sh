@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Build OMSimulator (its command-line binary and its Python package) without internet, from local git
-# mirrors, into OUT (default /work/build/oms): OUT/install/bin/OMSimulator. By-hand runs only
-# (scripts/omsimulator_chain.py); CI cannot build it (its PyPI sdist downloads binaries).
-# usage: scripts/build_omsimulator.sh OMSIMULATOR_GIT OMSIMULATOR_3RDPARTY_GIT SUNDIALS_GIT [OUT [SUNDIALS_PREFIX]]
+# Build OMSimulator (its command-line binary and, unless BINARY_ONLY=1, its Python package) without internet, from
+# local git mirrors, into OUT (default /work/build/oms): OUT/install/bin/OMSimulator. By-hand runs only
+# (scripts/omsimulator_chain.py, scripts/omsimulator_me.py); CI cannot build it (its PyPI sdist downloads binaries).
+# usage: [JOBS=N] [BINARY_ONLY=1] scripts/build_omsimulator.sh OMSIMULATOR_GIT OMSIMULATOR_3RDPARTY_GIT SUNDIALS_GIT
+#            [OUT [SUNDIALS_PREFIX]]
 # OMSimulator's HEAD (after its "Update SUNDIALS to 7.8.0") calls the SUNDIALS 7 API (SUNContext_Create with
 # SUN_COMM_NULL, SUNContext_PushErrHandler with a SUNErrCode handler), but the 3rdParty mirror's HEAD still
 # ships sundials-5.4.0 (the 3rdParty commit OMSimulator pins is not in the mirror). So SUNDIALS v7.5.0 (the
@@ -56,5 +57,12 @@ sed -i 's/^\( *\)bool mav_doDoubleStep = (solverMethod/\1mav_doDoubleStep = (sol
     "$out/src/OMSimulatorLib/SystemWC.cpp"
 cmake -S "$out" -B "$out/build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH="$prefix" \
     -DCMAKE_INSTALL_PREFIX="$out/install" > "$out/cmake.log"
-nice cmake --build "$out/build" -j "$jobs" --target install > "$out/build.log"
+if [ -n "${BINARY_ONLY:-}" ]; then
+    # the command-line binary alone: it links the static library, so the shared one (for the Python package) and
+    # the GUI are left out, about half the compile
+    nice cmake --build "$out/build" -j "$jobs" --target OMSimulator > "$out/build.log"
+    install -D "$out/build/src/OMSimulator/OMSimulator" "$out/install/bin/OMSimulator"
+else
+    nice cmake --build "$out/build" -j "$jobs" --target install > "$out/build.log"
+fi
 "$out/install/bin/OMSimulator" --version

@@ -51,14 +51,22 @@ COLUMNS = ("x", "v", "mode", "n_events", "t_last_event")
 MA_TOLERANCE = 1e-12  # OMSimulator's --tolerance for oms-ma
 
 
+def simulation_annotation(element, description, settings):
+    """OMSimulator's ``ssd:Annotations`` element of a system: its SimulationInformation holds
+    ``<oms:{element} description=...>`` with ``settings`` ({attribute: number}) as attributes. The element chooses the
+    system's kind: FixedStepMaster or VariableStepMaster a weakly coupled system (co-simulation), VariableStepSolver
+    a strongly coupled one (model exchange, OMSimulator's own solver)."""
+    attributes = " ".join(f'{key}="{value!r}"' for key, value in settings.items())
+    return (f'<ssd:Annotations><ssc:Annotation type="org.openmodelica"><oms:Annotations><oms:SimulationInformation>'
+            f'<oms:{element} description="{description}" {attributes} /></oms:SimulationInformation></oms:Annotations>'
+            f'</ssc:Annotation></ssd:Annotations>')
+
+
 def master_annotation(master, steps):
     """OMSimulator's ``ssd:Annotations`` element choosing ``master`` (a key of MASTERS) with ``steps`` (s):
     ``{"stepSize": h}`` for ma, ``initialStepSize``, ``minimumStepSize``, ``maximumStepSize`` for mav, mav2."""
     name, element = MASTERS[master]
-    attributes = " ".join(f'{key}="{value!r}"' for key, value in steps.items())
-    return (f'<ssd:Annotations><ssc:Annotation type="org.openmodelica"><oms:Annotations><oms:SimulationInformation>'
-            f'<oms:{element} description="{name}" {attributes} /></oms:SimulationInformation></oms:Annotations>'
-            f'</ssc:Annotation></ssd:Annotations>')
+    return simulation_annotation(element, name, steps)
 
 
 def oms_ssp(system, master, steps, dest, block_order=None):
@@ -102,8 +110,8 @@ def declared_output_order(fmu, order):
 
 
 def run_omsimulator(omsimulator, ssp, system, tolerance, input_extrapolation):
-    """OMSimulator on ``ssp`` to the system's stop time: ``(result file, wall time (s))``; RuntimeError with its
-    output if it fails."""
+    """OMSimulator on ``ssp`` to ``system.stop_time`` (s): ``(result file, wall time (s), its standard output)``;
+    RuntimeError with its output if it fails."""
     result = Path(ssp).with_suffix(".mat")
     command = [str(Path(omsimulator).resolve()), f"--stopTime={system.stop_time!r}", f"--tolerance={tolerance!r}",
                f"--inputExtrapolation={'true' if input_extrapolation else 'false'}", "--emitEvents=false",
@@ -113,7 +121,7 @@ def run_omsimulator(omsimulator, ssp, system, tolerance, input_extrapolation):
     wall = time.perf_counter() - start
     if run.returncode != 0 or not result.exists() or "error:" in run.stdout:
         raise RuntimeError(f"{' '.join(command)}: exit {run.returncode}\n{run.stdout[-3000:]}{run.stderr[-2000:]}")
-    return result, wall
+    return result, wall, run.stdout
 
 
 def read_mat(path):
@@ -211,16 +219,16 @@ def main(argv=None):
     for k, (master, setting, steps, tolerance) in enumerate(runs(args, system)):
         ssp = oms_ssp(system, master, steps, folder / f"{system.name}-{master}-{k}.ssp", args.block_order)
         try:
-            mat, wall = run_omsimulator(args.omsimulator, ssp, system, tolerance, args.input_extrapolation)
+            mat, wall, _ = run_omsimulator(args.omsimulator, ssp, system, tolerance, args.input_extrapolation)
             result = to_result(f"oms-{master}", block_columns(read_mat(mat), system.n), system.times(), wall)
         except RuntimeError as exc:
-            print(f"| oms-{master} | {setting} | failed: {_first_error(str(exc))} | | | | |", flush=True)
+            print(f"| oms-{master} | {setting} | failed: {first_error(str(exc))} | | | | |", flush=True)
             continue
         extra = f"{zoh_difference(system, result, steps['stepSize']):.2g}" if master == "ma" and args.check else ""
         print(row(f"oms-{master}", setting, measure(system, result), result, extra), flush=True)
 
 
-def _first_error(text):
+def first_error(text):
     """The first ``error:`` line of OMSimulator's output in ``text``, else its last line."""
     lines = [line for line in text.splitlines() if line.strip()]
     errors = [line for line in lines if line.startswith("error:")]
