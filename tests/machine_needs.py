@@ -66,5 +66,6 @@ def fmpy_windows(what):
     none. ``what`` needs them."""
     wheels = sorted(FMPY_WINDOWS_WHEELS.glob("*.whl"))
     if not any(wheel.name.startswith("fmpy-") for wheel in wheels):
-        pytest.skip(f"{what} needs FMPy's wheels for Windows: scripts/test.sh downloads them into {FMPY_WINDOWS_WHEELS}")
+        pytest.skip(f"{what} needs FMPy's wheels for Windows: scripts/test.sh downloads them into "
+                    f"{FMPY_WINDOWS_WHEELS}")
     return wheels

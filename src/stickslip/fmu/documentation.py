@@ -31,8 +31,8 @@ CARRIED = {
     "mypy": ("MIT, with parts of mypyc's C runtime under the PSF License 2 (CPython's)",
              "mypyc's C runtime, compiled into the runtime's compiled modules (resources/*__mypyc*.so)"),
     "python": ("the PSF License Agreement (CPython's), with the licences of what its Windows build includes",
-               "python.org's embeddable CPython for Windows, trimmed (binaries/*windows*/python/, binaries/win64/"
-               "python/), which the Windows binaries start where the host process has no Python"),
+               "python.org's embeddable CPython for Windows, trimmed (python/ beside the Windows binaries), which "
+               "they start where the host process has no Python"),
 }
 #: where the binaries' sources are: the FMU ships none (``sources/`` would be taken for a source-code FMU, which a
 #: Python FMU cannot be: the binaries start the Python that runs the slave)

@@ -41,7 +41,8 @@ PROVIDERS = (("api-ms-win-crt-", "the Universal C Runtime (part of Windows 10 an
              ("", "Windows itself"))
 #: what provides an imported DLL that the FMU carries itself (the CPython of its Windows binaries, whose folder the
 #: loader loads them from)
-CARRIED = "nothing: the FMU carries them (binaries/<platform>/python/, the CPython its Windows binaries start)"
+CARRIED = ("the FMU itself, in python/ beside its Windows binaries (the CPython they start where the host process has "
+           "none; in a Python host the host's CPython brings them)")
 #: the index of the import table among the optional header's data directories
 IMPORT_DIRECTORY = 1
 

@@ -100,7 +100,8 @@ def windows_compiler():
     """``(the Windows cross-compiler's command, None)``, or ``(that command, why it cannot be used)``."""
     compiler = os.environ.get(WINDOWS_CC_VARIABLE) or WINDOWS_CC
     if shutil.which(compiler) is None:
-        return compiler, f"no Windows cross-compiler ({compiler!r} not found; install mingw-w64 or set {WINDOWS_CC_VARIABLE})"
+        return compiler, (f"no Windows cross-compiler ({compiler!r} not found; install mingw-w64 or set "
+                          f"{WINDOWS_CC_VARIABLE})")
     return compiler, None
 
 
