@@ -48,8 +48,8 @@ LICENSE_ENTRY = "documentation/licenses/python.txt"
 EXTENSIONS = ("_ctypes.pyd", "libffi-8.dll")
 #: the standard library modules kept in the zip (dotted names; a package is its ``__init__``): measured under Wine
 #: with the whole standard library and an audit hook on "import", while the FMI 2, FMI 3 and coupling FMUs ran their
-#: scenes, refusals, input derivatives, FMU states, two instances and model exchange in the C hosts (those of the zip;
-#: the others are built into the DLL or frozen). tests/test_windows_loader.py runs the FMUs with this list.
+#: scenes, refusals, input derivative, FMU states and two instances in the C hosts (those of the zip; the others are
+#: built into the DLL or frozen). tests/test_windows_loader.py runs the FMUs with this list, FMI 3 model exchange too.
 STDLIB_MODULES = (
     "__future__", "_collections_abc", "_opcode_metadata", "_weakrefset", "abc", "ast", "bisect", "codecs",
     "collections", "contextlib", "copy", "copyreg", "ctypes", "ctypes._endian", "dataclasses", "datetime", "dis",
