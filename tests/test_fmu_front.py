@@ -175,7 +175,10 @@ def test_the_documentation_carries_the_licences_and_the_fmu_no_sources(request, 
                     if name.startswith(documentation.LICENSES)}
         page = archive.read(documentation.INDEX).decode()
     compiled = any(name.startswith("resources/") and name.endswith(".so") for name in names)
-    assert set(licences) == {"stickslip.txt", f"{library}.txt", *(("mypy.txt",) if compiled else ())}
+    python = any("/python/python3" in name and name.endswith(".dll") for name in names)  # the Windows binaries'
+    assert set(licences) == {"stickslip.txt", f"{library}.txt", *(("mypy.txt",) if compiled else ()),
+                             *(("python.txt",) if python else ())}
+    assert not python or "PYTHON SOFTWARE FOUNDATION LICENSE VERSION 2" in licences["python.txt"]
     installed = [f for f in importlib.metadata.distribution(library).files if f.name == "LICENSE"]
     assert licences[f"{library}.txt"] == installed[0].read_text()
     assert licences["stickslip.txt"] == (ROOT / "LICENSE").read_text(encoding="utf-8")  # the one source

@@ -42,7 +42,7 @@ def has_objdump():
 def test_the_fmu_lists_the_windows_needs_objdump_finds(request, fmu, tmp_path, has_objdump):
     with zipfile.ZipFile(request.getfixturevalue(fmu)) as archive:
         archive.extractall(tmp_path)
-    dlls = sorted((tmp_path / "binaries").rglob("*.dll"))
+    dlls = sorted([*(tmp_path / "binaries").rglob("*.dll"), *(tmp_path / "binaries").rglob("*.pyd")])
     if not dlls:
         pytest.skip("the FMU has no Windows binaries (the build found no MinGW-w64 cross-compiler)")
     text = (tmp_path / DEPENDENCIES_FILE).read_text()
@@ -55,7 +55,8 @@ def test_the_fmu_lists_the_windows_needs_objdump_finds(request, fmu, tmp_path, h
         newest = max(known) if known else None
         name = dll.relative_to(tmp_path).as_posix()
         api = f"{newest[1]} needs {release(newest[0])}" if newest else "no function newer than Windows XP"
-        line = f"\n{name}: subsystem {subsystem} (operating system {system}); {api}; {', '.join(imports)}\n"
+        dll_names = ", ".join(imports) or "no DLLs"
+        line = f"\n{name}: subsystem {subsystem} (operating system {system}); {api}; {dll_names}\n"
         assert line in per_binary
         version = tuple(map(int, subsystem.split(".")))
         floor = max(floor, version, newest[0] if newest else version)

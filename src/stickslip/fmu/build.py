@@ -21,7 +21,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import archive, documentation, floors, loader, model_description, trim
+from . import archive, documentation, floors, loader, model_description, trim, windows_python
 from .sources import MODEL_NAME, RUNTIME, INTERFACE, SLAVES, is_current, runtime_tag, source_tag
 from .python_path import preserved_sys_path
 from .staging import LOADERS, stage_runtime
@@ -120,13 +120,16 @@ def forget_modules(tags, module):
 
 def write_with_loader(dest, entries, model_name, fmi_version=2):
     """Write the FMU ``model_name`` of ``fmi_version`` with the ``entries`` (``{name: bytes}``) to ``dest``
-    (replaced atomically, reproducibly: :mod:`stickslip.fmu.archive`), with the loader as its Linux binary and,
-    in its documentation, what the host machine needs of the binaries it ends up with (:mod:`stickslip.fmu.floors`).
+    (replaced atomically, reproducibly: :mod:`stickslip.fmu.archive`), with the loader as its Linux and Windows
+    binary and, in its documentation, what the host machine needs of the binaries it ends up with
+    (:mod:`stickslip.fmu.floors`) and the licence of the CPython its Windows binaries carry, if they do.
     """
     partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
     archive.write_entries(partial, entries)
     loader.install(partial, model_name, slave_survives_release=True, fmi_version=fmi_version)
     built = archive.read_entries(partial)
+    if windows_python.LICENSE_ENTRY in built:  # the Windows binaries carry CPython
+        built[documentation.INDEX] = documentation.with_license(built[documentation.INDEX], "python")
     built[floors.DEPENDENCIES_FILE] = floors.dependencies_text(model_name, floors.fmu_floors(built)).encode()
     archive.write_entries(partial, built)
     os.replace(partial, dest)

@@ -30,6 +30,9 @@ CARRIED = {
                           "binaries/x86_64-windows/*_pythonfmu.dll)"),
     "mypy": ("MIT, with parts of mypyc's C runtime under the PSF License 2 (CPython's)",
              "mypyc's C runtime, compiled into the runtime's compiled modules (resources/*__mypyc*.so)"),
+    "python": ("the PSF License Agreement (CPython's), with the licences of what its Windows build includes",
+               "python.org's embeddable CPython for Windows, trimmed (python/ beside the Windows binaries), which "
+               "they start where the host process has no Python"),
 }
 #: where the binaries' sources are: the FMU ships none (``sources/`` would be taken for a source-code FMU, which a
 #: Python FMU cannot be: the binaries start the Python that runs the slave)
@@ -85,6 +88,18 @@ def entries(model_description, summary, distributions, selectors=None):
     return files
 
 
+def with_license(page, name):
+    """The bytes of the ``index.html`` ``page`` with the licence of the :data:`CARRIED` ``name`` (whose text the FMU
+    carries in ``licenses/<name>.txt``) added to its list of licences."""
+    item, text = _license_item(name), page.decode()
+    return page if item in text else text.replace("</ul>\n</body>", f"{item}</ul>\n</body>", 1).encode()
+
+
+def _license_item(name):
+    return (f"<li><a href=\"licenses/{name}.txt\">{_e(name)}</a>: {_e(CARRIED[name][0])}; in this FMU: "
+            f"{_e(CARRIED[name][1])}</li>\n")
+
+
 def _page(root, summary, distributions, selectors):
     """index.html of the model description ``root``."""
     model, version = root.get("modelName"), root.get("fmiVersion")
@@ -107,8 +122,7 @@ def _page(root, summary, distributions, selectors):
     sources = BINARY_SOURCES.format(model=model, version=version[0], library=library)
     parts.append(f"<h2>Binaries and sources</h2>\n<p>{_e(sources)}</p>\n")
     parts.append("<h2>Licences</h2>\n<ul>\n")
-    parts += [f"<li><a href=\"licenses/{name}.txt\">{_e(name)}</a>: {_e(CARRIED[name][0])}; in this FMU: "
-              f"{_e(CARRIED[name][1])}</li>\n" for name in distributions]
+    parts += [_license_item(name) for name in distributions]
     parts.append("</ul>\n</body>\n</html>\n")
     return "".join(parts)
 

@@ -154,15 +154,22 @@ class FmuFloors:
                 if any(version_name in names for names in needs.versions.values())]
 
 
+#: the suffixes of Windows binaries: DLLs and CPython's extension modules
+WINDOWS_SUFFIXES = (".dll", ".pyd")
+#: the files of a CPython that an FMU carries beside its binaries which are no binaries: its standard library (a zip)
+#: and the file that sets its path
+PYTHON_DATA = (".zip", "._pth")
+
+
 def fmu_floors(entries):
     """The :class:`FmuFloors` of an FMU's ``entries`` ({archive name: bytes}): every ``.so`` under ``binaries/``
-    and ``resources/`` (NotELF if one is no ELF shared object), every ``.dll`` under ``binaries/`` (NotPE if one is no
-    PE binary)."""
+    and ``resources/`` (NotELF if one is no ELF shared object), every ``.dll`` and ``.pyd`` under ``binaries/``
+    (NotPE if one is no PE binary)."""
     binaries, libpython, compiled_for = {}, None, set()
     windows = {name: windows_needs(entries[name]) for name in sorted(entries)
-               if name.startswith("binaries/") and name.endswith(".dll")}
+               if name.startswith("binaries/") and name.endswith(WINDOWS_SUFFIXES)}
     others = tuple(name for name in sorted(entries)
-                   if name.startswith("binaries/") and not name.endswith((".so", ".dll")))
+                   if name.startswith("binaries/") and not name.endswith((".so", *WINDOWS_SUFFIXES, *PYTHON_DATA)))
     for name in sorted(entries):
         if name.endswith(".so") and name.startswith(("binaries/", "resources/")):
             binaries[name] = binary_needs(entries[name])

@@ -27,7 +27,7 @@ MODULE_PREFIXES = {2: "springblockfriction_", 3: "springblockfriction3_"}
 #: the builder modules whose source decides an FMU's content
 BUILDERS = (*(Path(__file__).resolve().with_name(name) for name in
               ("build.py", "archive.py", "model_description.py", "staging.py", "compile_runtime.py", "sources.py",
-               "trim.py", "documentation.py", "floors.py", "windows_needs.py")),
+               "trim.py", "documentation.py", "floors.py", "windows_needs.py", "windows_python.py")),
             *loader.SOURCES)
 
 

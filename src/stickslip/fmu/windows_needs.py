@@ -39,6 +39,10 @@ PROVIDERS = (("api-ms-win-crt-", "the Universal C Runtime (part of Windows 10 an
              ("python3", "CPython for Windows (python3.dll, the stable ABI's forwarder, beside the python3XY.dll "
                          "the loader starts)"),
              ("", "Windows itself"))
+#: what provides an imported DLL that the FMU carries itself (the CPython of its Windows binaries, whose folder the
+#: loader loads them from)
+CARRIED = ("the FMU itself, in python/ beside its Windows binaries (the CPython they start where the host process has "
+           "none; in a Python host the host's CPython brings them)")
 #: the index of the import table among the optional header's data directories
 IMPORT_DIRECTORY = 1
 
@@ -144,8 +148,11 @@ def _imports(data, sections, table, wide):
         at += 20
 
 
-def provider(dll):
-    """What provides the imported ``dll`` (a sentence from :data:`PROVIDERS`)."""
+def provider(dll, carried=()):
+    """What provides the imported ``dll`` (a sentence from :data:`PROVIDERS`), or :data:`CARRIED` if it is among the
+    archive names ``carried`` (the FMU's own binaries)."""
+    if any(name.rsplit("/", 1)[-1].lower() == dll.lower() for name in carried):
+        return CARRIED
     return next(text for start, text in PROVIDERS if dll.lower().startswith(start))
 
 
@@ -165,9 +172,9 @@ def windows_text(model_name, binaries):
     by_provider = {}
     for name, needs in binaries.items():
         for dll in needs.imports:
-            dlls, users = by_provider.setdefault(provider(dll), ({}, {}))
+            dlls, users = by_provider.setdefault(provider(dll, binaries), ({}, {}))
             dlls[dll], users[name] = None, None
-    texts = [text for _, text in PROVIDERS]
+    texts = [CARRIED, *(text for _, text in PROVIDERS)]
     for text, (dlls, users) in sorted(by_provider.items(), key=lambda item: texts.index(item[0])):
         lines.append(f"- {text}: {', '.join(dlls)} (for {', '.join(users)})")
     lines += ["", "Each Windows binary: its subsystem version (its operating system version), the newest Windows API function it imports, then the "

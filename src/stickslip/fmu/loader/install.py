@@ -11,8 +11,10 @@ the platform layer of the target (``platform_posix.c`` or ``platform_windows.c``
   ``$SBF_LIBPYTHON``. The compiler is ``$CC`` (default ``cc``); without a working one the FMU keeps its library's
   binary, which loads only inside a Python process, and the build says so on stderr.
 - Windows (x86_64): ``binaries/<windows folder>/<model identifier>.dll``, the library's own as
-  ``<model identifier>_pythonfmu.dll`` (the start lock is a named mutex: no guard library). It tries the process's
-  own CPython, ``$SBF_LIBPYTHON``, then ``python3XY.dll`` of the building Python's version. The compiler is
+  ``<model identifier>_pythonfmu.dll`` (the start lock is a named mutex: no guard library), and the trimmed
+  embeddable CPython in ``python/`` beside them (:mod:`stickslip.fmu.windows_python`; left out, with a note on
+  stderr, where the build cannot get it). It tries the process's own CPython, ``$SBF_LIBPYTHON``, that bundled
+  one, then ``python3XY.dll`` of the building Python's version. The compiler is
   ``$SBF_WINDOWS_CC`` (default ``x86_64-w64-mingw32-gcc``, Debian's ``gcc-mingw-w64-x86-64``); without it the FMU
   has no Windows binaries (the library's own would not do what the model description declares), and the build
   says so on stderr.
@@ -27,6 +29,7 @@ import tempfile
 from pathlib import Path
 from xml.etree import ElementTree
 
+from .. import windows_python
 from ..archive import read_entries, write_entries
 
 HERE = Path(__file__).resolve().parent
@@ -93,18 +96,30 @@ def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, toke
     return _run_compiler(compiler, (command, guard))
 
 
-def compile_windows_loader(dest, inner_name, slave_survives_release, fmi_version=2, token="", model_exchange=False):
-    """Cross-compile the Windows (x86_64) loader of ``fmi_version`` to ``dest`` (arguments as
-    :func:`compile_loader`), linked statically (it needs only Windows' own kernel32.dll and msvcrt.dll); None on
-    success, else why not."""
+def windows_compiler():
+    """``(the Windows cross-compiler's command, None)``, or ``(that command, why it cannot be used)``."""
     compiler = os.environ.get(WINDOWS_CC_VARIABLE) or WINDOWS_CC
     if shutil.which(compiler) is None:
-        return f"no Windows cross-compiler ({compiler!r} not found; install mingw-w64 or set {WINDOWS_CC_VARIABLE})"
+        return compiler, (f"no Windows cross-compiler ({compiler!r} not found; install mingw-w64 or set "
+                          f"{WINDOWS_CC_VARIABLE})")
+    return compiler, None
+
+
+def compile_windows_loader(dest, inner_name, slave_survives_release, fmi_version=2, token="", model_exchange=False,
+                           bundled=""):
+    """Cross-compile the Windows (x86_64) loader of ``fmi_version`` to ``dest`` (arguments as
+    :func:`compile_loader`), linked statically (it needs only Windows' own kernel32.dll and msvcrt.dll); ``bundled``:
+    the path of the CPython DLL the FMU carries, relative to the loader's folder ("" if none); None on success, else
+    why not."""
+    compiler, why_not = windows_compiler()
+    if why_not:
+        return why_not
     soname = f"python{sys.version_info[0]}{sys.version_info[1]}.dll"
     # no time stamp, a fixed image base: the same sources give the same bytes in any folder
     command = [compiler, "-O2", "-shared", "-static", "-s", "-Wl,--no-insert-timestamp,--disable-auto-image-base",
                "-o", str(dest), *_loader_sources(fmi_version, "windows"),
-               *_loader_defines(inner_name, token, slave_survives_release, soname, model_exchange and fmi_version == 2)]
+               *_loader_defines(inner_name, token, slave_survives_release, soname, model_exchange and fmi_version == 2),
+               f"-DSBF_BUNDLED_LIBPYTHON={_c_string(bundled)}"]
     return _run_compiler(compiler, (command,))
 
 
@@ -174,13 +189,30 @@ def _install_windows(entries, tmp, model_identifier, arguments):
         return
     inner_name = f"{model_identifier}_pythonfmu.dll"
     loader = tmp / f"{model_identifier}.dll"
-    why_not = compile_windows_loader(loader, inner_name, *arguments)
+    python, bundled = _windows_python(folder, model_identifier) if windows_compiler()[1] is None else ({}, "")
+    why_not = compile_windows_loader(loader, inner_name, *arguments, bundled=bundled)
     if why_not is not None:
         for name in [name for name in entries if name.startswith(f"{folder}/")]:
             del entries[name]
         print(f"note: the {model_identifier} FMU has no Windows binaries: {why_not}", file=sys.stderr)
         return
     _front(entries, binary, inner_name, loader)
+    entries.update(python)
+
+
+def _windows_python(folder, model_identifier):
+    """``(entries, path)``: the trimmed embeddable CPython for the Windows binaries in ``folder``
+    (:mod:`stickslip.fmu.windows_python`) and its DLL's path relative to the loader; ``({}, "")`` after a note on
+    stderr where the build cannot have it."""
+    files, why_not = windows_python.bundle()
+    if files is not None:
+        try:
+            return windows_python.python_entries(folder, files)
+        except windows_python.EmbeddableError as exc:
+            why_not = str(exc)
+    print(f"note: the {model_identifier} FMU's Windows binaries carry no Python (they need one in the host process, "
+          f"named by {LIBPYTHON_VARIABLE} or on the PATH): {why_not}", file=sys.stderr)
+    return {}, ""
 
 
 def _front(entries, binary, inner_name, loader):

@@ -32,7 +32,8 @@ const char *sbf_library_error(void);
 int sbf_process_python(void **library);
 /* Make the CPython library `python` (a handle as above) the one the inner library, loaded next, binds to; 0 with the
  * reason in `why`. (Linux: it binds through the global scope. Windows: PythonFMU's binaries import python3.dll, the
- * stable ABI's forwarder, which is loaded from beside `python` first.) */
+ * stable ABI's forwarder, which is loaded from beside `python` first, else the one the FMU carries beside its own
+ * CPython library, where that has the file name of `python`.) */
 int sbf_bind_inner_to_python(void *python, char *why, size_t why_size);
 /* The path of the loader's own binary into `path`; 0 if it cannot be found. */
 int sbf_loader_path(char *path, size_t size);

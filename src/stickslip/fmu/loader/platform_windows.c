@@ -133,16 +133,39 @@ static size_t folder_length(const char *path)
     return slash ? (size_t)(slash - path + 1) : 0;
 }
 
+#ifndef SBF_BUNDLED_LIBPYTHON
+#define SBF_BUNDLED_LIBPYTHON ""
+#endif
+
+/* The path of the python3.dll that the FMU carries beside its own CPython library (SBF_BUNDLED_LIBPYTHON, relative
+ * to the loader's folder) into `path`, if that library has the file name of the CPython library `python_path` (the
+ * forwarder names the library of its version, which is then the one already loaded); 0 if not. */
+static int bundled_forwarder(const char *python_path, char *path, size_t size)
+{
+    char loader[4096];
+    const char *bundled = SBF_BUNDLED_LIBPYTHON, *name = python_path + folder_length(python_path);
+    size_t bundled_folder = folder_length(bundled);
+    if (!*bundled || _stricmp(bundled + bundled_folder, name) != 0 || !sbf_loader_path(loader, sizeof loader))
+        return 0;
+    int n = snprintf(path, size, "%.*s%.*spython3.dll", (int)folder_length(loader), loader, (int)bundled_folder,
+                     bundled);
+    return n > 0 && (size_t)n < size;
+}
+
 int sbf_bind_inner_to_python(void *python, char *why, size_t why_size)
 {
-    char path[4096];
+    char path[4096], python_path[4096], carried[4096];
     if (GetModuleHandleW(L"python3.dll")) return 1;
-    if (!module_path((const void *)GetProcAddress((HMODULE)python, "Py_IsInitialized"), path, sizeof path))
+    if (!module_path((const void *)GetProcAddress((HMODULE)python, "Py_IsInitialized"), python_path,
+                     sizeof python_path))
         return snprintf(why, why_size, "cannot locate the CPython library"), 0;
-    snprintf(path + folder_length(path), sizeof path - folder_length(path), "python3.dll");
+    snprintf(path, sizeof path, "%.*spython3.dll", (int)folder_length(python_path), python_path);
     if (sbf_open_library(path, 0)) return 1;
-    snprintf(why, why_size, "it needs python3.dll, which is not beside the CPython library (%s: %s)", path,
-             library_error);
+    int found = snprintf(why, why_size, "it needs python3.dll, which is not beside the CPython library (%s: %s)",
+                         path, library_error);
+    if (!bundled_forwarder(python_path, carried, sizeof carried)) return 0;
+    if (sbf_open_library(carried, 0)) return 1;
+    snprintf(why + found, why_size - (size_t)found, ", nor loads from the FMU (%s: %s)", carried, library_error);
     return 0;
 }
 

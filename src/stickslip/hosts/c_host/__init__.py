@@ -94,8 +94,13 @@ def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x
     and paths on Wine's drive Z:).
     """
     command = host_command(host, fmu_folder, mode, stop_time, step, start_values, output, resources)
-    result = subprocess.run([*wrapper, *command], capture_output=True, text=True, env=host_env(env),
-                            timeout=timeout)
+    return run_command([*wrapper, *command], env, timeout)
+
+
+def run_command(command, env=None, timeout=600):
+    """Run a host's ``command`` (a list) in a child process with :func:`host_env` of ``env``, and parse what it
+    printed as :func:`run_host` does: a :class:`HostRun`."""
+    result = subprocess.run(command, capture_output=True, text=True, env=host_env(env), timeout=timeout)
     lines, logs = [], []
     for line in result.stdout.splitlines():
         if line.startswith("log "):
