@@ -35,6 +35,8 @@ SIZE_FLAGS = {"CFLAGS": "-g0", "LDFLAGS": "-s"}
 RUNTIME_PREFIX = "sbf_runtime_"
 #: files of an in-place compiled ``stickslip/core`` (pip install -e) that never go into the FMUs' copy
 COMPILED_ARTIFACTS = ("__pycache__", "*.pyc", "*.so", "*.pyd", implementation.STAMP)
+#: ``sysconfig.get_platform()`` of 64-bit Windows, for which :mod:`windows_runtime` compiles the runtime on Linux
+WINDOWS_PLATFORM = "win-amd64"
 #: the FMUs' runtime compiled when the package was built (setup.py), one folder per :func:`prebuilt_key`
 PREBUILT = HERE / "prebuilt"
 #: the file that marks a folder of compiled files complete, and mypy's licence beside them (mypyc's C runtime is in
@@ -54,7 +56,8 @@ def runtime_tag(core=HERE.parent / "core"):
     """10 hex digits identifying the runtime as the FMUs carry it: the sources of ``core`` and the builder modules
     that lay it out and compile it. It names the FMUs' runtime package, which FMUs of the same runtime share."""
     sources = sorted(p for p in Path(core).rglob("*.py") if "__pycache__" not in p.parts)
-    return files_tag([*sources, *(HERE / name for name in ("staging.py", "compile_runtime.py", "trim.py"))])
+    builders = ("staging.py", "compile_runtime.py", "windows_runtime.py", "trim.py")
+    return files_tag([*sources, *(HERE / name for name in builders)])
 
 
 def prebuilt_key(package):
