@@ -89,8 +89,9 @@ def compile_for_others(venvs, build_version):
     pythons = pyenv_pythons()
     for version, python in pythons.items():
         if _key(version) > _key(build_version):
-            compile_with(python, Path(venvs) / f"{version}-compile", pins, Path(compile_runtime.__file__),
-                         f"{package}-cpython-{version.replace('.', '')}-{sysconfig.get_platform()}", f"CPython {version}")
+            name = f"{package}-cpython-{version.replace('.', '')}-{sysconfig.get_platform()}"
+            compile_with(python, Path(venvs) / f"{version}-compile", pins, Path(compile_runtime.__file__), name,
+                         f"CPython {version}")
     windows = ".".join(map(str, windows_runtime.WINDOWS_PYTHON))
     if windows in pythons:
         compile_with(pythons[windows], Path(venvs) / f"{windows}-compile", pins, Path(windows_runtime.__file__),

