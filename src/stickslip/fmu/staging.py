@@ -39,16 +39,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .compile_runtime import (COMPILED_ARTIFACTS, COMPILED_MODULES, COMPLETE, MYPY_LICENSE, PREBUILT, RUNTIME_PREFIX,
-                              CompileError, compile_in_place, prebuilt_key, store, toolchain_tag)
+                              WINDOWS_PLATFORM, CompileError, compile_in_place, prebuilt_key, store, toolchain_tag)
 from .sources import LOADER_BINDING
 
 #: the packages of an FMU's ``resources/``: the runtime (the same in every FMU built from the same runtime, so that
 #: the FMI 2 and FMI 3 FMUs share one compilation and a process that loads both shares one copy) and the slave
 SLAVE_PREFIX = "sbf_slave_"
 CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stickslip" / "fmu-runtime"
-#: the runtime compiled for other CPython versions of this platform, one folder per
-#: :func:`~stickslip.fmu.compile_runtime.prebuilt_key` of that version (``scripts/other_pythons.py compile`` makes
-#: them): an FMU carries every one of its runtime package besides the building Python's
+#: the runtime compiled for other CPython versions of this platform, and for Windows (x86_64), one folder per
+#: :func:`~stickslip.fmu.compile_runtime.prebuilt_key` of that version and platform (``scripts/other_pythons.py
+#: compile`` makes them): an FMU carries every one of its runtime package besides the building Python's
 OTHER_PYTHONS = CACHE / "other-pythons"
 
 
@@ -197,7 +197,8 @@ def _compiled(folder, package):
             return {}
         print(f"stickslip: ... compiled in {time.monotonic() - start:.0f} s", file=sys.stderr)
         store(files, folder, cache)
-    others = sorted(other for other in OTHER_PYTHONS.glob(f"{package}-*-{sysconfig.get_platform()}")
+    others = sorted(other for platform in (sysconfig.get_platform(), WINDOWS_PLATFORM)
+                    for other in OTHER_PYTHONS.glob(f"{package}-*-{platform}")
                     if (other / COMPLETE).is_file() and other.name != prebuilt_key(package))
     if package not in _ANNOUNCED:
         _ANNOUNCED.add(package)
@@ -215,9 +216,9 @@ def _compiled(folder, package):
 
 
 def _python_version(tag):
-    """"3.13" of a name holding the cache tag ``cpython-313``."""
+    """"3.13" of a name holding the cache tag ``cpython-313``, "3.13 on Windows" of one compiled for Windows."""
     digits = re.search(r"cpython-(\d)(\d+)", tag)
-    return f"{digits[1]}.{digits[2]}"
+    return f"{digits[1]}.{digits[2]}{' on Windows' if tag.endswith(WINDOWS_PLATFORM) else ''}"
 
 
 def byte_compile(package_dir):

