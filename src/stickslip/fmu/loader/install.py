@@ -28,7 +28,8 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 from ..archive import read_entries, write_entries
-from .python_bundle import linux_bundle
+from ..documentation import with_carried_licenses
+from .python_bundle import FOLDER, linux_bundle
 
 HERE = Path(__file__).resolve().parent
 #: FMI version: (the front's source, the FMU's folder of Linux binaries, the library that built the FMU)
@@ -181,7 +182,10 @@ def _install_linux(entries, tmp, model_identifier, arguments):
         return False
     _front(entries, binary, inner_name, loader)
     entries[f"{folder}/{START_GUARD_NAME}"] = loader.with_name(START_GUARD_NAME).read_bytes()
-    entries.update({f"{folder}/{name}": data for name, data in (bundle.entries.items() if bundle else ())})
+    if bundle:
+        entries.update({f"{folder}/{name}": data for name, data in bundle.entries.items()})
+        with_carried_licenses(entries, bundle.licenses, f"the CPython for hosts without one, with the libraries it "
+                              f"and the FMI library's binary need that are not glibc's ({folder}/{FOLDER}/)")
     return True
 
 

@@ -52,12 +52,15 @@ ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 class Bundle:
     """A Linux CPython bundle: ``entries`` ({path below the loader's folder: bytes}), ``libpython`` (the library's
     path there), ``python_needs`` (the libraries of ``lib/`` that its extension modules need) and ``inner_needs``
-    (those the FMI library's binary needs), paths below the loader's folder in the order they are to be loaded."""
+    (those the FMI library's binary needs), paths below the loader's folder in the order they are to be loaded;
+    ``licenses``: {name: licence text (bytes)} of what it holds (CPython's, and the Debian copyright file of each
+    library's package where the system has one)."""
 
     entries: dict
     libpython: str
     python_needs: tuple
     inner_needs: tuple
+    licenses: dict
 
 
 def linux_bundle(entries, inner_binary):
@@ -83,10 +86,11 @@ def linux_bundle(entries, inner_binary):
         for path in {**python_needs, **inner_needs}.values():
             files[f"{FOLDER}/lib/{path.name}"] = path
         out = {name: _stripped(path, tmp) for name, path in files.items()}
+        licenses = _licenses(stdlib, {**python_needs, **inner_needs}.values())
     out[f"{FOLDER}/{zip_name}"] = _module_zip(modules, stdlib)
     out[f"{FOLDER}/python{version}._pth"] = f"{zip_name}\nlib-dynload\n".encode()
     return Bundle(out, f"{FOLDER}/{libpython.name}", tuple(f"{FOLDER}/lib/{name}" for name in python_needs),
-                  tuple(f"{FOLDER}/lib/{name}" for name in inner_needs))
+                  tuple(f"{FOLDER}/lib/{name}" for name in inner_needs), licenses)
 
 
 def _shared_library():
@@ -140,6 +144,24 @@ def _needs_count(path):
     result = subprocess.run(["ldd", str(path)], capture_output=True, text=True)
     return sum(1 for line in result.stdout.splitlines()
                if "=>" in line and not GLIBC_LIBRARIES.match(line.strip()))
+
+
+def _licenses(stdlib, libraries):
+    """{name: licence text}: CPython's (``LICENSE.txt`` of its standard library), and for each of ``libraries``
+    (paths) the copyright file of the Debian package that holds it, named after the package; a library of no
+    package is left out (the FMU's documentation then does not name its licence)."""
+    texts = {"cpython": (stdlib / "LICENSE.txt").read_bytes()} if (stdlib / "LICENSE.txt").is_file() else {}
+    for library in libraries:
+        real = os.path.realpath(library)
+        for candidate in (real, real.removeprefix("/usr") if real.startswith("/usr/lib") else "/usr" + real):
+            found = subprocess.run(["dpkg", "-S", candidate], capture_output=True, text=True) if shutil.which(
+                "dpkg") else None
+            package = found.stdout.split(":", 1)[0] if found and found.returncode == 0 else ""
+            copyright_file = Path("/usr/share/doc", package, "copyright")
+            if package and copyright_file.is_file():
+                texts[package] = copyright_file.read_bytes()
+                break
+    return texts
 
 
 def _stripped(path, tmp):
