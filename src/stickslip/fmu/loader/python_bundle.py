@@ -13,13 +13,15 @@ The bundle lies in ``python/`` beside the Linux loader (``binaries/<linux folder
   calculation takes the ``._pth`` beside that name as the whole of sys.path, ignoring PYTHONHOME and PYTHONPATH.
 
 The modules are measured: a child of the building Python (isolated, without ``site``) imports the FMU's slave
-module as the FMI library does, and every standard-library module it then holds goes in, with the ones Python
-itself imports when it starts (``encodings``). The loader starts this CPython only where the host process has no
+module as the FMI library does, and the Python code of the project's other FMUs (:data:`COMPANIONS`), and every
+standard-library module it then holds goes in, with the ones Python itself imports when it starts (every codec of
+``encodings``). The loader starts this CPython only where the host process has no
 Python of its own and ``$SBF_LIBPYTHON`` is not set (``runtime.c``, ``find_libpython``), and loads the libraries of
 ``lib/`` only where the system has none by their names (the FMI library's C++ runtime: only where its binary does not
 load without them), so that a host keeps its own.
 """
 
+import importlib.util
 import json
 import os
 import py_compile
@@ -37,11 +39,17 @@ from pathlib import Path
 FOLDER = "python"
 #: libraries every Linux system has (glibc's), never bundled
 GLIBC_LIBRARIES = re.compile(r"(libc|libm|libdl|libpthread|librt|libutil|libresolv|ld-linux-x86-64)\.so")
+#: the packages of every FMU this project builds (the FMI libraries' Python parts and the runtime), imported after the
+#: FMU's own slave module: the FMUs of one build then carry the same modules, so that whichever of them starts Python
+#: in a process, the others find what they import
+COMPANIONS = ("pythonfmu", "pythonfmu3", "stickslip.core")
 #: what a child of the building Python prints: the file of every module it imported, after importing the FMU's
-#: slave module (argv[1]) from its resources folder (argv[2]) as the FMI library does
+#: slave module (argv[1]) from its resources folder (argv[2]) as the FMI library does, then COMPANIONS from the
+#: folders after it
 PROBE = ("import importlib, json, sys\n"
-         "sys.path.insert(0, sys.argv[2])\n"
+         "sys.path[:0] = sys.argv[2:]\n"
          "importlib.import_module(sys.argv[1])\n"
+         f"for name in {COMPANIONS!r}: importlib.import_module(name)\n"
          "print(json.dumps(sorted({getattr(m.__spec__, 'origin', None) or '' for m in list(sys.modules.values())"
          " if getattr(m, '__spec__', None)})))\n")
 #: the zip's entries' date (zip's earliest): the same modules give the same bytes
@@ -109,7 +117,9 @@ def _imported_files(entries, folder):
             (folder / name).parent.mkdir(parents=True, exist_ok=True)
             (folder / name).write_bytes(data)
     module = entries["resources/slavemodule.txt"].decode().strip()
-    result = subprocess.run([sys.executable, "-I", "-S", "-c", PROBE, module, str(folder / "resources")],
+    companions = sorted({str(Path(importlib.util.find_spec(name.split(".")[0]).origin).parents[1])
+                         for name in COMPANIONS})
+    result = subprocess.run([sys.executable, "-I", "-S", "-c", PROBE, module, str(folder / "resources"), *companions],
                             capture_output=True, text=True, cwd=folder)
     if result.returncode != 0:
         raise RuntimeError(f"importing the FMU's slave module {module} to measure the modules it needs failed:\n"
@@ -175,14 +185,17 @@ def _stripped(path, tmp):
 
 
 def _module_zip(modules, stdlib):
-    """The bytes of a zip archive (stored) holding each module's byte code (``.pyc`` that carries a hash of its
-    source, unchecked: no source beside it) under its path relative to ``stdlib``."""
+    """The bytes of a zip archive (stored) holding each module's byte code under its path relative to ``stdlib``:
+    the installation's own ``__pycache__`` file (the same bytes at every build: byte code compiled in this process
+    would depend on its state), else one compiled here. No source beside them: zipimport takes them as they are."""
     out = tempfile.SpooledTemporaryFile()
     with tempfile.TemporaryDirectory(prefix="sbf_pyc_") as tmp, zipfile.ZipFile(out, "w") as archive:
         for path in modules:
             name = path.relative_to(stdlib).with_suffix(".pyc")
-            compiled = py_compile.compile(str(path), cfile=str(Path(tmp) / "module.pyc"), dfile=str(name),
-                                          doraise=True, invalidation_mode=py_compile.PycInvalidationMode.UNCHECKED_HASH)
-            archive.writestr(zipfile.ZipInfo(str(name), ZIP_DATE), Path(compiled).read_bytes())
+            cached = Path(importlib.util.cache_from_source(str(path)))
+            if not cached.is_file():
+                cached = Path(py_compile.compile(str(path), cfile=str(Path(tmp) / "module.pyc"), dfile=str(name),
+                                                 doraise=True))
+            archive.writestr(zipfile.ZipInfo(str(name), ZIP_DATE), cached.read_bytes())
     out.seek(0)
     return out.read()
