@@ -16,10 +16,15 @@ from pathlib import Path
 
 import pytest
 
+from stickslip.fmu import build
+from stickslip.fmu.floors import DEPENDENCIES_FILE
+from stickslip.fmu.loader import python_bundle
 from stickslip.fmu.loader.install import LIBPYTHON_VARIABLE, build_libpython
 from stickslip.hosts.c_host import host_env, run_host
 from stickslip.hosts.fmpy_host import run_fmu
 from stickslip.suite.scenario import load_scenario
+
+import machine_needs
 
 SCENE = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "elmer-fig3-v0.1.toml")
 START = SCENE.start_values()
@@ -122,9 +127,11 @@ def test_a_bad_parameter_in_the_chroot_is_an_error_naming_it(jail, fmpy_runs, fo
     assert run.series("x") == fmpy_runs(folder, SHORT)  # the bad instance freed, a new one runs
 
 
-def test_fmu_states_in_the_chroot_replay_exactly(jail, fmpy_runs, host):
-    run = completed(run_in(jail, host, "fmu2", "state", SHORT))
-    times, x = fmpy_runs("fmu2", SHORT)
+@pytest.mark.parametrize("folder, binary", [("fmu2", "host"), ("fmu3", "host3")])
+def test_fmu_states_in_the_chroot_replay_exactly(jail, fmpy_runs, folder, binary, request):
+    """Got, set, serialized and deserialized, the state at SHORT/2 replays the run's second half exactly."""
+    run = completed(run_in(jail, request.getfixturevalue(binary), folder, "state", SHORT))
+    times, x = fmpy_runs(folder, SHORT)
     second_half = (times[len(times) // 2 + 1:], x[len(x) // 2 + 1:])
     assert run.series("x") == run.series("r") == run.series("d") == second_half
 
@@ -212,3 +219,14 @@ def test_a_python_host_uses_its_own_python(fmu_path, tmp_path):
     loaded = loaded_libraries(result.stderr)
     assert any("SpringBlockFriction_pythonfmu.so" in path for path in loaded)  # the FMU did run here
     assert not [path for path in loaded if "/python/libpython" in path or "/python/lib/" in path]
+
+
+def test_a_python_without_a_shared_library_builds_fmus_without_one_and_says_so(tmp_path, monkeypatch, capsys):
+    machine_needs.c_compiler("the FMU's Linux loader")
+    monkeypatch.setattr(python_bundle, "_shared_library", lambda: None)
+    path = build(tmp_path / "SpringBlockFriction.fmu")
+    with zipfile.ZipFile(path) as fmu:
+        assert not [name for name in fmu.namelist() if "/python/" in name]
+        needs = fmu.read(DEPENDENCIES_FILE).decode()
+    assert f"else {build_libpython()[1]} (the build's;" in needs and "the one the FMU carries" not in needs
+    assert "carries no CPython for Linux hosts without one: this Python" in capsys.readouterr().err
