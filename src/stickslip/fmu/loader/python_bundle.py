@@ -14,8 +14,8 @@ The bundle lies in ``python/`` beside the Linux loader (``binaries/<linux folder
 
 The modules are measured: a child of the building Python (isolated, without ``site``) imports the FMU's slave
 module as the FMI library does, and the Python code of the project's other FMUs (:data:`COMPANIONS`), and every
-standard-library module it then holds goes in, with the ones Python itself imports when it starts (every codec of
-``encodings``). The loader starts this CPython only where the host process has no
+standard-library module it then holds goes in, with the codecs Python itself may import when it starts
+(:data:`CODECS`). The loader starts this CPython only where the host process has no
 Python of its own and ``$SBF_LIBPYTHON`` is not set (``runtime.c``, ``find_libpython``), and loads the libraries of
 ``lib/`` only where the system has none by their names (the FMI library's C++ runtime: only where its binary does not
 load without them), so that a host keeps its own.
@@ -42,16 +42,23 @@ GLIBC_LIBRARIES = re.compile(r"(libc|libm|libdl|libpthread|librt|libutil|libreso
 #: the packages of every FMU this project builds (the FMI libraries' Python parts and the runtime), imported after the
 #: FMU's own slave module: the FMUs of one build then carry the same modules, so that whichever of them starts Python
 #: in a process, the others find what they import
-COMPANIONS = ("pythonfmu", "pythonfmu3", "stickslip.core")
+FMI_LIBRARIES = ("pythonfmu", "pythonfmu3")
+COMPANIONS = (*FMI_LIBRARIES, "stickslip.core")
 #: what a child of the building Python prints: the file of every module it imported, after importing the FMU's
 #: slave module (argv[1]) from its resources folder (argv[2]) as the FMI library does, then COMPANIONS from the
-#: folders after it
-PROBE = ("import importlib, json, sys\n"
+#: folders after it, the FMI libraries without their builders (which the FMUs leave out: stickslip.fmu.trim)
+PROBE = ("import importlib, json, sys, types\n"
          "sys.path[:0] = sys.argv[2:]\n"
          "importlib.import_module(sys.argv[1])\n"
+         f"for name in {FMI_LIBRARIES!r}:\n"
+         "    sys.modules.setdefault(f'{name}.builder', types.ModuleType(f'{name}.builder')).FmuBuilder = None\n"
          f"for name in {COMPANIONS!r}: importlib.import_module(name)\n"
          "print(json.dumps(sorted({getattr(m.__spec__, 'origin', None) or '' for m in list(sys.modules.values())"
          " if getattr(m, '__spec__', None)})))\n")
+#: the codecs of ``encodings`` carried besides those measured: Python imports the one of the host's locale when it
+#: starts (UTF-8 in the C locale, which turns on its UTF-8 mode), so every codec a Linux locale may name, without
+#: the East Asian ones (which need extension modules of their own) and the byte-to-byte ones no locale names
+CODECS = ("__init__", "aliases", "ascii", "latin_1", "utf_*", "cp125?", "iso8859_*", "koi8_*", "charmap")
 #: the zip's entries' date (zip's earliest): the same modules give the same bytes
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 
@@ -128,10 +135,11 @@ def _imported_files(entries, folder):
 
 
 def _split(files, stdlib, dynload):
-    """``(standard-library modules' sources, standard-library extension modules)`` among ``files``, with every
-    codec of ``encodings`` (the one of the host's locale is imported when Python starts)."""
+    """``(standard-library modules' sources, standard-library extension modules)`` among ``files``, with the
+    codecs of :data:`CODECS`."""
+    codecs = {path for pattern in CODECS for path in (stdlib / "encodings").glob(f"{pattern}.py")}
     modules = sorted({path for path in files if path.suffix == ".py" and path.is_relative_to(stdlib)
-                      and "site-packages" not in path.parts} | set((stdlib / "encodings").glob("*.py")))
+                      and "site-packages" not in path.parts} | codecs)
     extensions = sorted(path for path in files if path.suffix == ".so" and path.parent == dynload)
     return modules, extensions
 
