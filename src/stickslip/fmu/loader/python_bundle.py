@@ -39,10 +39,11 @@ from pathlib import Path
 FOLDER = "python"
 #: libraries every Linux system has (glibc's), never bundled
 GLIBC_LIBRARIES = re.compile(r"(libc|libm|libdl|libpthread|librt|libutil|libresolv|ld-linux-x86-64)\.so")
+#: the FMI libraries whose Python parts the project's FMUs carry
+FMI_LIBRARIES = ("pythonfmu", "pythonfmu3")
 #: the packages of every FMU this project builds (the FMI libraries' Python parts and the runtime), imported after the
 #: FMU's own slave module: the FMUs of one build then carry the same modules, so that whichever of them starts Python
 #: in a process, the others find what they import
-FMI_LIBRARIES = ("pythonfmu", "pythonfmu3")
 COMPANIONS = (*FMI_LIBRARIES, "stickslip.core")
 #: what a child of the building Python prints: the file of every module it imported, after importing the FMU's
 #: slave module (argv[1]) from its resources folder (argv[2]) as the FMI library does, then COMPANIONS from the
