@@ -25,6 +25,7 @@ from stickslip.hosts.c_host import run_host
 from stickslip.hosts.fmpy_host import run_fmu
 from stickslip.fmu import build
 from stickslip.fmu.loader import LIBPYTHON_VARIABLE
+from stickslip.fmu.loader.install import build_libpython
 from stickslip.suite.scenario import load_scenario
 from stickslip.stress.session import FmuCallError, FmuSession, fmi2Error
 
@@ -130,7 +131,10 @@ def test_a_libpython_that_cannot_be_found_is_a_logged_error_not_a_crash(host, fo
 
 
 def test_a_broken_pythonhome_is_a_logged_error_not_an_exit_of_the_host(host, folder):
-    run = run_host(host, folder, "run", SHORT, SCENE.output_interval, START, env={"PYTHONHOME": "/nonexistent"})
+    """With a CPython of an installation (the build's, named by SBF_LIBPYTHON); the one the FMU carries ignores
+    PYTHONHOME (tests/test_no_python_chroot.py)."""
+    run = run_host(host, folder, "run", SHORT, SCENE.output_interval, START,
+                   env={"PYTHONHOME": "/nonexistent", LIBPYTHON_VARIABLE: build_libpython()[0]})
     assert run.lines == [["failed", "fmi2Instantiate", "NULL"]]
     assert run.returncode == 1
     [(status, _, text)] = run.logs

@@ -50,8 +50,8 @@ def test_the_fmu_lists_the_floors_objdump_finds(request, fmu, tmp_path, has_objd
     text = (tmp_path / DEPENDENCIES_FILE).read_text()
     summary, _, per_binary = text.partition("\nEach binary:")
     overall = {}
-    binaries = sorted(p for p in tmp_path.rglob("*.so") if p.relative_to(tmp_path).parts[0] in ("binaries",
-                                                                                                  "resources"))
+    binaries = sorted(p for p in tmp_path.rglob("*.so*") if re.fullmatch(r".*\.so(\.\d+)*", p.name)
+                      and p.relative_to(tmp_path).parts[0] in ("binaries", "resources"))
     assert any("binaries" in p.parts for p in binaries) and binaries
     for binary in binaries:
         needed, newest = objdump_needs(binary)
@@ -76,7 +76,10 @@ def test_the_fmu_names_the_cpython_library_its_loader_starts(request, fmu):
         text = archive.read(DEPENDENCIES_FILE).decode()
         tags = {re.search(r"\.cpython-3(\d+)-", name)[1] for name in archive.namelist()
                 if name.startswith("resources/") and name.endswith(".so")}
-    assert f"else {build_libpython()[1]} (the build's;" in text
+    path, soname = build_libpython()
+    carried = re.search(r"else the one the FMU carries \((binaries/[^/]+/python/[^,]+), with", text)
+    assert (carried[1].endswith(f"/python/{soname}") if path else f"else {soname} (the build's;" in text), text
+    assert (carried is None) == (not path)
     versions = ", ".join(f"3.{minor}" for minor in sorted(tags, key=int))
     assert (f"The runtime is compiled for CPython {versions};" in text) == bool(tags), text
     assert not tags or str(sys.version_info[1]) in tags

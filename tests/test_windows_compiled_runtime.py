@@ -21,7 +21,7 @@ from stickslip.fmu import build, compile_runtime, windows_runtime
 from stickslip.fmu.staging import OTHER_PYTHONS
 
 import machine_needs
-from test_windows_loader import SCENE, START, linux_run, wine_env, windows_hosts, windows_run  # noqa: F401
+from test_windows_loader import SCENE, START, folders, linux_run, wine_env, windows_hosts, windows_run  # noqa: F401
 
 REPO = Path(__file__).resolve().parents[1]
 _spec = importlib.util.spec_from_file_location("other_pythons", REPO / "scripts" / "other_pythons.py")

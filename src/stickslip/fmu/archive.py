@@ -4,7 +4,9 @@ Entries are written in the order of their names, each with one date and time (:f
 1980-01-01 00:00, the earliest a zip entry can hold), the Unix permissions ``rw-r--r--`` and deflate at
 zlib's default level, except the shared libraries and zip archives (:data:`STORED_SUFFIXES`), which are
 stored: every host extracts them before its first step, and inflating them cost more than writing them (2.4 ms
-of a 0.94 MB library; the FMU file is larger instead). :func:`identity` names one build of an FMU in its model description.
+of a 0.94 MB library; the FMU file is larger instead). The CPython an FMU carries (:data:`DEFLATED_FOLDER`,
+:mod:`stickslip.fmu.loader.python_bundle`) is deflated all the same: it is most of the FMU's bytes, a third of them
+deflated. :func:`identity` names one build of an FMU in its model description.
 """
 
 import datetime
@@ -20,6 +22,8 @@ ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 FILE_MODE = 0o100644
 #: the entries stored without compression: shared libraries, most of an FMU's bytes, and zip archives
 STORED_SUFFIXES = (".so", ".dll", ".dylib", ".pyd", ".zip")
+#: the folder (below ``binaries/<platform>/``) whose entries are deflated whatever their suffix
+DEFLATED_FOLDER = "python"
 #: the namespace of the FMUs' GUIDs (uuid5 of the model name, the FMI version and the source tag)
 GUID_NAMESPACE = uuid.uuid5(uuid.NAMESPACE_URL, "stickslip:fmu")
 
@@ -55,5 +59,11 @@ def write_entries(path, entries):
             info = zipfile.ZipInfo(name, stamp)
             info.create_system = 3  # Unix, so that hosts read external_attr as Unix permissions
             info.external_attr = FILE_MODE << 16
-            info.compress_type = zipfile.ZIP_STORED if name.endswith(STORED_SUFFIXES) else zipfile.ZIP_DEFLATED
+            info.compress_type = zipfile.ZIP_DEFLATED if _deflated(name) else zipfile.ZIP_STORED
             archive.writestr(info, entries[name])
+
+
+def _deflated(name):
+    """Whether the entry ``name`` is deflated (see the module)."""
+    parts = name.split("/")
+    return not name.endswith(STORED_SUFFIXES) or (parts[0] == "binaries" and parts[2:3] == [DEFLATED_FOLDER])

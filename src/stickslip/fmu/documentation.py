@@ -127,6 +127,19 @@ def _page(root, summary, distributions, selectors):
     return "".join(parts)
 
 
+def with_carried_licenses(entries, licenses, what):
+    """Add to an FMU's ``entries`` the licence texts ``licenses`` ({name: bytes}) of what its binaries folder carries
+    besides the loader (``what``: where it is, for the page), in ``licenses/`` and as items of index.html's list."""
+    if not licenses or INDEX not in entries:
+        return
+    items = "".join(f"<li><a href=\"licenses/{name}.txt\">{_e(name)}</a>: "
+                    f"{_e('PSF License 2' if name == 'cpython' else 'its Debian package copyright file')}; in this "
+                    f"FMU: {_e(what)}</li>\n" for name in sorted(licenses))
+    page = entries[INDEX].decode()
+    entries[INDEX] = page.replace("</ul>\n</body>", items + "</ul>\n</body>", 1).encode()
+    entries.update({f"{LICENSES}/{name}.txt": text for name, text in licenses.items()})
+
+
 def _variables(root, selectors):
     """One row of cells per model variable: name, causality, type, default, unit, allowed range, meaning."""
     rows = []

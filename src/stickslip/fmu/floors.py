@@ -1,7 +1,9 @@
 """What a host machine needs to run an FMU's ELF binaries (Linux): the oldest glibc, libstdc++ and libgcc_s each
 binary accepts, read from its ELF symbol version needs (the section ``.gnu.version_r``: for each shared library,
 the versions of it whose symbols the binary uses, e.g. ``GLIBC_2.34`` of ``libc.so.6``), the libraries it names
-(``DT_NEEDED``), and the CPython shared library the loader starts in a process without Python.
+(``DT_NEEDED``), and the CPython shared library the loader starts in a process without Python. The libraries an
+FMU carries beside its loader (the CPython of :mod:`stickslip.fmu.loader.python_bundle` and the libraries it needs
+that are not glibc's) are measured too, and named as the FMU's own where they provide a version a binary needs.
 
 :func:`fmu_floors` measures an FMU's entries; :func:`dependencies_text` is the FMU's
 ``documentation/externalDependencies.txt`` (the FMI 2.0.3 / 3.0 place for what the host must provide), which the
@@ -19,7 +21,12 @@ from .windows_needs import windows_needs, windows_text
 DEPENDENCIES_FILE = "documentation/externalDependencies.txt"
 #: version prefix: what provides it, as the host's administrator knows it
 FAMILIES = {"GLIBC": "glibc (libc.so.6, libm.so.6, ld-linux)", "GLIBCXX": "libstdc++ (libstdc++.so.6)",
-            "CXXABI": "libstdc++'s C++ ABI (libstdc++.so.6)", "GCC": "libgcc_s (libgcc_s.so.1)"}
+            "CXXABI": "libstdc++'s C++ ABI (libstdc++.so.6)", "GCC": "libgcc_s (libgcc_s.so.1)",
+            "ZLIB": "zlib (libz.so.1)", "UUID": "libuuid (libuuid.so.1)", "LIBFFI": "libffi (libffi.so.8)"}
+#: an ELF shared library's file name: ``x.so`` or ``libx.so.1.0``
+ELF_NAME = re.compile(r".*\.so(\.\d+)*")
+#: the folder below ``binaries/<platform>/`` holding the CPython an FMU carries
+BUNDLE_FOLDER = "python"
 #: a numbered symbol version, e.g. GLIBC_2.34 or CXXABI_1.3.9 (GLIBC_PRIVATE and the like carry no floor)
 VERSION_NAME = re.compile(r"([A-Z]+)_(\d+(?:\.\d+)*)")
 #: the CPython shared library's name compiled into the loader (the one it tries after $SBF_LIBPYTHON)
@@ -135,18 +142,29 @@ class FmuFloors:
     ``libpython`` (the CPython library name compiled into the loaders, or None) and ``compiled_for`` (the CPython
     versions, e.g. ("3.11", "3.13"), its compiled extension modules are built for, oldest first); ``windows``: the
     needs of its Windows DLLs ({archive name: :class:`~stickslip.fmu.windows_needs.WindowsNeeds`}); ``others``:
-    the archive names of its binaries for other platforms (neither ELF nor DLL)."""
+    the archive names of its binaries for other platforms (neither ELF nor DLL); ``carried``: {file name: archive
+    name} of the shared libraries of the CPython the FMU carries for Linux (its libpython and the libraries beside
+    it that are not glibc's), empty if it carries none."""
 
     binaries: dict
     libpython: str | None
     compiled_for: tuple
     windows: dict
     others: tuple
+    carried: dict
 
     def floors(self):
         """{version prefix: ``(name, numbers)``}: the newest needed version per prefix over every binary."""
         return newest(name for needs in self.binaries.values() for names in needs.versions.values()
                       for name in names)
+
+    def provider(self, version_name):
+        """The archive name of the library the FMU carries that provides ``version_name``, or None."""
+        for needs in self.binaries.values():
+            for library, names in needs.versions.items():
+                if version_name in names and library in self.carried:
+                    return self.carried[library]
+        return None
 
     def needed_by(self, version_name):
         """The archive names of the binaries that need ``version_name``."""
@@ -156,29 +174,35 @@ class FmuFloors:
 
 #: the suffixes of Windows binaries: DLLs and CPython's extension modules
 WINDOWS_SUFFIXES = (".dll", ".pyd")
-#: the files of a CPython that an FMU carries beside its binaries which are no binaries: its standard library (a zip)
-#: and the file that sets its path
-PYTHON_DATA = (".zip", "._pth")
 
 
 def fmu_floors(entries):
-    """The :class:`FmuFloors` of an FMU's ``entries`` ({archive name: bytes}): every ``.so`` under ``binaries/``
-    and ``resources/`` (NotELF if one is no ELF shared object), every ``.dll`` and ``.pyd`` under ``binaries/``
-    (NotPE if one is no PE binary)."""
+    """The :class:`FmuFloors` of an FMU's ``entries`` ({archive name: bytes}): every shared library (``.so``,
+    ``.so.N``) under ``binaries/`` and ``resources/`` (NotELF if one is no ELF shared object), every ``.dll`` and
+    ``.pyd`` under ``binaries/`` (NotPE if one is no PE binary); the other files of a carried CPython (its standard
+    library, its ``._pth``) are its data."""
     binaries, libpython, compiled_for = {}, None, set()
     windows = {name: windows_needs(entries[name]) for name in sorted(entries)
                if name.startswith("binaries/") and name.endswith(WINDOWS_SUFFIXES)}
-    others = tuple(name for name in sorted(entries)
-                   if name.startswith("binaries/") and not name.endswith((".so", *WINDOWS_SUFFIXES, *PYTHON_DATA)))
+    others = tuple(name for name in sorted(entries) if name.startswith("binaries/") and not _in_bundle(name)
+                   and not ELF_NAME.fullmatch(name) and not name.endswith(WINDOWS_SUFFIXES))
+    carried = {name.rsplit("/", 1)[1]: name for name in sorted(entries)
+               if _in_bundle(name) and ELF_NAME.fullmatch(name) and "/lib-dynload/" not in name}
     for name in sorted(entries):
-        if name.endswith(".so") and name.startswith(("binaries/", "resources/")):
+        if ELF_NAME.fullmatch(name) and name.startswith(("binaries/", "resources/")):
             binaries[name] = binary_needs(entries[name])
             found = LIBPYTHON_NAME.search(entries[name]) if name.startswith("binaries/") else None
             libpython = libpython or (found[0].decode() if found else None)
             abi = EXTENSION_ABI.search(name)
             compiled_for |= {(int(abi[1]), int(abi[2]))} if abi else set()
     return FmuFloors(binaries, libpython, tuple(f"{major}.{minor}" for major, minor in sorted(compiled_for)),
-                     windows, others)
+                     windows, others, carried)
+
+
+def _in_bundle(name):
+    """Whether the archive name ``name`` is in the folder of a carried CPython (``binaries/<platform>/python/``)."""
+    parts = name.split("/")
+    return len(parts) > 3 and parts[0] == "binaries" and parts[2] == BUNDLE_FOLDER
 
 
 def dependencies_text(model_name, floors):
@@ -190,7 +214,11 @@ def dependencies_text(model_name, floors):
     measured = floors.floors()
     for prefix in sorted(measured, key=lambda p: (list(FAMILIES) + [p]).index(p)):
         name = measured[prefix][0]
-        lines.append(f"- {FAMILIES.get(prefix, prefix)}: {name} or newer (for {', '.join(floors.needed_by(name))})")
+        carrier = floors.provider(name)
+        lines.append(f"- {FAMILIES.get(prefix, prefix)}: {name} or newer (for {', '.join(floors.needed_by(name))})"
+                     + (f"; the FMU carries it ({carrier}): the loader uses that where the system lacks it (the C++ "
+                        f"runtime also where the system's is older), unless the host process has loaded its own"
+                        if carrier else ""))
     lines.append(f"- a CPython 3 shared library with its standard library: {_python_need(floors)}")
     lines += ["", "Each binary: the libraries it names, then the newest version it needs of each.", ""]
     for name, needs in floors.binaries.items():
@@ -202,7 +230,11 @@ def dependencies_text(model_name, floors):
 
 def _python_need(floors):
     """The sentence on the CPython the FMU needs."""
-    text = ("the host process's own CPython (3.8 or newer) if it runs one, else "
+    carried = next((name for file, name in floors.carried.items() if file.startswith("libpython")), None)
+    text = ("the host process's own CPython (3.8 or newer) if it runs one, else the one named by the environment "
+            f"variable SBF_LIBPYTHON if set, else the one the FMU carries ({carried}, with the part of its standard "
+            "library the FMU imports; nothing else needed)" if carried else
+            "the host process's own CPython (3.8 or newer) if it runs one, else "
             + (f"{floors.libpython} (the build's; the environment variable SBF_LIBPYTHON names another)"
                if floors.libpython else "one named by the environment variable SBF_LIBPYTHON"))
     if floors.compiled_for:

@@ -31,6 +31,8 @@ from xml.etree import ElementTree
 
 from .. import windows_python
 from ..archive import read_entries, write_entries
+from ..documentation import with_carried_licenses
+from .python_bundle import FOLDER, linux_bundle
 
 HERE = Path(__file__).resolve().parent
 #: FMI version: (the front's source, the FMU's folder of Linux binaries, the library that built the FMU)
@@ -76,11 +78,13 @@ def offers_model_exchange(model_description):
     return ElementTree.fromstring(model_description).find("ModelExchange") is not None
 
 
-def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, token="", model_exchange=False):
+def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, token="", model_exchange=False,
+                   bundle=None):
     """Compile the Linux loader of ``fmi_version`` to ``dest``, forwarding to ``inner_name`` beside it and accepting
     the GUID or instantiation token ``token`` only, and the start guard beside ``dest`` (``START_GUARD_NAME``);
     ``model_exchange``: an FMI 2 loader that makes model-exchange instances (the inner library has none, the slave
-    answers them); None on success, else why not."""
+    answers them); ``bundle``: the :class:`~stickslip.fmu.loader.python_bundle.Bundle` the FMU carries beside the
+    loader, if any. None on success, else why not."""
     compiler = os.environ.get("CC") or "cc"
     if shutil.which(compiler) is None:
         return f"no C compiler ({compiler!r} not found; set CC)"
@@ -90,7 +94,7 @@ def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, toke
         *_loader_sources(fmi_version, "linux"),
         *_loader_defines(inner_name, token, slave_survives_release, soname, model_exchange and fmi_version == 2),
         f"-DSBF_START_GUARD={_c_string(START_GUARD_NAME)}", f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
-        "-ldl", "-lpthread"]
+        *_bundle_defines(bundle), "-ldl", "-lpthread"]
     guard = [compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o",
              str(Path(dest).with_name(START_GUARD_NAME)), str(START_GUARD), "-lpthread"]
     return _run_compiler(compiler, (command, guard))
@@ -121,6 +125,15 @@ def compile_windows_loader(dest, inner_name, slave_survives_release, fmi_version
                *_loader_defines(inner_name, token, slave_survives_release, soname, model_exchange and fmi_version == 2),
                f"-DSBF_BUNDLED_LIBPYTHON={_c_string(bundled)}"]
     return _run_compiler(compiler, (command,))
+
+
+def _bundle_defines(bundle):
+    """The defines that tell the Linux loader where the CPython ``bundle`` lies (none without one)."""
+    if bundle is None:
+        return []
+    return [f"-DSBF_BUNDLED_LIBPYTHON={_c_string(bundle.libpython)}",
+            f"-DSBF_BUNDLED_PYTHON_NEEDS={''.join(_c_string(path) + ',' for path in bundle.python_needs)}",
+            f"-DSBF_BUNDLED_INNER_NEEDS={''.join(_c_string(path) + ',' for path in bundle.inner_needs)}"]
 
 
 def _loader_sources(fmi_version, platform):
@@ -172,13 +185,22 @@ def _install_linux(entries, tmp, model_identifier, arguments):
     binary = f"{folder}/{model_identifier}.so"
     inner_name = f"{model_identifier}_pythonfmu.so"
     loader = tmp / binary.rsplit("/", 1)[1]
-    why_not = compile_loader(loader, inner_name, *arguments)
+    bundle = linux_bundle(entries, entries[binary])
+    if isinstance(bundle, str):
+        print(f"note: the {model_identifier} FMU carries no CPython for Linux hosts without one: {bundle}",
+              file=sys.stderr)
+        bundle = None
+    why_not = compile_loader(loader, inner_name, *arguments, bundle=bundle)
     if why_not is not None:
         print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads "
               f"only inside a Python process: {why_not}", file=sys.stderr)
         return False
     _front(entries, binary, inner_name, loader)
     entries[f"{folder}/{START_GUARD_NAME}"] = loader.with_name(START_GUARD_NAME).read_bytes()
+    if bundle:
+        entries.update({f"{folder}/{name}": data for name, data in bundle.entries.items()})
+        with_carried_licenses(entries, bundle.licenses, f"the CPython for hosts without one, with the libraries it "
+                              f"and the FMI library's binary need that are not glibc's ({folder}/{FOLDER}/)")
     return True
 
 

@@ -3,14 +3,16 @@
  * On the first instantiation a front calls sbf_start, which
  *   1. finds a CPython: the process's own if it has one (never a second one), else the shared library
  *      named by $SBF_LIBPYTHON, else the one the FMU carries (SBF_BUNDLED_LIBPYTHON, a path relative to this
- *      library's folder, where the build bundled one), else the one the FMU was built with
+ *      library's folder, where the build bundled one; the libraries its extension modules need are loaded first
+ *      from the FMU where the system has none by their names), else the one the FMU was built with
  *      (SBF_BUILD_LIBPYTHON), else its soname (SBF_LIBPYTHON_SONAME); it is loaded with RTLD_GLOBAL so that
  *      Python's extension modules find its symbols;
  *   2. starts that Python if nobody has, with the standard library of the library's own installation,
  *      through PyConfig, so that a broken installation (a wrong PYTHONHOME) is an error status and a
  *      logged message, not an exit of the host; the host's handlers of SIGINT, SIGPIPE and SIGXFSZ are kept;
- *   3. loads the inner library (PythonFMU's or pythonfmu3's binary, SBF_INNER_LIBRARY beside this one)
- *      and lets the front resolve its entry points.
+ *   3. loads the inner library (PythonFMU's or pythonfmu3's binary, SBF_INNER_LIBRARY beside this one; where it
+ *      does not load, again after the C++ runtime the FMU carries, SBF_BUNDLED_INNER_NEEDS, so that a host with
+ *      a C++ runtime of its own keeps it) and lets the front resolve its entry points.
  * Steps 1 and 2 run under a process-wide lock that every copy of the loader in the process shares (see
  * process_start_lock), and sbf_start first pins this library in memory (see pin_library).
  * Each host thread gets one Python thread state, kept for the thread's life (sbf_keep_thread_state).
@@ -49,6 +51,17 @@
 #ifndef SBF_BUNDLED_LIBPYTHON
 #define SBF_BUNDLED_LIBPYTHON ""
 #endif
+/* Libraries the FMU carries beside the bundled CPython, as comma-separated string literals (paths relative to this
+ * library's folder, each ending in the file name the system knows it by, in the order to load them): those its
+ * extension modules need, and those the inner library needs (its C++ runtime) */
+#ifndef SBF_BUNDLED_PYTHON_NEEDS
+#define SBF_BUNDLED_PYTHON_NEEDS
+#endif
+#ifndef SBF_BUNDLED_INNER_NEEDS
+#define SBF_BUNDLED_INNER_NEEDS
+#endif
+static const char *const bundled_python_needs[] = {SBF_BUNDLED_PYTHON_NEEDS NULL};
+static const char *const bundled_inner_needs[] = {SBF_BUNDLED_INNER_NEEDS NULL};
 #define LIBPYTHON_VARIABLE "SBF_LIBPYTHON"
 
 /* ---- CPython: the few functions used, resolved at run time (stable C API since 3.8) ---- */
@@ -123,6 +136,19 @@ static int beside_this_library(const char *name, char *path, size_t size)
     return 1;
 }
 
+/* Load the libraries `needs` (see SBF_BUNDLED_PYTHON_NEEDS) from the FMU, with their symbols global; where
+ * `system_first`, only those the system does not find by their file names, so that the system's are used where it
+ * has them. A library that does not load is left out: what needs it then fails, saying so. */
+static void load_bundled(const char *const *needs, int system_first)
+{
+    char path[4096];
+    for (; *needs; ++needs) {
+        const char *slash = strrchr(*needs, '/');
+        if (system_first && sbf_open_library(slash ? slash + 1 : *needs, 0)) continue;
+        if (beside_this_library(*needs, path, sizeof path)) sbf_open_library(path, 1);
+    }
+}
+
 /* A CPython library: the process's own (RTLD_DEFAULT), or the first that loads (RTLD_GLOBAL). 0 after sbf_fail(). */
 static int find_libpython(void **lib_out, const char **where)
 {
@@ -151,6 +177,7 @@ static int find_libpython(void **lib_out, const char **where)
     char tried[1024] = "";
     for (size_t i = 0; i < sizeof candidates / sizeof *candidates; ++i) {
         if (!*candidates[i]) continue;
+        if (candidates[i] == bundled) load_bundled(bundled_python_needs, 1);
         lib = sbf_open_library(candidates[i], 1);
         if (lib) {
             *where = candidates[i];
@@ -229,8 +256,13 @@ static void load_inner(sbf_resolve_inner resolve, void *python)
         return;
     }
     void *lib = sbf_open_library(path, 0);
+    if (!lib && *bundled_inner_needs) { /* the system lacks its C++ runtime, or has an older one: the FMU's */
+        load_bundled(bundled_inner_needs, 0);
+        lib = sbf_open_library(path, 0);
+    }
     if (!lib) {
-        sbf_fail("cannot load the FMU's inner binary %s: %s", path, sbf_library_error());
+        sbf_fail("cannot load the FMU's inner binary %s%s: %s", path,
+                 *bundled_inner_needs ? " (also with the C++ runtime the FMU carries)" : "", sbf_library_error());
         return;
     }
     if (!resolve(lib, path)) return;

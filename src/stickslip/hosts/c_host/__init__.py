@@ -85,7 +85,7 @@ class HostRun:
 
 
 def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x", env=None, timeout=600,
-             wrapper=(), resources=None):
+             wrapper=(), resources=None, root=None):
     """Run ``host`` (of the FMU's FMI version) in ``mode`` on the FMU extracted to ``fmu_folder``.
 
     ``start_values``: {name: value} or (name, value) pairs, set in this order (mode "bad" leaves the last
@@ -93,9 +93,10 @@ def run_host(host, fmu_folder, mode, stop_time, step, start_values=(), output="x
     ``resources`` folder (FMI 2: as a file URI, FMI 3: as a path with a trailing slash).
     The child gets only ``PATH`` from this process's environment, plus ``env``. ``wrapper``: a command that runs
     the host, e.g. ``["valgrind"]``, or Wine for a Windows host (an ``.exe``: it is given the FMU's Windows binary,
-    and paths on Wine's drive Z:).
+    and paths on Wine's drive Z:). ``root``: the folder that is ``/`` for the host (a ``wrapper`` such as
+    ``["chroot", root]`` makes it so), which holds ``host`` and ``fmu_folder``: they are given as paths below it.
     """
-    command = host_command(host, fmu_folder, mode, stop_time, step, start_values, output, resources)
+    command = host_command(host, fmu_folder, mode, stop_time, step, start_values, output, resources, root)
     return run_command([*wrapper, *command], env, timeout)
 
 
@@ -118,7 +119,7 @@ def host_env(env=None):
     return {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), **(env or {})}
 
 
-def host_command(host, fmu_folder, mode, stop_time, step, start_values=(), output="x", resources=None):
+def host_command(host, fmu_folder, mode, stop_time, step, start_values=(), output="x", resources=None, root=None):
     """The command line of :func:`run_host` (same arguments)."""
     folder = Path(fmu_folder).resolve()
     description = fmpy.read_model_description(str(folder))
@@ -129,6 +130,8 @@ def host_command(host, fmu_folder, mode, stop_time, step, start_values=(), outpu
     version = int(description.fmiVersion[0])
     windows = Path(host).suffix == ".exe"
     folders, suffix, path = (WINDOWS_BINARY_FOLDERS, ".dll", wine_path) if windows else (BINARY_FOLDERS, ".so", Path)
+    if root is not None:  # the paths as the host sees them
+        host, folder = (Path("/", Path(item).resolve().relative_to(Path(root).resolve())) for item in (host, folder))
     binary = path(folder / "binaries" / folders[version] / f"{description.coSimulation.modelIdentifier}{suffix}")
     if resources is None:
         base, separator = path(folder / "resources"), "\\" if windows else "/"

@@ -23,6 +23,9 @@
  *         fmi3UpdateDiscreteStates until no more update is needed, fmi3EnterStepMode). At such an event, "x T X"
  *         before Event Mode and again after it, each followed by "m T MODE" ($HOST_MODE_VR: the value reference of
  *         the Int32 output read, default none).
+ * state   one co-simulation instance: runs to STOP/2, saves the FMU state (fmi3GetFMUState and serialized bytes),
+ *         runs on to STOP ("x" lines), restores the state and runs on again ("r" lines), then restores the
+ *         deserialized state and runs on again ("d" lines)
  * thread_steps  one co-simulation instance, each fmi3DoStep from a new thread: prints the resident memory
  *         after 100 steps and at the end ("rss_kb_warm K", "rss_kb_end K"), then "x T X" at the end
  * unload  two threads each run a co-simulation instance ("x" lines) and then wait; the FMU is unloaded
@@ -67,6 +70,13 @@ static struct {
     Status (*get_derivatives)(Instance, double *, size_t);
     Status (*get_indicators)(Instance, double *, size_t);
     Status (*enter_step_mode)(Instance);
+    /* FMU states */
+    Status (*get_state)(Instance, void **);
+    Status (*set_state)(Instance, void *);
+    Status (*free_state)(Instance, void **);
+    Status (*state_size)(Instance, void *, size_t *);
+    Status (*serialize)(Instance, void *, unsigned char *, size_t);
+    Status (*deserialize)(Instance, const unsigned char *, size_t, void **);
 } fmi;
 
 static bool model_exchange; /* the mode's instances are model-exchange ones */
@@ -373,6 +383,50 @@ static void run_me(Instance c)
     }
 }
 
+/* Co-simulation steps from *t (the n-th communication point) until `until`, each output printed after `tag` */
+static long steps_to(Instance c, double *t, long n, double until, const char *tag)
+{
+    for (; !done(*t, until); ++n) {
+        double next = next_point(n, until), last_successful;
+        bool event_needed, terminate, returned_early;
+        check("fmi3DoStep", fmi.do_step(c, *t, next - *t, true, &event_needed, &terminate, &returned_early,
+                                        &last_successful));
+        *t = next;
+        if (tag) say("%s %.17g %.17g\n", tag, *t, read_output(c));
+    }
+    return n;
+}
+
+/* Mode "state": the FMU state at STOP/2 (got and serialized), the run on to STOP ("x"), again from the state got
+ * ("r") and from the deserialized one ("d") */
+static void mode_state(void)
+{
+    Instance c = instantiate("state");
+    check("fmi3ExitInitializationMode", initialize(c, n_settings));
+    double t = 0.0, t_saved;
+    long n = steps_to(c, &t, 0, stop_time / 2, NULL);
+    void *state = NULL, *restored = NULL;
+    size_t size;
+    check("fmi3GetFMUState", fmi.get_state(c, &state));
+    check("fmi3SerializedFMUStateSize", fmi.state_size(c, state, &size));
+    unsigned char *bytes = malloc(size);
+    check("fmi3SerializeFMUState", fmi.serialize(c, state, bytes, size));
+    t_saved = t;
+    steps_to(c, &t, n, stop_time, "x");
+    check("fmi3SetFMUState", fmi.set_state(c, state));
+    t = t_saved;
+    steps_to(c, &t, n, stop_time, "r");
+    check("fmi3DeserializeFMUState", fmi.deserialize(c, bytes, size, &restored));
+    check("fmi3SetFMUState", fmi.set_state(c, restored));
+    t = t_saved;
+    steps_to(c, &t, n, stop_time, "d");
+    check("fmi3FreeFMUState", fmi.free_state(c, &state));
+    check("fmi3FreeFMUState", fmi.free_state(c, &restored));
+    free(bytes);
+    check("fmi3Terminate", fmi.terminate(c));
+    fmi.free_instance(c);
+}
+
 static void run_one(const char *name)
 {
     Instance c = instantiate(name);
@@ -429,7 +483,9 @@ int main(int argc, char **argv)
         "fmi3InstantiateModelExchange", "fmi3GetInt32", "fmi3GetNumberOfContinuousStates",
         "fmi3GetNumberOfEventIndicators", "fmi3UpdateDiscreteStates", "fmi3EnterEventMode",
         "fmi3EnterContinuousTimeMode", "fmi3SetTime", "fmi3GetContinuousStates", "fmi3SetContinuousStates",
-        "fmi3GetContinuousStateDerivatives", "fmi3GetEventIndicators", "fmi3EnterStepMode"};
+        "fmi3GetContinuousStateDerivatives", "fmi3GetEventIndicators", "fmi3EnterStepMode", "fmi3GetFMUState",
+        "fmi3SetFMUState", "fmi3FreeFMUState", "fmi3SerializedFMUStateSize", "fmi3SerializeFMUState",
+        "fmi3DeserializeFMUState"};
     if (!start_host(argc, argv, names, sizeof names / sizeof *names, (void **)&fmi)) return argc < 8 ? 2 : 1;
     model_exchange = !strncmp(mode, "me-", 3);
     const char *what = model_exchange ? mode + 3 : mode;
@@ -437,6 +493,7 @@ int main(int argc, char **argv)
     event_mode = !strcmp(mode, "events");
     if (!strcmp(what, "run") || early_return) run_one("run");
     else if (!strcmp(what, "bad")) mode_bad();
+    else if (!strcmp(mode, "state")) mode_state();
     else if (!strcmp(mode, "thread_steps")) mode_thread_steps();
     else if (!strcmp(mode, "unload")) unload_after_runs(run_on_thread);
     else {
