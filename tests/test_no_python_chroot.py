@@ -13,6 +13,7 @@ import sys
 import textwrap
 import zipfile
 from pathlib import Path
+from xml.etree import ElementTree
 
 import pytest
 
@@ -221,6 +222,17 @@ def test_a_python_host_uses_its_own_python(fmu_path, tmp_path):
     assert not [path for path in loaded if "/python/libpython" in path or "/python/lib/" in path]
 
 
+def test_fmus_that_carry_a_python_for_every_platform_need_no_execution_tool(fmu_path, fmu3_path, coupling_path):
+    for path in (fmu_path, fmu3_path, coupling_path):
+        with zipfile.ZipFile(path) as fmu:
+            names, description = fmu.namelist(), ElementTree.fromstring(fmu.read("modelDescription.xml"))
+        platforms = {name.split("/")[1] for name in names if name.startswith("binaries/") and name.count("/") >= 2}
+        carried = {name.split("/")[1] for name in names if name.startswith("binaries/") and "/python/" in name}
+        interfaces = [element for element in description if element.tag in ("CoSimulation", "ModelExchange")]
+        assert interfaces and {element.get("needsExecutionTool") for element in interfaces} == {
+            "false" if platforms <= carried else "true"}, (path, platforms, carried)
+
+
 def test_a_python_without_a_shared_library_builds_fmus_without_one_and_says_so(tmp_path, monkeypatch, capsys):
     machine_needs.c_compiler("the FMU's Linux loader")
     monkeypatch.setattr(python_bundle, "_shared_library", lambda: None)
@@ -228,5 +240,6 @@ def test_a_python_without_a_shared_library_builds_fmus_without_one_and_says_so(t
     with zipfile.ZipFile(path) as fmu:
         assert not [name for name in fmu.namelist() if "/python/" in name]
         needs = fmu.read(DEPENDENCIES_FILE).decode()
+        assert b'needsExecutionTool="true"' in fmu.read("modelDescription.xml")  # a Python must be installed
     assert f"else {build_libpython()[1]} (the build's;" in needs and "the one the FMU carries" not in needs
     assert "carries no CPython for Linux hosts without one: this Python" in capsys.readouterr().err

@@ -386,3 +386,5 @@ def test_without_the_embeddable_package_the_windows_binaries_carry_no_python(tmp
         page = archive.read("documentation/index.html").decode()
     assert "binaries/win64/ChainCoupling.dll" in names and not [name for name in names if "/python/" in name]
     assert windows_python.LICENSE_ENTRY not in names and "licenses/python.txt" not in page
+    with zipfile.ZipFile(fmu) as archive:  # a Python must be installed on Windows
+        assert b'needsExecutionTool="true"' in archive.read("modelDescription.xml")

@@ -176,8 +176,20 @@ def install(fmu_path, model_identifier, slave_survives_release=False, fmi_versio
     with tempfile.TemporaryDirectory(prefix="sbf_loader_") as tmp:
         installed = _install_linux(entries, Path(tmp), model_identifier, arguments)
         _install_windows(entries, Path(tmp), model_identifier, arguments)
+        _declare_execution_tool(entries)
         write_entries(fmu_path, entries)
     return installed
+
+
+def _declare_execution_tool(entries):
+    """``needsExecutionTool="false"`` in the model description where the binaries of every platform the FMU lists
+    carry a CPython (the FMU then runs on a machine with no Python), else as the FMI library wrote it (true)."""
+    platforms = {name.split("/")[1] for name in entries if name.startswith("binaries/") and name.count("/") >= 2}
+    carrying = {name.split("/")[1] for name in entries if name.startswith("binaries/") and name.count("/") >= 3
+                and name.split("/")[2] == FOLDER}
+    if platforms and platforms <= carrying:
+        entries["modelDescription.xml"] = entries["modelDescription.xml"].replace(
+            b'needsExecutionTool="true"', b'needsExecutionTool="false"')
 
 
 def _install_linux(entries, tmp, model_identifier, arguments):
