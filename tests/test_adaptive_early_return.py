@@ -55,3 +55,19 @@ def test_the_command_runs_the_fmi3_scheme(tmp_path, capsys):
     report = (tmp_path / "chain2-coulomb-adaptive-fmi3.md").read_text()
     assert "early returns" in report
     assert not (tmp_path / "chain2-coulomb-adaptive.md").exists()
+
+
+def test_the_command_takes_the_fmi_version_from_the_fmu(tmp_path, fmu3_path, capsys):
+    """``--fmu`` naming the FMI 3 FMU without ``--fmi`` runs the early-return scheme (its model description says the
+    version); ``--fmi 2`` given beside it wins and is refused, naming the file's version."""
+    text = CHAIN2.read_text().replace("stop_time = 100.0", "stop_time = 5.0")
+    path = tmp_path / "chain2-coulomb.toml"
+    path.write_text(text)
+    arguments = ["system", "run", str(path), "--master", "adaptive", "--fmu", str(fmu3_path), "--out", str(tmp_path),
+                 "--quiet"]
+    assert main(arguments) == 0
+    assert ": PASS" in capsys.readouterr().out
+    assert "early returns" in (tmp_path / "chain2-coulomb-adaptive-fmi3.md").read_text()
+    assert not (tmp_path / "chain2-coulomb-adaptive.md").exists()
+    assert main(arguments + ["--fmi", "2"]) == 1
+    assert "is an FMI 3 FMU; the master runs the FMI 2 FMU" in capsys.readouterr().err

@@ -31,9 +31,10 @@ def add_system(subparsers):
     run.add_argument("--rtol", type=float, help="me: the solver's relative tolerance (default 1e-10); "
                      "adaptive: error per second as a fraction of the largest F_S/kappa (default 3e-10)")
     run.add_argument("--fmi", type=int, choices=(2, 3),
-                     help="adaptive: the FMU it runs: 2 (default; events landed by root search) or 3 (early return "
-                          "from doStep at each event)")
-    run.add_argument("--fmu", help="the FMU to run (default: the built FMU of the master's FMI version)")
+                     help="adaptive: the FMU it runs: 2 (events landed by root search) or 3 (early return from doStep "
+                          "at each event); default: the FMI version of --fmu, else 2")
+    run.add_argument("--fmu", help="the FMU to run (default: the built FMU of the master's FMI version); adaptive "
+                                   "runs the scheme of its FMI version unless --fmi is given")
     run.add_argument("--quiet", action="store_true", help="no progress bars")
     run.set_defaults(handler=_run)
     ssp = commands.add_parser("ssp", help="write the system as DIR/<stem>.ssp: the block FMUs, one coupling FMU per "

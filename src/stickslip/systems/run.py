@@ -12,11 +12,13 @@ from dataclasses import dataclass
 from tqdm import tqdm
 
 from ..fmu import ensure_fmu
+from ..fmu.variables import START_VALUES
 from ..reference import simulate_chain
+from ..hosts.fmpy_host import read_model_description
 from ..hosts.run_limits import output_folder
 from .compare import Comparison, amplitude_floor, compare
 from .master import SystemResult
-from .masters import make_master
+from .masters import MASTERS, make_master
 from .plots import plot_positions, plot_space_time
 from .report import summary, write_csv, write_report
 from .system_file import load_system
@@ -41,11 +43,13 @@ def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress
     """Run the system file ``path`` through the master named ``master`` (with ``options``, e.g. ``{"step": 0.01}``)
     and the reference; write the files into ``out_dir``; return a :class:`SystemOutcome`.
 
-    ``fmu_path``: the FMU the master runs (default: the built FMU of its FMI version, built if missing or stale).
+    ``fmu_path``: the FMU the master runs (default: the built FMU of its FMI version, built if missing or stale); a
+    master that runs either FMI version (option ``fmi``) runs the one of ``fmu_path`` unless ``fmi`` is given.
     """
     system = load_system(path)
-    runner = make_master(master, **(options or {}))
-    variant = (options or {}).get("engine") or ("fmi3" if (options or {}).get("fmi") == 3 else None)
+    options = with_fmi_of(master, options or {}, fmu_path)
+    runner = make_master(master, **options)
+    variant = options.get("engine") or ("fmi3" if options.get("fmi") == 3 else None)
     files = output_files(out_dir, run_name(system.name, master, variant))
     fmu_path = fmu_path or ensure_fmu(fmi_version=runner.FMI_VERSION)
     with _progress(f"{system.name} {master}", system.stop_time, show_progress) as step:
@@ -64,6 +68,16 @@ def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress
                "which block slips when": files["space-time"].name}
     write_report(files["report"], system, result, comparison, reference_seconds, figures)
     return SystemOutcome(result, comparison, summary(system, result, comparison), tuple(files.values()))
+
+
+def with_fmi_of(master, options, fmu_path):
+    """``options`` with ``fmi`` set to the FMI version of the FMU at ``fmu_path`` (from its model description) where
+    the master ``master`` takes that option, an FMU is given and ``fmi`` is not (an ``fmi`` given wins); FMUError
+    naming the file if it is no SpringBlockFriction FMU."""
+    if fmu_path is None or options.get("fmi") is not None or "fmi" not in getattr(MASTERS.get(master), "OPTIONS", ()):
+        return options
+    version = int(read_model_description(fmu_path, needs=START_VALUES).fmiVersion[0])
+    return {**options, "fmi": version}
 
 
 def run_name(system_name, master, variant=None):
