@@ -176,8 +176,13 @@ def test_the_documentation_carries_the_licences_and_the_fmu_no_sources(request, 
         page = archive.read(documentation.INDEX).decode()
     compiled = any(name.startswith("resources/") and name.endswith(".so") for name in names)
     python = any("/python/python3" in name and name.endswith(".dll") for name in names)  # the Windows binaries'
-    assert set(licences) == {"stickslip.txt", f"{library}.txt", *(("mypy.txt",) if compiled else ()),
-                             *(("python.txt",) if python else ())}
+    linux_python = any("/python/libpython3" in name for name in names)  # the Linux binaries' CPython
+    expected = {"stickslip.txt", f"{library}.txt", *(("mypy.txt",) if compiled else ()),
+                *(("python.txt",) if python else ())}
+    carried = set(licences) - expected  # CPython's and the Debian copyright file of each library it carries
+    assert expected <= set(licences) and ("cpython.txt" in carried if linux_python else not carried), carried
+    assert not linux_python or "PYTHON SOFTWARE FOUNDATION LICENSE VERSION 2" in licences["cpython.txt"]
+    assert all(licences[name].strip() for name in carried)
     assert not python or "PYTHON SOFTWARE FOUNDATION LICENSE VERSION 2" in licences["python.txt"]
     installed = [f for f in importlib.metadata.distribution(library).files if f.name == "LICENSE"]
     assert licences[f"{library}.txt"] == installed[0].read_text()
@@ -220,8 +225,12 @@ def test_the_coupling_fmu_is_documented_and_valid(tmp_path):
     assert {name: row[3] for name, row in rows.items()} == {name: _unit(u) for name, u in COUPLING_UNITS.items()}
     assert rows["kc_left"][4] == "[0.0, inf]" and rows["x"][4] == "any"
     with zipfile.ZipFile(path) as fmu:
-        assert {n for n in fmu.namelist() if n.startswith("documentation/licenses/")} == {
-            "documentation/licenses/stickslip.txt", "documentation/licenses/pythonfmu.txt"}
+        names = fmu.namelist()
+    licences = {n.rsplit("/", 1)[1] for n in names if n.startswith("documentation/licenses/")}
+    carried = {"cpython.txt"} if any("/python/libpython3" in n for n in names) else set()
+    carried |= {"python.txt"} if any("/python/python3" in n and n.endswith(".dll") for n in names) else set()
+    assert {"stickslip.txt", "pythonfmu.txt", *carried} <= licences
+    assert not licences - {"stickslip.txt", "pythonfmu.txt", *carried} or "cpython.txt" in carried
 
 
 def test_a_process_runs_the_fmi3_fmu_after_the_fmi2_fmu_whose_files_are_gone(fmu_path, fmu3_path, tmp_path):

@@ -238,7 +238,7 @@ def test_a_python_without_a_shared_library_builds_fmus_without_one_and_says_so(t
     monkeypatch.setattr(python_bundle, "_shared_library", lambda: None)
     path = build(tmp_path / "SpringBlockFriction.fmu")
     with zipfile.ZipFile(path) as fmu:
-        assert not [name for name in fmu.namelist() if "/python/" in name]
+        assert not [name for name in fmu.namelist() if name.startswith("binaries/linux64/python/")]
         needs = fmu.read(DEPENDENCIES_FILE).decode()
         assert b'needsExecutionTool="true"' in fmu.read("modelDescription.xml")  # a Python must be installed
     assert f"else {build_libpython()[1]} (the build's;" in needs and "the one the FMU carries" not in needs

@@ -227,13 +227,13 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
         return NULL;
     }
     sbf_keep_thread_state();
-    sbf_call_begin();
+    sbf_instantiate_begin();
     sbf_fast_binding(&inst->fast);
     /* a model-exchange instance is PythonFMU's co-simulation instance, the model-exchange calls answered here */
     inst->mode = type == fmi2ModelExchange ? SBF_EXCHANGING : SBF_INSTANTIATED;
     inst->inner = inner.fmi2Instantiate(name, fmi2CoSimulation, guid, path, &inst->relay, visible, 1);
     sbf_fast_binding(NULL);
-    sbf_call_end();
+    sbf_instantiate_end();
     if (!inst->inner) {
         free_instance(inst);
         return NULL;

@@ -312,14 +312,14 @@ EXPORT fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3Str
                                   sizeof path, loggingOn, instanceEnvironment, logMessage);
     if (inst) {
         inst->early_return = earlyReturnAllowed, inst->event_mode = eventModeUsed;
-        sbf_call_begin();
+        sbf_instantiate_begin();
         sbf_fast_binding(&inst->fast);
         inst->inner = inner.fmi3InstantiateCoSimulation(instanceName, instantiationToken, path, visible, true,
                                                         eventModeUsed, earlyReturnAllowed,
                                                         requiredIntermediateVariables, nRequiredIntermediateVariables,
                                                         inst, relay_log, NULL);
         sbf_fast_binding(NULL);
-        sbf_call_end();
+        sbf_instantiate_end();
     }
     return instantiated(inst);
 }
@@ -334,10 +334,10 @@ EXPORT fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3St
                                   path, sizeof path, loggingOn, instanceEnvironment, logMessage);
     if (inst) {
         inst->mode = SBF_EXCHANGING;
-        sbf_call_begin();
+        sbf_instantiate_begin();
         inst->inner = inner.fmi3InstantiateModelExchange(instanceName, instantiationToken, path, visible, true,
                                                          inst, relay_log);
-        sbf_call_end();
+        sbf_instantiate_end();
     }
     return instantiated(inst);
 }

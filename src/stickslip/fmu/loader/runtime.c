@@ -322,6 +322,30 @@ void sbf_call_begin(void) { sbf_interrupts_begin(py.PyOS_InterruptOccurred ? pyt
 
 void sbf_call_end(void) { sbf_interrupts_end(); }
 
+static int imported;                  /* this library's first instantiation is done */
+static SBF_THREAD_LOCAL int importing; /* this thread makes it, holding the start lock */
+
+void sbf_instantiate_begin(void)
+{
+    char why[1024];
+    if (!imported && sbf_process_lock(why, sizeof why)) { /* without the lock (it was had at the start): as before */
+        if (imported)
+            sbf_process_unlock();
+        else
+            importing = 1;
+    }
+    sbf_call_begin();
+}
+
+void sbf_instantiate_end(void)
+{
+    sbf_call_end();
+    if (!importing) return;
+    importing = 0;
+    imported = 1;
+    sbf_process_unlock();
+}
+
 /* ---- host threads' Python thread states ----
  * A host thread without a Python thread state gets one on its first call, kept for its life: PyGILState_Ensure
  * makes it (and takes the GIL), PyEval_SaveThread gives the GIL back and leaves the state's count at 1, so the

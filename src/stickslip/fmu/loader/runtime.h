@@ -42,6 +42,12 @@ int sbf_check_instance(const char *function, const char *name, const char *token
  * inside the model's Python code (see runtime.c). Calls nest. */
 void sbf_call_begin(void);
 void sbf_call_end(void);
+/* Around the inner library's instantiation, as sbf_call_begin/sbf_call_end: the first one of this library, which
+ * imports the FMU's Python modules, runs under the process-wide start lock, so that two FMUs never import at once on
+ * two threads (CPython then may hand one of them a module the other is still importing: "partially initialized
+ * module"). */
+void sbf_instantiate_begin(void);
+void sbf_instantiate_end(void);
 /* sbf_fast_step (fast_path.h) as such a call */
 int sbf_model_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size);
 
