@@ -15,6 +15,7 @@ import re
 import struct
 from dataclasses import dataclass
 
+from .archive import SHARED_LIBRARY
 from .windows_needs import windows_needs, windows_text
 
 #: the file the FMI standards name for the FMU's external dependencies
@@ -24,7 +25,7 @@ FAMILIES = {"GLIBC": "glibc (libc.so.6, libm.so.6, ld-linux)", "GLIBCXX": "libst
             "CXXABI": "libstdc++'s C++ ABI (libstdc++.so.6)", "GCC": "libgcc_s (libgcc_s.so.1)",
             "ZLIB": "zlib (libz.so.1)", "UUID": "libuuid (libuuid.so.1)", "LIBFFI": "libffi (libffi.so.8)"}
 #: an ELF shared library's file name: ``x.so`` or ``libx.so.1.0``
-ELF_NAME = re.compile(r".*\.so(\.\d+)*")
+ELF_NAME = SHARED_LIBRARY
 #: the folder below ``binaries/<platform>/`` holding the CPython an FMU carries
 BUNDLE_FOLDER = "python"
 #: a numbered symbol version, e.g. GLIBC_2.34 or CXXABI_1.3.9 (GLIBC_PRIVATE and the like carry no floor)
