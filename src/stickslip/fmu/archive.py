@@ -71,9 +71,16 @@ def write_entries(path, entries):
             archive.writestr(info, entries[name])
 
 
+def carried_python_platform(name):
+    """The platform folder (``linux64``, ``win64``, ...) of the CPython whose folder holds the archive name ``name``
+    (``binaries/<platform>/python/...``), or None if no carried CPython's folder holds it."""
+    parts = name.split("/")
+    return parts[1] if len(parts) > 3 and parts[0] == "binaries" and parts[2] == PYTHON_FOLDER else None
+
+
 def _deflated(name):
     """Whether the entry ``name`` is deflated (see the module)."""
-    parts = name.split("/")
-    if parts[0] == "binaries" and parts[2:3] == [PYTHON_FOLDER]:
-        return parts[1] in DEFLATED_PYTHONS or not SHARED_LIBRARY.fullmatch(parts[-1])
+    platform = carried_python_platform(name)
+    if platform is not None:
+        return platform in DEFLATED_PYTHONS or not SHARED_LIBRARY.fullmatch(name.rsplit("/", 1)[1])
     return not name.endswith(STORED_SUFFIXES)

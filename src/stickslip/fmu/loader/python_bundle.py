@@ -35,8 +35,8 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
-#: the bundle's folder beside the Linux loader
-FOLDER = "python"
+from ..archive import PYTHON_FOLDER, ZIP_EPOCH
+
 #: libraries every Linux system has (glibc's), never bundled
 GLIBC_LIBRARIES = re.compile(r"(libc|libm|libdl|libpthread|librt|libutil|libresolv|ld-linux-x86-64)\.so")
 #: the FMI libraries whose Python parts the project's FMUs carry
@@ -60,8 +60,6 @@ PROBE = ("import importlib, json, sys, types\n"
 #: starts (UTF-8 in the C locale, which turns on its UTF-8 mode), so every codec a Linux locale may name, without
 #: the East Asian ones (which need extension modules of their own) and the byte-to-byte ones no locale names
 CODECS = ("__init__", "aliases", "ascii", "latin_1", "utf_*", "cp125?", "iso8859_*", "koi8_*", "charmap")
-#: the zip's entries' date (zip's earliest): the same modules give the same bytes
-ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 
 
 @dataclass(frozen=True)
@@ -93,20 +91,21 @@ def linux_bundle(entries, inner_binary):
     with tempfile.TemporaryDirectory(prefix="sbf_python_") as tmp:
         tmp = Path(tmp)
         modules, extensions = _split(_imported_files(entries, tmp / "fmu"), stdlib, dynload)
-        files = {f"{FOLDER}/{libpython.name}": libpython,
-                 **{f"{FOLDER}/lib-dynload/{path.name}": path for path in extensions}}
+        files = {f"{PYTHON_FOLDER}/{libpython.name}": libpython,
+                 **{f"{PYTHON_FOLDER}/lib-dynload/{path.name}": path for path in extensions}}
         inner = tmp / "inner.so"
         inner.write_bytes(inner_binary)
         python_needs = _needed_libraries(files.values())
         inner_needs = _needed_libraries([inner])
         for path in {**python_needs, **inner_needs}.values():
-            files[f"{FOLDER}/lib/{path.name}"] = path
+            files[f"{PYTHON_FOLDER}/lib/{path.name}"] = path
         out = {name: _stripped(path, tmp) for name, path in files.items()}
         licenses = _licenses(stdlib, {**python_needs, **inner_needs}.values())
-    out[f"{FOLDER}/{zip_name}"] = _module_zip(modules, stdlib)
-    out[f"{FOLDER}/python{version}._pth"] = f"{zip_name}\nlib-dynload\n".encode()
-    return Bundle(out, f"{FOLDER}/{libpython.name}", tuple(f"{FOLDER}/lib/{name}" for name in python_needs),
-                  tuple(f"{FOLDER}/lib/{name}" for name in inner_needs), licenses)
+    out[f"{PYTHON_FOLDER}/{zip_name}"] = _module_zip(modules, stdlib)
+    out[f"{PYTHON_FOLDER}/python{version}._pth"] = f"{zip_name}\nlib-dynload\n".encode()
+    return Bundle(out, f"{PYTHON_FOLDER}/{libpython.name}",
+                  tuple(f"{PYTHON_FOLDER}/lib/{name}" for name in python_needs),
+                  tuple(f"{PYTHON_FOLDER}/lib/{name}" for name in inner_needs), licenses)
 
 
 def _shared_library():
@@ -205,6 +204,6 @@ def _module_zip(modules, stdlib):
             if not cached.is_file():
                 cached = Path(py_compile.compile(str(path), cfile=str(Path(tmp) / "module.pyc"), dfile=str(name),
                                                  doraise=True))
-            archive.writestr(zipfile.ZipInfo(str(name), ZIP_DATE), cached.read_bytes())
+            archive.writestr(zipfile.ZipInfo(str(name), ZIP_EPOCH), cached.read_bytes())
     out.seek(0)
     return out.read()
