@@ -98,11 +98,11 @@ def test_a_bad_system_table_is_refused_naming_the_key(tmp_path, system, message)
 
 
 def test_unknown_tables_and_unreadable_files_are_named(tmp_path):
-    with pytest.raises(SystemFileError, match=r"key 'block': allowed is one of the keys \['blocks', 'system', 'tolerance'\]"):
+    with pytest.raises(SystemFileError, match=r"key 'block': allowed is one of the keys \['blocks', 'system', 'template', 'tolerance'\]"):
         load_system(write(tmp_path, system_text(extra="[block]\nM = 1.0\n")))
     with pytest.raises(SystemFileError, match="cannot read a TOML file"):
         load_system(write(tmp_path, "[system\n"))
-    with pytest.raises(SystemFileError, match=r"key 'blocks': allowed is one or more \[\[blocks\]\] tables, got nothing"):
+    with pytest.raises(SystemFileError, match=r"key 'blocks': allowed is one or more \[\[blocks\]\] tables, or a \[template\] table, got nothing"):
         load_system(write(tmp_path, system_text(blocks=())))
 
 

@@ -26,12 +26,13 @@ from ..core.ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, Range
 from ..fmu.variables import INPUTS, START_VALUES, VARIABLES, check_values
 from ..hosts.run_limits import free_period, too_many_periods, too_many_points
 from ..reference import ChainBlock, parameters_from_values
+from .template_table import expand_template, flat_table
 
 #: {master: default max |dx| against the reference as a fraction of the chain's amplitude}, see docs/systems.md;
 #: None: the master's runs are reported, not judged (zoh's held inputs are first order: its error is the step's)
 DEFAULT_TOLERANCES = {"zoh": None, "me": 1e-6, "adaptive": 1e-6}
 _SYSTEM_KEYS = {"stop_time", "output_interval", "v_drive", "coupling", "description"}
-_TOP_KEYS = {"system", "blocks", "tolerance"}
+_TOP_KEYS = {"system", "blocks", "template", "tolerance"}
 #: {parameter name: its variable in the FMU's table}
 PARAMETERS = {v.name: v for v in VARIABLES if v.causality == "parameter"}
 _LAWS = {"kinetic": KINETIC_LAWS, "static": STATIC_LAWS}
@@ -129,13 +130,18 @@ class _File:
 
 def load_system(path):
     """Read and validate a system file; return a :class:`System`."""
+    return system_from_data(_File(path).read(), path)
+
+
+def system_from_data(data, path, *, check_run_length=True):
+    """Validate a system given as the content of a system file (``data``, as TOML reads it); ``path`` names it in
+    messages and results. ``check_run_length`` False: no refusal of a long run (for a run that does not go through
+    the FMUs)."""
     f = _File(path)
-    data = f.table(f.read(), "", _TOP_KEYS)
+    data = f.table(data, "", _TOP_KEYS)
     system = f.table(data.get("system"), "system", _SYSTEM_KEYS)
     stop_time = f.number(system.get("stop_time"), "system.stop_time", POSITIVE)
-    blocks = data.get("blocks")
-    if not isinstance(blocks, list) or not blocks or not all(isinstance(b, dict) for b in blocks):
-        raise f.error("blocks", "one or more [[blocks]] tables", blocks)
+    blocks = _blocks(f, data)
     output_interval = f.number(system.get("output_interval"), "system.output_interval",
                                Range(0.0, stop_time, low_open=True))
     ratio = stop_time / output_interval
@@ -157,31 +163,42 @@ def load_system(path):
         description=description,
     )
     _check_scales(f, result, [params for _, params in checked])
-    _check_run_length(f, result)
+    if check_run_length:
+        _check_run_length(f, result)
     return result
 
 
+def _blocks(f, data):
+    """The ``[[blocks]]`` tables, or those the ``[template]`` table stands for (:mod:`.template_table`)."""
+    if "template" in data:
+        if "blocks" in data:
+            raise f.error("blocks", "no [[blocks]] tables beside a [template] table", data["blocks"])
+        return expand_template(f, data["template"], _is_integer)
+    blocks = data.get("blocks")
+    if not isinstance(blocks, list) or not blocks or not all(isinstance(b, dict) for b in blocks):
+        raise f.error("blocks", "one or more [[blocks]] tables, or a [template] table", blocks)
+    return blocks
+
+
+def _is_integer(name):
+    """Whether the FMU parameter ``name`` is an integer (a law code)."""
+    return name in PARAMETERS and PARAMETERS[name].kind == "integer"
+
+
 def _coupling(f, value, n):
+    """The ``n - 1`` coupling stiffnesses: the file's list, or one number for every spring."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        value = [value] * (n - 1)
     if not isinstance(value, list) or len(value) != n - 1:
-        raise f.error("system.coupling", f"a list of {n - 1} stiffnesses (N/m) for {n} blocks", value)
+        raise f.error("system.coupling", f"a list of {n - 1} stiffnesses (N/m) for {n} blocks, or one for all",
+                      value)
     return tuple(f.number(kc, f"system.coupling[{i}]", NON_NEGATIVE) for i, kc in enumerate(value))
-
-
-def _flat(table, prefix=""):
-    """``{dotted name: value}``: ``kinetic.law = 1`` without quotes is a nested table in TOML."""
-    out = {}
-    for key, value in table.items():
-        if isinstance(value, dict):
-            out.update(_flat(value, f"{prefix}{key}."))
-        else:
-            out[f"{prefix}{key}"] = value
-    return out
 
 
 def _block(f, number, table):
     """Every FMU parameter of block ``number`` (1-based): the file's values over the FMU's start values."""
     label = f"b{number}"
-    given = _flat(table)
+    given = flat_table(table)
     for name, value in given.items():
         variable = PARAMETERS.get(name)
         if variable is None:
