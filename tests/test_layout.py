@@ -20,8 +20,9 @@ ALLOWED = {
     "systems": {"core", "reference", "fmu", "hosts"},  # chains of blocks: beside suite
     "analysis": {"core", "reference"},
     "stress": {"core", "reference", "fmu", "hosts", "suite"},
+    "chain": {"core", "reference", "fmu", "hosts", "systems"},  # the chain engine and what works on its output
     "bench": {"core", "reference", "fmu", "hosts", "suite", "systems"},  # bench-systems times the masters
-    "cli": {"core", "reference", "fmu", "hosts", "suite", "systems", "analysis", "stress", "bench"},
+    "cli": {"core", "reference", "fmu", "hosts", "suite", "systems", "chain", "analysis", "stress", "bench"},
     "(top)": {"core"},
 }
 

@@ -38,7 +38,7 @@ def test_an_existing_path_wins_over_a_name(tmp_path, monkeypatch):
 def test_an_unknown_name_lists_the_known_ones(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     with pytest.raises(UnknownNameError, match=r"^chain9: no such file, nor the name of a system .*\(names: "
-                                               r"bk10-velocity-weakening, chain2-coulomb, "):
+                                               r"bk10-velocity-weakening, bk100-velocity-weakening, chain2-coulomb, "):
         resolve("chain9", SYSTEMS)
 
 

@@ -108,7 +108,8 @@ def test_the_wheel_ships_the_scenarios_and_systems_and_finds_them_by_name(instal
     refused = subprocess.run([python.parent / "stickslip", "system", "run", "chain9", "--master", "me"], cwd=cwd,
                              env=env, capture_output=True, text=True, timeout=120)
     assert refused.returncode == 1 and refused.stderr.endswith(
-        "(names: bk10-velocity-weakening, chain2-coulomb, chain3-coulomb, chain3-stribeck-aging)\n"), refused.stderr
+        "(names: bk10-velocity-weakening, bk100-velocity-weakening, chain2-coulomb, chain3-coulomb, "
+        "chain3-stribeck-aging)\n"), refused.stderr
     assert list(cwd.iterdir()) == []
 
 
