@@ -20,7 +20,7 @@ ALLOWED = {
     "systems": {"core", "reference", "fmu", "hosts"},  # chains of blocks: beside suite
     "analysis": {"core", "reference"},
     "stress": {"core", "reference", "fmu", "hosts", "suite"},
-    "chain": {"core", "reference", "fmu", "hosts", "systems"},  # the chain engine and what works on its output
+    "chain": {"core", "reference", "fmu", "hosts", "systems", "analysis"},  # the chain engine, ensembles on a pool
     "bench": {"core", "reference", "fmu", "hosts", "suite", "systems"},  # bench-systems times the masters
     "cli": {"core", "reference", "fmu", "hosts", "suite", "systems", "chain", "analysis", "stress", "bench"},
     "(top)": {"core"},

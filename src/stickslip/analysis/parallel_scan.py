@@ -63,15 +63,15 @@ class Executor:
                 self._own_client = not hasattr(self.scheduler, "submit")
         return self._client
 
-    def map(self, fn, items, desc="scan"):
-        """``[fn(*item) for item in items]``, in order, computed on the chosen back end."""
+    def map(self, fn, items, desc="scan", unit="chunk"):
+        """``[fn(*item) for item in items]``, in order, computed on the chosen back end; the bar counts ``unit``."""
         items = list(items)
         parallel = self.scheduler is None and self.jobs > 1 and len(items) > 1
         if parallel and self._pool is None:  # start the workers before the clock: start-up is not chunk time
             self._pool = ProcessPoolExecutor(max_workers=self.jobs, mp_context=get_context("spawn"))
             list(self._pool.map(_ready, range(self.jobs)))
         # smoothing=0: the estimate uses the average rate since the start, not the latest (uneven) chunks
-        bar = tqdm(total=len(items), desc=desc, unit="chunk", disable=not self.progress, leave=False, smoothing=0)
+        bar = tqdm(total=len(items), desc=desc, unit=unit, disable=not self.progress, leave=False, smoothing=0)
         try:
             if self.scheduler is not None:
                 from distributed import as_completed
