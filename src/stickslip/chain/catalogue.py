@@ -64,10 +64,12 @@ class SlipGrouper:
     """Groups block events, fed in batches in time order, into slip events (module docstring).
 
     ``v_drive``: the surface's speed (m/s); ``slipping_at_start``: ``{block (1-based): x at time 0 (m)}`` of the
-    blocks slipping from the start (default none)."""
+    blocks slipping from the start (default none); ``on_interval(block, t_slip, t_stick, slip)``, if given, is
+    called at the end of each block's slip interval (``slip`` relative to the surface, m)."""
 
-    def __init__(self, v_drive, slipping_at_start=None):
+    def __init__(self, v_drive, slipping_at_start=None, on_interval=None):
         self.v_drive = float(v_drive)
+        self.on_interval = on_interval
         self.slipping = {}  # block: (t_slip, x_slip) of each block slipping now
         self.open_event = None
         self.n_block_events = 0
@@ -105,7 +107,10 @@ class SlipGrouper:
         if kind == "overshoot":
             return None
         t_slip, x_slip = self.slipping.pop(block)
-        event.moment += x - x_slip - self.v_drive * (t - t_slip)
+        slip = x - x_slip - self.v_drive * (t - t_slip)
+        event.moment += slip
+        if self.on_interval is not None:
+            self.on_interval(block, t_slip, t, slip)
         if self.slipping:
             return None
         self.open_event = None
