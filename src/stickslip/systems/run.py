@@ -9,12 +9,12 @@ runs of different masters share a folder.
 
 import time
 from dataclasses import dataclass
-from tqdm import tqdm
 
 from ..fmu import ensure_fmu
 from ..fmu.variables import START_VALUES
 from ..reference import simulate_chain
 from ..hosts.fmpy_host import read_model_description
+from ..hosts.progress import TimeProgress
 from ..hosts.run_limits import output_folder
 from .compare import Comparison, amplitude_floor, compare
 from .master import SystemResult
@@ -52,10 +52,10 @@ def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress
     variant = options.get("engine") or ("fmi3" if options.get("fmi") == 3 else None)
     files = output_files(out_dir, run_name(system.name, master, variant))
     fmu_path = fmu_path or ensure_fmu(fmi_version=runner.FMI_VERSION)
-    with _progress(f"{system.name} {master}", system.stop_time, show_progress) as step:
+    with TimeProgress(f"{system.name} {master}", system.stop_time, show_progress) as step:
         result = runner.run(system, fmu_path, step)
     start = time.perf_counter()
-    with _progress(f"{system.name} reference", system.stop_time, show_progress) as step:
+    with TimeProgress(f"{system.name} reference", system.stop_time, show_progress) as step:
         reference = simulate_chain(system.chain_blocks(), system.coupling, system.v_drive, system.times(),
                                    progress=step)
     reference_seconds = time.perf_counter() - start
@@ -95,20 +95,3 @@ def output_files(out_dir, name):
     files = {kind: out / f"{name}{suffix}" for kind, suffix in suffixes.items()}
     files["report"].unlink(missing_ok=True)
     return files
-
-
-class _progress:
-    """A progress bar over the simulated time (s) as a context: gives ``step(t)``, which moves it to ``t``."""
-
-    def __init__(self, label, total, shown):
-        self.bar = tqdm(total=total, desc=label, unit="s", disable=not shown, leave=False,
-                        bar_format="{desc}: {percentage:3.0f}% |{bar}| {n:.4g}/{total:g} s [{elapsed}<{remaining}]")
-
-    def __enter__(self):
-        return self.step
-
-    def step(self, t):
-        self.bar.update(min(t, self.bar.total) - self.bar.n)
-
-    def __exit__(self, *exc):
-        self.bar.close()

@@ -1,0 +1,21 @@
+"""A progress bar over simulated time: :class:`TimeProgress`."""
+
+from tqdm import tqdm
+
+
+class TimeProgress:
+    """A progress bar over the simulated time (s) as a context: gives ``step(t)``, which moves it to ``t``; it shows
+    the time left as tqdm estimates it from the rate so far."""
+
+    def __init__(self, label, total, shown):
+        self.bar = tqdm(total=total, desc=label, unit="s", disable=not shown, leave=False,
+                        bar_format="{desc}: {percentage:3.0f}% |{bar}| {n:.4g}/{total:g} s [{elapsed}<{remaining}]")
+
+    def __enter__(self):
+        return self.step
+
+    def step(self, t):
+        self.bar.update(min(t, self.bar.total) - self.bar.n)
+
+    def __exit__(self, *exc):
+        self.bar.close()
