@@ -28,8 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .output import EVENT_KINDS
+from .output import EVENT_KINDS, EVENTS_FILE
 
+#: the catalogue's input, written by :class:`stickslip.chain.output.CsvSink`
+BLOCK_EVENTS_FILE = EVENTS_FILE
 SLIP_EVENTS_FILE = "slip_events.csv"
 BLOCK_EVENT_COLUMNS = ("time", "block", "kind", "x")
 SLIP_EVENT_COLUMNS = ("start", "duration", "size", "moment", "first_block", "end", "n_slips", "n_block_events")
