@@ -62,7 +62,7 @@ _OUTPUTS = (
 
 # what each law parameter does (the formulas are in SPEC section 2)
 LAW_PARAMETER_MEANINGS = {
-    "kinetic.F0": "constant part of F_K",
+    "kinetic.F0": "constant part of F_K; the force scale of carlson-langer",
     "kinetic.gamma": "viscous slope of F_K",
     "kinetic.F_stribeck": "height of the Stribeck peak: F_K(0+) - F0",
     "kinetic.v_stribeck": "sliding speed over which the Stribeck peak decays",
@@ -71,6 +71,8 @@ LAW_PARAMETER_MEANINGS = {
     "kinetic.gamma2": "slope of F_K well above v_tilde, hydrodynamic lubrication",
     "kinetic.v_tilde": "sliding speed of the transition from gamma1 to gamma2",
     "kinetic.dv": "width of that transition",
+    "kinetic.sigma": "drop of F_K at the onset of slip, F_K(0+) = F0 (1 - sigma)",
+    "kinetic.alpha": "velocity weakening: F_K halves at u = (1 - sigma)/(2 alpha)",
     "static.F0": "static friction F_S at the start of a stick",
     "static.A": "aging amplitude: F_S grows by A per e-fold of 1 + t/tau",
     "static.tau": "aging time scale",
@@ -85,6 +87,8 @@ LAW_FORMULAS = {
     "stribeck": "F_K(u) = F0 + F_stribeck exp(-(u/v_stribeck)^delta) + gamma u",
     "lubricated": "F_K(u) = u (gamma1 + gamma2 + (gamma2 - gamma1) w / sqrt(dv^2 + w^2)) / 2, w = u - v_tilde: "
                   "slope gamma1 well below v_tilde (boundary lubrication), gamma2 well above (hydrodynamic)",
+    "carlson-langer": "F_K(u) = F0 (1 - sigma) / (1 + 2 alpha u / (1 - sigma)): velocity weakening "
+                      "(Carlson and Langer's Burridge-Knopoff chain)",
     "constant": "F_S(t) = F0",
     "logarithmic": "F_S(t) = F0 + A ln(1 + t/tau)",
     "saturating": "F_S(t) = F0 + (F_inf - F0)(1 - exp(-t/tau))",

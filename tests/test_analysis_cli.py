@@ -114,7 +114,7 @@ def test_unknown_law_is_named_with_the_known_ones(capsys):
     assert main(["vc", "--kinetic", "stribek"]) == 1
     err = capsys.readouterr().err
     assert "--kinetic 'stribek': unknown law" in err
-    assert "coulomb 1, viscous 2, stribeck 3, lubricated 4" in err
+    assert "coulomb 1, viscous 2, stribeck 3, lubricated 4, carlson-langer 5" in err
     assert main(["vc", "--kinetic", "coulomb", "--static", "9"]) == 1
     assert "constant 1, logarithmic 2, saturating 3, sigmoid 4" in capsys.readouterr().err
 

@@ -75,7 +75,9 @@ def test_ctrl_c_stops_the_suite_and_its_workers(tmp_path, fmu_path, to_group):
     assert proc.returncode == 130, stderr
     assert took <= EXIT_WITHIN
     line = one_line(stderr, "run")
-    assert line.startswith("stickslip run: interrupted (") and "of 20 scenarios finished, no report written)" in line
+    scenarios = len(list((ROOT / "scenarios").glob("*.toml")))
+    assert line.startswith("stickslip run: interrupted (")
+    assert f"of {scenarios} scenarios finished, no report written)" in line
     assert not (out / "report.md").exists()
     written = sorted(out.iterdir())
     time.sleep(2.0)

@@ -28,6 +28,8 @@ def spec_kinetic(name, p, u):
         return p["F0"] + p["gamma"] * u
     if name == "stribeck":
         return p["F0"] + p["F_stribeck"] * math.exp(-((u / p["v_stribeck"]) ** p["delta"])) + p["gamma"] * u
+    if name == "carlson-langer":
+        return p["F0"] * (1 - p["sigma"]) / (1 + 2 * p["alpha"] * u / (1 - p["sigma"]))
     g1, g2, vt, dv = p["gamma1"], p["gamma2"], p["v_tilde"], p["dv"]
     return u * (g1 + g2 + (g2 - g1) * (u - vt) / math.sqrt(dv**2 + (u - vt) ** 2)) / 2
 
@@ -41,6 +43,9 @@ def spec_kinetic_slope(name, p, u):
     if name == "stribeck":
         s, d = u / p["v_stribeck"], p["delta"]
         return p["gamma"] - p["F_stribeck"] * d * s ** (d - 1) * math.exp(-(s**d)) / p["v_stribeck"]
+    if name == "carlson-langer":  # F0 (1 - sigma) times d/du 1/(1 + b u) = -b/(1 + b u)^2, b = 2 alpha/(1 - sigma)
+        b = 2 * p["alpha"] / (1 - p["sigma"])
+        return -p["F0"] * (1 - p["sigma"]) * b / (1 + b * u) ** 2
     g1, g2, vt, dv = p["gamma1"], p["gamma2"], p["v_tilde"], p["dv"]
     root = math.sqrt(dv**2 + (u - vt) ** 2)
     return (g1 + g2) / 2 + (g2 - g1) / 2 * ((u - vt) / root + u * dv**2 / root**3)
@@ -66,6 +71,8 @@ def spec_slope_at_zero(name, p):
         return p["gamma"]
     if name == "stribeck":
         return p["gamma"] - (p["F_stribeck"] / p["v_stribeck"] if p["delta"] == 1.0 else 0.0)
+    if name == "carlson-langer":
+        return -2 * p["alpha"] * p["F0"]
     g1, g2, vt, dv = p["gamma1"], p["gamma2"], p["v_tilde"], p["dv"]
     return (g1 + g2) / 2 + (g2 - g1) / 2 * (-vt / math.sqrt(dv**2 + vt**2))
 
@@ -96,6 +103,11 @@ KINETIC = [
     ("lubricated", {"gamma1": 3.0, "gamma2": 0.1, "v_tilde": 0.2, "dv": 0.05}, 0.2),  # elmer-fig3
     ("lubricated", {"gamma1": 0.5, "gamma2": 4.0, "v_tilde": 1.0, "dv": 0.3}, 1.0),
     ("lubricated", {"gamma1": 2.0, "gamma2": 0.2, "v_tilde": 0.0, "dv": 0.01}, 0.01),
+    # scale: the speed (1 - sigma)/(2 alpha) at which F_K halves
+    ("carlson-langer", {"F0": 1.0, "sigma": 0.01, "alpha": 2.5}, 0.198),  # Carlson and Langer's values
+    ("carlson-langer", {"F0": 0.7, "sigma": 0.0, "alpha": 40.0}, 0.0125),
+    ("carlson-langer", {"F0": 3.0, "sigma": 0.9, "alpha": 0.01}, 5.0),
+    ("carlson-langer", {"F0": 0.5, "sigma": 0.2, "alpha": 0.0}, 1.0),  # no weakening: coulomb at F0 (1 - sigma)
 ]
 STATIC = [
     ("constant", {"F0": 1.0}, 1.0),
@@ -227,12 +239,13 @@ def test_runtime_static_curvature_is_the_second_derivative(name, p, scale):
 def test_affine_is_reported_exactly_when_the_law_is_affine(build, name, p, scale):
     law = build(name, p)
     coefficients = law.affine()
-    straight = name in ("coulomb", "viscous") or (name == "stribeck" and p["F_stribeck"] == 0.0)
+    straight = name in ("coulomb", "viscous") or (name == "stribeck" and p["F_stribeck"] == 0.0) or (
+        name == "carlson-langer" and p["alpha"] == 0.0)
     if straight:
         F0, gamma = coefficients
         for u in points(scale):
             assert F0 + gamma * u == pytest.approx(spec_kinetic(name, p, u), rel=1e-14, abs=1e-15)
-    elif name == "stribeck" or coefficients is not None:
+    elif name in ("stribeck", "carlson-langer") or coefficients is not None:
         assert coefficients is None or p.get("gamma1") == p.get("gamma2")
 
 

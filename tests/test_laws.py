@@ -6,12 +6,14 @@ import pytest
 
 from stickslip.core import ParameterError, Parameters, kinetic_law, static_law
 from stickslip.core.laws import KINETIC_LAWS, STATIC_LAWS, CallableKinetic, Coulomb, Constant
+from stickslip.core.model import check_scales
 
 KINETIC_CASES = {
     "coulomb": {"F0": 0.4},
     "viscous": {"F0": 0.4, "gamma": 0.3},
     "stribeck": {"F0": 0.4, "F_stribeck": 0.3, "v_stribeck": 0.2, "delta": 2.0, "gamma": 0.1},
     "lubricated": {"gamma1": 3.0, "gamma2": 0.1, "v_tilde": 0.2, "dv": 0.05},
+    "carlson-langer": {"F0": 1.0, "sigma": 0.05, "alpha": 2.5},
 }
 STATIC_CASES = {
     "constant": {"F0": 1.0},
@@ -57,6 +59,20 @@ def test_kinetic_values_follow_the_spec_formulas():
     w = u - 0.2
     assert lub.force(u) == pytest.approx(u * (3.1 + (0.1 - 3.0) * w / math.sqrt(0.05**2 + w * w)) / 2, rel=EXACT)
     assert lub.force(0.0) == 0.0
+    cl = kinetic_law(5, **KINETIC_CASES["carlson-langer"])
+    assert cl.force(u) == pytest.approx(0.95 / (1 + 5.0 * u / 0.95), rel=EXACT)
+    assert cl.force(0.0) == cl.at_rest() == pytest.approx(0.95, rel=EXACT)  # the drop sigma F0 at the onset of slip
+
+
+def test_carlson_langer_weakens_at_every_speed():
+    """``F_K' < 0`` everywhere for ``alpha > 0`` (continuous sliding is unstable); the steepest slope, bounding
+    ``|F_K'|`` for the damping check, is ``2 alpha F0`` at ``u = 0``; ``alpha = 0`` is coulomb at ``F0 (1 - sigma)``."""
+    law = kinetic_law("carlson-langer", **KINETIC_CASES["carlson-langer"])
+    speeds = [0.0, 1e-6, 0.01, 0.19, 1.0, 100.0]
+    assert all(law.slope(u) < 0 for u in speeds)
+    assert law.steepest_slope() == max(abs(law.slope(u)) for u in speeds) == pytest.approx(5.0, rel=EXACT)
+    assert law.affine() is None
+    assert kinetic_law(5, F0=1.0, sigma=0.2, alpha=0.0).affine() == pytest.approx((0.8, 0.0), rel=EXACT)
 
 
 def test_static_values_follow_the_spec_formulas():
@@ -79,7 +95,8 @@ def test_affine_laws_report_their_coefficients():
 
 
 def test_law_tables_have_spec_codes():
-    assert [KINETIC_LAWS[c].NAME for c in (1, 2, 3, 4)] == ["coulomb", "viscous", "stribeck", "lubricated"]
+    assert [KINETIC_LAWS[c].NAME for c in (1, 2, 3, 4, 5)] == ["coulomb", "viscous", "stribeck", "lubricated",
+                                                               "carlson-langer"]
     assert [STATIC_LAWS[c].NAME for c in (1, 2, 3, 4)] == ["constant", "logarithmic", "saturating", "sigmoid"]
 
 
@@ -96,6 +113,11 @@ def test_law_tables_have_spec_codes():
         (lambda: Parameters(1, 1, Coulomb(F0=0.5), static_law(2, tau=-1.0)), "static.tau"),
         (lambda: Parameters(1, 1, Coulomb(F0=0.5), static_law(4, n=0.0)), "static.n"),
         (lambda: Parameters(1, 1, Coulomb(F0=1.5), Constant(F0=1)), "F_K(0+)"),
+        (lambda: Parameters(1, 1, kinetic_law(5, sigma=1.0), Constant(F0=1)), "kinetic.sigma = 1.0 is out of range: "
+                                                                              "allowed is a finite value in [0, 1)"),
+        (lambda: Parameters(1, 1, kinetic_law(5, sigma=-0.1), Constant(F0=1)), "kinetic.sigma"),
+        (lambda: Parameters(1, 1, kinetic_law(5, alpha=-1.0), Constant(F0=1)), "kinetic.alpha = -1.0 s/m"),
+        (lambda: Parameters(1, 1, kinetic_law(5, F0=1.2, sigma=0.1), Constant(F0=1)), "F_K(0+) = 1.08"),
     ],
 )
 def test_invalid_parameters_name_the_parameter_and_range(build, name):
@@ -106,9 +128,17 @@ def test_invalid_parameters_name_the_parameter_and_range(build, name):
     assert "allowed" in message
 
 
+def test_carlson_langer_steeper_than_the_damping_bound_is_refused():
+    """``|F_K'(0)| = 2 alpha F0`` beyond 1e7 times ``2 sqrt(kappa M)``: refused at the start, naming the law."""
+    p = Parameters(1, 1, kinetic_law(5, alpha=1e8), Constant(F0=1))
+    p.check()
+    with pytest.raises(ParameterError, match=r"carlson-langer law's steepest slope \|F_K'\| = 2e\+08 N s/m"):
+        check_scales(0.0, 0.0, 0.1, 0.0, p)
+
+
 @pytest.mark.parametrize("table_lookup", [lambda: kinetic_law(7), lambda: static_law("glue")])
 def test_unknown_law_codes_list_the_allowed_ones(table_lookup):
-    with pytest.raises(ParameterError, match="allowed are 1 .*4"):
+    with pytest.raises(ParameterError, match="allowed are 1 .*4"):  # 1 .. 5 (kinetic), 1 .. 4 (static)
         table_lookup()
 
 

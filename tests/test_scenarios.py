@@ -21,7 +21,7 @@ def test_the_suite_has_the_required_scenarios():
     assert len(SCENARIOS) >= 19
     # every coded law appears in some scenario, so an error in any law shows in the FMU-vs-reference comparison
     values = [load_scenario(p).law_values for p in SCENARIOS]
-    assert {v["kinetic.law"] for v in values} == {"coulomb", "viscous", "stribeck", "lubricated"}
+    assert {v["kinetic.law"] for v in values} == {"coulomb", "viscous", "stribeck", "lubricated", "carlson-langer"}
     assert {v["static.law"] for v in values} == {"constant", "logarithmic", "saturating", "sigmoid"}
 
 

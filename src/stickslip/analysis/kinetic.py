@@ -3,7 +3,7 @@
 The core laws (:mod:`stickslip.core.laws`) are scalar (pure ``math``, bundled
 into the FMU). The analysis integrates whole batches of slips at once, so it
 needs ``F_K(u)`` and ``F_K'(u)`` on numpy arrays: :func:`vectorized` returns
-them for the four coded laws in closed form (SPEC section 2's formulas, as in the
+them for the five coded laws in closed form (SPEC section 2's formulas, as in the
 core; ``tests/test_law_formulas.py`` pins both, and the continuation below 0, to
 SPEC) and wraps any other law (``CallableKinetic``) with :func:`numpy.vectorize`.
 
@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from ..core.laws import Coulomb, Lubricated, Stribeck, Viscous
+from ..core.laws import CarlsonLanger, Coulomb, Lubricated, Stribeck, Viscous
 
 
 def _coulomb(law):
@@ -71,7 +71,20 @@ def _lubricated(law):
     return force, slope
 
 
-_EXACT = {Coulomb: _coulomb, Viscous: _viscous, Stribeck: _stribeck, Lubricated: _lubricated}
+def _carlson_langer(law):
+    F0, drop, alpha = law.F0, 1.0 - law.sigma, law.alpha
+
+    def force(u):
+        return F0 * drop / (1.0 + 2.0 * alpha * u / drop)
+
+    def slope(u):
+        return -2.0 * alpha * F0 / (1.0 + 2.0 * alpha * u / drop) ** 2
+
+    return force, slope
+
+
+_EXACT = {Coulomb: _coulomb, Viscous: _viscous, Stribeck: _stribeck, Lubricated: _lubricated,
+          CarlsonLanger: _carlson_langer}
 
 
 def vectorized(law):

@@ -20,6 +20,7 @@ from .laws import (
     STATIC_LAWS,
     CallableKinetic,
     CallableStatic,
+    CarlsonLanger,
     Constant,
     Coulomb,
     Logarithmic,
@@ -38,7 +39,7 @@ from .trajectory import OUTPUT_NAMES, RTOL_RANGE, Trajectory
 __all__ = [
     "ANY_FINITE", "BACKWARD", "FORWARD", "IMPLEMENTATION", "INDICATORS", "ExchangeBlock", "NON_NEGATIVE", "POSITIVE", "STUCK", "KINETIC_LAWS",
     "OUTPUT_NAMES", "STATIC_LAWS",
-    "CallableKinetic", "CallableStatic", "Constant", "Coulomb", "Logarithmic", "Lubricated",
+    "CallableKinetic", "CallableStatic", "CarlsonLanger", "Constant", "Coulomb", "Logarithmic", "Lubricated",
     "Parameters", "ParameterError", "RTOL_RANGE", "Saturating", "Sigmoid", "SolverError", "StateError",
     "StickSlipError", "Stribeck", "Trajectory", "Viscous", "check", "check_input", "check_rate_scale", "kinetic_law",
     "saved_state", "static_law",

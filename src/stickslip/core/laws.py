@@ -73,7 +73,7 @@ class _Law:
     def check(self):
         """Raise ParameterError for the first parameter outside its range."""
         for name, (_, allowed, unit) in self.PARAMETERS.items():
-            check(f"{self.PREFIX}.{name}", getattr(self, name), allowed, unit)
+            check(f"{self.PREFIX}.{name}", getattr(self, name), allowed, "" if unit == "1" else unit)
 
     def __repr__(self):
         args = ", ".join(f"{k}={v!r}" for k, v in self.parameters().items())
@@ -220,6 +220,38 @@ class Lubricated(KineticLaw):
         """The larger viscous slope: the transition at ``v_tilde``, however sharp, is crossed within a slip (a
         kink the stepper's step control handles), not where slips start and end."""
         return self.gamma1 if self.gamma1 > self.gamma2 else self.gamma2
+
+
+class CarlsonLanger(KineticLaw):
+    """Velocity weakening of Carlson and Langer's Burridge-Knopoff chain (Phys. Rev. A 40 (1989) 6470):
+    ``F_K(u) = F0 (1 - sigma) / (1 + 2 alpha u / (1 - sigma))``, a drop ``sigma F0`` at the onset of slip, then
+    weakening with speed; ``F_K'(u) = -2 alpha F0 / (1 + 2 alpha u / (1 - sigma))^2 < 0`` for ``alpha > 0``, so
+    continuous sliding is unstable at every drive velocity."""
+
+    CODE: ClassVar[int] = 5
+    NAME: ClassVar[str] = "carlson-langer"
+    PARAMETERS: ClassVar[dict] = {
+        "F0": (1.0, NON_NEGATIVE, "N"),
+        "sigma": (0.01, Range(0.0, 1.0, high_open=True), "1"),
+        "alpha": (2.5, NON_NEGATIVE, "s/m"),
+    }
+    F0: float
+    sigma: float
+    alpha: float
+
+    def force(self, u: float) -> float:
+        rest = 1.0 - self.sigma
+        return self.F0 * rest / (1.0 + 2.0 * self.alpha * u / rest)
+
+    def slope(self, u: float) -> float:
+        weakening = 1.0 + 2.0 * self.alpha * u / (1.0 - self.sigma)
+        return -2.0 * self.alpha * self.F0 / (weakening * weakening)
+
+    def affine(self):
+        return (self.F0 * (1.0 - self.sigma), 0.0) if self.alpha == 0.0 or self.F0 == 0.0 else None
+
+    def steepest_slope(self) -> float:
+        return 2.0 * self.alpha * self.F0  # |F_K'| is largest at u = 0
 
 
 class CallableKinetic(KineticLaw):
@@ -475,7 +507,7 @@ def _rebuild(law_class, parameters):
     return law_class(**parameters)
 
 
-KINETIC_LAWS = {law.CODE: law for law in (Coulomb, Viscous, Stribeck, Lubricated)}
+KINETIC_LAWS = {law.CODE: law for law in (Coulomb, Viscous, Stribeck, Lubricated, CarlsonLanger)}
 STATIC_LAWS = {law.CODE: law for law in (Constant, Logarithmic, Saturating, Sigmoid)}
 
 
@@ -488,7 +520,7 @@ def _law_class(table, kind, code_or_name):
 
 
 def kinetic_law(code_or_name, **parameters):
-    """Build a kinetic law from its code (1..4) or name and its parameters."""
+    """Build a kinetic law from its code (1..5) or name and its parameters."""
     return _law_class(KINETIC_LAWS, "kinetic", code_or_name)(**parameters)
 
 
@@ -505,5 +537,6 @@ def check_pair(kinetic, static):
     if not fk0 <= fs0:
         raise ParameterError(
             f"kinetic friction at rest F_K(0+) = {fk0!r} N exceeds static friction F_S(0) = {fs0!r} N: "
-            f"allowed is F_K(0+) <= F_S(0) (lower kinetic.F0 / kinetic.F_stribeck or raise static.F0)"
+            f"allowed is F_K(0+) <= F_S(0) (lower kinetic.F0 / kinetic.F_stribeck, raise kinetic.sigma or raise "
+            f"static.F0)"
         )

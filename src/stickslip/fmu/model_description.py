@@ -22,6 +22,7 @@ UNITS = {
     "N/m": ("N/m", "TranslationalSpringConstant", {"kg": 1, "s": -2}),
     "N s/m": ("N.s/m", "TranslationalDampingConstant", {"kg": 1, "s": -1}),
     "m/s2": ("m/s2", "Acceleration", {"m": 1, "s": -2}),
+    "s/m": ("s/m", "InverseVelocity", {"m": -1, "s": 1}),
 }
 DIMENSIONLESS = ("", "1")
 

@@ -17,23 +17,25 @@ from .errors import ReferenceParameterError
 
 INF = math.inf
 
-# allowed ranges (low, high, low_open) by parameter name; the same name has the same range in every law
+# allowed ranges (low, high, low_open[, high_open]) by parameter name; the same name has the same range in every law
 _NON_NEGATIVE = (0.0, INF, False)
 _POSITIVE = (0.0, INF, True)
 _RANGES = {
     "kinetic": {"F0": _NON_NEGATIVE, "gamma": _NON_NEGATIVE, "F_stribeck": _NON_NEGATIVE,
                 "v_stribeck": _POSITIVE, "delta": (1.0, 10.0, False), "gamma1": _NON_NEGATIVE,
-                "gamma2": _NON_NEGATIVE, "v_tilde": _NON_NEGATIVE, "dv": _POSITIVE},
+                "gamma2": _NON_NEGATIVE, "v_tilde": _NON_NEGATIVE, "dv": _POSITIVE, "sigma": (0.0, 1.0, False, True),
+                "alpha": _NON_NEGATIVE},
     "static": {"F0": _POSITIVE, "A": _NON_NEGATIVE, "tau": _POSITIVE, "F_inf": _POSITIVE, "n": (0.5, 20.0, False)},
 }
 
 
 def _check_value(name, value, allowed):
-    low, high, low_open = allowed
-    inside = math.isfinite(value) and (value > low if low_open else value >= low) and value <= high
+    low, high, low_open, high_open = (*allowed, False)[:4]
+    inside = (math.isfinite(value) and (value > low if low_open else value >= low)
+              and (value < high if high_open else value <= high))
     if not inside:
-        bracket = "(" if low_open else "["
-        raise ReferenceParameterError(f"{name} = {value!r} is out of range: allowed is {bracket}{low:g}, {high:g}]")
+        left, right = "(" if low_open else "[", ")" if high_open else "]"
+        raise ReferenceParameterError(f"{name} = {value!r} is out of range: allowed is {left}{low:g}, {high:g}{right}")
 
 
 class _CodedLaw:
@@ -145,6 +147,25 @@ class Lubricated(_Kinetic):
 
     def affine(self):
         return (0.0, self.gamma1) if self.gamma1 == self.gamma2 else None
+
+
+class CarlsonLanger(_Kinetic):
+    """``F_K(u) = F0 (1 - sigma) / (1 + 2 alpha u / (1 - sigma))`` (Carlson and Langer 1989): velocity weakening."""
+
+    NAME, CODE, NAMES = "carlson-langer", 5, ("F0", "sigma", "alpha")
+
+    def force(self, u):
+        drop = 1.0 - self.sigma
+        return self.F0 * drop / (1.0 + 2.0 * self.alpha * u / drop)
+
+    def slope(self, u):
+        # d/du c/(1 + b u) = -c b/(1 + b u)^2 with c = F0 (1 - sigma), b = 2 alpha/(1 - sigma): c b = 2 alpha F0
+        drop = 1.0 - self.sigma
+        denominator = 1.0 + 2.0 * self.alpha * u / drop
+        return -2.0 * self.alpha * self.F0 / (denominator * denominator)
+
+    def affine(self):
+        return (self.F0 * (1.0 - self.sigma), 0.0) if self.alpha == 0.0 or self.F0 == 0.0 else None
 
 
 # ----------------------------------------------------------------- static laws (t in s, N)
@@ -292,7 +313,7 @@ class CustomStatic:
             raise ReferenceParameterError(f"custom static law: F_S(0) = {value!r}; allowed is a finite value > 0")
 
 
-KINETIC = {law.NAME: law for law in (Coulomb, Viscous, Stribeck, Lubricated)}
+KINETIC = {law.NAME: law for law in (Coulomb, Viscous, Stribeck, Lubricated, CarlsonLanger)}
 STATIC = {law.NAME: law for law in (Constant, Logarithmic, Saturating, Sigmoid)}
 
 
