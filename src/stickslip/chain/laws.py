@@ -1,0 +1,107 @@
+"""The friction laws of SPEC section 2 as compiled kernels over flat parameter rows.
+
+A block's kinetic law is its code (1..5) and a row of parameters in the order of :data:`KINETIC_PARAMETERS`
+(unused places 0); its static law likewise (:data:`STATIC_PARAMETERS`). Kinetic: ``F_K(u)`` (N) for the sliding
+speed ``u = |v_rel| >= 0`` (m/s) and its slope (N s/m). Static: ``F_S(t)`` (N) after sticking ``t >= 0`` s and its
+rate (N/s).
+"""
+
+import math
+
+from .jit import njit
+
+#: kinetic law code: the names of its parameters, in the order of a block's row
+KINETIC_PARAMETERS = {1: ("F0",), 2: ("F0", "gamma"), 3: ("F0", "F_stribeck", "v_stribeck", "delta", "gamma"),
+                      4: ("gamma1", "gamma2", "v_tilde", "dv"), 5: ("F0", "sigma", "alpha")}
+#: static law code: the names of its parameters, in the order of a block's row
+STATIC_PARAMETERS = {1: ("F0",), 2: ("F0", "A", "tau"), 3: ("F0", "F_inf", "tau"), 4: ("F0", "F_inf", "tau", "n")}
+KINETIC_WIDTH = 5
+STATIC_WIDTH = 4
+
+
+@njit
+def kinetic_force(code, p, u):
+    """``F_K(u)`` (N) of the kinetic law ``code`` with the parameter row ``p``, ``u >= 0`` (m/s)."""
+    if code == 1:
+        return p[0]
+    if code == 2:
+        return p[0] + p[1] * u
+    if code == 3:
+        return p[0] + p[1] * math.exp(-math.pow(u / p[2], p[3])) + p[4] * u
+    if code == 4:
+        w = u - p[2]
+        return 0.5 * u * (p[0] + p[1] + (p[1] - p[0]) * w / math.sqrt(p[3] * p[3] + w * w))
+    rest = 1.0 - p[1]
+    return p[0] * rest / (1.0 + 2.0 * p[2] * u / rest)
+
+
+@njit
+def kinetic_slope(code, p, u):
+    """``dF_K/du`` (N s/m) of the kinetic law ``code`` at ``u >= 0`` (m/s)."""
+    if code == 1:
+        return 0.0
+    if code == 2:
+        return p[1]
+    if code == 3:
+        s = u / p[2]
+        return p[4] - p[1] * p[3] * math.pow(s, p[3] - 1.0) * math.exp(-math.pow(s, p[3])) / p[2]
+    if code == 4:
+        w = u - p[2]
+        r = math.sqrt(p[3] * p[3] + w * w)
+        return 0.5 * (p[0] + p[1]) + 0.5 * (p[1] - p[0]) * (w / r + u * p[3] * p[3] / (r * r * r))
+    weakening = 1.0 + 2.0 * p[2] * u / (1.0 - p[1])
+    return -2.0 * p[2] * p[0] / (weakening * weakening)
+
+
+@njit
+def friction(code, p, u):
+    """``F_K(u)`` (N) for ``u >= 0``; for ``u < 0`` its tangent at 0. Only a Runge-Kutta stage past a ``v_rel = 0``
+    crossing sees ``u < 0``: the C1 continuation keeps the step smooth and is never part of the solution."""
+    if u >= 0.0:
+        return kinetic_force(code, p, u)
+    return kinetic_force(code, p, 0.0) + kinetic_slope(code, p, 0.0) * u
+
+
+@njit
+def static_force(code, p, t):
+    """``F_S(t)`` (N) of the static law ``code`` with the parameter row ``p`` after sticking ``t >= 0`` s."""
+    if code == 1:
+        return p[0]
+    if code == 2:
+        return p[0] + p[1] * math.log1p(t / p[2])
+    if code == 3:
+        return p[0] - (p[1] - p[0]) * math.expm1(-t / p[2])
+    s = t / p[2]
+    if s > 1.0:  # t^n / (tau^n + t^n) = 1 / (1 + s^-n): no overflow for large s
+        return p[0] + (p[1] - p[0]) / (1.0 + math.pow(s, -p[3]))
+    q = math.pow(s, p[3])
+    return p[0] + (p[1] - p[0]) * q / (1.0 + q)
+
+
+@njit
+def static_rate(code, p, t):
+    """``dF_S/dt`` (N/s) of the static law ``code`` after sticking ``t >= 0`` s."""
+    if code == 1:
+        return 0.0
+    if code == 2:
+        return p[1] / (p[2] + t)
+    if code == 3:
+        return (p[1] - p[0]) / p[2] * math.exp(-t / p[2])
+    jump, n, s = p[1] - p[0], p[3], t / p[2]
+    if jump == 0.0:
+        return 0.0
+    if s == 0.0:
+        return 0.0 if n > 1.0 else jump / p[2] if n == 1.0 else math.copysign(math.inf, jump)
+    if s > 1.0:  # s^(n-1) / (1 + s^n)^2 = s^(-n-1) / (1 + s^-n)^2
+        q = math.pow(s, -n)
+        return jump * (n / p[2]) * (q / s) / ((1.0 + q) * (1.0 + q))
+    q = math.pow(s, n)
+    return jump * (n / p[2]) * math.pow(s, n - 1.0) / ((1.0 + q) * (1.0 + q))
+
+
+@njit
+def static_bend(code, p):
+    """The stick time (s) where ``F_S''`` changes sign (the sigmoid law with ``n > 1``), else -1."""
+    if code != 4 or p[3] <= 1.0 or p[1] == p[0]:
+        return -1.0
+    return p[2] * math.pow((p[3] - 1.0) / (p[3] + 1.0), 1.0 / p[3])
