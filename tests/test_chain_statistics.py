@@ -53,7 +53,7 @@ def test_x_min_is_found_where_the_power_law_begins(discrete):
 
 
 def test_a_fit_without_enough_or_with_bad_values_is_refused():
-    with pytest.raises(StatisticsError, match="5 events: a fit needs at least 10"):
+    with pytest.raises(StatisticsError, match="5 events: a fit needs at least 20, with 3 distinct values"):
         fit_power_law([1.0, 2.0, 3.0, 4.0, 5.0], discrete=False)
     with pytest.raises(StatisticsError, match="positive finite values, got 3 values with 1 not positive"):
         fit_power_law([1.0, 0.0, 3.0], discrete=True)
@@ -99,7 +99,7 @@ def test_catalogue_statistics_and_their_files(tmp_path):
     text = md_path.read_text()
     assert "800 slip events of a chain of 20 blocks" in text and f"alpha = {stats['size_fit']['alpha']:.3f}" in text
     few = catalogue_statistics(slip_events_table(list(zip(*(c[:3] for c in table.values())))), 20, bootstrap=0)
-    assert "not_fitted" in few["size_fit"] and "3 events: a fit needs at least 10" in few["size_fit"]["not_fitted"]
+    assert "not_fitted" in few["size_fit"] and "3 events: a fit needs at least 20, with 3 distinct values" in few["size_fit"]["not_fitted"]
 
 
 def test_the_figures_are_written(tmp_path):

@@ -12,7 +12,9 @@ from scipy.special import zeta
 from .catalogue import SlipGrouper, read_block_events
 from .statistics import ccdf, log_binned_density
 
-#: the most slip intervals the space-time picture draws (the first ones of the run)
+#: the slip intervals per block the space-time picture draws by default (the first of the run: some loading
+#: cycles), and the most it draws
+SLIPS_PER_BLOCK = 30
 MAX_SLIPS = 20000
 
 
@@ -48,8 +50,8 @@ def plot_statistics(png_path, title, table, statistics):
 
 
 def _draw_fit(density, tails, values, fit, colour):
-    """The fitted law above its x_min, scaled to the fraction of events it describes."""
-    alpha, x_min, share = fit["alpha"], fit["x_min"], fit["n_tail"] / fit["n"]
+    """The fitted law above its x_min, scaled to the fraction of the drawn ``values`` it describes."""
+    alpha, x_min, share = fit["alpha"], fit["x_min"], fit["n_tail"] / values.size
     x = np.geomspace(x_min, values.max(), 50)
     if fit["discrete"]:
         rho, tail = x**-alpha / zeta(alpha, x_min), zeta(alpha, np.ceil(x)) / zeta(alpha, x_min)
@@ -75,10 +77,12 @@ def _plot_recurrence(ax, table, n_blocks):
         ax.legend(fontsize="small")
 
 
-def plot_slips(png_path, title, block_events, n_blocks, v_drive, *, slipping_at_start=None, max_slips=MAX_SLIPS):
+def plot_slips(png_path, title, block_events, n_blocks, v_drive, *, slipping_at_start=None, max_slips=None):
     """Write ``png_path``: block against time, a bar over each slip interval coloured by the block's slip relative
-    to the surface (|m|, log scale), read from the ``block_events.csv`` file in chunks; at most ``max_slips``
-    intervals (the first of the run: the title says so). Returns the number drawn."""
+    to the surface (|m|, log scale), read from the ``block_events.csv`` file in chunks; the first ``max_slips``
+    intervals of the run (default :data:`SLIPS_PER_BLOCK` per block, at most :data:`MAX_SLIPS`; the title says
+    where it stops). Returns the number drawn."""
+    max_slips = max_slips or min(SLIPS_PER_BLOCK * n_blocks, MAX_SLIPS)
     slips = []
     grouper = SlipGrouper(v_drive, slipping_at_start,
                           on_interval=lambda block, t0, t1, slip: slips.append((block, t0, t1, abs(slip))))
@@ -94,12 +98,12 @@ def plot_slips(png_path, title, block_events, n_blocks, v_drive, *, slipping_at_
     shown = size > 0
     if shown.any():
         lines = LineCollection(np.stack([np.column_stack([t0, block]), np.column_stack([t1, block])], axis=1)[shown],
-                               array=size[shown], cmap="viridis", linewidths=max(1.0, min(6.0, 300.0 / n_blocks)),
-                               norm=LogNorm(vmin=size[shown].min(), vmax=size[shown].max()))
+                               array=size[shown], cmap="viridis", linewidths=max(1.0, min(14.0, 200.0 / n_blocks)),
+                               norm=LogNorm(vmin=size[shown].min(), vmax=size[shown].max()), capstyle="butt")
         ax.add_collection(lines)
         fig.colorbar(lines, ax=ax, label="|slip relative to the surface| (m)")
         ax.set_xlim(0.0, t1.max())
-    span = "" if len(slips) < max_slips else f" (the first {max_slips} slips)"
+    span = "" if len(slips) < max_slips else f" (the first {max_slips} slips, up to t = {t1.max():.4g} s)"
     ax.set(xlabel="t (s)", ylabel="block", ylim=(0.5, n_blocks + 0.5), title=f"{title}: slips{span}")
     fig.savefig(png_path, dpi=100)
     return len(slips)

@@ -22,8 +22,9 @@ from scipy.special import zeta
 
 STATISTICS_JSON = "statistics.json"
 STATISTICS_MD = "statistics.md"
-#: the fewest events at or above a candidate x_min
-MIN_TAIL = 10
+#: the fewest events, and of distinct values, at or above a candidate x_min
+MIN_TAIL = 20
+MIN_DISTINCT = 3
 #: the exponents searched (alpha in (1, ALPHA_MAX])
 ALPHA_MAX = 20.0
 #: the most candidate x_min values tried (quantiles of the observed values beyond this many)
@@ -43,7 +44,8 @@ def fit_power_law(values, *, discrete, x_min=None, bootstrap=200, seed=0):
     if x_min is None:
         x_min, alpha, error, distance = _choose_x_min(values, discrete)
         if x_min is None:
-            raise StatisticsError(f"{values.size} events: a fit needs at least {MIN_TAIL}")
+            raise StatisticsError(f"{values.size} events: a fit needs at least {MIN_TAIL}, with {MIN_DISTINCT} "
+                                  "distinct values")
     else:
         x_min = float(x_min)
         alpha, error, distance = _fit_tail(values, x_min, discrete)
@@ -71,7 +73,10 @@ def _choose_x_min(values, discrete):
     """``(x_min, alpha, standard error, KS distance)`` at the x_min of the smallest KS distance (Nones if no
     candidate has enough events)."""
     ordered = np.sort(values)
+    distinct = np.unique(ordered)
+    # each candidate leaves MIN_TAIL events and MIN_DISTINCT values at or above it
     candidates = np.unique(ordered[:max(ordered.size - MIN_TAIL + 1, 0)])
+    candidates = candidates[candidates <= (distinct[-MIN_DISTINCT] if distinct.size >= MIN_DISTINCT else -np.inf)]
     if candidates.size > MAX_CANDIDATES:
         candidates = np.unique(np.quantile(candidates, np.linspace(0.0, 1.0, MAX_CANDIDATES), method="lower"))
     best = (None, None, None, math.inf)
@@ -157,11 +162,13 @@ def recurrence(times):
 
 def catalogue_statistics(table, n_blocks, *, bootstrap=200, seed=0):
     """The statistics of a slip-event table (``{column: array}``, :mod:`.catalogue`) of a chain of ``n_blocks``:
-    counts, the size and moment fits (None where they cannot be made: fewer than :data:`MIN_TAIL` events), the
-    recurrence intervals of all events and of those spanning the chain (``size == n_blocks``)."""
+    counts, the size and moment fits (``{"not_fitted": why}`` where too few events), the recurrence intervals of all
+    events and of those spanning the chain (``size == n_blocks``). The fits take the events that do not span the
+    chain: those that do pile up at its length (and at their moments), apart from the law of the others."""
     size, moment, start = table["size"], np.abs(table["moment"]), table["start"]
     fits = {}
-    for name, values, discrete in (("size", size, True), ("moment", moment[moment > 0], False)):
+    local = size < n_blocks
+    for name, values, discrete in (("size", size[local], True), ("moment", moment[local & (moment > 0)], False)):
         try:
             fits[name] = fit_power_law(values, discrete=discrete, bootstrap=bootstrap, seed=seed)
         except StatisticsError as exc:
@@ -198,7 +205,7 @@ def statistics_markdown(data):
         if "not_fitted" in fit:
             lines.append(f"- {name}: no power law fitted ({fit['not_fitted']})")
             continue
-        lines.append(f"- {name} ({unit}): p ~ x^-alpha with alpha = {fit['alpha']:.3f} +- "
+        lines.append(f"- {name} ({unit}, of the events not spanning the chain): p ~ x^-alpha with alpha = {fit['alpha']:.3f} +- "
                      f"{fit['standard_error']:.3f} (maximum likelihood), +- {_number(fit['bootstrap_error'])} "
                      f"(bootstrap), above x_min = {fit['x_min']:.4g} ({fit['n_tail']} of {fit['n']} events, "
                      f"KS distance {fit['ks_distance']:.3f})")
