@@ -128,9 +128,10 @@ class _File:
         return float(value)
 
 
-def load_system(path):
-    """Read and validate a system file; return a :class:`System`."""
-    return system_from_data(_File(path).read(), path)
+def load_system(path, *, check_run_length=True):
+    """Read and validate a system file; return a :class:`System` (``check_run_length``: as for
+    :func:`system_from_data`)."""
+    return system_from_data(_File(path).read(), path, check_run_length=check_run_length)
 
 
 def system_from_data(data, path, *, check_run_length=True):
