@@ -13,6 +13,7 @@ from ..core.errors import StickSlipError
 from ..hosts import interrupts
 from .analysis import add_bifurcation, add_chart, add_map, add_slow_manifold, add_vc
 from .bench import add_bench_parser, add_c_hosts_parser, add_systems_parser, add_versus_parser
+from .chain import add_chain
 from .stress import add_stress_parser
 from .system import add_system
 
@@ -63,7 +64,7 @@ def _build(args):
 
 
 COMMANDS = (add_run, add_build, add_bench_parser, add_c_hosts_parser, add_systems_parser, add_versus_parser,
-            add_bifurcation, add_vc, add_map, add_slow_manifold, add_chart, add_stress_parser, add_system)
+            add_bifurcation, add_vc, add_map, add_slow_manifold, add_chart, add_stress_parser, add_system, add_chain)
 
 
 #: the exit code after Ctrl-C (128 + SIGINT, as a shell reports a process that SIGINT ended)

@@ -48,12 +48,17 @@ def add_system(subparsers):
 
 def step_seconds(text):
     """The value of a ``--step`` option: a finite time step > 0 (s); argparse names the option if not."""
+    return positive_seconds(text, "step")
+
+
+def positive_seconds(text, what="time"):
+    """A finite ``what`` > 0 (s) from an option's text; argparse names the option if not."""
     try:
         value = float(text)
     except ValueError:
         value = math.nan
     if not (math.isfinite(value) and value > 0.0):
-        raise argparse.ArgumentTypeError(f"allowed is a finite step > 0 s, got {text!r}")
+        raise argparse.ArgumentTypeError(f"allowed is a finite {what} > 0 s, got {text!r}")
     return value
 
 

@@ -5,9 +5,10 @@ from tqdm import tqdm
 
 class TimeProgress:
     """A progress bar over the simulated time (s) as a context: gives ``step(t)``, which moves it to ``t``; it shows
-    the time left as tqdm estimates it from the rate so far."""
+    the time left as tqdm estimates it from the rate so far. ``reached``: the last ``t`` given (s)."""
 
     def __init__(self, label, total, shown):
+        self.reached = 0.0
         self.bar = tqdm(total=total, desc=label, unit="s", disable=not shown, leave=False,
                         bar_format="{desc}: {percentage:3.0f}% |{bar}| {n:.4g}/{total:g} s [{elapsed}<{remaining}]")
 
@@ -15,6 +16,7 @@ class TimeProgress:
         return self.step
 
     def step(self, t):
+        self.reached = t
         self.bar.update(min(t, self.bar.total) - self.bar.n)
 
     def __exit__(self, *exc):
