@@ -25,9 +25,11 @@ LAWS = {
     "lubricated-saturating": {"kinetic.law": 4, "kinetic.gamma1": 3.0, "kinetic.gamma2": 0.1, "kinetic.v_tilde": 0.2,
                               "kinetic.dv": 0.05, "static.law": 3, "static.F0": 1.0, "static.F_inf": 1.3,
                               "static.tau": 5.0},
+    "carlson-langer": {"kinetic.law": 5, "kinetic.F0": 1.0, "kinetic.sigma": 0.1, "kinetic.alpha": 2.5,
+                       "static.law": 1, "static.F0": 1.0},
 }
 MASSES = {"coulomb": (1.0, 1.0), "stribeck-log": (1.0, 1.0), "viscous-sigmoid": (2.0, 1.5),
-          "lubricated-saturating": (40.0, 1.0)}  # (M kg, kappa N/m)
+          "lubricated-saturating": (40.0, 1.0), "carlson-langer": (1.0, 1.0)}  # (M kg, kappa N/m)
 
 
 def block(name, x0=0.0, v0=0.1):

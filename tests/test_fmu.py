@@ -165,6 +165,10 @@ INVALID = [  # start values, text the FMU's error must contain
     ({"kinetic.law": 3, "kinetic.v_stribeck": 0.0}, "kinetic.v_stribeck = 0.0"),
     ({"kinetic.law": 3, "kinetic.delta": 0.5}, "kinetic.delta = 0.5"),
     ({"kinetic.law": 4, "kinetic.dv": -0.05}, "kinetic.dv = -0.05"),
+    ({"kinetic.law": 5, "kinetic.sigma": 1.0}, "kinetic.sigma = 1.0 is out of range: allowed is a finite value in "
+                                               "[0, 1)"),
+    ({"kinetic.law": 5, "kinetic.alpha": -0.5}, "kinetic.alpha = -0.5 s/m"),
+    ({"kinetic.law": 5, "kinetic.F0": 2.0, "kinetic.sigma": 0.25}, "F_K(0+) = 1.5 N exceeds static friction"),
     ({"static.F0": 0.0}, "static.F0 = 0.0 N"),
     ({"static.law": 2, "static.tau": -1.0}, "static.tau = -1.0 s"),
     ({"static.law": 3, "static.F_inf": math.nan}, "static.F_inf = nan"),

@@ -40,9 +40,10 @@ ANY_FINITE = Range()
 
 
 def check(name, value, allowed, unit="", error=ParameterError):
-    """Raise ``error`` (:class:`ParameterError`) naming ``name`` unless ``value`` lies in ``allowed``."""
+    """Raise ``error`` (:class:`ParameterError`) naming ``name`` unless ``value`` lies in ``allowed``; ``unit``
+    follows the value in the message ("" or "1": dimensionless, none)."""
     if not allowed.contains(value):
-        unit_text = f" {unit}" if unit else ""
+        unit_text = f" {unit}" if unit not in ("", "1") else ""
         raise error(
             f"{name} = {value!r}{unit_text} is out of range: allowed is a finite value in {allowed}"
         )
