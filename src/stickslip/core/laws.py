@@ -73,7 +73,7 @@ class _Law:
     def check(self):
         """Raise ParameterError for the first parameter outside its range."""
         for name, (_, allowed, unit) in self.PARAMETERS.items():
-            check(f"{self.PREFIX}.{name}", getattr(self, name), allowed, "" if unit == "1" else unit)
+            check(f"{self.PREFIX}.{name}", getattr(self, name), allowed, unit)
 
     def __repr__(self):
         args = ", ".join(f"{k}={v!r}" for k, v in self.parameters().items())
