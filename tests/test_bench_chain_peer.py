@@ -2,12 +2,15 @@
 short chains on every kinetic and static law, bk10 over 300 s block event by block event; and the chain part of
 ``stickslip bench-systems`` end to end on a tiny configuration."""
 
+import csv
+import json
 import math
 
 import numpy as np
 import pytest
 
 from stickslip.bench.numba_chain_peer import KINDS, chain_arrays, run_peer
+from stickslip.cli import main
 from stickslip.reference import ChainBlock, parameters_from_values, simulate_chain
 from stickslip.systems import load_system
 
@@ -99,3 +102,41 @@ def test_bad_input_is_refused_by_name():
     with pytest.raises(ValueError, match="b1: kinetic.law"):
         chain_arrays([dict(system.blocks[0], **{"kinetic.law": 9})], [], 0.01)
     assert math.isfinite(run_peer(chain, [0.0, 1.0], 1e-8).x.sum())
+
+
+def test_the_chain_bench_runs_end_to_end_and_its_report_agrees_with_its_runs(tmp_path):
+    """A 3-block template chain over 150 s (its first slips), the reference timed beside at one rtol, and a 4-block
+    chain as the large one (truth: the engine at a tighter rtol); the table, the CSV and the plot are written and
+    hold the runs' own numbers."""
+    out = tmp_path / "bench"
+    code = main(["bench-systems", "--chain", "--chain-files", "--chain-sizes", "3", "--chain-stop-time", "150",
+                 "--chain-rtols", "1e-6", "1e-9", "--chain-reference-rtols", "1e-8", "--repeats", "1",
+                 "--large-n", "4", "--large-stop-time", "150", "--large-rtols", "1e-6", "--out", str(out)])
+    assert code == 0
+    data = json.loads((out / "chain.json").read_text())
+    small, large = data["chains"]
+    assert (small["n"], large["n"]) == (3, 4)
+    assert sorted(small["runs"]) == ["engine", "peer", "reference"]
+    assert small["truth_events"] > 0 and "rtol 1e-13" in small["truth"] and "engine at rtol 1e-10" in large["truth"]
+    for subject, runs in small["runs"].items():
+        for r in runs:
+            assert r["error"] < (1e-3 if r["setting"] < 1e-7 else 0.5), (subject, r)
+            assert r["events"] == small["truth_events"]
+    for m in small["matched"]:
+        peer = next(r for r in small["runs"]["peer"] if r["setting"] == m["rtol"])
+        assert m["peer_wall"] == peer["wall"]
+        if m["engine_wall"] is not None:
+            assert m["ratio"] == pytest.approx(m["engine_wall"] / m["peer_wall"])
+            assert m["engine_error"] <= m["peer_error"]
+    rows = list(csv.DictReader(open(out / "chain.csv")))
+    assert len(rows) == sum(len(runs) for r in data["chains"] for runs in r["runs"].values())
+    table = (out / "chain.md").read_text()
+    assert "## Growth with N" in table and f"| {small['runs']['peer'][0]['setting']:g} |" in table
+    assert (out / "chain.png").stat().st_size > 10_000
+
+
+def test_the_chain_bench_refuses_bad_options_by_name(capsys):
+    assert main(["bench-systems", "--chain", "--chain-rtols", "0.5"]) == 2
+    assert "--chain-rtols" in capsys.readouterr().err
+    assert main(["bench-systems"]) == 2
+    assert "--chain" in capsys.readouterr().err

@@ -21,7 +21,7 @@ ALLOWED = {
     "analysis": {"core", "reference"},
     "stress": {"core", "reference", "fmu", "hosts", "suite"},
     "chain": {"core", "reference", "fmu", "hosts", "systems", "analysis"},  # the chain engine, ensembles on a pool
-    "bench": {"core", "reference", "fmu", "hosts", "suite", "systems"},  # bench-systems times the masters
+    "bench": {"core", "reference", "fmu", "hosts", "suite", "systems", "chain"},  # bench-systems times the masters and the chain engine
     "cli": {"core", "reference", "fmu", "hosts", "suite", "systems", "chain", "analysis", "stress", "bench"},
     "(top)": {"core"},
 }

@@ -113,13 +113,19 @@ def run_c_hosts(args):
 ZOH_STEPS = (0.1, 0.01, 0.001, 1e-4)
 ADAPTIVE_RTOLS = (1e-5, 1e-7, 1e-9, 3e-10, 1e-11)
 ME_RTOLS = (1e-6, 1e-8, 1e-10, 1e-12)
+#: the chain part's defaults: the engine's and the peer's rtol, the template chains' sizes, the large chain
+CHAIN_RTOLS = (1e-6, 1e-8, 1e-10, 1e-12)
+CHAIN_FILES = ("systems/bk10-velocity-weakening.toml",)
+CHAIN_SIZES = (30, 100)
+LARGE_RTOLS = (1e-6, 1e-8)
 
 
 def add_systems_parser(subparsers):
     p = subparsers.add_parser("bench-systems", help="the masters on chain scenes: error against wall time, "
                                                     "orders, zoh's wall against adaptive's at matched error")
-    p.add_argument("files", nargs="+", metavar="FILE.toml", help="system files (e.g. systems/chain2-coulomb.toml)")
+    p.add_argument("files", nargs="*", metavar="FILE.toml", help="system files (e.g. systems/chain2-coulomb.toml)")
     p.add_argument("--out", default="bench-systems", help="output directory (default: bench-systems)")
+    _add_chain_options(p)
     p.add_argument("--stop-time", type=float, help="simulate this long instead of each file's stop_time (s; a "
                                                    "multiple of its output_interval)")
     p.add_argument("--zoh-steps", type=float, nargs="*", default=list(ZOH_STEPS), metavar="H",
@@ -134,12 +140,97 @@ def add_systems_parser(subparsers):
     p.set_defaults(handler=run_systems)
 
 
+def _add_chain_options(p):
+    g = p.add_argument_group("the chain engine against the numba peer (--chain)")
+    g.add_argument("--chain", action="store_true", help="run the chain part: engine and peer at matched error, "
+                                                        "writes chain.csv, .md, .png and .json")
+    g.add_argument("--chain-files", nargs="*", default=list(CHAIN_FILES), metavar="FILE.toml",
+                   help=f"system files of chains (default: {' '.join(CHAIN_FILES)})")
+    g.add_argument("--chain-sizes", type=int, nargs="*", default=list(CHAIN_SIZES), metavar="N",
+                   help=f"template chains of N like blocks, bk10's values (default: {CHAIN_SIZES})")
+    g.add_argument("--chain-seed", type=int, default=1, help="seed of the template chains' start offsets (default 1)")
+    g.add_argument("--chain-stop-time", type=float, default=300.0, help="simulated time of every chain (s, default "
+                                                                        "300)")
+    g.add_argument("--chain-rtols", type=float, nargs="+", default=list(CHAIN_RTOLS), metavar="RTOL",
+                   help=f"the engine's and the peer's rtol (default: {CHAIN_RTOLS})")
+    g.add_argument("--chain-reference-rtols", type=float, nargs="*", default=[1e-10], metavar="RTOL",
+                   help="also time the reference (scipy DOP853) at these rtol on chains of at most 10 blocks "
+                        "(default: 1e-10)")
+    g.add_argument("--repeats", type=int, default=3, help="timed calls per run, the median kept (default 3)")
+    g.add_argument("--large-n", type=int, default=1000, help="blocks of the large chain, 0: none (default 1000)")
+    g.add_argument("--large-stop-time", type=float, default=1000.0, help="its simulated time (s, default 1000)")
+    g.add_argument("--large-rtols", type=float, nargs="+", default=list(LARGE_RTOLS), metavar="RTOL",
+                   help=f"its rtol values (default: {LARGE_RTOLS}); the truth is the engine at 1e-10")
+    g.add_argument("--large-no-peer", action="store_true", help="run the large chain with the engine alone")
+
+
+def run_chain_part(args, meta, progress):
+    """The chain part of ``bench-systems`` (:mod:`stickslip.bench.systems_bench_chain`); returns the paths
+    written."""
+    import os
+    from pathlib import Path
+
+    from ..bench.systems_bench_chain import bench_chain, bench_large, template_chains, with_stop_time
+    from ..bench.systems_bench_chain_report import write
+    from ..systems import load_system
+
+    chains = [with_stop_time(load_system(path), args.chain_stop_time) for path in args.chain_files]
+    chains += template_chains(args.chain_sizes, args.chain_seed, args.chain_stop_time, 0.1)
+    records = [bench_chain(c, tuple(args.chain_rtols), args.repeats,
+                           tuple(args.chain_reference_rtols) if c.n <= 10 else (), progress) for c in chains]
+    if args.large_n > 0:
+        large = template_chains([args.large_n], args.chain_seed, args.large_stop_time, 1.0)[0]
+        records.append(bench_large(large, tuple(args.large_rtols), 1e-10, not args.large_no_peer, progress))
+    meta |= {"repeats": args.repeats, "load_end": [round(x, 2) for x in os.getloadavg()]}
+    return write(Path(args.out), meta, records)
+
+
 def run_systems(args):
-    """Run :func:`stickslip.bench.systems_bench.bench_system` on each file; write systems.json, .md and .png into
-    ``args.out``; progress on stderr. Exit code."""
+    """Run :func:`stickslip.bench.systems_bench.bench_system` on each file (systems.json, .md and .png) and, with
+    ``--chain``, the chain part (chain.csv, .md, .png, .json), into ``args.out``; progress on stderr. Exit code."""
     import datetime
     import os
     import platform
+
+    problem = _chain_option_problem(args) if args.chain else None
+    if problem or not (args.files or args.chain):
+        print(f"stickslip bench-systems: {problem or 'give system files, --chain, or both'}", file=sys.stderr)
+        return 2
+    meta = {"date": datetime.datetime.now().isoformat(timespec="seconds"),
+            "machine": f"{platform.platform()}, {os.cpu_count()} CPUs",
+            "load_start": [round(x, 2) for x in os.getloadavg()]}
+
+    def progress(text):
+        print(text, file=sys.stderr, flush=True)
+
+    paths = []
+    if args.files:
+        paths = _run_masters(args, dict(meta), progress)
+        if paths is None:
+            return 2
+    if args.chain:
+        paths += run_chain_part(args, dict(meta), progress)
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _chain_option_problem(args):
+    """What is wrong with the chain part's options (a sentence naming the option), or None."""
+    for name in ("chain_rtols", "chain_reference_rtols", "large_rtols"):
+        bad = [r for r in getattr(args, name) if not 1e-14 <= r <= 1e-2]
+        if bad:
+            return f"--{name.replace('_', '-')} {bad}: allowed is 1e-14 <= rtol <= 1e-2"
+    for name in ("chain_stop_time", "large_stop_time"):
+        if not getattr(args, name) > 0.0:
+            return f"--{name.replace('_', '-')} {getattr(args, name)}: allowed is a time > 0 s"
+    if args.repeats < 1 or args.large_n < 0 or any(n < 2 for n in args.chain_sizes):
+        return "--repeats must be >= 1, --large-n >= 0 and every --chain-sizes N >= 2"
+    return None
+
+
+def _run_masters(args, meta, progress):
+    """The FMU masters on the system files: the paths written, or None (and a message) for a bad --stop-time."""
+    import os
     from pathlib import Path
 
     from ..bench.systems_bench import bench_system, with_stop_time
@@ -153,19 +244,15 @@ def run_systems(args):
     if bad or (args.stop_time is not None and args.stop_time <= 0.0):
         print(f"stickslip bench-systems: --stop-time {args.stop_time} is not a positive multiple of the output "
               f"interval of {bad}", file=sys.stderr)
-        return 2
+        return None
     settings = {master: values for master, values in
                 (("zoh", args.zoh_steps), ("adaptive", args.adaptive_rtols),
                  ("adaptive-fmi3", args.adaptive_fmi3_rtols), ("me", args.me_rtols)) if values}
-    meta = {"date": datetime.datetime.now().isoformat(timespec="seconds"),
-            "machine": f"{platform.platform()}, {os.cpu_count()} CPUs",
-            "load_start": [round(x, 2) for x in os.getloadavg()], "settings": settings}
+    meta["settings"] = settings
     fmu_paths = {2: ensure_fmu(), 3: ensure_fmu(fmi_version=3)}
-    records = [bench_system(system, fmu_paths, settings, lambda text: print(text, file=sys.stderr, flush=True))
-               for system in systems]
+    records = [bench_system(system, fmu_paths, settings, progress) for system in systems]
     meta["load_end"] = [round(x, 2) for x in os.getloadavg()]
-    print("wrote " + ", ".join(str(p) for p in write(Path(args.out), meta, records)))
-    return 0
+    return write(Path(args.out), meta, records)
 
 
 def add_versus_parser(subparsers):
