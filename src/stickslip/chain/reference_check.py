@@ -28,9 +28,7 @@ def compare_with_reference(system, folder, stop_time, output_interval=None, rtol
                                progress=progress)
     ours = [np.concatenate(parts) for parts in zip(*read_block_events(folder / BLOCK_EVENTS_FILE))] or \
         [np.zeros(0), np.zeros(0, int), np.zeros(0, str), np.zeros(0)]
-    theirs = [np.array([e.t for e in reference.events]), np.array([e.block + 1 for e in reference.events], int),
-              np.array([e.kind for e in reference.events], str),
-              np.array([reference.state(e.t)[0][e.block] for e in reference.events])]
+    theirs = reference_block_events(reference)
     result = {"rtol": rtol, "events": {kind: [int(np.count_nonzero(ours[2] == kind)),
                                               int(np.count_nonzero(theirs[2] == kind))] for kind in EVENT_KINDS},
               **_paired(ours, theirs),
@@ -38,6 +36,14 @@ def compare_with_reference(system, folder, stop_time, output_interval=None, rtol
               "max_rel_dx": None if grid is None else _max_rel_dx(grid[:, 1:], reference)}
     (folder / REFERENCE_JSON).write_text(json.dumps(result, indent=2) + "\n")
     return result
+
+
+def reference_block_events(reference):
+    """The block events of a :class:`stickslip.reference.ChainResult` as the catalogue takes them: arrays of the
+    times (s), blocks (1-based), kinds and positions (m, from its dense solution)."""
+    events = reference.events
+    return [np.array([e.t for e in events]), np.array([e.block + 1 for e in events], int),
+            np.array([e.kind for e in events], str), np.array([reference.state(e.t)[0][e.block] for e in events])]
 
 
 def _paired(ours, theirs):

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from ..core import KINETIC_LAWS, STATIC_LAWS
 from ..core.errors import ParameterError
+from .chain_ensemble import add_ensemble_options, is_ensemble, run_ensemble_command
 from .system import positive_seconds
 
 #: the run's length (s) of a template chain without --stop-time: three loading cycles of the default chain
@@ -58,6 +59,7 @@ def add_chain(subparsers):
                    help="also run the independent reference (rtol 1e-12; keeps its run in memory: for short runs) "
                         "and compare events, catalogue and positions (reference.json)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_ensemble_options(p)
     p.set_defaults(handler=_chain)
 
 
@@ -101,6 +103,8 @@ def _chain(args):
     from ..hosts.progress import TimeProgress
     from ..hosts.run_limits import output_folder
 
+    if is_ensemble(args):
+        return run_ensemble_command(args, *_template(args))
     system, stop_time, interval = _system(args)
     out = Path(args.out or Path("results") / system.name)
     output_folder(out, [])
@@ -144,17 +148,26 @@ def _system(args):
             system = load_system(path, check_run_length=False)
         interval = system.output_interval if args.output_interval is None else interval
         return system, args.stop_time or system.stop_time, interval
+    values, stop_time, interval = _template(args)
+    # the System's own grid is for the FMU masters: the engine takes the interval as it is
+    system = chain_system(values.pop("n"), seed=values.pop("seed"), stop_time=stop_time, output_interval=stop_time,
+                          **values)
+    return system, stop_time, interval
+
+
+def _template(args):
+    """The template's values (keyword arguments of ``chain_system``, ``n`` and ``seed`` included), the stop time
+    and the output interval (None: no positions) from the options; ParameterError with --system and ensembles."""
+    if args.system is not None and is_ensemble(args):
+        raise ParameterError("--seeds, --sweep: an ensemble of the template, allowed only without --system")
     values = {dest: getattr(args, dest) for _, dest, _, _ in TEMPLATE_OPTIONS if getattr(args, dest) is not None}
     values.setdefault("n", 10)
     values.setdefault("seed", 0)
     for kind, laws in (("kinetic", KINETIC_LAWS), ("static", STATIC_LAWS)):
         if getattr(args, kind) is not None:
             values[kind] = _law(kind, laws, *getattr(args, kind))
-    stop_time = args.stop_time or DEFAULT_STOP_TIME
-    # the System's own grid is for the FMU masters: the engine takes the interval as it is
-    system = chain_system(values.pop("n"), seed=values.pop("seed"), stop_time=stop_time, output_interval=stop_time,
-                          **values)
-    return system, stop_time, interval
+    interval = None if args.output_interval == "none" else args.output_interval
+    return values, args.stop_time or DEFAULT_STOP_TIME, interval
 
 
 def _law(kind, laws, name, values):
