@@ -15,8 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import jit
-from .arrays import (C_ACT, C_ALL_EVENTS, C_BUDGET, C_DENSE, C_EVENTS, C_REJECTED, C_ROWS, C_STATUS, C_STEPS,
-                     T_GRID, T_NOW, T_QUIET, T_STEP, T_STOP, Blocks, Chain, out_arrays, work_arrays)
+from .arrays import (ATOL_V, ATOL_X, BLK_WIDTH, C_ACT, C_ALL_EVENTS, C_BUDGET, C_DENSE, C_EVENTS, C_REJECTED,
+                     C_ROWS, C_STEPS, H_MAX, K_LEFT, K_RIGHT, KAPPA, KIN, M, PAR_WIDTH, RTOL, STA, T_BREAK, T_GRID,
+                     T_NOW, T_QUIET, T_STEP, T_STOP, T_STUCK, V_DRIVE, X_STUCK, Blocks, Chain, out_arrays,
+                     work_arrays)
 from .kernel import DONE, FAILED_EVENTS, MAX_EVENTS_PER_INSTANT, advance, start
 from .spec import ChainSpec
 
@@ -111,20 +113,23 @@ class _Run:
 
     def __init__(self, spec, stop_time, rtol, interval):
         n = spec.n
+        par = np.zeros((n, PAR_WIDTH))
         side = np.concatenate([[0.0], spec.coupling, [0.0]])
         x_scale = spec.static[:, 0] / spec.kappa
-        v_scale = np.maximum(abs(spec.v_drive), np.sqrt(spec.kappa / spec.M) * x_scale)
-        h_max = STEP_PER_PERIOD * spec.shortest_period()
-        self.chain = Chain(spec.M, spec.kappa, spec.kinetic_law, spec.kinetic, spec.static_law, spec.static,
-                           side[:-1].copy(), side[1:].copy(), rtol * x_scale, rtol * v_scale, spec.v_drive, rtol,
-                           h_max)
-        self.blocks = Blocks(np.zeros(n, np.int64), spec.x0.copy(), spec.v0.copy(), np.zeros(n), np.zeros(n),
-                             np.full(n, math.inf), np.ones(n, np.bool_))
+        par[:, M], par[:, KAPPA], par[:, K_LEFT], par[:, K_RIGHT] = spec.M, spec.kappa, side[:-1], side[1:]
+        par[:, ATOL_X] = rtol * x_scale
+        par[:, ATOL_V] = rtol * np.maximum(abs(spec.v_drive), np.sqrt(spec.kappa / spec.M) * x_scale)
+        par[:, KIN:KIN + spec.kinetic.shape[1]], par[:, STA:STA + spec.static.shape[1]] = spec.kinetic, spec.static
+        self.chain = Chain(par, np.column_stack([spec.kinetic_law, spec.static_law]).astype(np.int64))
+        blk = np.zeros((n, BLK_WIDTH))
+        blk[:, T_BREAK] = math.inf
+        self.blocks = Blocks(np.zeros(n, np.int64), spec.x0.copy(), spec.v0.copy(), blk)
         self.work = work_arrays(n)
         self.out = out_arrays(n, max(1, ROW_BYTES // (8 * n)) if interval > 0.0 else 1, EVENT_BUFFER)
-        self.clock = np.zeros(8)
-        self.clock[[T_STEP, T_STOP, T_GRID, T_QUIET]] = h_max / 20.0, stop_time, interval, math.inf
-        self.clock[T_NOW] = 0.0
+        h_max = STEP_PER_PERIOD * spec.shortest_period()
+        self.clock = np.zeros(9)
+        self.clock[[T_NOW, T_STEP, T_QUIET, T_STOP, T_GRID, V_DRIVE, RTOL, H_MAX]] = (
+            0.0, h_max / 20.0, math.inf, stop_time, interval, spec.v_drive, rtol, h_max)
         self.count = np.zeros(16, np.int64)
         self.x_min, self.x_max = np.full(n, math.inf), np.full(n, -math.inf)
         self.rtol, self.wall = rtol, 0.0
@@ -154,11 +159,18 @@ class _Run:
             x = self.out.row_x[:rows]
             np.minimum(self.x_min, x.min(axis=0), out=self.x_min)
             np.maximum(self.x_max, x.max(axis=0), out=self.x_max)
+        out = self.out
         if sink is not None and rows:
-            sink.positions(self.out.row_t[:rows].copy(), self.out.row_x[:rows].copy())
+            if hasattr(sink, "states"):
+                sink.states(*(a[:rows].copy() for a in (out.row_t, out.row_x, out.row_v, out.row_mode)))
+            else:
+                sink.positions(out.row_t[:rows].copy(), out.row_x[:rows].copy())
         if sink is not None and events:
-            sink.events(*(a[:events].copy() for a in (self.out.ev_t, self.out.ev_block, self.out.ev_kind,
-                                                       self.out.ev_x)))
+            batch = [a[:events].copy() for a in (out.ev_t, out.ev_block, out.ev_kind, out.ev_x, out.ev_mode)]
+            if hasattr(sink, "transitions"):
+                sink.transitions(*batch)
+            else:
+                sink.events(*batch[:4])
         self.count[C_ROWS] = self.count[C_EVENTS] = 0
 
     def _failure(self, status):
@@ -168,12 +180,12 @@ class _Run:
         return f"the step size vanished at t = {t!r} s with {self.count[C_ACT]} blocks slipping"
 
     def summary(self, compile_time):
-        bl, t = self.blocks, self.clock[T_NOW]
-        x = np.where(bl.mode == 0, bl.x_stuck + self.chain.v_drive * (t - bl.t_stuck), bl.x)
+        bl, t, vd = self.blocks, self.clock[T_NOW], self.clock[V_DRIVE]
+        x = np.where(bl.mode == 0, bl.blk[:, X_STUCK] + vd * (t - bl.blk[:, T_STUCK]), bl.x)
         empty = ~np.isfinite(self.x_min)
         return ChainRunSummary(
             t_end=t, steps=int(self.count[C_STEPS]), rejected_steps=int(self.count[C_REJECTED]),
             dense_outputs=int(self.count[C_DENSE]), events=int(self.count[C_ALL_EVENTS]), wall_time=self.wall,
             compile_time=compile_time, compiled=jit.COMPILED, rtol=self.rtol,
             x_min=np.where(empty, math.nan, self.x_min), x_max=np.where(empty, math.nan, self.x_max), x=x,
-            v=np.where(bl.mode == 0, self.chain.v_drive, bl.v), mode=bl.mode.copy())
+            v=np.where(bl.mode == 0, vd, bl.v), mode=bl.mode.copy())

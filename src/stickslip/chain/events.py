@@ -5,12 +5,12 @@ Indicator of block ``i`` (SPEC section 1): slipping in mode ``m``, ``e = m v_rel
 ``dg/dt = F_S'(t_stick) - sign(kappa x - F_ext) (kappa v_drive - dF_ext/dt)``. Each reaches 0 at the block's event.
 A step's indicators are sampled on its dense output with their rates, so that a dip between two positive samples
 (a graze: the rate going from - to +) is located and counts if its minimum is <= 0; zeros are found to machine
-precision by a bracketing root search.
+precision by a bracketing root search. Array names as :mod:`.arrays`; ``vd`` is ``v_drive`` (m/s).
 """
 
 import math
 
-from .arrays import SAMPLES
+from .arrays import KAPPA, KIN, M, RISING, SAMPLES, STA, T_STUCK, X_STUCK, E0, D0, E1, D1
 from .jit import njit
 from .laws import kinetic_force, static_force, static_rate
 from .stepper import acceleration, coupling_force, coupling_rate, dense_state
@@ -19,40 +19,42 @@ _EPS = 2.220446049250313e-16
 
 
 @njit
-def indicator(ch, bl, i, t, xs, vs):
+def indicator(par, law, mode, blk, vd, xs, vs, i, t):
     """``(value, rate)`` of block ``i``'s indicator at time ``t`` (s), slipping blocks at ``xs`` (m), ``vs`` (m/s)."""
-    m = bl.mode[i]
+    m = mode[i]
     if m != 0:
-        return m * (ch.v_drive - vs[i]), -m * acceleration(ch, bl, i, t, xs, vs)
-    t_stick = t - bl.t_stuck[i]
-    h = ch.kappa[i] * (bl.x_stuck[i] + ch.v_drive * t_stick) - coupling_force(ch, bl, xs, i, t)
+        return m * (vd - vs[i]), -m * acceleration(par, law, mode, blk, vd, xs, vs, i, t)
+    t_stick = t - blk[i, T_STUCK]
+    h = par[i, KAPPA] * (blk[i, X_STUCK] + vd * t_stick) - coupling_force(par, mode, blk, vd, xs, i, t)
     sign = 1.0 if h > 0.0 else -1.0 if h < 0.0 else 0.0
-    rate = static_rate(ch.sta_law[i], ch.sta[i], t_stick)
-    rate -= sign * (ch.kappa[i] * ch.v_drive - coupling_rate(ch, bl, vs, i))
-    return static_force(ch.sta_law[i], ch.sta[i], t_stick) - abs(h), rate
+    rate = static_rate(law[i, 1], par, i, STA, t_stick)
+    rate -= sign * (par[i, KAPPA] * vd - coupling_rate(par, mode, vd, vs, i))
+    return static_force(law[i, 1], par, i, STA, t_stick) - abs(h), rate
 
 
 @njit
-def indicator_at(ch, bl, wk, i, t, t0, h, on_dense):
+def _at(ch, bl, wk, vd, i, t, t0, h, on_dense):
     """:func:`indicator` of block ``i`` at time ``t`` inside the step ``[t0, t0 + h]``: the slipping blocks from the
     step's dense output (``on_dense``), or all blocks stuck (closed forms)."""
+    par, law = ch
+    mode, x, v, blk = bl
     if not on_dense:
-        return indicator(ch, bl, i, t, bl.x, bl.v)
+        return indicator(par, law, mode, blk, vd, x, v, i, t)
     theta = (t - t0) / h
-    for j in range(max(i - 1, 0), min(i + 2, ch.M.size)):
-        if bl.mode[j] != 0:
-            wk.sx[j], wk.sv[j] = dense_state(bl, wk, j, theta)
-    return indicator(ch, bl, i, t, wk.sx, wk.sv)
+    for j in range(max(i - 1, 0), min(i + 2, mode.size)):
+        if mode[j] != 0:
+            wk.sx[j], wk.sv[j] = dense_state(x, v, wk.fx, wk.fv, j, theta)
+    return indicator(par, law, mode, blk, vd, wk.sx, wk.sv, i, t)
 
 
 @njit
-def _component(ch, bl, wk, i, t, t0, h, on_dense, which):
-    value, rate = indicator_at(ch, bl, wk, i, t, t0, h, on_dense)
+def _component(ch, bl, wk, vd, i, t, t0, h, on_dense, which):
+    value, rate = _at(ch, bl, wk, vd, i, t, t0, h, on_dense)
     return value if which == 0 else rate
 
 
 @njit
-def root(ch, bl, wk, i, t0, h, on_dense, which, a, fa, b, fb):
+def root(ch, bl, wk, vd, i, t0, h, on_dense, which, a, fa, b, fb):
     """A zero in ``[a, b]`` (s) of block ``i``'s indicator (``which`` 0) or its rate (1), whose values at the ends
     ``fa``, ``fb`` differ in sign, to machine precision (Illinois steps, every third one a bisection); ``b`` if
     ``fb == 0`` or the signs agree (the zero is there to rounding)."""
@@ -67,7 +69,7 @@ def root(ch, bl, wk, i, t0, h, on_dense, which, a, fa, b, fb):
         c = 0.5 * (a + b) if k % 3 == 2 else (a * fb - b * fa) / (fb - fa)
         if not a < c < b:
             c = 0.5 * (a + b)
-        fc = _component(ch, bl, wk, i, c, t0, h, on_dense, which)
+        fc = _component(ch, bl, wk, vd, i, c, t0, h, on_dense, which)
         if fc == 0.0:
             return c
         if (fc > 0.0) == (fb > 0.0):
@@ -95,12 +97,12 @@ def may_cross(e0, d0, e1, d1, h):
 
 
 @njit
-def first_zero(ch, bl, wk, i, t0, h, on_dense, n, rising):
-    """First time (s) in the samples ``wk.sample_t[:n + 1]`` (values ``sample_f``, rates ``sample_d``) at which block
-    ``i``'s indicator comes down to 0, or inf. If it starts at or below 0 it is leaving 0: ``rising`` says it is known
-    to rise (values <= 0 before it is positive are rounding, a maximum <= 0 before that is the zero), else a negative
-    value means it never rose and the zero is the start."""
-    s, fs, ds = wk.sample_t, wk.sample_f, wk.sample_d
+def first_zero(ch, bl, wk, vd, i, t0, h, on_dense, n, rising):
+    """First time (s) in the samples ``wk.smp[:, :n + 1]`` (times, values, rates) at which block ``i``'s indicator
+    comes down to 0, or inf. If it starts at or below 0 it is leaving 0: ``rising`` says it is known to rise (values
+    <= 0 before it is positive are rounding, a maximum <= 0 before that is the zero), else a negative value means it
+    never rose and the zero is the start."""
+    s, fs, ds = wk.smp[0], wk.smp[1], wk.smp[2]
     start = 0
     if fs[0] <= 0.0:
         first = -1
@@ -108,13 +110,12 @@ def first_zero(ch, bl, wk, i, t0, h, on_dense, n, rising):
             if fs[k] > 0.0:
                 first = k
                 break
-        last = first - 1 if first > 0 else n
-        for k in range(last):
+        for k in range(first - 1 if first > 0 else n):
             if ds[k] > 0.0 and ds[k + 1] <= 0.0:
-                peak = root(ch, bl, wk, i, t0, h, on_dense, 1, s[k], ds[k], s[k + 1], ds[k + 1])
-                value = _component(ch, bl, wk, i, peak, t0, h, on_dense, 0)
+                peak = root(ch, bl, wk, vd, i, t0, h, on_dense, 1, s[k], ds[k], s[k + 1], ds[k + 1])
+                value = _component(ch, bl, wk, vd, i, peak, t0, h, on_dense, 0)
                 if value > 0.0:
-                    return root(ch, bl, wk, i, t0, h, on_dense, 0, peak, value, s[k + 1], fs[k + 1])
+                    return root(ch, bl, wk, vd, i, t0, h, on_dense, 0, peak, value, s[k + 1], fs[k + 1])
                 if rising:
                     return peak
             if not rising and fs[k + 1] < 0.0:
@@ -124,43 +125,45 @@ def first_zero(ch, bl, wk, i, t0, h, on_dense, n, rising):
         start = first
     for k in range(start, n):
         if fs[k + 1] <= 0.0:
-            return root(ch, bl, wk, i, t0, h, on_dense, 0, s[k], fs[k], s[k + 1], fs[k + 1])
+            return root(ch, bl, wk, vd, i, t0, h, on_dense, 0, s[k], fs[k], s[k + 1], fs[k + 1])
         if ds[k] < 0.0 and ds[k + 1] > 0.0:
-            low = root(ch, bl, wk, i, t0, h, on_dense, 1, s[k], ds[k], s[k + 1], ds[k + 1])
-            value = _component(ch, bl, wk, i, low, t0, h, on_dense, 0)
+            low = root(ch, bl, wk, vd, i, t0, h, on_dense, 1, s[k], ds[k], s[k + 1], ds[k + 1])
+            value = _component(ch, bl, wk, vd, i, low, t0, h, on_dense, 0)
             if value <= 0.0:
-                return root(ch, bl, wk, i, t0, h, on_dense, 0, s[k], fs[k], low, value)
+                return root(ch, bl, wk, vd, i, t0, h, on_dense, 0, s[k], fs[k], low, value)
     return math.inf
 
 
 @njit
-def scan_step(ch, bl, wk, i, t0, h):
+def scan_step(ch, bl, wk, vd, i, t0, h):
     """First zero (s) of block ``i``'s indicator in the step ``[t0, t0 + h]`` on its dense output, or inf; the ends
-    are ``e0``, ``d0`` and ``e1``, ``d1``."""
+    are its ``e0``, ``d0`` and ``e1``, ``d1``."""
+    blk, smp = bl.blk, wk.smp
     for k in range(SAMPLES + 1):
         t = t0 + h * k / SAMPLES
-        wk.sample_t[k] = t
+        smp[0, k] = t
         if k == 0:
-            wk.sample_f[k], wk.sample_d[k] = wk.e0[i], wk.d0[i]
+            smp[1, k], smp[2, k] = blk[i, E0], blk[i, D0]
         elif k == SAMPLES:
-            wk.sample_t[k] = t0 + h
-            wk.sample_f[k], wk.sample_d[k] = wk.e1[i], wk.d1[i]
+            smp[0, k] = t0 + h
+            smp[1, k], smp[2, k] = blk[i, E1], blk[i, D1]
         else:
-            wk.sample_f[k], wk.sample_d[k] = indicator_at(ch, bl, wk, i, t, t0, h, True)
-    return first_zero(ch, bl, wk, i, t0, h, True, SAMPLES, bl.rising[i])
+            smp[1, k], smp[2, k] = _at(ch, bl, wk, vd, i, t, t0, h, True)
+    return first_zero(ch, bl, wk, vd, i, t0, h, True, SAMPLES, blk[i, RISING] > 0.0)
 
 
 @njit
-def leaves_zero(ch, bl, i, t, value, rate):
-    """Whether block ``i``'s indicator, at ``value <= 0`` with ``rate`` at time ``t``, rises (else its event is
-    now). For a slip starting at ``v_rel = 0`` with ``dv/dt`` zero to rounding, the second derivative
+def leaves_zero(ch, bl, vd, i, t, rate):
+    """Whether block ``i``'s indicator, at or below 0 with ``rate`` at time ``t``, rises (else its event is now).
+    For a slip starting at ``v_rel = 0`` with ``dv/dt`` zero to rounding, the second derivative
     ``m (kappa v_drive - dF_ext/dt) / M`` decides."""
-    m = bl.mode[i]
+    par, law = ch
+    mode, x, v, blk = bl
+    m = mode[i]
     if m != 0:
-        x = bl.x[i]
-        F = coupling_force(ch, bl, bl.x, i, t)
-        scale = max(abs(ch.kappa[i] * x), abs(F), kinetic_force(ch.kin_law[i], ch.kin[i], 0.0),
-                    static_force(ch.sta_law[i], ch.sta[i], 0.0))
-        if abs(ch.M[i] * rate) <= 16.0 * _EPS * scale:
-            rate = m * (ch.kappa[i] * ch.v_drive - coupling_rate(ch, bl, bl.v, i)) / ch.M[i]
+        F = coupling_force(par, mode, blk, vd, x, i, t)
+        scale = max(abs(par[i, KAPPA] * x[i]), abs(F), kinetic_force(law[i, 0], par, i, KIN, 0.0),
+                    static_force(law[i, 1], par, i, STA, 0.0))
+        if abs(par[i, M] * rate) <= 16.0 * _EPS * scale:
+            rate = m * (par[i, KAPPA] * vd - coupling_rate(par, mode, vd, v, i)) / par[i, M]
     return rate > 0.0

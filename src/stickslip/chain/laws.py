@@ -1,7 +1,8 @@
 """The friction laws of SPEC section 2 as compiled kernels over flat parameter rows.
 
 A block's kinetic law is its code (1..5) and a row of parameters in the order of :data:`KINETIC_PARAMETERS`
-(unused places 0); its static law likewise (:data:`STATIC_PARAMETERS`). Kinetic: ``F_K(u)`` (N) for the sliding
+(unused places 0); its static law likewise (:data:`STATIC_PARAMETERS`). The kernels read block ``i``'s row in place,
+``par[i, at + k]`` for its parameter ``k`` (no array view is made in the hot loop). Kinetic: ``F_K(u)`` (N) for the sliding
 speed ``u = |v_rel| >= 0`` (m/s) and its slope (N s/m). Static: ``F_S(t)`` (N) after sticking ``t >= 0`` s and its
 rate (N/s).
 """
@@ -20,51 +21,55 @@ STATIC_WIDTH = 4
 
 
 @njit
-def kinetic_force(code, p, u):
-    """``F_K(u)`` (N) of the kinetic law ``code`` with the parameter row ``p``, ``u >= 0`` (m/s)."""
+def kinetic_force(code, par, i, at, u):
+    """``F_K(u)`` (N) of the kinetic law ``code`` with the parameters ``par[i, at:]``, ``u >= 0`` (m/s)."""
     if code == 1:
-        return p[0]
+        return par[i, at]
     if code == 2:
-        return p[0] + p[1] * u
+        return par[i, at] + par[i, at + 1] * u
     if code == 3:
-        return p[0] + p[1] * math.exp(-math.pow(u / p[2], p[3])) + p[4] * u
+        s = u / par[i, at + 2]
+        decay = math.exp(-s) if par[i, at + 3] == 1.0 else math.exp(-math.pow(s, par[i, at + 3]))
+        return par[i, at] + par[i, at + 1] * decay + par[i, at + 4] * u
     if code == 4:
-        w = u - p[2]
-        return 0.5 * u * (p[0] + p[1] + (p[1] - p[0]) * w / math.sqrt(p[3] * p[3] + w * w))
-    rest = 1.0 - p[1]
-    return p[0] * rest / (1.0 + 2.0 * p[2] * u / rest)
+        g1, g2, w, dv = par[i, at], par[i, at + 1], u - par[i, at + 2], par[i, at + 3]
+        return 0.5 * u * (g1 + g2 + (g2 - g1) * w / math.sqrt(dv * dv + w * w))
+    rest = 1.0 - par[i, at + 1]
+    return par[i, at] * rest / (1.0 + 2.0 * par[i, at + 2] * u / rest)
 
 
 @njit
-def kinetic_slope(code, p, u):
-    """``dF_K/du`` (N s/m) of the kinetic law ``code`` at ``u >= 0`` (m/s)."""
+def kinetic_slope(code, par, i, at, u):
+    """``dF_K/du`` (N s/m) of the kinetic law ``code`` with the parameters ``par[i, at:]`` at ``u >= 0`` (m/s)."""
     if code == 1:
         return 0.0
     if code == 2:
-        return p[1]
+        return par[i, at + 1]
     if code == 3:
-        s = u / p[2]
-        return p[4] - p[1] * p[3] * math.pow(s, p[3] - 1.0) * math.exp(-math.pow(s, p[3])) / p[2]
+        s, delta = u / par[i, at + 2], par[i, at + 3]
+        return par[i, at + 4] - par[i, at + 1] * delta * math.pow(s, delta - 1.0) * math.exp(
+            -math.pow(s, delta)) / par[i, at + 2]
     if code == 4:
-        w = u - p[2]
-        r = math.sqrt(p[3] * p[3] + w * w)
-        return 0.5 * (p[0] + p[1]) + 0.5 * (p[1] - p[0]) * (w / r + u * p[3] * p[3] / (r * r * r))
-    weakening = 1.0 + 2.0 * p[2] * u / (1.0 - p[1])
-    return -2.0 * p[2] * p[0] / (weakening * weakening)
+        g1, g2, w, dv = par[i, at], par[i, at + 1], u - par[i, at + 2], par[i, at + 3]
+        r = math.sqrt(dv * dv + w * w)
+        return 0.5 * (g1 + g2) + 0.5 * (g2 - g1) * (w / r + u * dv * dv / (r * r * r))
+    weakening = 1.0 + 2.0 * par[i, at + 2] * u / (1.0 - par[i, at + 1])
+    return -2.0 * par[i, at + 2] * par[i, at] / (weakening * weakening)
 
 
 @njit
-def friction(code, p, u):
+def friction(code, par, i, at, u):
     """``F_K(u)`` (N) for ``u >= 0``; for ``u < 0`` its tangent at 0. Only a Runge-Kutta stage past a ``v_rel = 0``
     crossing sees ``u < 0``: the C1 continuation keeps the step smooth and is never part of the solution."""
     if u >= 0.0:
-        return kinetic_force(code, p, u)
-    return kinetic_force(code, p, 0.0) + kinetic_slope(code, p, 0.0) * u
+        return kinetic_force(code, par, i, at, u)
+    return kinetic_force(code, par, i, at, 0.0) + kinetic_slope(code, par, i, at, 0.0) * u
 
 
 @njit
-def static_force(code, p, t):
-    """``F_S(t)`` (N) of the static law ``code`` with the parameter row ``p`` after sticking ``t >= 0`` s."""
+def static_force(code, par, i, at, t):
+    """``F_S(t)`` (N) of the static law ``code`` with the parameters ``par[i, at:]`` after sticking ``t >= 0`` s."""
+    p = (par[i, at], par[i, at + 1], par[i, at + 2], par[i, at + 3])
     if code == 1:
         return p[0]
     if code == 2:
@@ -79,8 +84,9 @@ def static_force(code, p, t):
 
 
 @njit
-def static_rate(code, p, t):
-    """``dF_S/dt`` (N/s) of the static law ``code`` after sticking ``t >= 0`` s."""
+def static_rate(code, par, i, at, t):
+    """``dF_S/dt`` (N/s) of the static law ``code`` with the parameters ``par[i, at:]`` after sticking ``t >= 0`` s."""
+    p = (par[i, at], par[i, at + 1], par[i, at + 2], par[i, at + 3])
     if code == 1:
         return 0.0
     if code == 2:
@@ -100,8 +106,9 @@ def static_rate(code, p, t):
 
 
 @njit
-def static_bend(code, p):
+def static_bend(code, par, i, at):
     """The stick time (s) where ``F_S''`` changes sign (the sigmoid law with ``n > 1``), else -1."""
+    p = (par[i, at], par[i, at + 1], par[i, at + 2], par[i, at + 3])
     if code != 4 or p[3] <= 1.0 or p[1] == p[0]:
         return -1.0
     return p[2] * math.pow((p[3] - 1.0) / (p[3] + 1.0), 1.0 / p[3])

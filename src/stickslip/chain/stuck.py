@@ -10,7 +10,7 @@ samples is seen in its rate.
 
 import math
 
-from .arrays import SAMPLES
+from .arrays import KAPPA, SAMPLES, STA, T_STUCK, X_STUCK
 from .events import first_zero, indicator
 from .jit import njit
 from .laws import static_bend, static_force
@@ -18,46 +18,50 @@ from .stepper import coupling_force
 
 
 @njit
-def constant_static(code, p):
-    """Whether the static law ``code`` with the row ``p`` is a constant ``F0``."""
-    return code == 1 or (code == 2 and p[1] == 0.0) or (code >= 3 and p[1] == p[0])
+def constant_static(code, par, i):
+    """Whether block ``i``'s static law ``code`` is a constant ``F0``."""
+    return code == 1 or (code == 2 and par[i, STA + 1] == 0.0) or (code >= 3 and par[i, STA + 1] == par[i, STA])
 
 
 @njit
-def quiet_break(ch, bl, wk, j, t, t_stop):
+def quiet_break(ch, bl, wk, vd, j, t, t_stop):
     """When (s, at or after ``t``) the stuck block ``j``, whose neighbours all stick, breaks away; inf if not before
     ``t_stop`` under an aging law, or never under a constant one."""
-    value, rate = indicator(ch, bl, j, t, bl.x, bl.v)
+    par, law = ch
+    mode, x, v, blk = bl
+    value, rate = indicator(par, law, mode, blk, vd, x, v, j, t)
     if value < 0.0:
         return t  # held beyond F_S by rounding only: the contact gives way at once
-    if constant_static(ch.sta_law[j], ch.sta[j]):
-        if ch.v_drive == 0.0:
+    if constant_static(law[j, 1], par, j):
+        if vd == 0.0:
             return math.inf
-        h0 = ch.kappa[j] * (bl.x_stuck[j] + ch.v_drive * (t - bl.t_stuck[j])) - coupling_force(ch, bl, bl.x, j, t)
-        F_S = static_force(ch.sta_law[j], ch.sta[j], 0.0)
-        return t + max(0.0, (math.copysign(F_S, ch.v_drive) - h0) / (ch.kappa[j] * ch.v_drive))
+        h0 = par[j, KAPPA] * (blk[j, X_STUCK] + vd * (t - blk[j, T_STUCK])) - coupling_force(par, mode, blk, vd, x, j, t)
+        F_S = static_force(law[j, 1], par, j, STA, 0.0)
+        return t + max(0.0, (math.copysign(F_S, vd) - h0) / (par[j, KAPPA] * vd))
     if value == 0.0 and rate < 0.0:
         return t
     if t_stop <= t:
         return math.inf
-    n = _aging_samples(ch, bl, wk, j, t, t_stop)
-    return first_zero(ch, bl, wk, j, t, t_stop - t, False, n, rate > 0.0)
+    n = _aging_samples(ch, bl, wk, vd, j, t, t_stop)
+    return first_zero(ch, bl, wk, vd, j, t, t_stop - t, False, n, rate > 0.0)
 
 
 @njit
-def _aging_samples(ch, bl, wk, j, t, t_stop):
+def _aging_samples(ch, bl, wk, vd, j, t, t_stop):
     """Fill the samples of ``z_slip`` of block ``j`` over ``[t, t_stop]``: a uniform grid with the law's convexity
     break and the kink inserted; returns the index of the last sample."""
-    s = wk.sample_t
+    par, law = ch
+    mode, x, v, blk = bl
+    s = wk.smp[0]
     for k in range(SAMPLES + 1):
         s[k] = t + (t_stop - t) * k / SAMPLES
     s[SAMPLES] = t_stop
     n = SAMPLES
-    special = (bl.t_stuck[j] + static_bend(ch.sta_law[j], ch.sta[j]), math.inf)
-    if ch.v_drive != 0.0:
-        x = bl.x_stuck[j] + ch.v_drive * (t - bl.t_stuck[j])
-        special = (special[0], t + (coupling_force(ch, bl, bl.x, j, t) / ch.kappa[j] - x) / ch.v_drive)
-    for when in special:
+    kink = math.inf
+    if vd != 0.0:
+        here = blk[j, X_STUCK] + vd * (t - blk[j, T_STUCK])
+        kink = t + (coupling_force(par, mode, blk, vd, x, j, t) / par[j, KAPPA] - here) / vd
+    for when in (blk[j, T_STUCK] + static_bend(law[j, 1], par, j, STA), kink):
         if t < when < t_stop:
             n += 1
             k = n
@@ -66,5 +70,5 @@ def _aging_samples(ch, bl, wk, j, t, t_stop):
                 k -= 1
             s[k] = when
     for k in range(n + 1):
-        wk.sample_f[k], wk.sample_d[k] = indicator(ch, bl, j, s[k], bl.x, bl.v)
+        wk.smp[1, k], wk.smp[2, k] = indicator(par, law, mode, blk, vd, x, v, j, s[k])
     return n

@@ -21,15 +21,19 @@ def add_system(subparsers):
     run.add_argument("--master", required=True, choices=sorted(MASTER_NAMES),
                      help="zoh: fixed step, held inputs (FMI 2 co-simulation); me: FMI 3 model exchange of all "
                           "blocks in one solver; adaptive: FMI 2 co-simulation (--fmi 3: FMI 3 with early return) "
-                          "with events landed, step rejection and iterated coupling")
+                          "with events landed, step rejection and iterated coupling; native: the compiled chain "
+                          "engine, no FMU (also writes DIR/<stem>-native-block_events.csv)")
     run.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     run.add_argument("--step", type=step_seconds,
                      help="zoh: communication step in s (default: the file's output_interval)")
     run.add_argument("--engine", choices=ENGINES,
                      help="zoh: write the system as an SSP file (block and coupling FMUs) and step it in this engine "
                           "(default: FMPy with the coupling computed by the master)")
-    run.add_argument("--rtol", type=float, help="me: the solver's relative tolerance (default 1e-10); "
+    run.add_argument("--rtol", type=float, help="me, native: the solver's relative tolerance (default 1e-10); "
                      "adaptive: error per second as a fraction of the largest F_S/kappa (default 3e-10)")
+    run.add_argument("--no-reference", action="store_true",
+                     help="do not run the reference: nothing is compared (the report says so), the exit status says "
+                          "only whether the run failed; with --master native no run is refused for its length")
     run.add_argument("--fmi", type=int, choices=(2, 3),
                      help="adaptive: the FMU it runs: 2 (events landed by root search) or 3 (early return from doStep "
                           "at each event); default: the FMI version of --fmu, else 2")
@@ -68,7 +72,8 @@ def _run(args):
 
     options = {"step": args.step, "rtol": args.rtol, "engine": args.engine, "fmi": args.fmi}
     with local_paths([resolve(args.file, SYSTEMS)]) as (path,):
-        outcome = run_system(path, args.master, args.out, options, args.fmu, show_progress=not args.quiet)
+        outcome = run_system(path, args.master, args.out, options, args.fmu, show_progress=not args.quiet,
+                             reference=not args.no_reference)
     print(outcome.summary)
     print(f"report: {outcome.files[1]}")
     return 0 if outcome.ok else 1

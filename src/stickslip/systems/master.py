@@ -1,10 +1,10 @@
 """What every master shares: the interface a master implements, its result, and its block instances.
 
-A master couples one FMU instance per block of a :class:`~.system_file.System` and returns a
-:class:`SystemResult` on the system's output grid. It is a class with
+A master couples one FMU instance per block of a :class:`~.system_file.System` (or, ``native``, runs the chain
+engine) and returns a :class:`SystemResult` on the system's output grid. It is a class with
 
-- ``NAME`` (the ``--master`` value), ``FMI_VERSION`` (2 or 3: which FMU it runs) and ``OPTIONS`` (the names of
-  the keyword arguments its constructor takes, e.g. ``("step",)``; the command's options of the same names);
+- ``NAME`` (the ``--master`` value), ``FMI_VERSION`` (2 or 3: which FMU it runs; None: none) and ``OPTIONS`` (the
+  names of the keyword arguments its constructor takes, e.g. ``("step",)``; the command's options of the same names);
 - ``run(system, fmu_path, progress)``: simulate ``system`` with the FMU at ``fmu_path``; ``progress(t)`` is
   called now and then with the simulated time reached (s).
 
@@ -64,7 +64,7 @@ class Master(Protocol):
     """A master (the module text says what each member is)."""
 
     NAME: ClassVar[str]
-    FMI_VERSION: ClassVar[int]
+    FMI_VERSION: ClassVar[int | None]
     OPTIONS: ClassVar[tuple]
 
     def run(self, system, fmu_path, progress: Callable[[float], None] = ...) -> SystemResult:

@@ -4,10 +4,11 @@ from ..hosts.fmpy_host import FMUError
 from .adaptive import AdaptiveMaster
 from .master import Master
 from .me import MeMaster
+from .native import NativeMaster
 from .zoh import ZohMaster
 
 #: master name: its class
-MASTERS: dict[str, type[Master]] = {cls.NAME: cls for cls in (ZohMaster, MeMaster, AdaptiveMaster)}
+MASTERS: dict[str, type[Master]] = {cls.NAME: cls for cls in (ZohMaster, MeMaster, AdaptiveMaster, NativeMaster)}
 
 
 def make_master(name, **options) -> Master:

@@ -15,18 +15,24 @@ MODE_COLOURS = {-1: ("#2166ac", "slipping, v > v_drive (-1)"), 0: ("#f0f0f0", "s
 
 def plot_positions(png_path, title, result, reference):
     """Write ``png_path``: one panel per block with ``x_i(t)`` of the master and the reference, and a last panel
-    with every block's ``|dx_i|`` on a log scale."""
-    n = reference.x.shape[1]
+    with every block's ``|dx_i|`` on a log scale (reference None: the master's ``x_i(t)`` alone)."""
+    n = result.x.shape[1]
+    panels = n + (reference is not None)
     fig = Figure(figsize=(12, 1.4 * n + 3.0), layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(n + 1, 1, sharex=True, height_ratios=[1.0] * n + [1.6])
-    for i, ax in enumerate(axes[:-1]):
+    axes = fig.subplots(panels, 1, sharex=True, height_ratios=[1.0] * n + [1.6] * (panels - n), squeeze=False)[:, 0]
+    for i, ax in enumerate(axes[:n]):
         ax.plot(result.t, result.x[:, i], lw=1.1, color="C0", label=f"{result.master}")
-        ax.plot(reference.t, reference.x[:, i], "--", lw=0.9, color="C1", label="reference")
+        if reference is not None:
+            ax.plot(reference.t, reference.x[:, i], "--", lw=0.9, color="C1", label="reference")
         ax.set_ylabel(f"b{i + 1}.x (m)")
         ax.grid(True, alpha=0.3)
     axes[0].set_title(title)
     axes[0].legend(loc="upper left", fontsize="small", ncols=2)
+    if reference is None:
+        axes[-1].set_xlabel("t (s)")
+        fig.savefig(png_path, dpi=100)
+        return
     ax = axes[-1]
     for i in range(n):
         dx = np.abs(result.x[:, i] - reference.x[:, i])
@@ -39,13 +45,14 @@ def plot_positions(png_path, title, result, reference):
 
 
 def plot_space_time(png_path, title, result, reference):
-    """Write ``png_path``: block index against time coloured by mode, the master above the reference."""
-    n = reference.x.shape[1]
-    fig = Figure(figsize=(12, 0.5 * n + 3.5), layout="constrained")
+    """Write ``png_path``: block index against time coloured by mode, the master above the reference (if any)."""
+    n = result.x.shape[1]
+    runs = [(result, result.master)] + ([] if reference is None else [(reference, "reference")])
+    fig = Figure(figsize=(12, (0.25 * n + 1.75) * len(runs)), layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(2, 1, sharex=True)
+    axes = fig.subplots(len(runs), 1, sharex=True, squeeze=False)[:, 0]
     colours = ListedColormap([MODE_COLOURS[m][0] for m in (-1, 0, 1)])
-    for ax, run, label in ((axes[0], result, result.master), (axes[1], reference, "reference")):
+    for ax, (run, label) in zip(axes, runs):
         t = run.t
         edges = np.concatenate([t, [t[-1] + (t[-1] - t[-2] if t.size > 1 else 1.0)]])
         ax.pcolormesh(edges, np.arange(n + 1) + 0.5, run.mode.T, cmap=colours, vmin=-1.5, vmax=1.5)

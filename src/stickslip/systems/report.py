@@ -27,10 +27,18 @@ NOT_JUDGED = ("not judged against the tolerance (a held-input coupling of order 
               "use --master me or adaptive for exact results, or a smaller --step)")
 
 
+#: what the report and the console say when the reference was not run
+NOT_COMPARED = "the reference was not run (--no-reference): nothing compared"
+
+
 def summary(system, result, comparison):
     """The console's text: one line with the file, the master with its settings, the error against the
-    tolerance, the verdict and the wall time; a second line with :data:`NOT_JUDGED` where the run is not judged."""
+    tolerance, the verdict and the wall time; a second line with :data:`NOT_JUDGED` where the run is not judged
+    (comparison None: :data:`NOT_COMPARED` instead of the error)."""
     settings = ", ".join(f"{k} {_shown(v)}" for k, v in result.settings.items())
+    if comparison is None:
+        return (f"{system.name}: {result.master} ({settings}): {NOT_COMPARED}; {int(np.sum(result.event_counts))} "
+                f"block events; {result.wall_time:.2f} s")
     line = (f"{system.name}: {result.master} ({settings}): max |dx| {np.max(comparison.max_abs_dx):.3g} m = "
             f"{comparison.max_rel_dx:.3g} of {_scale(comparison)} {verdict(comparison)}; {result.wall_time:.2f} s")
     return line if comparison.judged else f"{line}\n{result.master}: {NOT_JUDGED}"
@@ -52,14 +60,32 @@ def _scale(comparison):
 
 
 def write_report(path, system, result, comparison, reference_seconds, figures):
-    """``path``: the markdown report of one run; ``figures``: {caption: file name beside the report}."""
-    n = system.n
+    """``path``: the markdown report of one run; ``figures``: {caption: file name beside the report}; comparison
+    None: the reference was not run."""
     lines = [f"# {system.name}: master `{result.master}`", ""]
     if system.description:
         lines += [system.description, ""]
     lines += [
-        f"{n} blocks, coupling {list(system.coupling)} N/m, v_drive = {system.v_drive:g} m/s, "
-        f"{system.stop_time:g} s sampled every {system.output_interval:g} s (file `{system.path}`).", "",
+        f"{system.n} blocks, coupling {list(system.coupling)} N/m, v_drive = {system.v_drive:g} m/s, "
+        f"{system.stop_time:g} s sampled every {system.output_interval:g} s (file `{system.path}`).", ""]
+    lines += _uncompared(result) if comparison is None else _compared(system, result, comparison, reference_seconds)
+    if not result.events_complete:
+        lines += ["", "Some steps held more than one event of a block: those events are counted, not timed."]
+    lines += [""] + [f"![{caption}]({name})" for caption, name in figures.items()]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _uncompared(result):
+    """The report's lines of a run without the reference: the settings and counts, each block's events."""
+    return [f"**NOT COMPARED**: {NOT_COMPARED}.", "", "| | |", "|---|---|",
+            *(f"| {label} | {_shown(value)} |" for label, value in {**result.settings, **result.stats}.items()),
+            f"| wall time of the master (s) | {result.wall_time:.3f} |", "", "| block | events |", "|---|---|",
+            *(f"| b{i + 1} | {count} |" for i, count in enumerate(result.event_counts))]
+
+
+def _compared(system, result, comparison, reference_seconds):
+    """The report's lines of a run against the reference: the verdict, settings and counts, each block's errors."""
+    lines = [
         f"**{_headline(comparison)}**: max |dx| = {np.max(comparison.max_abs_dx):.3e} m, "
         f"{comparison.max_rel_dx:.3e} of {_scale(comparison)} {verdict(comparison)}.", "",
         *([] if comparison.judged else [f"{result.master}: {NOT_JUDGED}.", ""]),
@@ -70,14 +96,11 @@ def write_report(path, system, result, comparison, reference_seconds, figures):
         "| block | max abs(dx) (m) | of the amplitude (or floor) | events (master / reference) | max event-time error (s) |",
         "|---|---|---|---|---|",
     ]
-    for i in range(n):
+    for i in range(system.n):
         lines.append(f"| b{i + 1} | {comparison.max_abs_dx[i]:.3e} | {comparison.max_abs_dx[i] / comparison.scale:.3e} "
                      f"| {comparison.master_events[i]} / {comparison.reference_events[i]} "
                      f"| {_seconds(comparison.max_event_dt[i])} |")
-    if not result.events_complete:
-        lines += ["", "Some steps held more than one event of a block: those events are counted, not timed."]
-    lines += [""] + [f"![{caption}]({name})" for caption, name in figures.items()]
-    path.write_text("\n".join(lines) + "\n")
+    return lines
 
 
 def _headline(comparison):

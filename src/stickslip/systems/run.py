@@ -4,11 +4,15 @@ Writes ``<out>/<run>.csv`` (the master's samples), ``<out>/<run>.md`` (the repor
 (each block's ``x(t)``, master against reference) and ``<out>/<run>-spacetime.png`` (which block slips when),
 ``<run>`` being the file's stem, the master and its engine or FMI version (``chain2-coulomb-zoh-libcosim``,
 ``chain2-coulomb-adaptive-fmi3``, ``chain2-coulomb-me``):
-runs of different masters share a folder.
+runs of different masters share a folder. The ``native`` master also writes ``<out>/<run>-block_events.csv``
+(every block event: ``time,block,kind,x``). Without the reference (``reference=False``) nothing is compared and the
+report says so.
 """
 
 import time
 from dataclasses import dataclass
+
+import numpy as np
 
 from ..fmu import ensure_fmu
 from ..fmu.variables import START_VALUES
@@ -26,40 +30,51 @@ from .system_file import load_system
 
 @dataclass(frozen=True)
 class SystemOutcome:
-    """The run (:class:`~.master.SystemResult`), its comparison, the console's summary and the files written;
-    ``ok``: within the tolerance, or (where the master is not judged) every error finite."""
+    """The run (:class:`~.master.SystemResult`), its comparison (None: the reference was not run), the console's
+    summary and the files written; ``ok``: within the tolerance, or (where the master is not judged or nothing is
+    compared) every position finite."""
 
     result: SystemResult
-    comparison: Comparison
+    comparison: Comparison | None
     summary: str
     files: tuple
 
     @property
     def ok(self):
+        if self.comparison is None:
+            return bool(np.all(np.isfinite(self.result.x)))
         return self.comparison.ok
 
 
-def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress=True):
+def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress=True, reference=True):
     """Run the system file ``path`` through the master named ``master`` (with ``options``, e.g. ``{"step": 0.01}``)
-    and the reference; write the files into ``out_dir``; return a :class:`SystemOutcome`.
+    and, unless ``reference`` is False, the reference; write the files into ``out_dir``; return a
+    :class:`SystemOutcome`.
 
     ``fmu_path``: the FMU the master runs (default: the built FMU of its FMI version, built if missing or stale); a
-    master that runs either FMI version (option ``fmi``) runs the one of ``fmu_path`` unless ``fmi`` is given.
+    master that runs either FMI version (option ``fmi``) runs the one of ``fmu_path`` unless ``fmi`` is given; the
+    ``native`` master runs no FMU. A long run is refused unless the native master runs it without the reference.
     """
-    system = load_system(path)
+    run_reference = reference
+    system = load_system(path, check_run_length=run_reference or master != "native")
     options = with_fmi_of(master, options or {}, fmu_path)
     runner = make_master(master, **options)
     variant = options.get("engine") or ("fmi3" if options.get("fmi") == 3 else None)
-    files = output_files(out_dir, run_name(system.name, master, variant))
-    fmu_path = fmu_path or ensure_fmu(fmi_version=runner.FMI_VERSION)
+    files = output_files(out_dir, run_name(system.name, master, variant), events=master == "native")
+    if runner.FMI_VERSION is not None:
+        fmu_path = fmu_path or ensure_fmu(fmi_version=runner.FMI_VERSION)
+    if "events" in files:
+        runner.events_path = files["events"]
     with TimeProgress(f"{system.name} {master}", system.stop_time, show_progress) as step:
         result = runner.run(system, fmu_path, step)
-    start = time.perf_counter()
-    with TimeProgress(f"{system.name} reference", system.stop_time, show_progress) as step:
-        reference = simulate_chain(system.chain_blocks(), system.coupling, system.v_drive, system.times(),
-                                   progress=step)
-    reference_seconds = time.perf_counter() - start
-    comparison = compare(result, reference, system.tolerances[master], amplitude_floor(system))
+    reference, reference_seconds, comparison = None, None, None
+    if run_reference:
+        start = time.perf_counter()
+        with TimeProgress(f"{system.name} reference", system.stop_time, show_progress) as step:
+            reference = simulate_chain(system.chain_blocks(), system.coupling, system.v_drive, system.times(),
+                                       progress=step)
+        reference_seconds = time.perf_counter() - start
+        comparison = compare(result, reference, system.tolerances[master], amplitude_floor(system))
     write_csv(files["csv"], result)
     title = f"{system.name} ({result.master})"
     plot_positions(files["positions"], title, result, reference)
@@ -86,11 +101,13 @@ def run_name(system_name, master, variant=None):
     return "-".join(part for part in (system_name, master, variant) if part)
 
 
-def output_files(out_dir, name):
-    """``{kind: path}`` of the files the run ``name`` (:func:`run_name`) writes into ``out_dir``: checked before
-    the run (the folder made, the names fit), the previous run's report removed (it is written last: a run that
-    stops leaves none)."""
+def output_files(out_dir, name, events=False):
+    """``{kind: path}`` of the files the run ``name`` (:func:`run_name`) writes into ``out_dir`` (``events``: the
+    block events' CSV too): checked before the run (the folder made, the names fit), the previous run's report
+    removed (it is written last: a run that stops leaves none)."""
     suffixes = {"csv": ".csv", "report": ".md", "positions": ".png", "space-time": "-spacetime.png"}
+    if events:
+        suffixes["events"] = "-block_events.csv"
     out = output_folder(out_dir, [name + suffix for suffix in suffixes.values()])
     files = {kind: out / f"{name}{suffix}" for kind, suffix in suffixes.items()}
     files["report"].unlink(missing_ok=True)

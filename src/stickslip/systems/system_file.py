@@ -30,7 +30,7 @@ from .template_table import expand_template, flat_table
 
 #: {master: default max |dx| against the reference as a fraction of the chain's amplitude}, see docs/systems.md;
 #: None: the master's runs are reported, not judged (zoh's held inputs are first order: its error is the step's)
-DEFAULT_TOLERANCES = {"zoh": None, "me": 1e-6, "adaptive": 1e-6}
+DEFAULT_TOLERANCES = {"zoh": None, "me": 1e-6, "adaptive": 1e-6, "native": 1e-6}
 _SYSTEM_KEYS = {"stop_time", "output_interval", "v_drive", "coupling", "description"}
 _TOP_KEYS = {"system", "blocks", "template", "tolerance"}
 #: {parameter name: its variable in the FMU's table}
