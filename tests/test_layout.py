@@ -17,7 +17,7 @@ ALLOWED = {
     "fmu": {"fmu_src"},
     "hosts": {"core", "fmu"},
     "suite": {"core", "reference", "fmu", "hosts"},
-    "systems": {"core", "reference", "fmu", "hosts"},  # chains of blocks: beside suite
+    "systems": {"core", "reference", "fmu", "hosts", "chain"},  # chains of blocks (the native master runs the chain engine)
     "analysis": {"core", "reference"},
     "stress": {"core", "reference", "fmu", "hosts", "suite"},
     "chain": {"core", "reference", "fmu", "hosts", "systems", "analysis"},  # the chain engine, ensembles on a pool
