@@ -21,6 +21,7 @@ import time
 
 import numpy as np
 
+from ..chain.engine import run_chain
 from ..chain.output import MemorySink
 from ..chain.spec import ChainSpec
 from ..chain.template import chain_system
@@ -31,13 +32,6 @@ from .systems_bench import wall_at_error, with_stop_time
 REFERENCE_RTOL = 1e-13
 #: the warm-up run's length in output intervals
 WARM_UP_INTERVALS = 20
-
-
-def run_chain(*args, **kwargs):
-    """The engine's entry point, imported when first used (the engine module is the chain layer's)."""
-    from ..chain import engine
-
-    return engine.run_chain(*args, **kwargs)
 
 
 def subjects(system, reference_rtols=()):
