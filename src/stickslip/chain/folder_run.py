@@ -16,7 +16,8 @@ from .engine import run_chain
 from .output import POSITIONS_FILE, CsvSink
 from .plots import plot_slips, plot_statistics
 from .spec import ChainSpec
-from .statistics import catalogue_statistics, write_statistics
+from .reference_check import REFERENCE_JSON
+from .statistics import STATISTICS_JSON, STATISTICS_MD, catalogue_statistics, write_statistics
 
 STATISTICS_PNG = "statistics.png"
 SLIPS_PNG = "slips.png"
@@ -50,10 +51,11 @@ def slipping_at_start(system):
 def run_into_folder(system, folder, *, stop_time, output_interval=None, rtol=1e-10, progress=None):
     """Run the chain of ``system`` (:class:`stickslip.systems.system_file.System`) from 0 to ``stop_time`` (s) with
     the engine at ``rtol``, positions every ``output_interval`` s (None: none), into ``folder`` (made if missing);
-    return a :class:`FolderRun`. The files of an earlier run there are replaced."""
+    return a :class:`FolderRun`. The files of an earlier run there are replaced or removed (a run that stops leaves
+    no statistics of another)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    for name in (POSITIONS_FILE, STATISTICS_PNG, SLIPS_PNG):
+    for name in (POSITIONS_FILE, STATISTICS_JSON, STATISTICS_MD, STATISTICS_PNG, SLIPS_PNG, REFERENCE_JSON):
         (folder / name).unlink(missing_ok=True)
     spec = ChainSpec.from_system(system)
     sink = CatalogueSink(CsvSink(folder), folder, system.v_drive, slipping_at_start(system))
