@@ -406,7 +406,8 @@ def test_a_run_that_cannot_finish_is_refused_at_load(tmp_path, system, message):
         load_system(write(tmp_path, text))
     for path in SYSTEMS.glob("*.toml"):
         system = load_system(path)
-        assert system.n * system.stop_time / system.shortest_period() < 0.03 * 1e5
+        periods = system.n * system.stop_time / system.shortest_period()
+        assert periods < (1e5 if path.stem in ENGINE_ONLY else 0.03 * 1e5)
 
 
 def test_zoh_refuses_a_step_that_cannot_finish(fmu_path):
