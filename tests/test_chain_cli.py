@@ -108,6 +108,7 @@ def test_ctrl_c_keeps_what_was_written_and_exits_130(tmp_path):
     (["--kinetic", "coulomb:F0"], "argument --kinetic: allowed is LAW[:NAME=VALUE,...] with finite values"),
     (["--system", "bk10-velocity-weakening", "--n", "3"], "--n: a template option, allowed only without --system"),
     (["--stop-time", "-1"], "argument --stop-time: allowed is a finite time > 0 s, got '-1'"),
+    (["--rtol", "1"], "argument --rtol: allowed is a tolerance in [1e-14, 0.01], got '1'"),
 ])
 def test_bad_options_are_refused_naming_the_option(tmp_path, args, message):
     done = stickslip("chain", *args, "--out", tmp_path, "--quiet", timeout=120)

@@ -17,6 +17,8 @@ from .system import positive_seconds
 
 #: the run's length (s) of a template chain without --stop-time: three loading cycles of the default chain
 DEFAULT_STOP_TIME = 300.0
+#: the engine's tolerances (run_chain's range)
+RTOL_RANGE = (1e-14, 1e-2)
 #: the template options: (option, keyword of chain_system, type, help)
 TEMPLATE_OPTIONS = (
     ("--n", "n", lambda text: whole_number(text, 1), "number of blocks (default 10)"),
@@ -52,7 +54,8 @@ def add_chain(subparsers):
                    help=f"simulated time, s (default: the system file's, else {DEFAULT_STOP_TIME:g}); no limit")
     p.add_argument("--output-interval", type=interval_option, metavar="SECONDS|none",
                    help="positions.csv every so many s (default: the system file's, else none: no positions)")
-    p.add_argument("--rtol", type=float, default=1e-10, help="the engine's relative tolerance (default 1e-10)")
+    p.add_argument("--rtol", type=rtol_option, default=1e-10,
+                   help=f"the engine's relative tolerance, in [{RTOL_RANGE[0]:g}, {RTOL_RANGE[1]:g}] (default 1e-10)")
     p.add_argument("--out", metavar="DIR", help="output folder (default: results/<name>, the name being "
                                                 "chain<N>-seed<seed> or the system file's stem)")
     p.add_argument("--reference", action="store_true",
@@ -90,6 +93,18 @@ def whole_number(text, low):
         value = low - 1
     if value < low:
         raise argparse.ArgumentTypeError(f"allowed is a whole number >= {low}, got {text!r}")
+    return value
+
+
+def rtol_option(text):
+    """A relative tolerance in :data:`RTOL_RANGE`."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not RTOL_RANGE[0] <= value <= RTOL_RANGE[1]:
+        raise argparse.ArgumentTypeError(f"allowed is a tolerance in [{RTOL_RANGE[0]:g}, {RTOL_RANGE[1]:g}], "
+                                         f"got {text!r}")
     return value
 
 
