@@ -21,49 +21,59 @@ STATIC_WIDTH = 4
 
 
 @njit
-def kinetic_force(code, par, i, at, u):
-    """``F_K(u)`` (N) of the kinetic law ``code`` with the parameters ``par[i, at:]``, ``u >= 0`` (m/s)."""
+def force_of(code, p0, p1, p2, p3, p4, u):
+    """``F_K(u)`` (N) of the kinetic law ``code`` with the parameters ``p0 .. p4`` (a row), ``u >= 0`` (m/s)."""
     if code == 1:
-        return par[i, at]
+        return p0
     if code == 2:
-        return par[i, at] + par[i, at + 1] * u
+        return p0 + p1 * u
     if code == 3:
-        s = u / par[i, at + 2]
-        decay = math.exp(-s) if par[i, at + 3] == 1.0 else math.exp(-math.pow(s, par[i, at + 3]))
-        return par[i, at] + par[i, at + 1] * decay + par[i, at + 4] * u
+        s = u / p2
+        return p0 + p1 * (math.exp(-s) if p3 == 1.0 else math.exp(-math.pow(s, p3))) + p4 * u
     if code == 4:
-        g1, g2, w, dv = par[i, at], par[i, at + 1], u - par[i, at + 2], par[i, at + 3]
-        return 0.5 * u * (g1 + g2 + (g2 - g1) * w / math.sqrt(dv * dv + w * w))
-    rest = 1.0 - par[i, at + 1]
-    return par[i, at] * rest / (1.0 + 2.0 * par[i, at + 2] * u / rest)
+        w = u - p2
+        return 0.5 * u * (p0 + p1 + (p1 - p0) * w / math.sqrt(p3 * p3 + w * w))
+    rest = 1.0 - p1
+    return p0 * rest / (1.0 + 2.0 * p2 * u / rest)
 
 
 @njit
-def kinetic_slope(code, par, i, at, u):
-    """``dF_K/du`` (N s/m) of the kinetic law ``code`` with the parameters ``par[i, at:]`` at ``u >= 0`` (m/s)."""
+def slope_of(code, p0, p1, p2, p3, p4, u):
+    """``dF_K/du`` (N s/m) of the kinetic law ``code`` with the parameters ``p0 .. p4`` at ``u >= 0`` (m/s)."""
     if code == 1:
         return 0.0
     if code == 2:
-        return par[i, at + 1]
+        return p1
     if code == 3:
-        s, delta = u / par[i, at + 2], par[i, at + 3]
-        return par[i, at + 4] - par[i, at + 1] * delta * math.pow(s, delta - 1.0) * math.exp(
-            -math.pow(s, delta)) / par[i, at + 2]
+        s = u / p2
+        return p4 - p1 * p3 * math.pow(s, p3 - 1.0) * math.exp(-math.pow(s, p3)) / p2
     if code == 4:
-        g1, g2, w, dv = par[i, at], par[i, at + 1], u - par[i, at + 2], par[i, at + 3]
-        r = math.sqrt(dv * dv + w * w)
-        return 0.5 * (g1 + g2) + 0.5 * (g2 - g1) * (w / r + u * dv * dv / (r * r * r))
-    weakening = 1.0 + 2.0 * par[i, at + 2] * u / (1.0 - par[i, at + 1])
-    return -2.0 * par[i, at + 2] * par[i, at] / (weakening * weakening)
+        w = u - p2
+        r = math.sqrt(p3 * p3 + w * w)
+        return 0.5 * (p0 + p1) + 0.5 * (p1 - p0) * (w / r + u * p3 * p3 / (r * r * r))
+    weakening = 1.0 + 2.0 * p2 * u / (1.0 - p1)
+    return -2.0 * p2 * p0 / (weakening * weakening)
+
+
+@njit
+def friction_of(code, p0, p1, p2, p3, p4, u):
+    """``F_K(u)`` (N) for ``u >= 0``; for ``u < 0`` its tangent at 0. Only a Runge-Kutta stage past a ``v_rel = 0``
+    crossing sees ``u < 0``: the C1 continuation keeps the step smooth and is never part of the solution."""
+    if u >= 0.0:
+        return force_of(code, p0, p1, p2, p3, p4, u)
+    return force_of(code, p0, p1, p2, p3, p4, 0.0) + slope_of(code, p0, p1, p2, p3, p4, 0.0) * u
+
+
+@njit
+def kinetic_force(code, par, i, at, u):
+    """:func:`force_of` with block ``i``'s parameters ``par[i, at:at + 5]``."""
+    return force_of(code, par[i, at], par[i, at + 1], par[i, at + 2], par[i, at + 3], par[i, at + 4], u)
 
 
 @njit
 def friction(code, par, i, at, u):
-    """``F_K(u)`` (N) for ``u >= 0``; for ``u < 0`` its tangent at 0. Only a Runge-Kutta stage past a ``v_rel = 0``
-    crossing sees ``u < 0``: the C1 continuation keeps the step smooth and is never part of the solution."""
-    if u >= 0.0:
-        return kinetic_force(code, par, i, at, u)
-    return kinetic_force(code, par, i, at, 0.0) + kinetic_slope(code, par, i, at, 0.0) * u
+    """:func:`friction_of` with block ``i``'s parameters ``par[i, at:at + 5]``."""
+    return friction_of(code, par[i, at], par[i, at + 1], par[i, at + 2], par[i, at + 3], par[i, at + 4], u)
 
 
 @njit
