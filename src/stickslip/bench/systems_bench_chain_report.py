@@ -7,6 +7,8 @@ import json
 
 from .systems_bench_chain import growth
 
+#: one colour per subject in every panel
+COLORS = {"engine": "C0", "peer": "C1", "reference": "C2"}
 CSV_COLUMNS = ("chain", "n", "stop_time", "subject", "rtol", "error", "wall_s", "walls_s", "events", "max_event_dt_s",
                "truth")
 
@@ -91,7 +93,8 @@ def plot(path, records, summary):
     for ax, r in zip(axes[0], records):
         for subject, runs in r["runs"].items():
             shown = [run for run in runs if 0.0 < run["error"] < float("inf")]
-            ax.loglog([run["wall"] for run in shown], [run["error"] for run in shown], "o-", label=subject)
+            ax.loglog([run["wall"] for run in shown], [run["error"] for run in shown], "o-", label=subject,
+                      color=COLORS[subject])
             for run in shown:
                 ax.annotate(f"{run['setting']:g}", (run["wall"], run["error"]), fontsize=7, xytext=(3, 3),
                             textcoords="offset points")
@@ -102,7 +105,8 @@ def plot(path, records, summary):
         ax.legend(fontsize=8)
     ax, rows = axes[0][-1], summary["rows"]
     for name in ("peer", "engine"):
-        ax.loglog([g["n"] for g in rows], [g[f"{name}_wall"] for g in rows], "o-", label=name)
+        ax.loglog([g["n"] for g in rows], [g[f"{name}_wall"] for g in rows], "o-", label=name,
+                  color=COLORS[name])
     ax.set_title("wall against N at matched error", fontsize=10)
     ax.set_xlabel("blocks N")
     ax.set_ylabel("wall time per simulated second (s/s)")
