@@ -21,7 +21,9 @@ class Comparison:
     events cannot be paired: the counts or kinds differ, or the master does not know every event's time);
     ``tolerance``: the largest allowed ``max_rel_dx``, or None: the run is not judged (it passes unless an error is
     not finite); ``floor`` (m): the smallest amplitude an error is measured
-    against."""
+    against; ``divergence``: whether the chain's trajectory diverges (:class:`~.chaos.Divergence`, None: not
+    measured) and ``statistics``: where it does, the run's :class:`~.chaos.StatisticalCheck`, which then judges it
+    instead of the amplitude."""
 
     amplitude: float
     max_abs_dx: np.ndarray
@@ -30,6 +32,8 @@ class Comparison:
     max_event_dt: np.ndarray
     tolerance: float | None
     floor: float = 0.0
+    divergence: object = None
+    statistics: object = None
 
     @property
     def scale(self):
@@ -51,6 +55,8 @@ class Comparison:
 
     @property
     def ok(self):
+        if self.statistics is not None:
+            return self.statistics.ok
         if not self.judged:
             return math.isfinite(self.max_rel_dx)
         return bool(self.max_rel_dx <= self.tolerance)

@@ -4,6 +4,8 @@ import math
 
 import numpy as np
 
+from .chaos import report_lines
+
 
 def columns(n):
     """CSV column names: ``time``, every ``b<i>.x``, then every ``b<i>.v`` and ``b<i>.mode``."""
@@ -46,7 +48,10 @@ def summary(system, result, comparison):
 
 def verdict(comparison):
     """``(tolerance 0.1): PASS`` or ``FAIL``; ``(not judged)`` where there is no tolerance, with ``: FAIL`` if an
-    error is not finite (the run itself failed)."""
+    error is not finite (the run itself failed); a diverging chain's: its statistics' verdict."""
+    if comparison.statistics is not None:
+        return (f"(not held to the tolerance: the trajectory diverges; statistics at significance "
+                f"{comparison.statistics.significance:g}): {'PASS' if comparison.ok else 'FAIL'}")
     if comparison.judged:
         return f"(tolerance {comparison.tolerance:g}): {'PASS' if comparison.ok else 'FAIL'}"
     return "(not judged)" if comparison.ok else "(not judged): FAIL, an error is not finite"
@@ -89,6 +94,7 @@ def _compared(system, result, comparison, reference_seconds):
         f"**{_headline(comparison)}**: max |dx| = {np.max(comparison.max_abs_dx):.3e} m, "
         f"{comparison.max_rel_dx:.3e} of {_scale(comparison)} {verdict(comparison)}.", "",
         *([] if comparison.judged else [f"{result.master}: {NOT_JUDGED}.", ""]),
+        *([] if comparison.divergence is None else report_lines(comparison.divergence, comparison.statistics)),
         "| | |", "|---|---|",
         *(f"| {label} | {_shown(value)} |" for label, value in {**result.settings, **result.stats}.items()),
         f"| wall time of the master (s) | {result.wall_time:.3f} |",

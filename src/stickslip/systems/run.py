@@ -10,7 +10,7 @@ report says so.
 """
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -20,6 +20,7 @@ from ..reference import simulate_chain
 from ..hosts.fmpy_host import read_model_description
 from ..hosts.progress import TimeProgress
 from ..hosts.run_limits import output_folder
+from .chaos import REFERENCE_RTOLS, judge_by_statistics, measure_divergence
 from .compare import Comparison, amplitude_floor, compare
 from .master import SystemResult
 from .masters import MASTERS, make_master
@@ -69,12 +70,8 @@ def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress
         result = runner.run(system, fmu_path, step)
     reference, reference_seconds, comparison = None, None, None
     if run_reference:
-        start = time.perf_counter()
-        with TimeProgress(f"{system.name} reference", system.stop_time, show_progress) as step:
-            reference = simulate_chain(system.chain_blocks(), system.coupling, system.v_drive, system.times(),
-                                       progress=step)
-        reference_seconds = time.perf_counter() - start
-        comparison = compare(result, reference, system.tolerances[master], amplitude_floor(system))
+        reference, reference_seconds, comparison = against_reference(system, master, result, files.get("events"),
+                                                                     show_progress)
     write_csv(files["csv"], result)
     title = f"{system.name} ({result.master})"
     plot_positions(files["positions"], title, result, reference)
@@ -83,6 +80,30 @@ def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress
                "which block slips when": files["space-time"].name}
     write_report(files["report"], system, result, comparison, reference_seconds, figures)
     return SystemOutcome(result, comparison, summary(system, result, comparison), tuple(files.values()))
+
+
+def against_reference(system, master, result, events_file, show_progress):
+    """``(reference, its wall time in s, comparison)`` of a master's run: where the master is judged, the largest
+    Lyapunov exponent says first whether the chain's trajectory diverges (:mod:`.chaos`); if it does, the reference
+    runs at both tolerances of :data:`~.chaos.REFERENCE_RTOLS` and the run is judged by its slip events'
+    statistics, else the reference runs once and the amplitude judges."""
+    tolerance = system.tolerances[master]
+    divergence = None
+    if tolerance is not None:
+        with TimeProgress(f"{system.name} Lyapunov exponent", system.stop_time, show_progress) as step:
+            divergence = measure_divergence(system, progress=step)
+    rtols = REFERENCE_RTOLS if divergence is not None and divergence.diverges else REFERENCE_RTOLS[:1]
+    start, references = time.perf_counter(), {}
+    for rtol in rtols:
+        with TimeProgress(f"{system.name} reference (rtol {rtol:g})", system.stop_time, show_progress) as step:
+            references[rtol] = simulate_chain(system.chain_blocks(), system.coupling, system.v_drive, system.times(),
+                                              rtol=rtol, progress=step)
+    reference_seconds = time.perf_counter() - start
+    reference = references[rtols[0]]
+    comparison = replace(compare(result, reference, tolerance, amplitude_floor(system)), divergence=divergence)
+    if len(references) > 1:
+        comparison = replace(comparison, statistics=judge_by_statistics(system, result, events_file, references))
+    return reference, reference_seconds, comparison
 
 
 def with_fmi_of(master, options, fmu_path):
