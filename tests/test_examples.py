@@ -16,8 +16,8 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 def test_there_are_examples():
-    assert {"bifurcation_fig3", "three_regimes", "aging_map", "fmu_fmpy", "chain_spacetime"} <= {
-        script.stem for script in EXAMPLES}
+    assert {"bifurcation_fig3", "three_regimes", "aging_map", "fmu_fmpy", "chain_spacetime",
+            "bk_size_distribution"} <= {script.stem for script in EXAMPLES}
 
 
 @pytest.mark.parametrize("script", EXAMPLES, ids=lambda script: script.stem)
