@@ -349,24 +349,33 @@ def _number(value):
 
 
 def plot_exponents(path, groups):
-    """``path``: each member's fitted exponents of sizes and moments (dots) and the pooled fit with its standard
-    error (bar), per group: over the swept value, or one column without a sweep."""
+    """``path``: the fitted exponents of sizes and moments of each chain (dots) and of the pooled catalogue with its
+    standard error: over the swept value (a bar per value), or without a sweep over the chains (a band)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(10, 4), layout="constrained")
     FigureCanvasAgg(fig)
-    swept = [next(iter(g["swept"].items()), (None, float(i))) for i, g in enumerate(groups)]
+    name = next(iter(groups[0]["swept"]), None)
     for ax, key in zip(fig.subplots(1, 2), ("size", "moment")):
-        for (name, value), g in zip(swept, groups):
-            alphas = g["spread"][key]["alphas"]
-            ax.plot([value] * len(alphas), alphas, ".", color="C0", alpha=0.6)
-            fit = g["pooled"][f"{key}_fit"]
+        for g in groups:
+            alphas, fit = g["spread"][key]["alphas"], g["pooled"][f"{key}_fit"]
+            if name is None:
+                ax.plot(range(1, len(alphas) + 1), alphas, "o", color="C0", label="each chain")
+                if "alpha" in fit:
+                    low, high = fit["alpha"] - fit["standard_error"], fit["alpha"] + fit["standard_error"]
+                    ax.axhspan(low, high, color="C3", alpha=0.2, label="pooled (standard error)")
+                    ax.axhline(fit["alpha"], color="C3")
+                continue
+            ax.plot([g["swept"][name]] * len(alphas), alphas, ".", color="C0", alpha=0.6)
             if "alpha" in fit:
-                ax.errorbar([value], [fit["alpha"]], yerr=[fit["standard_error"]], fmt="s", color="C3", capsize=4)
-        ax.plot([], [], ".", color="C0", label="each chain")
-        ax.errorbar([], [], yerr=[], fmt="s", color="C3", label="pooled (standard error)")
-        ax.set(xlabel=swept[0][0] or "", ylabel=f"exponent alpha of {key}", title=f"{key} distribution")
+                ax.errorbar([g["swept"][name]], [fit["alpha"]], yerr=[fit["standard_error"]], fmt="s", color="C3",
+                            capsize=4)
+        if name is not None:
+            ax.plot([], [], ".", color="C0", label="each chain")
+            ax.errorbar([], [], yerr=[], fmt="s", color="C3", label="pooled (standard error)")
+        ax.set(xlabel=name or "chain (those with a fit)", ylabel=f"exponent alpha of {key}",
+               title=f"{key} distribution")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize="small")
     fig.savefig(path, dpi=100)
