@@ -55,7 +55,7 @@ def test_the_issues_file_loads_with_the_fmus_start_values_for_what_it_leaves_out
     assert system.blocks[0]["solver.rtol"] == 1e-10  # the FMU's start value
     assert system.times()[-1] == 100.0 and len(system.times()) == 1001
     assert system.forces([0.0, 0.2]) == [0.5 * 0.2, -0.5 * 0.2]
-    assert system.tolerances == {"zoh": None, "me": 1e-6, "adaptive": 1e-6}
+    assert system.tolerances == {"zoh": None, "me": 1e-6, "adaptive": 1e-6, "native": 1e-6}
 
 
 def test_dotted_names_without_quotes_are_the_fmus_names(tmp_path):
@@ -108,13 +108,13 @@ def test_unknown_tables_and_unreadable_files_are_named(tmp_path):
 
 def test_tolerances_per_master(tmp_path):
     system = load_system(write(tmp_path, system_text(extra="[tolerance.zoh]\nmax_rel_dx = 0.01\n")))
-    assert system.tolerances == {"zoh": 0.01, "me": 1e-6, "adaptive": 1e-6}
-    with pytest.raises(SystemFileError, match=r"key 'tolerance.exact': allowed is one of the keys \['adaptive', 'me', 'zoh'\]"):
+    assert system.tolerances == {"zoh": 0.01, "me": 1e-6, "adaptive": 1e-6, "native": 1e-6}
+    with pytest.raises(SystemFileError, match=r"key 'tolerance.exact': allowed is one of the keys \['adaptive', 'me', 'native', 'zoh'\]"):
         load_system(write(tmp_path, system_text(extra="[tolerance.exact]\nmax_rel_dx = 0.01\n")))
 
 
 def test_masters_refuse_options_they_do_not_take():
-    with pytest.raises(FMUError, match=r"master 'zoh' takes no option 'rtol' \(the masters \['adaptive', 'me'\] do\)"):
+    with pytest.raises(FMUError, match=r"master 'zoh' takes no option 'rtol' \(the masters \['adaptive', 'me', 'native'\] do\)"):
         make_master("zoh", rtol=1e-8)
     with pytest.raises(FMUError, match="master 'exact': allowed are"):
         make_master("exact")

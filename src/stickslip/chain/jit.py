@@ -24,14 +24,6 @@ def njit(function):
     return numba.njit(cache=True, nogil=True)(function)
 
 
-def inline(function):
-    """:func:`njit` for a small helper of the hot loop, which the compiler copies into its callers: a call would
-    count references to every array it is passed."""
-    if numba is None:
-        return function
-    return numba.njit(cache=True, nogil=True, inline="always")(function)
-
-
 def say_if_plain():
     """Once per process: a line on stderr if the kernels run as plain Python, and why."""
     if COMPILED or _told:
