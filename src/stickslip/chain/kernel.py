@@ -25,7 +25,7 @@ RUNNING, DONE, FAILED_EVENTS, FAILED_STEP = 0, 1, -1, -2
 #: more mode changes than this at one instant are an error (an event chain that does not end)
 MAX_EVENTS_PER_INSTANT = 1000
 #: step size control: the next step is ``h SAFETY err^(-1/8)``, within ``[SHRINK_MOST, GROW_MOST]`` times ``h``
-SAFETY, SHRINK_MOST, GROW_MOST = 0.9, 0.2, 4.0
+SAFETY, SHRINK_MOST, GROW_MOST = 0.8, 0.2, 2.5
 
 
 @njit
