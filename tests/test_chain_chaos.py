@@ -76,7 +76,7 @@ def test_a_damped_sliding_chain_has_the_exponent_of_its_damping():
                      coupling=[0.5], v_drive=1.0)
     estimate = largest_lyapunov(spec, 300.0)
     assert estimate.exponent == pytest.approx(-gamma / 2.0, rel=1e-3)
-    assert not estimate.significant()
+    assert estimate.growth() == pytest.approx(-0.1 * 300.0, rel=1e-3)
 
 
 def test_the_two_block_coulomb_chain_is_not_chaotic_and_keeps_the_amplitude_check(tmp_path):
@@ -88,7 +88,7 @@ def test_the_two_block_coulomb_chain_is_not_chaotic_and_keeps_the_amplitude_chec
     assert outcome.ok and outcome.comparison.max_rel_dx <= 1e-6
     report = (tmp_path / "chain2-coulomb-native.md").read_text()
     assert "**Check: the amplitude.** The largest Lyapunov exponent over the run is" in report
-    assert "not positive by 3 standard errors, the trajectory does not diverge" in report
+    assert "less than 1e10: the trajectory does not diverge" in report
 
 
 def test_a_chaotic_chain_is_judged_by_statistics_and_a_correct_run_passes(tmp_path, reference_once):
@@ -96,7 +96,7 @@ def test_a_chaotic_chain_is_judged_by_statistics_and_a_correct_run_passes(tmp_pa
     comparison = outcome.comparison
     estimate = comparison.divergence.estimate
     assert comparison.divergence.diverges
-    assert estimate.exponent > 5.0 * estimate.uncertainty and estimate.growth() > DIVERGENCE_EFOLDINGS
+    assert estimate.exponent > 5.0 * estimate.uncertainty and estimate.growth() > 3.0 * DIVERGENCE_EFOLDINGS
     # the amplitude cannot judge it: the reference at its two tolerances is apart by a fraction of the amplitude
     check = comparison.statistics
     assert check.reference_spread > 0.1 and comparison.max_rel_dx > 0.1

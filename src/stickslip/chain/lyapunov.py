@@ -51,10 +51,6 @@ class LyapunovEstimate:
         """``exponent * stop_time``: the e-foldings of a small error over the run (negative: it shrinks)."""
         return self.exponent * self.stop_time
 
-    def significant(self, sigmas=3.0):
-        """Whether the exponent is positive by more than ``sigmas`` standard errors."""
-        return self.exponent > sigmas * self.uncertainty
-
 
 def default_interval(spec, stop_time):
     """The renormalisation interval (s): the longest free period ``2 pi sqrt(M / kappa)`` of a block, at most
