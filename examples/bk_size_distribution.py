@@ -14,7 +14,7 @@ its own figures: `stickslip chain`.
 
     python examples/bk_size_distribution.py [--quick] [--stop-time S] [--out DIR]
 
-writes DIR/bk_size_distribution.png and the run's files (block and slip events, statistics) into
+writes DIR/bk_size_distribution.png and the run's block events and slip events (CSV) into
 DIR/bk_size_distribution/ (default DIR: results/examples). --stop-time: the simulated time (default 20000 s, 200
 loading cycles; longer runs sharpen the distributions). --quick: 30 blocks over 1000 s (10 loading cycles).
 """
@@ -48,8 +48,12 @@ system = chain_system(n, seed=1, M=1.0, kappa=1.0, kc=L_SQUARED, v_drive=NU,
                       kinetic={"law": 5, "F0": 1.0, "sigma": SIGMA, "alpha": ALPHA}, static={"law": 1, "F0": 1.0},
                       x_start=0.5, offset_spread=0.1, name=f"carlson-langer-{n}")
 out = Path(args.out)
-with TimeProgress(f"{n} blocks", stop_time, sys.stderr.isatty()) as step:
-    run = run_into_folder(system, out / "bk_size_distribution", stop_time=stop_time, progress=step)
+try:
+    with TimeProgress(f"{n} blocks", stop_time, sys.stderr.isatty()) as step:
+        run = run_into_folder(system, out / "bk_size_distribution", stop_time=stop_time, progress=step)
+except KeyboardInterrupt:  # the engine closed its files: they hold every chunk it finished
+    print(f"interrupted: the events so far are in {out / 'bk_size_distribution'}", file=sys.stderr)
+    sys.exit(130)
 print(f"{n} blocks over {stop_time:g} s ({stop_time / LOADING_CYCLE:g} loading cycles): {run.summary.events} block "
       f"events, {run.slip_events} slip events in {run.summary.wall_time:.1f} s "
       f"({'numba' if run.summary.compiled else 'plain Python'})")
