@@ -10,7 +10,7 @@ precision by a bracketing root search. Array names as :mod:`.arrays`; ``vd`` is 
 
 import math
 
-from .arrays import KAPPA, KIN, M, RISING, SAMPLES, STA, T_STUCK, X_STUCK, E0, D0, E1, D1
+from .arrays import D0, D1, E0, E1, KAPPA, KIN, M, RISING, SAMPLES, STA, T_STUCK, X_STUCK
 from .jit import njit
 from .laws import kinetic_force, static_force, static_rate
 from .stepper import acceleration, coupling_force, coupling_rate, dense_state
@@ -33,23 +33,24 @@ def indicator(par, law, mode, blk, vd, xs, vs, i, t):
 
 
 @njit
-def _at(ch, bl, wk, vd, i, t, t0, h, on_dense):
-    """:func:`indicator` of block ``i`` at time ``t`` inside the step ``[t0, t0 + h]``: the slipping blocks from the
-    step's dense output (``on_dense``), or all blocks stuck (closed forms)."""
-    par, law = ch
-    mode, x, v, blk = bl
+def indicator_at(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, t, t0, h, on_dense):
+    """:func:`indicator` of block ``i`` at time ``t`` inside the step ``[t0, t0 + h]`` that starts at ``x``, ``v``:
+    the slipping blocks from the step's dense output rows ``fx``, ``fv`` (``on_dense``; ``sx``, ``sv`` take their
+    states), or all blocks stuck (closed forms)."""
     if not on_dense:
         return indicator(par, law, mode, blk, vd, x, v, i, t)
     theta = (t - t0) / h
     for j in range(max(i - 1, 0), min(i + 2, mode.size)):
         if mode[j] != 0:
-            wk.sx[j], wk.sv[j] = dense_state(x, v, wk.fx, wk.fv, j, theta)
-    return indicator(par, law, mode, blk, vd, wk.sx, wk.sv, i, t)
+            sx[j], sv[j] = dense_state(x, v, fx, fv, j, theta)
+    return indicator(par, law, mode, blk, vd, sx, sv, i, t)
 
 
 @njit
 def _component(ch, bl, wk, vd, i, t, t0, h, on_dense, which):
-    value, rate = _at(ch, bl, wk, vd, i, t, t0, h, on_dense)
+    par, law = ch
+    mode, x, v, blk = bl
+    value, rate = indicator_at(par, law, mode, x, v, blk, wk.fx, wk.fv, wk.sx, wk.sv, vd, i, t, t0, h, on_dense)
     return value if which == 0 else rate
 
 
@@ -138,17 +139,15 @@ def first_zero(ch, bl, wk, vd, i, t0, h, on_dense, n, rising):
 def scan_step(ch, bl, wk, vd, i, t0, h):
     """First zero (s) of block ``i``'s indicator in the step ``[t0, t0 + h]`` on its dense output, or inf; the ends
     are its ``e0``, ``d0`` and ``e1``, ``d1``."""
-    blk, smp = bl.blk, wk.smp
-    for k in range(SAMPLES + 1):
+    par, law = ch
+    mode, x, v, blk = bl
+    fx, fv, sx, sv, smp = wk.fx, wk.fv, wk.sx, wk.sv, wk.smp
+    smp[0, 0], smp[1, 0], smp[2, 0] = t0, blk[i, E0], blk[i, D0]
+    for k in range(1, SAMPLES):
         t = t0 + h * k / SAMPLES
         smp[0, k] = t
-        if k == 0:
-            smp[1, k], smp[2, k] = blk[i, E0], blk[i, D0]
-        elif k == SAMPLES:
-            smp[0, k] = t0 + h
-            smp[1, k], smp[2, k] = blk[i, E1], blk[i, D1]
-        else:
-            smp[1, k], smp[2, k] = _at(ch, bl, wk, vd, i, t, t0, h, True)
+        smp[1, k], smp[2, k] = indicator_at(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, t, t0, h, True)
+    smp[0, SAMPLES], smp[1, SAMPLES], smp[2, SAMPLES] = t0 + h, blk[i, E1], blk[i, D1]
     return first_zero(ch, bl, wk, vd, i, t0, h, True, SAMPLES, blk[i, RISING] > 0.0)
 
 

@@ -71,12 +71,6 @@ def kinetic_force(code, par, i, at, u):
 
 
 @njit
-def friction(code, par, i, at, u):
-    """:func:`friction_of` with block ``i``'s parameters ``par[i, at:at + 5]``."""
-    return friction_of(code, par[i, at], par[i, at + 1], par[i, at + 2], par[i, at + 3], par[i, at + 4], u)
-
-
-@njit
 def static_force(code, par, i, at, t):
     """``F_S(t)`` (N) of the static law ``code`` with the parameters ``par[i, at:]`` after sticking ``t >= 0`` s."""
     p = (par[i, at], par[i, at + 1], par[i, at + 2], par[i, at + 3])

@@ -16,7 +16,7 @@ import numpy as np
 from ..analysis.dop853_tableau import A, A_DENSE, B, C, C_DENSE, D, E3, E5
 from .arrays import ATOL_V, ATOL_X, K_LEFT, K_RIGHT, KAPPA, KIN, M, T_STUCK, X_STUCK
 from .jit import njit
-from .laws import friction, friction_of
+from .laws import friction_of
 
 _A = np.ascontiguousarray(A)
 _B, _C, _E3, _E5 = B.copy(), C.copy(), E3.copy(), E5.copy()
@@ -24,11 +24,15 @@ _AD, _CD, _D = np.ascontiguousarray(A_DENSE), C_DENSE.copy(), np.ascontiguousarr
 
 
 @njit
+def place(stuck, x_stuck, t_stuck, x, vd, t):
+    """A block's position (m) at time ``t`` (s) from scalars: its closed form if ``stuck``, else ``x``."""
+    return x_stuck + vd * (t - t_stuck) if stuck else x
+
+
+@njit
 def position(mode, blk, vd, xs, j, t):
     """Block ``j``'s position (m) at time ``t`` (s): ``xs[j]`` while it slips, its closed form while stuck."""
-    if mode[j] == 0:
-        return blk[j, X_STUCK] + vd * (t - blk[j, T_STUCK])
-    return xs[j]
+    return place(mode[j] == 0, blk[j, X_STUCK], blk[j, T_STUCK], xs[j], vd, t)
 
 
 @njit
@@ -65,21 +69,24 @@ def coupling_rate(par, mode, vd, vs, i):
 def acceleration(par, law, mode, blk, vd, xs, vs, i, t):
     """``dv/dt`` (m/s^2) of the slipping block ``i`` at time ``t``."""
     m = mode[i]
-    u = m * (vd - vs[i])
     F = coupling_force(par, mode, blk, vd, xs, i, t)
-    return (F - par[i, KAPPA] * xs[i] + m * friction(law[i, 0], par, i, KIN, u)) / par[i, M]
+    return slip_acceleration(par, law, i, m, F, xs[i], m * (vd - vs[i]))
 
 
 @njit
-def place(stuck, x_stuck, t_stuck, x, vd, t):
-    """A block's position (m) at time ``t`` (s) from scalars: its closed form if ``stuck``, else ``x``."""
-    return x_stuck + vd * (t - t_stuck) if stuck else x
+def slip_acceleration(par, law, i, m, F, x, u):
+    """``(F - kappa x + m F_K(u)) / M`` (m/s^2): block ``i`` slipping in mode ``m`` at ``x`` (m) with the coupling
+    force ``F`` (N) and the sliding speed ``u = m v_rel`` (m/s)."""
+    friction = friction_of(law[i, 0], par[i, KIN], par[i, KIN + 1], par[i, KIN + 2], par[i, KIN + 3],
+                           par[i, KIN + 4], u)
+    return (F - par[i, KAPPA] * x + m * friction) / par[i, M]
 
 
 @njit
 def rates(par, law, mode, blk, vd, act, nact, t, xs, vs, kx, kv, s):
     """Stage ``s``: ``kx[s] = v`` and ``kv[s] = dv/dt`` of the ``nact`` slipping blocks at ``(t, xs, vs)``: the
-    hot loop, which passes its helpers scalars only (as :func:`acceleration` computes it)."""
+    hot loop, the coupling force summed here (as :func:`coupling_force` does) so that no helper takes the position
+    arrays (each array passed costs a reference count)."""
     last = mode.size - 1
     for q in range(nact):
         i = act[q]
@@ -91,12 +98,8 @@ def rates(par, law, mode, blk, vd, act, nact, t, xs, vs, kx, kv, s):
         if i < last:
             j = i + 1
             f += par[i, K_RIGHT] * (place(mode[j] == 0, blk[j, X_STUCK], blk[j, T_STUCK], xs[j], vd, t) - xi)
-        m = mode[i]
-        u = m * (vd - vs[i])
         kx[s, i] = vs[i]
-        kv[s, i] = (f - par[i, KAPPA] * xi + m * friction_of(law[i, 0], par[i, KIN], par[i, KIN + 1],
-                                                             par[i, KIN + 2], par[i, KIN + 3], par[i, KIN + 4],
-                                                             u)) / par[i, M]
+        kv[s, i] = slip_acceleration(par, law, i, mode[i], f, xi, mode[i] * (vd - vs[i]))
 
 
 @njit
