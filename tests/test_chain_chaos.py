@@ -89,6 +89,8 @@ def test_the_two_block_coulomb_chain_is_not_chaotic_and_keeps_the_amplitude_chec
     report = (tmp_path / "chain2-coulomb-native.md").read_text()
     assert "**Check: the amplitude.** The largest Lyapunov exponent over the run is" in report
     assert "less than 1e10: the trajectory does not diverge" in report
+    assert "![the largest Lyapunov exponent over the run](chain2-coulomb-native-lyapunov.png)" in report
+    assert (tmp_path / "chain2-coulomb-native-lyapunov.png").stat().st_size > 10_000
 
 
 def test_a_chaotic_chain_is_judged_by_statistics_and_a_correct_run_passes(tmp_path, reference_once):

@@ -172,3 +172,24 @@ def judge_by_statistics(system, result, events_file, references):
     first, second = references.values()
     spread = float(np.max(np.abs(first.x - second.x))) / max(first.amplitude(), system.length_scale * 1e-6)
     return statistical_check(master, tables, spread, quantities)
+
+
+def plot_exponent(png_path, title, estimate):
+    """Write ``png_path``: the estimate of the largest Lyapunov exponent up to each time of the run (1/s), with the
+    final value and its standard error."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10, 4), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    ax.plot(estimate.times, estimate.running, color="C0", label="estimate up to t")
+    low, high = estimate.exponent - estimate.uncertainty, estimate.exponent + estimate.uncertainty
+    ax.axhspan(low, high, color="C3", alpha=0.2, label=f"over the run: {estimate.exponent:.3g} +- "
+                                                      f"{estimate.uncertainty:.2g} 1/s")
+    ax.axhline(0.0, color="k", lw=0.6)
+    ax.set(xlabel="t (s)", ylabel="largest Lyapunov exponent (1/s)",
+           title=f"{title}: largest Lyapunov exponent (renormalised every {estimate.interval:.3g} s)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+    fig.savefig(png_path, dpi=100)

@@ -5,8 +5,9 @@ Writes ``<out>/<run>.csv`` (the master's samples), ``<out>/<run>.md`` (the repor
 ``<run>`` being the file's stem, the master and its engine or FMI version (``chain2-coulomb-zoh-libcosim``,
 ``chain2-coulomb-adaptive-fmi3``, ``chain2-coulomb-me``):
 runs of different masters share a folder. The ``native`` master also writes ``<out>/<run>-block_events.csv``
-(every block event: ``time,block,kind,x``). Without the reference (``reference=False``) nothing is compared and the
-report says so.
+(every block event: ``time,block,kind,x``). Where the master is judged, ``<out>/<run>-lyapunov.png`` shows the
+chain's largest Lyapunov exponent over the run, which decides how it is judged (:mod:`.chaos`). Without the
+reference (``reference=False``) nothing is compared and the report says so.
 """
 
 import time
@@ -20,7 +21,7 @@ from ..reference import simulate_chain
 from ..hosts.fmpy_host import read_model_description
 from ..hosts.progress import TimeProgress
 from ..hosts.run_limits import output_folder
-from .chaos import REFERENCE_RTOLS, judge_by_statistics, measure_divergence
+from .chaos import REFERENCE_RTOLS, judge_by_statistics, measure_divergence, plot_exponent
 from .compare import Comparison, amplitude_floor, compare
 from .master import SystemResult
 from .masters import MASTERS, make_master
@@ -78,8 +79,12 @@ def run_system(path, master, out_dir, options=None, fmu_path=None, show_progress
     plot_space_time(files["space-time"], title, result, reference)
     figures = {"x of each block, master against reference": files["positions"].name,
                "which block slips when": files["space-time"].name}
+    if comparison is not None and comparison.divergence is not None and comparison.divergence.estimate is not None:
+        plot_exponent(files["exponent"], title, comparison.divergence.estimate)
+        figures["the largest Lyapunov exponent over the run"] = files["exponent"].name
     write_report(files["report"], system, result, comparison, reference_seconds, figures)
-    return SystemOutcome(result, comparison, summary(system, result, comparison), tuple(files.values()))
+    return SystemOutcome(result, comparison, summary(system, result, comparison),
+                         tuple(path for path in files.values() if path.exists()))
 
 
 def against_reference(system, master, result, events_file, show_progress):
@@ -126,10 +131,12 @@ def output_files(out_dir, name, events=False):
     """``{kind: path}`` of the files the run ``name`` (:func:`run_name`) writes into ``out_dir`` (``events``: the
     block events' CSV too): checked before the run (the folder made, the names fit), the previous run's report
     removed (it is written last: a run that stops leaves none)."""
-    suffixes = {"csv": ".csv", "report": ".md", "positions": ".png", "space-time": "-spacetime.png"}
+    suffixes = {"csv": ".csv", "report": ".md", "positions": ".png", "space-time": "-spacetime.png",
+                "exponent": "-lyapunov.png"}
     if events:
         suffixes["events"] = "-block_events.csv"
     out = output_folder(out_dir, [name + suffix for suffix in suffixes.values()])
     files = {kind: out / f"{name}{suffix}" for kind, suffix in suffixes.items()}
-    files["report"].unlink(missing_ok=True)
+    for kind in ("report", "exponent"):  # the exponent's figure is written only where it was measured
+        files[kind].unlink(missing_ok=True)
     return files
