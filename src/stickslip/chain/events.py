@@ -47,18 +47,10 @@ def indicator_at(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, t, t0, h, on_
 
 
 @njit
-def _component(ch, bl, wk, vd, i, t, t0, h, on_dense, which):
-    par, law = ch
-    mode, x, v, blk = bl
-    value, rate = indicator_at(par, law, mode, x, v, blk, wk.fx, wk.fv, wk.sx, wk.sv, vd, i, t, t0, h, on_dense)
-    return value if which == 0 else rate
-
-
-@njit
-def root(ch, bl, wk, vd, i, t0, h, on_dense, which, a, fa, b, fb):
-    """A zero in ``[a, b]`` (s) of block ``i``'s indicator (``which`` 0) or its rate (1), whose values at the ends
-    ``fa``, ``fb`` differ in sign, to machine precision (Illinois steps, every third one a bisection); ``b`` if
-    ``fb == 0`` or the signs agree (the zero is there to rounding)."""
+def root(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, t0, h, on_dense, which, a, fa, b, fb):
+    """A zero in ``[a, b]`` (s) of block ``i``'s indicator (``which`` 0) or its rate (1) (:func:`indicator_at`),
+    whose values at the ends ``fa``, ``fb`` differ in sign, to machine precision (Illinois steps, every third one a
+    bisection); ``b`` if ``fb == 0`` or the signs agree (the zero is there to rounding)."""
     if fb == 0.0 or fa * fb > 0.0:
         return b
     if fa == 0.0:
@@ -70,7 +62,7 @@ def root(ch, bl, wk, vd, i, t0, h, on_dense, which, a, fa, b, fb):
         c = 0.5 * (a + b) if k % 3 == 2 else (a * fb - b * fa) / (fb - fa)
         if not a < c < b:
             c = 0.5 * (a + b)
-        fc = _component(ch, bl, wk, vd, i, c, t0, h, on_dense, which)
+        fc = indicator_at(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, c, t0, h, on_dense)[which]
         if fc == 0.0:
             return c
         if (fc > 0.0) == (fb > 0.0):
@@ -98,12 +90,12 @@ def may_cross(e0, d0, e1, d1, h):
 
 
 @njit
-def first_zero(ch, bl, wk, vd, i, t0, h, on_dense, n, rising):
-    """First time (s) in the samples ``wk.smp[:, :n + 1]`` (times, values, rates) at which block ``i``'s indicator
-    comes down to 0, or inf. If it starts at or below 0 it is leaving 0: ``rising`` says it is known to rise (values
-    <= 0 before it is positive are rounding, a maximum <= 0 before that is the zero), else a negative value means it
-    never rose and the zero is the start."""
-    s, fs, ds = wk.smp[0], wk.smp[1], wk.smp[2]
+def first_zero(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, t0, h, on_dense, smp, n, rising):
+    """First time (s) in the samples ``smp[:, :n + 1]`` (times, values, rates) at which block ``i``'s indicator
+    (:func:`indicator_at`) comes down to 0, or inf. If it starts at or below 0 it is leaving 0: ``rising`` says it is
+    known to rise (values <= 0 before it is positive are rounding, a maximum <= 0 before that is the zero), else a
+    negative value means it never rose and the zero is the start."""
+    s, fs, ds = smp[0], smp[1], smp[2]
     start = 0
     if fs[0] <= 0.0:
         first = -1
@@ -113,10 +105,12 @@ def first_zero(ch, bl, wk, vd, i, t0, h, on_dense, n, rising):
                 break
         for k in range(first - 1 if first > 0 else n):
             if ds[k] > 0.0 and ds[k + 1] <= 0.0:
-                peak = root(ch, bl, wk, vd, i, t0, h, on_dense, 1, s[k], ds[k], s[k + 1], ds[k + 1])
-                value = _component(ch, bl, wk, vd, i, peak, t0, h, on_dense, 0)
-                if value > 0.0:
-                    return root(ch, bl, wk, vd, i, t0, h, on_dense, 0, peak, value, s[k + 1], fs[k + 1])
+                peak = root(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, t0, h, on_dense, 1,
+                            s[k], ds[k], s[k + 1], ds[k + 1])
+                top = indicator_at(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, peak, t0, h, on_dense)[0]
+                if top > 0.0:
+                    return root(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, t0, h, on_dense, 0,
+                                peak, top, s[k + 1], fs[k + 1])
                 if rising:
                     return peak
             if not rising and fs[k + 1] < 0.0:
@@ -126,12 +120,15 @@ def first_zero(ch, bl, wk, vd, i, t0, h, on_dense, n, rising):
         start = first
     for k in range(start, n):
         if fs[k + 1] <= 0.0:
-            return root(ch, bl, wk, vd, i, t0, h, on_dense, 0, s[k], fs[k], s[k + 1], fs[k + 1])
+            return root(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, t0, h, on_dense, 0,
+                        s[k], fs[k], s[k + 1], fs[k + 1])
         if ds[k] < 0.0 and ds[k + 1] > 0.0:
-            low = root(ch, bl, wk, vd, i, t0, h, on_dense, 1, s[k], ds[k], s[k + 1], ds[k + 1])
-            value = _component(ch, bl, wk, vd, i, low, t0, h, on_dense, 0)
-            if value <= 0.0:
-                return root(ch, bl, wk, vd, i, t0, h, on_dense, 0, s[k], fs[k], low, value)
+            low = root(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, t0, h, on_dense, 1,
+                       s[k], ds[k], s[k + 1], ds[k + 1])
+            bottom = indicator_at(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, low, t0, h, on_dense)[0]
+            if bottom <= 0.0:
+                return root(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, t0, h, on_dense, 0,
+                            s[k], fs[k], low, bottom)
     return math.inf
 
 
@@ -148,7 +145,8 @@ def scan_step(ch, bl, wk, vd, i, t0, h):
         smp[0, k] = t
         smp[1, k], smp[2, k] = indicator_at(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, t, t0, h, True)
     smp[0, SAMPLES], smp[1, SAMPLES], smp[2, SAMPLES] = t0 + h, blk[i, E1], blk[i, D1]
-    return first_zero(ch, bl, wk, vd, i, t0, h, True, SAMPLES, blk[i, RISING] > 0.0)
+    return first_zero(par, law, mode, x, v, blk, fx, fv, sx, sv, vd, i, t0, h, True, smp, SAMPLES,
+                      blk[i, RISING] > 0.0)
 
 
 @njit

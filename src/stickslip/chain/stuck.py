@@ -43,7 +43,8 @@ def quiet_break(ch, bl, wk, vd, j, t, t_stop):
     if t_stop <= t:
         return math.inf
     n = _aging_samples(ch, bl, wk, vd, j, t, t_stop)
-    return first_zero(ch, bl, wk, vd, j, t, t_stop - t, False, n, rate > 0.0)
+    return first_zero(par, law, mode, x, v, blk, wk.fx, wk.fv, wk.sx, wk.sv, vd, j, t, t_stop - t, False, wk.smp, n,
+                      rate > 0.0)
 
 
 @njit
