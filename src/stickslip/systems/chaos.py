@@ -3,10 +3,11 @@
 A chain whose trajectory diverges cannot be held to the reference's positions: any difference, even the rounding
 of the last digit, grows until the two runs are unrelated. Whether it diverges is measured: the largest Lyapunov
 exponent ``lambda`` over the run of ``T`` seconds (:func:`stickslip.chain.lyapunov.largest_lyapunov`) so large that
-a difference at the solvers' tolerance (``1e-10`` of the amplitude) grows past the amplitude within the run:
-``lambda T >`` :data:`DIVERGENCE_EFOLDINGS`. (A chain that does not diverge cannot get there: on a stick-slip cycle
-a small difference becomes a shift along the cycle, which grows at most by the ratio of the slip speed to the
-drive's.) Such a run is judged by its
+a difference at the reference's own tolerance (``1e-12`` of the amplitude) grows past the tolerance ``tol`` the
+master is held to (a fraction of the amplitude) within the run: ``lambda T > ln(tol / 1e-12)`` (:func:`efoldings`;
+13.8 for the default 1e-6). No solver, the reference included, can then be held to ``tol``. (A chain that does not
+diverge gets nowhere near: on a stick-slip cycle a small difference becomes a shift along the cycle, which grows
+at most by the ratio of the slip speed to the drive's.) Such a run is judged by its
 statistics instead: the slip events of the master's run (:mod:`stickslip.chain.catalogue`) against those of the
 reference run at the two tolerances :data:`REFERENCE_RTOLS`, by two-sample Kolmogorov-Smirnov tests on their sizes,
 durations and (where the master knows each event's position) moments. The run passes when no test rejects at the
@@ -26,8 +27,6 @@ from scipy.stats import ks_2samp
 REFERENCE_RTOLS = (1e-12, 1e-10)
 #: the family significance of the two-sample tests
 SIGNIFICANCE = 0.01
-#: e-foldings over the run past which a difference at the solvers' tolerance outgrows the amplitude: ln(1e10)
-DIVERGENCE_EFOLDINGS = math.log(1e10)
 #: the fewest slip events in each run that the tests judge
 MIN_EVENTS = 20
 #: significant digits at which values are compared (module docstring)
@@ -46,10 +45,17 @@ class Divergence:
     why: str
 
 
-def measure_divergence(system, progress=None):
+def efoldings(tolerance):
+    """The e-foldings over the run past which a difference at the reference's tolerance outgrows ``tolerance`` (a
+    fraction of the amplitude): ``ln(tolerance / REFERENCE_RTOLS[0])``."""
+    return math.log(tolerance / REFERENCE_RTOLS[0])
+
+
+def measure_divergence(system, tolerance, progress=None):
     """The :class:`Divergence` of the chain of ``system`` over its ``stop_time``, measured with the chain engine
-    (``progress(t)`` after each renormalisation). Chains with aging static friction are not measured: the method
-    restarts the runs, which would restart the aging."""
+    (``progress(t)`` after each renormalisation), for a master held to ``tolerance`` (a fraction of the amplitude).
+    Chains with aging static friction are not measured: the method restarts the runs, which would restart the
+    aging."""
     from ..chain.lyapunov import largest_lyapunov
     from ..chain.spec import ChainSpec
 
@@ -61,10 +67,12 @@ def measure_divergence(system, progress=None):
     estimate = largest_lyapunov(spec, system.stop_time, progress=progress)
     growth = estimate.growth()
     text = (f"the largest Lyapunov exponent over the run is {estimate.exponent:.3g} +- {estimate.uncertainty:.2g} "
-            f"1/s: a difference of 1e-10 of the amplitude grows by e^{growth:.3g} over the {estimate.stop_time:g} s")
-    if growth <= DIVERGENCE_EFOLDINGS:
-        return Divergence(estimate, False, f"{text}, less than 1e10: the trajectory does not diverge")
-    return Divergence(estimate, True, f"{text}, past the amplitude: the trajectory diverges")
+            f"1/s: a difference of {REFERENCE_RTOLS[0]:g} of the amplitude (the reference's tolerance) grows by "
+            f"e^{growth:.3g} over the {estimate.stop_time:g} s")
+    if growth <= efoldings(tolerance):
+        return Divergence(estimate, False, f"{text}, not past the tolerance {tolerance:g}: the trajectory does not "
+                                           "diverge")
+    return Divergence(estimate, True, f"{text}, past the tolerance {tolerance:g}: the trajectory diverges")
 
 
 @dataclass(frozen=True)

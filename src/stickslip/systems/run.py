@@ -96,7 +96,7 @@ def against_reference(system, master, result, events_file, show_progress):
     divergence = None
     if tolerance is not None:
         with TimeProgress(f"{system.name} Lyapunov exponent", system.stop_time, show_progress) as step:
-            divergence = measure_divergence(system, progress=step)
+            divergence = measure_divergence(system, tolerance, progress=step)
     rtols = REFERENCE_RTOLS if divergence is not None and divergence.diverges else REFERENCE_RTOLS[:1]
     start, references = time.perf_counter(), {}
     for rtol in rtols:
