@@ -129,22 +129,23 @@ def test_bad_ensemble_options_are_refused_naming_the_option(tmp_path, args, mess
     assert proc.returncode in (1, 2) and message in proc.stderr, proc.stderr
 
 
-def test_ctrl_c_keeps_the_finished_members_says_where_and_exits_130(tmp_path):
+@pytest.mark.parametrize("workers", [1, 2])
+def test_ctrl_c_keeps_the_finished_members_says_where_and_exits_130(tmp_path, workers):
     proc = subprocess.Popen([*STICKSLIP, "chain", "--n", str(N), "--offset-spread", "0.1", "--seeds", "0-5",
-                             "--stop-time", "300", "--workers", "1", "--out", str(tmp_path)],
+                             "--stop-time", "300", "--workers", str(workers), "--out", str(tmp_path)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     deadline = time.monotonic() + 300
-    while not (tmp_path / "seed1" / "member.json").exists():
+    while not any(tmp_path.glob("*/member.json")):
         assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
         time.sleep(0.05)
     os.killpg(proc.pid, signal.SIGINT)
     _, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stderr
     assert "Traceback" not in stderr, stderr
-    finished = [f"seed{k}" for k in range(6) if (tmp_path / f"seed{k}" / "member.json").exists()]
-    assert finished[:2] == ["seed0", "seed1"] and len(finished) < 6
+    finished = [k for k in range(6) if (tmp_path / f"seed{k}" / "member.json").exists()]
+    assert 1 <= len(finished) < 6
     line = next(line for line in stderr.replace("\r", "\n").splitlines() if line.startswith("stickslip chain"))
     assert line == (f"stickslip chain: interrupted ({len(finished)} of 6 chains finished, their files and the merged "
                     f"catalogue in {tmp_path}; the others hold what they wrote)")
     members = [int(row.split(",")[0]) for row in (tmp_path / SLIP_EVENTS_FILE).read_text().splitlines()[1:]]
-    assert sorted(set(members)) == list(range(len(finished)))
+    assert sorted(set(members)) == finished
