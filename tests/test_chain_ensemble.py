@@ -68,10 +68,8 @@ def test_the_merged_catalogue_is_the_members_concatenation_serial_pool_and_dask(
         run = run_ensemble(N, ensemble_members(TEMPLATE, seeds), STOP, tmp_path / name, progress=False, **options)
         assert run.finished == ["seed0", "seed1", "seed2"]
         merged[name] = (tmp_path / name / SLIP_EVENTS_FILE).read_text()
-    from distributed import LocalCluster
-
-    with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None) as cluster:
-        run_ensemble(N, ensemble_members(TEMPLATE, seeds), STOP, tmp_path / "dask", dask=cluster, progress=False)
+    run_ensemble(N, ensemble_members(TEMPLATE, seeds), STOP, tmp_path / "dask", dask="local", workers=2,
+                 progress=False)
     merged["dask"] = (tmp_path / "dask" / SLIP_EVENTS_FILE).read_text()
     header, *rows = merged["serial"].splitlines()
     assert header == "member,start,duration,size,moment,first_block,end,n_slips,n_block_events"
