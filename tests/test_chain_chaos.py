@@ -12,7 +12,7 @@ import pytest
 from stickslip.chain.lyapunov import largest_lyapunov
 from stickslip.chain.spec import ChainSpec
 from stickslip.systems import run as system_run
-from stickslip.systems.chaos import efoldings, rounded, two_sample_tests
+from stickslip.systems.chaos import Divergence, efoldings, judge_by_statistics, report_lines, rounded, two_sample_tests
 from stickslip.systems.native import NativeMaster
 from stickslip.systems.run import run_system
 
@@ -136,3 +136,12 @@ def test_values_are_compared_to_six_digits():
     assert rounded([1.23456789, -0.000123456789]).tolist() == [1.23457, -0.000123457]
     p = two_sample_tests(a, {"b": b})
     assert p[("b", "duration")] == pytest.approx(1.0) and not math.isnan(p[("b", "moment")])
+
+
+def test_a_master_that_misses_event_times_cannot_be_judged_by_statistics():
+    result = dataclasses.make_dataclass("Result", ["events_complete"])(False)
+    check = judge_by_statistics(None, result, None, {})
+    assert not check.ok and check.cannot
+    (line, _) = report_lines(Divergence(None, True, "it diverges"), check)
+    assert line == ("**Check: statistics, not the amplitude (FAIL).** It diverges. The master's run cannot be judged "
+                    "by its statistics: it knows some block events only by count, not their times.")

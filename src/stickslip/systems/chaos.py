@@ -80,7 +80,8 @@ class StatisticalCheck:
     """The two-sample tests of a diverging chain's run: ``counts`` {run: slip events}, ``p_values`` {(reference
     label, quantity): p} of the master against each reference, ``between_references`` {quantity: p} of the two
     references (shown, not judged), ``reference_spread``: max |x| difference of the two references over the
-    amplitude; ``quantities`` tested, the family ``significance``."""
+    amplitude; ``quantities`` tested, the family ``significance``; ``cannot``: why the master's run cannot be
+    judged ("" where it can)."""
 
     counts: dict
     p_values: dict
@@ -88,6 +89,7 @@ class StatisticalCheck:
     reference_spread: float
     quantities: tuple
     significance: float = SIGNIFICANCE
+    cannot: str = ""
 
     @property
     def threshold(self):
@@ -100,7 +102,7 @@ class StatisticalCheck:
 
     @property
     def ok(self):
-        return self.enough_events and all(p >= self.threshold for p in self.p_values.values())
+        return not self.cannot and self.enough_events and all(p >= self.threshold for p in self.p_values.values())
 
 
 def rounded(values):
@@ -135,8 +137,10 @@ def report_lines(divergence, check):
     if check is None:
         return [f"**Check: the amplitude.** {divergence.why[0].upper()}{divergence.why[1:]}.", ""]
     verdict = "PASS" if check.ok else "FAIL"
-    lines = [f"**Check: statistics, not the amplitude ({verdict}).** {divergence.why[0].upper()}{divergence.why[1:]}; "
-             f"the reference itself moves {check.reference_spread:.3g} of the amplitude between its tolerances "
+    head = f"**Check: statistics, not the amplitude ({verdict}).** {divergence.why[0].upper()}{divergence.why[1:]}"
+    if check.cannot:
+        return [f"{head}. The master's run cannot be judged by its statistics: {check.cannot}.", ""]
+    lines = [f"{head}; the reference itself moves {check.reference_spread:.3g} of the amplitude between its tolerances "
              f"{' and '.join(label.split()[-1] for label in list(check.counts)[1:])}. Two-sample Kolmogorov-Smirnov "
              f"tests of the slip events' {', '.join(check.quantities)} (to {DIGITS} significant digits), the master "
              f"against the reference at each tolerance, at a family significance {check.significance:g} (each test "
@@ -162,6 +166,9 @@ def judge_by_statistics(system, result, events_file, references):
     from ..chain.folder_run import slipping_at_start
     from ..chain.reference_check import reference_block_events
 
+    if events_file is None and not result.events_complete:
+        return StatisticalCheck({"master": 0}, {}, {}, math.nan, (),
+                                cannot="it knows some block events only by count, not their times")
     starting = slipping_at_start(system)
 
     def table(events):
