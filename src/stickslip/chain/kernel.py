@@ -130,7 +130,7 @@ def _settle(ch, bl, wk, out, clock, count, i, t):
             if count[C_INSTANT] > MAX_EVENTS_PER_INSTANT:
                 count[C_STATUS] = FAILED_EVENTS
                 return
-        rates(par, law, mode, blk, clock[V_DRIVE], wk.act, count[C_ACT], t, x, v, wk.kx, wk.kv, 0)
+        rates(par, law, mode, blk, clock[V_DRIVE], wk.act, count[C_ACT], t, x, v, wk.kx, wk.kv, 0, wk.sx, wk.sv)
         i = _event_now(ch, bl, wk, clock[V_DRIVE], count, t)
         if i < 0 and clock[T_QUIET] <= t:
             i = count[C_QUIET]
@@ -299,7 +299,8 @@ def _slip_step(ch, bl, wk, out, clock, count):
     t1 = limit if cut else t + taken
     count[C_STEPS] += 1
     count[C_BUDGET] -= 1
-    rates(par, law, mode, blk, clock[V_DRIVE], wk.act, count[C_ACT], t1, wk.xn, wk.vn, wk.kx, wk.kv, 12)
+    rates(par, law, mode, blk, clock[V_DRIVE], wk.act, count[C_ACT], t1, wk.xn, wk.vn, wk.kx, wk.kv, 12, wk.sx,
+          wk.sv)
     hit, block, built = _find_event(ch, bl, wk, clock, count, t, t1 - t)
     if block < 0 and t1 == clock[T_QUIET]:
         hit, block = t1, count[C_QUIET]
@@ -318,7 +319,8 @@ def _finish_step(ch, bl, wk, out, clock, count, t, t1, built):
     mode, x, v, blk = bl
     if clock[T_GRID] > 0.0 and count[C_GRID] * clock[T_GRID] < t1:
         if not built:
-            rates(par, law, mode, blk, clock[V_DRIVE], wk.act, count[C_ACT], t1, wk.xn, wk.vn, wk.kx, wk.kv, 12)
+            rates(par, law, mode, blk, clock[V_DRIVE], wk.act, count[C_ACT], t1, wk.xn, wk.vn, wk.kx, wk.kv, 12,
+                  wk.sx, wk.sv)
             _dense(ch, bl, wk, clock, count, t, t1 - t)
         _emit(bl, wk, out, clock, count, t, t1, True, False)
     for q in range(count[C_ACT]):

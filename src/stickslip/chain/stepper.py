@@ -83,39 +83,41 @@ def slip_acceleration(par, law, i, m, F, x, u):
 
 
 @njit
-def rates(par, law, mode, blk, vd, act, nact, t, xs, vs, kx, kv, s):
-    """Stage ``s``: ``kx[s] = v`` and ``kv[s] = dv/dt`` of the ``nact`` slipping blocks at ``(t, xs, vs)``: the
-    hot loop, the coupling force summed here (as :func:`coupling_force` does) so that no helper takes the position
-    arrays (each array passed costs a reference count)."""
-    last = mode.size - 1
-    for q in range(nact):
-        i = act[q]
-        xi = xs[i]
-        f = 0.0
-        if i > 0:
-            j = i - 1
-            f += par[i, K_LEFT] * (place(mode[j] == 0, blk[j, X_STUCK], blk[j, T_STUCK], xs[j], vd, t) - xi)
-        if i < last:
-            j = i + 1
-            f += par[i, K_RIGHT] * (place(mode[j] == 0, blk[j, X_STUCK], blk[j, T_STUCK], xs[j], vd, t) - xi)
-        kx[s, i] = vs[i]
-        kv[s, i] = slip_acceleration(par, law, i, mode[i], f, xi, mode[i] * (vd - vs[i]))
-
-
-@njit
-def _stage_state(act, nact, x, v, kx, kv, h, a, row, s, sx, sv):
-    """``sx, sv = x, v + h sum_j a[row, j] k_j`` (``j < s``) over the slipping blocks."""
+def stage(par, law, mode, blk, vd, act, nact, t, h, x, v, kx, kv, a, row, terms, s, sx, sv):
+    """Stage ``s`` at time ``t`` (s): the slipping blocks' states ``sx, sv = x, v + h sum_(j < terms) a[row, j] k_j``,
+    then ``kx[s] = sv`` and ``kv[s] = dv/dt`` there. The hot loop: the coupling force is summed here (as
+    :func:`coupling_force` does) and the helpers take scalars, as each array passed costs a reference count."""
     for q in range(nact):
         i = act[q]
         dx = 0.0
         dv = 0.0
-        for j in range(s):
+        for j in range(terms):
             c = a[row, j]
             if c != 0.0:
                 dx += c * kx[j, i]
                 dv += c * kv[j, i]
         sx[i] = x[i] + h * dx
         sv[i] = v[i] + h * dv
+    last = mode.size - 1
+    for q in range(nact):
+        i = act[q]
+        xi = sx[i]
+        f = 0.0
+        if i > 0:
+            j = i - 1
+            f += par[i, K_LEFT] * (place(mode[j] == 0, blk[j, X_STUCK], blk[j, T_STUCK], sx[j], vd, t) - xi)
+        if i < last:
+            j = i + 1
+            f += par[i, K_RIGHT] * (place(mode[j] == 0, blk[j, X_STUCK], blk[j, T_STUCK], sx[j], vd, t) - xi)
+        kx[s, i] = sv[i]
+        kv[s, i] = slip_acceleration(par, law, i, mode[i], f, xi, mode[i] * (vd - sv[i]))
+
+
+@njit
+def rates(par, law, mode, blk, vd, act, nact, t, xs, vs, kx, kv, s, sx, sv):
+    """``kx[s] = v`` and ``kv[s] = dv/dt`` of the slipping blocks at ``(t, xs, vs)`` (:func:`stage` with no terms;
+    ``sx``, ``sv`` take a copy of their states)."""
+    stage(par, law, mode, blk, vd, act, nact, t, 0.0, xs, vs, kx, kv, _A, 0, 0, s, sx, sv)
 
 
 @njit
@@ -123,8 +125,7 @@ def step(par, law, mode, blk, vd, rtol, act, nact, t, h, x, v, kx, kv, sx, sv, x
     """One DOP853 step of length ``h`` (s) from ``t`` (state ``x``, ``v``, stage ``k_1`` in ``kx[0]``, ``kv[0]``)
     into ``xn``, ``vn``; returns its error norm (accept if <= 1)."""
     for s in range(1, 12):
-        _stage_state(act, nact, x, v, kx, kv, h, _A, s, s, sx, sv)
-        rates(par, law, mode, blk, vd, act, nact, t + _C[s] * h, sx, sv, kx, kv, s)
+        stage(par, law, mode, blk, vd, act, nact, t + _C[s] * h, h, x, v, kx, kv, _A, s, s, s, sx, sv)
     e5 = 0.0
     e3 = 0.0
     for q in range(nact):
@@ -153,8 +154,7 @@ def dense(par, law, mode, blk, vd, act, nact, t, h, x, v, kx, kv, sx, sv, xn, vn
     """The dense output of the step just taken (``k_13 = f(t + h, y1)`` in ``kx[12]``, ``kv[12]``): its three extra
     stages and the rows ``fx``, ``fv`` that :func:`dense_state` reads."""
     for r in range(3):
-        _stage_state(act, nact, x, v, kx, kv, h, _AD, r, 13 + r, sx, sv)
-        rates(par, law, mode, blk, vd, act, nact, t + _CD[r] * h, sx, sv, kx, kv, 13 + r)
+        stage(par, law, mode, blk, vd, act, nact, t + _CD[r] * h, h, x, v, kx, kv, _AD, r, 13 + r, 13 + r, sx, sv)
     for q in range(nact):
         i = act[q]
         _dense_rows(kx, x, xn, fx, h, i)

@@ -35,7 +35,8 @@ def quiet_break(ch, bl, wk, vd, j, t, t_stop):
     if constant_static(law[j, 1], par, j):
         if vd == 0.0:
             return math.inf
-        h0 = par[j, KAPPA] * (blk[j, X_STUCK] + vd * (t - blk[j, T_STUCK])) - coupling_force(par, mode, blk, vd, x, j, t)
+        h0 = par[j, KAPPA] * (blk[j, X_STUCK] + vd * (t - blk[j, T_STUCK]))
+        h0 -= coupling_force(par, mode, blk, vd, x, j, t)
         F_S = static_force(law[j, 1], par, j, STA, 0.0)
         return t + max(0.0, (math.copysign(F_S, vd) - h0) / (par[j, KAPPA] * vd))
     if value == 0.0 and rate < 0.0:
