@@ -16,7 +16,9 @@ def add_system(subparsers):
     run = commands.add_parser(
         "run", help="run a system file through a master and the chain's reference; write DIR/<stem>-<master>.csv, "
                     ".md and plots (zoh with --engine: <stem>-zoh-<engine>.*); exit 1 if the error exceeds the file's "
-                    "tolerance for the master (zoh is judged only where the file sets one) or the run fails")
+                    "tolerance for the master (zoh is judged only where the file sets one; a chain whose trajectory "
+                    "diverges, by its largest Lyapunov exponent, is judged by two-sample tests of its slip events "
+                    "against the reference at two tolerances instead) or the run fails")
     run.add_argument("file", metavar="FILE.toml", help=FILE_HELP)
     run.add_argument("--master", required=True, choices=sorted(MASTER_NAMES),
                      help="zoh: fixed step, held inputs (FMI 2 co-simulation); me: FMI 3 model exchange of all "
