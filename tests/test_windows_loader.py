@@ -26,7 +26,7 @@ import pythonfmu
 import pythonfmu3
 from stickslip.fmu import build, windows_python
 from stickslip.fmu.coupling import build_coupling
-from stickslip.hosts.c_host import (WINDOWS_BINARY_FOLDERS, compile_host, embeddable_python, host_command,
+from stickslip.hosts.c_host import (WINDOWS_BINARY_FOLDERS, compile_host, embeddable_python, host_command, host_env,
                                    run_command, run_host, wine_environment, wine_path)
 from stickslip.suite.scenario import load_scenario
 
@@ -441,3 +441,27 @@ def test_a_folder_path_over_260_characters_and_the_long_path_prefix(wine_env, wi
     resources = wine_path(moved / "resources")
     for location in (None, f"\\\\?\\{resources}\\"):
         assert_same_motion(windows_run(wine_env, windows_hosts, version, moved, "run", SHORT, resources=location), linux)
+
+
+@pytest.mark.parametrize("stream", ["stdin", "stdout"])
+@pytest.mark.parametrize("version", [2, 3])
+def test_a_regular_file_as_the_hosts_standard_stream_is_a_clean_refusal(wine_env, windows_hosts, folders, version,
+                                                                        stream, tmp_path):
+    """Wine 8.0 fails GetFileInformationByHandle on a standard handle that is a regular file, and the carried CPython
+    3.13 cannot start with it (python.exe neither): the instantiation is refused naming the stream and what to do."""
+    command, wine_variables = wine_env
+    arguments = host_command(windows_hosts[version], folders[version], "run", SHORT, SCENE.output_interval, START)
+    given, taken = tmp_path / "given.txt", tmp_path / "taken.txt"
+    given.write_text("nothing\n")
+    with open(given) as stdin, open(taken, "w") as stdout:
+        files = {"stdin": stdin} if stream == "stdin" else {"stdout": stdout}
+        result = subprocess.run([command, *arguments], env=host_env(wine_variables), timeout=600, text=True,
+                                **{"stdin": subprocess.DEVNULL, "stdout": subprocess.PIPE, **files},
+                                stderr=subprocess.PIPE)
+    printed = result.stdout if stream == "stdin" else taken.read_text()
+    function = "fmi2Instantiate" if version == 2 else "fmi3InstantiateCoSimulation"
+    assert result.returncode == 1 and printed.splitlines()[-1] == f"failed {function} NULL", result.stderr[-2000:]
+    assert (f"failed to start: init_sys_streams: can't initialize sys standard streams. The host's standard "
+            f"{stream.removeprefix('std').replace('in', 'input').replace('out', 'output')} is a file that the system "
+            "cannot describe") in printed
+    assert "run the host with its standard input, output and error on a console, a pipe or NUL" in printed

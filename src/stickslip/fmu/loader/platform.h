@@ -36,6 +36,10 @@ void *sbf_symbol(void *library, const char *name);
 void *sbf_find_function(void *library, const char *path, const char *name);
 /* Why the last sbf_open_library or sbf_symbol of this thread failed */
 const char *sbf_library_error(void);
+/* 1 with why in `why` if a standard stream of the process is one CPython cannot start with (Windows under Wine 8.0: a
+ * regular file, on whose handle GetFileInformationByHandle fails, so that CPython 3.12 and newer cannot create
+ * sys.stdin/stdout/stderr: "init_sys_streams"), else 0 (Linux: always). */
+int sbf_unusable_stdio(char *why, size_t why_size);
 /* 1 with the CPython library already in this process (a Python host) in *library, else 0. */
 int sbf_process_python(void **library);
 /* Make the CPython library `python` (a handle as above) the one the inner library, loaded next, binds to; 0 with the

@@ -39,6 +39,12 @@ const char *sbf_library_error(void)
     return error ? error : "unknown error";
 }
 
+int sbf_unusable_stdio(char *why, size_t why_size)
+{
+    (void)why, (void)why_size;
+    return 0;
+}
+
 int sbf_process_python(void **library)
 {
     if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) return 0;

@@ -106,6 +106,26 @@ static int is_python_library(const wchar_t *name)
            iswdigit(name[7]) && !_wcsnicmp(name + n - 6, L"_d.dll", 6) == 0;
 }
 
+int sbf_unusable_stdio(char *why, size_t why_size)
+{
+    static const DWORD streams[] = {STD_INPUT_HANDLE, STD_OUTPUT_HANDLE, STD_ERROR_HANDLE};
+    static const char *const names[] = {"input", "output", "error"};
+    BY_HANDLE_FILE_INFORMATION info;
+    for (int i = 0; i < 3; ++i) {
+        HANDLE handle = GetStdHandle(streams[i]);
+        if (!handle || handle == INVALID_HANDLE_VALUE || GetFileType(handle) != FILE_TYPE_DISK ||
+            GetFileInformationByHandle(handle, &info))
+            continue;
+        note_error(GetLastError());
+        snprintf(why, why_size, "The host's standard %s is a file that the system cannot describe "
+                 "(GetFileInformationByHandle: %s; Wine 8.0 does this), and CPython 3.12 and newer cannot start with "
+                 "it: run the host with its standard input, output and error on a console, a pipe or NUL",
+                 names[i], library_error);
+        return 1;
+    }
+    return 0;
+}
+
 int sbf_process_python(void **library)
 {
     HMODULE modules[1024];

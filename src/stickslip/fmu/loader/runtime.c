@@ -258,10 +258,12 @@ static void initialize_python(const char *where)
     }
     sbf_restore_host_signals();
     if (py.PyStatus_Exception(status)) {
-        sbf_fail("Python (%s) failed to start: %s%s%s. Its installation is incomplete: set %s to another CPython 3 "
-                 "shared library (3.%d or newer), or unset it.", where, status.func ? status.func : "",
-                 status.func ? ": " : "", status.err_msg ? status.err_msg : "unknown error", LIBPYTHON_VARIABLE,
-                 SBF_PYTHON_FLOOR_MINOR);
+        char cause[1024];
+        if (!sbf_unusable_stdio(cause, sizeof cause))
+            snprintf(cause, sizeof cause, "set %s to another CPython 3 shared library (3.%d or newer) with its "
+                     "standard library, or unset it", LIBPYTHON_VARIABLE, SBF_PYTHON_FLOOR_MINOR);
+        sbf_fail("Python (%s) failed to start: %s%s%s. %s", where, status.func ? status.func : "",
+                 status.func ? ": " : "", status.err_msg ? status.err_msg : "unknown error", cause);
         return;
     }
     py.PyEval_SaveThread(); /* this thread keeps its (main) thread state */
