@@ -43,7 +43,8 @@ if fmi == 2:
     instance = instantiate(b"probe", 1, token, (folder / "resources").as_uri().encode(), ctypes.byref(callbacks), 0, 0)
 else:
     LOGGER = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p)
-    log = LOGGER(lambda env, status, category, message: say("log {} {}".format(status, message.decode(errors="replace"))))
+    log = LOGGER(lambda env, status, category, message: say(
+        "log {} {}".format(status, message.decode(errors="replace"))))
     instantiate = library.fmi3InstantiateCoSimulation
     instantiate.restype = ctypes.c_void_p
     instantiate.argtypes = (ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_bool, ctypes.c_bool,

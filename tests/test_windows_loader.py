@@ -440,7 +440,8 @@ def test_a_folder_path_over_260_characters_and_the_long_path_prefix(wine_env, wi
     linux = linux_run(linux_hosts, version, folders[version], "run", SHORT)
     resources = wine_path(moved / "resources")
     for location in (None, f"\\\\?\\{resources}\\"):
-        assert_same_motion(windows_run(wine_env, windows_hosts, version, moved, "run", SHORT, resources=location), linux)
+        run = windows_run(wine_env, windows_hosts, version, moved, "run", SHORT, resources=location)
+        assert_same_motion(run, linux)
 
 
 @pytest.mark.parametrize("stream", ["stdin", "stdout"])

@@ -159,7 +159,8 @@ def _loader_sources(fmi_version, platform):
 
 def _loader_defines(inner_name, token, slave_survives_release, soname, model_exchange, fmi_version):
     return [f"-DSBF_INNER_LIBRARY={_c_string(inner_name)}", f"-DSBF_TOKEN={_c_string(token)}",
-            f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}", f"-DSBF_PYTHON_FLOOR_MINOR={PYTHON_FLOORS[fmi_version][1]}"] + (
+            f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}",
+            f"-DSBF_PYTHON_FLOOR_MINOR={PYTHON_FLOORS[fmi_version][1]}"] + (
         ["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else []) + (
         ["-DSBF_MODEL_EXCHANGE"] if model_exchange else [])
 

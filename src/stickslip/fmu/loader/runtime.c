@@ -125,14 +125,16 @@ static int resolve_python(void *lib)
     if (!py.Py_IsFinalizing) *(void **)&py.Py_IsFinalizing = sbf_symbol(lib, "_Py_IsFinalizing");
     *(void **)&py.PyOS_InterruptOccurred = sbf_symbol(lib, "PyOS_InterruptOccurred");
     return RESOLVE(Py_IsInitialized) && RESOLVE(PyImport_ImportModule) && RESOLVE(Py_DecRef) && RESOLVE(PyErr_Fetch) &&
-           RESOLVE(PyObject_Str) && RESOLVE(PyUnicode_AsUTF8) && RESOLVE(PyGILState_Ensure) && RESOLVE(PyGILState_Release) &&
+           RESOLVE(PyObject_Str) && RESOLVE(PyUnicode_AsUTF8) && RESOLVE(PyGILState_Ensure) &&
+           RESOLVE(PyGILState_Release) &&
            RESOLVE(PyGILState_GetThisThreadState) && RESOLVE(PyEval_SaveThread) && RESOLVE(PyEval_RestoreThread) &&
            RESOLVE(PyThreadState_Clear) && RESOLVE(PyThreadState_DeleteCurrent);
 }
 
 static int resolve_config_api(void *lib)
 {
-    return RESOLVE(PyPreConfig_InitPythonConfig) && RESOLVE(Py_PreInitialize) && RESOLVE(PyConfig_InitPythonConfig) && RESOLVE(PyConfig_SetBytesArgv) && RESOLVE(Py_InitializeFromConfig) &&
+    return RESOLVE(PyPreConfig_InitPythonConfig) && RESOLVE(Py_PreInitialize) && RESOLVE(PyConfig_InitPythonConfig) &&
+           RESOLVE(PyConfig_SetBytesArgv) && RESOLVE(Py_InitializeFromConfig) &&
            RESOLVE(PyConfig_Clear) && RESOLVE(PyStatus_Exception);
 #undef RESOLVE
 }
