@@ -32,6 +32,7 @@ from xml.etree import ElementTree
 from .. import windows_python
 from ..archive import PYTHON_FOLDER, carried_python_platform, read_entries, write_entries
 from ..documentation import with_carried_licenses
+from ..floors import PYTHON_FLOORS
 from .python_bundle import linux_bundle
 
 HERE = Path(__file__).resolve().parent
@@ -51,9 +52,6 @@ START_GUARD_NAME = "sbf_start_guard.so"
 SOURCES = (*RUNTIME, START_GUARD, *PLATFORMS.values(), *(front for front, _, _ in FRONTS.values()),
            Path(__file__).resolve())
 LIBPYTHON_VARIABLE = "SBF_LIBPYTHON"  # the loader's override: path or name of a CPython shared library
-#: FMI version: the oldest CPython (major, minor) the FMU's Python code runs in, which the loader checks before it
-#: imports anything (FMI 2: the runtime's typing.Final; FMI 3: pythonfmu3's subscripted built-in types)
-PYTHON_FLOORS = {2: (3, 8), 3: (3, 9)}
 
 
 def build_libpython():
