@@ -12,7 +12,8 @@
  * this library makes a model-exchange instance from a PythonFMU co-simulation instance and answers the
  * model-exchange calls through the slave's binding (sbf_slave_exchange), as it answers the input and output
  * derivatives; the model-exchange functions are refused on a co-simulation instance, and the co-simulation ones on a
- * model-exchange instance, with a message naming the call.
+ * model-exchange instance, with a message naming the call. A freed instance is kept and reset for the next
+ * instantiation with the same folder, since PythonFMU's instantiation leaks (see take_kept).
  */
 #include <stdio.h>
 #include <stdlib.h>

@@ -6,10 +6,12 @@
  *      library's folder, where the build bundled one; the libraries its extension modules need are loaded first
  *      from the FMU where the system has none by their names), else the one the FMU was built with
  *      (SBF_BUILD_LIBPYTHON), else its soname (SBF_LIBPYTHON_SONAME); it is loaded with RTLD_GLOBAL so that
- *      Python's extension modules find its symbols;
+ *      Python's extension modules find its symbols; one older than SBF_PYTHON_FLOOR_MINOR is refused before
+ *      anything is imported (python_new_enough);
  *   2. starts that Python if nobody has, with the standard library of the library's own installation,
- *      through PyConfig, so that a broken installation (a wrong PYTHONHOME) is an error status and a
- *      logged message, not an exit of the host; the host's handlers of SIGINT, SIGPIPE and SIGXFSZ are kept;
+ *      through PyConfig, so that a broken installation is an error status and a logged message, not an exit of
+ *      the host; it reads no environment variable (initialize_python); the host's handlers of SIGINT, SIGPIPE and
+ *      SIGXFSZ are kept; then Python must import ctypes (imports_ctypes);
  *   3. loads the inner library (PythonFMU's or pythonfmu3's binary, SBF_INNER_LIBRARY beside this one; where it
  *      does not load, again after the C++ runtime the FMU carries, SBF_BUNDLED_INNER_NEEDS, so that a host with
  *      a C++ runtime of its own keeps it) and lets the front resolve its entry points.
@@ -81,7 +83,6 @@ static struct {
     void (*PyThreadState_DeleteCurrent)(void);
     int (*Py_IsFinalizing)(void); /* _Py_IsFinalizing before CPython 3.13; NULL before 3.7 */
     int (*PyOS_InterruptOccurred)(void); /* takes back a SIGINT Python has noted and not handled yet */
-    const char *(*Py_GetVersion)(void);
     void (*PyPreConfig_InitPythonConfig)(void *);
     PyStatus (*Py_PreInitialize)(const void *);
     void (*PyConfig_InitPythonConfig)(void *);
@@ -262,7 +263,7 @@ static void initialize_python(const char *where)
     if (py.PyStatus_Exception(status)) {
         char cause[1024];
         if (!sbf_unusable_stdio(cause, sizeof cause))
-            snprintf(cause, sizeof cause, "set %s to another CPython 3 shared library (3.%d or newer) with its "
+            snprintf(cause, sizeof cause, "Set %s to another CPython 3 shared library (3.%d or newer) with its "
                      "standard library, or unset it", LIBPYTHON_VARIABLE, SBF_PYTHON_FLOOR_MINOR);
         sbf_fail("Python (%s) failed to start: %s%s%s. %s", where, status.func ? status.func : "",
                  status.func ? ": " : "", status.err_msg ? status.err_msg : "unknown error", cause);
