@@ -6,8 +6,9 @@ as an error naming it at every logging setting (not fatal), an input derivative 
 with a space and a non-ASCII letter in its name, FMU states, two instances. Then a Python host (ctypes, in the
 embeddable CPython's python.exe) drives the FMI 2 FMU with its own Python in the process: the same refusal, input
 derivative and folder, and no python3.dll needed beside the host's CPython. Also: a ';' in the FMU's folder, a folder
-path over 260 characters and the \\?\ form, junk PYTHON* variables, two threads instantiating at once, and a regular
-file as the host's standard stream (a clean refusal). Every run is a child process whose exit status is checked. Skipped, with the reason, where Wine, MinGW-w64 or the embeddable Python are missing
+path over 260 characters and its long-path form, junk PYTHON* variables, two threads instantiating at once, and a
+regular file as the host's standard stream (a clean refusal). Every run is a child process whose exit status is
+checked. Skipped, with the reason, where Wine, MinGW-w64 or the embeddable Python are missing
 (scripts/test.sh installs the first two; the FMU build downloads the third). Also: a build without the cross-compiler
 ships no Windows binaries and says so.
 """
