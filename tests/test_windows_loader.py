@@ -403,6 +403,21 @@ def test_a_semicolon_in_the_fmus_folder(wine_env, windows_hosts, linux_hosts, fo
     assert_same_motion(windows, linux_run(linux_hosts, version, folders[version], "run", SHORT))
 
 
+@pytest.mark.parametrize("version", [2, 3])
+def test_a_carried_cpython_that_cannot_import_ctypes_is_a_clean_refusal(wine_env, windows_hosts, folders, version,
+                                                                       tmp_path):
+    """Without _ctypes.pyd the FMI library's import of the slave fails (pythonfmu3 then crashed the host): the loader
+    refuses first, with Python's exception."""
+    broken = shutil.copytree(folders[version], tmp_path / "no_ctypes")
+    for extension in broken.glob("binaries/*/python/_ctypes.pyd"):
+        extension.unlink()
+    run = windows_run(wine_env, windows_hosts, version, broken, "run", SHORT, completes=False)
+    function = "fmi2Instantiate" if version == 2 else "fmi3InstantiateCoSimulation"
+    assert run.returncode == 1 and run.lines[-1] == ["failed", function, "NULL"], run.stderr[-2000:]
+    assert [text.split(") ", 1)[1] for _, _, text in run.logs] == [
+        "cannot import ctypes, which the FMU needs: No module named '_ctypes'"]
+
+
 #: rounds of the instantiation race: each round's check of its folder overlaps the other thread's checks (before the
 #: fix, 70 of 1,000 rounds failed on an idle machine)
 RACE_ROUNDS = 500
