@@ -91,3 +91,12 @@ def test_the_fmu_names_the_cpython_library_its_loader_starts(request, fmu):
 def test_what_is_no_elf_shared_object_is_refused_with_the_reason(data):
     with pytest.raises(NotELF):
         binary_needs(data)
+
+
+@pytest.mark.parametrize("fmu, floor", [("fmu_path", "3.8"), ("coupling_path", "3.8"), ("fmu3_path", "3.9")])
+def test_the_fmu_names_the_oldest_cpython_its_python_code_runs_in(request, fmu, floor):
+    """The FMI 2 FMUs' runtime needs 3.8 (typing.Final), pythonfmu3 3.9; the loader refuses older ones
+    (tests/test_loader_host_python.py)."""
+    with zipfile.ZipFile(request.getfixturevalue(fmu)) as archive:
+        text = archive.read(DEPENDENCIES_FILE).decode()
+    assert f"the host process's own CPython ({floor} or newer) if it runs one" in text

@@ -106,3 +106,18 @@ def test_without_the_cross_compiler_the_windows_runtime_is_not_compiled_and_says
     assert run.returncode == 1
     assert f"not compiled for Windows: {tmp_path / 'no-such-cc'}" in run.stderr and "mingw-w64" in run.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_the_external_dependencies_list_each_compiled_pyd_and_what_it_needs(windows_fmu):
+    """Each compiled module for Windows has its line in documentation/externalDependencies.txt, with the CPython DLL
+    it imports, and what those DLLs are is said above (the FMU's own CPython, the UCRT, Windows itself)."""
+    folder, package = windows_fmu
+    text = (folder / "documentation" / "externalDependencies.txt").read_text()
+    pyds = sorted(str(path.relative_to(folder)) for path in (folder / "resources").rglob(f"*{SUFFIX}"))
+    assert len(pyds) == len(compile_runtime.COMPILED_MODULES) + 1  # and the group library
+    lines = {line.split(": ", 1)[0]: line for line in text.splitlines() if line.startswith("resources/")}
+    for name in pyds:
+        assert lines.get(name, "").endswith(f"; python{WINDOWS_PYTHON.replace('.', '')}.dll, KERNEL32.dll, msvcrt.dll"), \
+            lines.get(name)
+    carried = next(line for line in text.splitlines() if line.startswith("- the FMU itself"))
+    assert all(name in carried for name in pyds)  # among the binaries that need the FMU's own CPython

@@ -5,8 +5,10 @@ and give the results, statuses and messages of the same hosts on Linux: the defa
 as an error naming it at every logging setting (not fatal), an input derivative that takes effect, a resources folder
 with a space and a non-ASCII letter in its name, FMU states, two instances. Then a Python host (ctypes, in the
 embeddable CPython's python.exe) drives the FMI 2 FMU with its own Python in the process: the same refusal, input
-derivative and folder, and no python3.dll needed beside the host's CPython. Every run is a child process whose exit
-status is checked. Skipped, with the reason, where Wine, MinGW-w64 or the embeddable Python are missing
+derivative and folder, and no python3.dll needed beside the host's CPython. Also: a ';' in the FMU's folder, a folder
+path over 260 characters and its long-path form, junk PYTHON* variables, two threads instantiating at once, and a
+regular file as the host's standard stream (a clean refusal). Every run is a child process whose exit status is
+checked. Skipped, with the reason, where Wine, MinGW-w64 or the embeddable Python are missing
 (scripts/test.sh installs the first two; the FMU build downloads the third). Also: a build without the cross-compiler
 ships no Windows binaries and says so.
 """
@@ -26,7 +28,7 @@ import pythonfmu
 import pythonfmu3
 from stickslip.fmu import build, windows_python
 from stickslip.fmu.coupling import build_coupling
-from stickslip.hosts.c_host import (WINDOWS_BINARY_FOLDERS, compile_host, embeddable_python, host_command,
+from stickslip.hosts.c_host import (WINDOWS_BINARY_FOLDERS, compile_host, embeddable_python, host_command, host_env,
                                    run_command, run_host, wine_environment, wine_path)
 from stickslip.suite.scenario import load_scenario
 
@@ -390,3 +392,94 @@ def test_without_the_embeddable_package_the_windows_binaries_carry_no_python(tmp
     assert windows_python.LICENSE_ENTRY not in names and "licenses/python.txt" not in page
     with zipfile.ZipFile(fmu) as archive:  # a Python must be installed on Windows
         assert b'needsExecutionTool="true"' in archive.read("modelDescription.xml")
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_a_semicolon_in_the_fmus_folder(wine_env, windows_hosts, linux_hosts, folders, version, tmp_path):
+    """The carried CPython's _ctypes finds its libffi-8.dll, which the loader loads by its path: Windows' search beside
+    the extension module fails where the folder's path has a ';' (FMI 3 crashed the host, FMI 2 refused)."""
+    moved = shutil.copytree(folders[version], tmp_path / "a;b" / "fmu")
+    windows = windows_run(wine_env, windows_hosts, version, moved, "run", SHORT)
+    assert_same_motion(windows, linux_run(linux_hosts, version, folders[version], "run", SHORT))
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_a_carried_cpython_that_cannot_import_ctypes_is_a_clean_refusal(wine_env, windows_hosts, folders, version,
+                                                                       tmp_path):
+    """Without _ctypes.pyd the FMI library's import of the slave fails (pythonfmu3 then crashed the host): the loader
+    refuses first, with Python's exception."""
+    broken = shutil.copytree(folders[version], tmp_path / "no_ctypes")
+    for extension in broken.glob("binaries/*/python/_ctypes.pyd"):
+        extension.unlink()
+    run = windows_run(wine_env, windows_hosts, version, broken, "run", SHORT, completes=False)
+    function = "fmi2Instantiate" if version == 2 else "fmi3InstantiateCoSimulation"
+    assert run.returncode == 1 and run.lines[-1] == ["failed", function, "NULL"], run.stderr[-2000:]
+    assert [text.split(") ", 1)[1] for _, _, text in run.logs] == [
+        "cannot import ctypes, which the FMU needs: No module named '_ctypes'"]
+
+
+#: rounds of the instantiation race: each round's check of its folder overlaps the other thread's checks (before the
+#: fix, 70 of 1,000 rounds failed on an idle machine)
+RACE_ROUNDS = 500
+
+
+def test_two_threads_instantiating_at_once_never_fail(wine_env, windows_hosts, folders, tmp_path):
+    """Thread a makes and frees RACE_ROUNDS instances while thread b keeps asking for instances at a folder that is
+    no FMU's resources folder: every one of a's succeeds, and b's refusals all name b's own folder and cause."""
+    other = tmp_path / "not resources"
+    other.mkdir()
+    run = windows_run(wine_env, windows_hosts, 2, folders[2], "races", SHORT,
+                      env={"HOST_ROUNDS": str(RACE_ROUNDS), "HOST_RACE_RESOURCES": wine_path(other).as_uri()})
+    rounds, failures, attempts = (int(word) for word in run.value("races"))
+    assert (rounds, failures) == (RACE_ROUNDS, 0) and attempts > RACE_ROUNDS, run.logs
+    assert {(status, instance, text) for status, instance, text in run.logs} == {
+        (3, "b", f'fmi2Instantiate: the resource location "{wine_path(other).as_uri()}" is not this FMU\'s resources '
+                 f"folder: {wine_path(other)}/slavemodule.txt is missing or empty")}
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_junk_python_variables_change_nothing_under_wine(wine_env, windows_hosts, linux_hosts, folders, version):
+    """Every variable of tests/test_loader_host_python.py at once: the carried CPython starts as without them."""
+    from test_loader_host_python import JUNK
+    windows = windows_run(wine_env, windows_hosts, version, folders[version], "run", SHORT, env=JUNK)
+    assert_same_motion(windows, linux_run(linux_hosts, version, folders[version], "run", SHORT))
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_a_folder_path_over_260_characters_and_the_long_path_prefix(wine_env, windows_hosts, linux_hosts, folders,
+                                                                    version, tmp_path):
+    """The FMU below a folder whose path has more than Windows' MAX_PATH of 260 characters runs (the loader hands its
+    CPython and the FMI library the short form), with its resources named plainly and in the \\\\?\\ form."""
+    deep = tmp_path
+    while len(str(wine_path(deep))) <= 300:
+        deep = deep / ("long folder name " * 3).strip()
+    moved = shutil.copytree(folders[version], deep / "fmu")
+    linux = linux_run(linux_hosts, version, folders[version], "run", SHORT)
+    resources = wine_path(moved / "resources")
+    for location in (None, f"\\\\?\\{resources}\\"):
+        run = windows_run(wine_env, windows_hosts, version, moved, "run", SHORT, resources=location)
+        assert_same_motion(run, linux)
+
+
+@pytest.mark.parametrize("stream", ["stdin", "stdout"])
+@pytest.mark.parametrize("version", [2, 3])
+def test_a_regular_file_as_the_hosts_standard_stream_is_a_clean_refusal(wine_env, windows_hosts, folders, version,
+                                                                        stream, tmp_path):
+    """Wine 8.0 fails GetFileInformationByHandle on a standard handle that is a regular file, and the carried CPython
+    3.13 cannot start with it (python.exe neither): the instantiation is refused naming the stream and what to do."""
+    command, wine_variables = wine_env
+    arguments = host_command(windows_hosts[version], folders[version], "run", SHORT, SCENE.output_interval, START)
+    given, taken = tmp_path / "given.txt", tmp_path / "taken.txt"
+    given.write_text("nothing\n")
+    with open(given) as stdin, open(taken, "w") as stdout:
+        files = {"stdin": stdin} if stream == "stdin" else {"stdout": stdout}
+        result = subprocess.run([command, *arguments], env=host_env(wine_variables), timeout=600, text=True,
+                                **{"stdin": subprocess.DEVNULL, "stdout": subprocess.PIPE, **files},
+                                stderr=subprocess.PIPE)
+    printed = result.stdout if stream == "stdin" else taken.read_text()
+    function = "fmi2Instantiate" if version == 2 else "fmi3InstantiateCoSimulation"
+    assert result.returncode == 1 and printed.splitlines()[-1] == f"failed {function} NULL", result.stderr[-2000:]
+    assert (f"failed to start: init_sys_streams: can't initialize sys standard streams. The host's standard "
+            f"{stream.removeprefix('std').replace('in', 'input').replace('out', 'output')} is a file that the system "
+            "cannot describe") in printed
+    assert "run the host with its standard input, output and error on a console, a pipe or NUL" in printed

@@ -18,6 +18,10 @@ from dataclasses import dataclass
 from .archive import SHARED_LIBRARY, carried_python_platform
 from .windows_needs import windows_needs, windows_text
 
+#: FMI version: the oldest CPython (major, minor) the FMU's Python code runs in, which the loader checks before it
+#: imports anything (FMI 2: the runtime's typing.Final; FMI 3: pythonfmu3's subscripted built-in types)
+PYTHON_FLOORS = {2: (3, 8), 3: (3, 9)}
+
 #: the file the FMI standards name for the FMU's external dependencies
 DEPENDENCIES_FILE = "documentation/externalDependencies.txt"
 #: version prefix: what provides it, as the host's administrator knows it
@@ -143,7 +147,8 @@ class FmuFloors:
     needs of its Windows DLLs ({archive name: :class:`~stickslip.fmu.windows_needs.WindowsNeeds`}); ``others``:
     the archive names of its binaries for other platforms (neither ELF nor DLL); ``carried``: {file name: archive
     name} of the shared libraries of the CPython the FMU carries for Linux (its libpython and the libraries beside
-    it that are not glibc's), empty if it carries none."""
+    it that are not glibc's), empty if it carries none; ``python_floor``: the oldest CPython its Python code runs in,
+    e.g. "3.9" (:data:`PYTHON_FLOORS` of its FMI version)."""
 
     binaries: dict
     libpython: str | None
@@ -151,6 +156,7 @@ class FmuFloors:
     windows: dict
     others: tuple
     carried: dict
+    python_floor: str
 
     def floors(self):
         """{version prefix: ``(name, numbers)``}: the newest needed version per prefix over every binary."""
@@ -178,11 +184,13 @@ WINDOWS_SUFFIXES = (".dll", ".pyd")
 def fmu_floors(entries):
     """The :class:`FmuFloors` of an FMU's ``entries`` ({archive name: bytes}): every shared library (``.so``,
     ``.so.N``) under ``binaries/`` and ``resources/`` (NotELF if one is no ELF shared object), every ``.dll`` and
-    ``.pyd`` under ``binaries/`` (NotPE if one is no PE binary); the other files of a carried CPython (its standard
-    library, its ``._pth``) are its data."""
+    ``.pyd`` under ``binaries/`` and every ``.pyd`` under ``resources/`` (the runtime compiled for Windows; NotPE if
+    one is no PE binary); the other files of a carried CPython (its standard library, its ``._pth``) are its
+    data."""
     binaries, libpython, compiled_for = {}, None, set()
     windows = {name: windows_needs(entries[name]) for name in sorted(entries)
-               if name.startswith("binaries/") and name.endswith(WINDOWS_SUFFIXES)}
+               if (name.startswith("binaries/") and name.endswith(WINDOWS_SUFFIXES))
+               or (name.startswith("resources/") and name.endswith(".pyd"))}
     others = tuple(name for name in sorted(entries) if name.startswith("binaries/") and not carried_python_platform(name) is not None
                    and not ELF_NAME.fullmatch(name) and not name.endswith(WINDOWS_SUFFIXES))
     carried = {name.rsplit("/", 1)[1]: name for name in sorted(entries)
@@ -194,8 +202,9 @@ def fmu_floors(entries):
             libpython = libpython or (found[0].decode() if found else None)
             abi = EXTENSION_ABI.search(name)
             compiled_for |= {(int(abi[1]), int(abi[2]))} if abi else set()
+    fmi_version = 3 if b'fmiVersion="3' in entries.get("modelDescription.xml", b"") else 2
     return FmuFloors(binaries, libpython, tuple(f"{major}.{minor}" for major, minor in sorted(compiled_for)),
-                     windows, others, carried)
+                     windows, others, carried, ".".join(map(str, PYTHON_FLOORS[fmi_version])))
 
 
 def dependencies_text(model_name, floors):
@@ -224,10 +233,10 @@ def dependencies_text(model_name, floors):
 def _python_need(floors):
     """The sentence on the CPython the FMU needs."""
     carried = next((name for file, name in floors.carried.items() if file.startswith("libpython")), None)
-    text = ("the host process's own CPython (3.8 or newer) if it runs one, else the one named by the environment "
-            f"variable SBF_LIBPYTHON if set, else the one the FMU carries ({carried}, with the part of its standard "
+    text = (f"the host process's own CPython ({floors.python_floor} or newer) if it runs one, else the one named by "
+            f"the environment variable SBF_LIBPYTHON if set, else the one the FMU carries ({carried}, with the part of its standard "
             "library the FMU imports; nothing else needed)" if carried else
-            "the host process's own CPython (3.8 or newer) if it runs one, else "
+            f"the host process's own CPython ({floors.python_floor} or newer) if it runs one, else "
             + (f"{floors.libpython} (the build's; the environment variable SBF_LIBPYTHON names another)"
                if floors.libpython else "one named by the environment variable SBF_LIBPYTHON"))
     if floors.compiled_for:

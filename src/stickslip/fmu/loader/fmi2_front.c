@@ -12,7 +12,8 @@
  * this library makes a model-exchange instance from a PythonFMU co-simulation instance and answers the
  * model-exchange calls through the slave's binding (sbf_slave_exchange), as it answers the input and output
  * derivatives; the model-exchange functions are refused on a co-simulation instance, and the co-simulation ones on a
- * model-exchange instance, with a message naming the call.
+ * model-exchange instance, with a message naming the call. A freed instance is kept and reset for the next
+ * instantiation with the same folder, since PythonFMU's instantiation leaks (see take_kept).
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -126,6 +127,9 @@ typedef struct {
     int fatal_is_error; /* during a RECOVERABLE call: PythonFMU's fmi2Fatal is reported as fmi2Error */
     sbf_fast_path fast; /* steps and output reads without PythonFMU (fast_path.h) */
     char folder[4096]; /* the resources folder, as the host named it (fast.folder) */
+    char inner_path[4096]; /* the path to it that PythonFMU was given */
+    fmi2Boolean visible;
+    void *next_kept; /* the next freed instance kept for reuse (see take_kept) */
 } Instance;
 
 static void host_log(const Instance *inst, fmi2Status status, const char *text)
@@ -203,11 +207,67 @@ static int instantiable(Instance *inst, fmi2String name, fmi2Type type, fmi2Stri
     return 0;
 }
 
+/* ---- freed instances kept for reuse ----
+ * PythonFMU 0.7.0's instantiation leaves about 1.3 kB of Python objects behind each time, for the life of the process
+ * (17 objects, measured with tracemalloc: it inserts the resources path into sys.path again, and keeps the method
+ * resolution order of the slave class as a list and each of its classes' names as a string and as bytes); its reset
+ * makes a new slave without any of that. So fmi2FreeInstance keeps the freed instance, with PythonFMU's instance in
+ * it, and the next fmi2Instantiate with the same path for PythonFMU and visibility takes it and resets it to a new
+ * slave (PythonFMU's slave is made with the instance name it was first given, which nothing of the slave uses; the
+ * messages reach the host under the name the host gave). A host keeps as many as it had at once. */
+static Instance *kept;
+
+/* A kept instance made with `path` and `visible`, taken out of the kept ones, or NULL */
+static Instance *take_kept(const char *path, fmi2Boolean visible)
+{
+    sbf_loader_lock();
+    Instance **link = &kept;
+    while (*link && (strcmp((*link)->inner_path, path) != 0 || (*link)->visible != visible))
+        link = (Instance **)&(*link)->next_kept;
+    Instance *found = *link;
+    if (found) *link = found->next_kept;
+    sbf_loader_unlock();
+    return found;
+}
+
+static void keep(Instance *inst)
+{
+    sbf_loader_lock();
+    inst->next_kept = kept;
+    kept = inst;
+    sbf_loader_unlock();
+}
+
+/* The kept instance `old` made new with the host's settings in `fresh` (freed), PythonFMU's instance reset to a new
+ * slave; NULL (both freed) if the reset fails. */
+static Instance *renewed(Instance *old, Instance *fresh)
+{
+    free(old->name);
+    old->name = fresh->name;
+    fresh->name = NULL;
+    old->host = fresh->host;
+    old->relay = fresh->host;
+    old->relay.logger = relay_log;
+    old->relay.componentEnvironment = old;
+    sbf_set_log_filter(&old->logging, fresh->logging.on, 0, NULL);
+    old->mode = fresh->mode;
+    memcpy(old->folder, fresh->folder, sizeof old->folder);
+    free_instance(fresh);
+    sbf_call_begin();
+    sbf_fast_rebinding(&old->fast);
+    fmi2Status status = inner.fmi2Reset(old->inner);
+    sbf_fast_binding(NULL);
+    sbf_call_end();
+    if (status <= fmi2Warning) return old;
+    inner.fmi2FreeInstance(old->inner);
+    free_instance(old);
+    return NULL;
+}
+
 EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
                                      const fmi2CallbackFunctions *functions, fmi2Boolean visible,
                                      fmi2Boolean loggingOn)
 {
-    char path[sizeof ((Instance *)0)->folder];
     Instance *inst = calloc(1, sizeof *inst);
     if (!inst) return NULL;
     inst->fast.folder = inst->folder;
@@ -217,7 +277,8 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
     inst->relay.logger = relay_log;
     inst->relay.componentEnvironment = inst;
     inst->logging.on = loggingOn;
-    if (!instantiable(inst, name, type, guid, resources, path)) {
+    inst->visible = visible;
+    if (!instantiable(inst, name, type, guid, resources, inst->inner_path)) {
         free_instance(inst);
         return NULL;
     }
@@ -227,11 +288,13 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
         return NULL;
     }
     sbf_keep_thread_state();
-    sbf_instantiate_begin();
-    sbf_fast_binding(&inst->fast);
     /* a model-exchange instance is PythonFMU's co-simulation instance, the model-exchange calls answered here */
     inst->mode = type == fmi2ModelExchange ? SBF_EXCHANGING : SBF_INSTANTIATED;
-    inst->inner = inner.fmi2Instantiate(name, fmi2CoSimulation, guid, path, &inst->relay, visible, 1);
+    Instance *old = take_kept(inst->inner_path, visible);
+    if (old) return renewed(old, inst);
+    sbf_instantiate_begin();
+    sbf_fast_binding(&inst->fast);
+    inst->inner = inner.fmi2Instantiate(name, fmi2CoSimulation, guid, inst->inner_path, &inst->relay, visible, 1);
     sbf_fast_binding(NULL);
     sbf_instantiate_end();
     if (!inst->inner) {
@@ -241,6 +304,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
     return inst;
 }
 
+/* The instance is kept for reuse (see take_kept), its slave dropped by the fast path */
 EXPORT void fmi2FreeInstance(fmi2Component c)
 {
     Instance *inst = c;
@@ -248,9 +312,8 @@ EXPORT void fmi2FreeInstance(fmi2Component c)
     sbf_keep_thread_state();
     sbf_call_begin();
     sbf_fast_unbind(&inst->fast);
-    inner.fmi2FreeInstance(inst->inner);
     sbf_call_end();
-    free_instance(inst);
+    keep(inst);
 }
 
 /* Categories the model description does not list are refused (fmi2Error, a message), the filter kept. */

@@ -32,6 +32,7 @@ from xml.etree import ElementTree
 from .. import windows_python
 from ..archive import PYTHON_FOLDER, carried_python_platform, read_entries, write_entries
 from ..documentation import with_carried_licenses
+from ..floors import PYTHON_FLOORS
 from .python_bundle import linux_bundle
 
 HERE = Path(__file__).resolve().parent
@@ -92,7 +93,8 @@ def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, toke
     command = [
         compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o", str(dest),
         *_loader_sources(fmi_version, "linux"),
-        *_loader_defines(inner_name, token, slave_survives_release, soname, model_exchange and fmi_version == 2),
+        *_loader_defines(inner_name, token, slave_survives_release, soname, model_exchange and fmi_version == 2,
+                                fmi_version),
         f"-DSBF_START_GUARD={_c_string(START_GUARD_NAME)}", f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
         *_bundle_defines(bundle), "-ldl", "-lpthread"]
     guard = [compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o",
@@ -122,9 +124,22 @@ def compile_windows_loader(dest, inner_name, slave_survives_release, fmi_version
     # no time stamp, a fixed image base: the same sources give the same bytes in any folder
     command = [compiler, "-O2", "-shared", "-static", "-s", "-Wl,--no-insert-timestamp,--disable-auto-image-base",
                "-o", str(dest), *_loader_sources(fmi_version, "windows"),
-               *_loader_defines(inner_name, token, slave_survives_release, soname, model_exchange and fmi_version == 2),
-               f"-DSBF_BUNDLED_LIBPYTHON={_c_string(bundled)}"]
+               *_loader_defines(inner_name, token, slave_survives_release, soname, model_exchange and fmi_version == 2,
+                                fmi_version),
+               f"-DSBF_BUNDLED_LIBPYTHON={_c_string(bundled)}",
+               f"-DSBF_BUNDLED_PYTHON_NEEDS={''.join(_c_string(path) + ',' for path in _carried_dlls(bundled))}"]
     return _run_compiler(compiler, (command,))
+
+
+def _carried_dlls(bundled):
+    """The DLLs that the extension modules of the CPython at ``bundled`` (relative to the loader's folder, "" if none)
+    import, beside it: the loader loads them by their paths before it starts that CPython, since Windows does not
+    find them beside the extension module where the folder's path has a ';' (its search path is a ';'-separated
+    list)."""
+    if not bundled:
+        return []
+    folder = bundled.rsplit("\\", 1)[0]
+    return [f"{folder}\\{name}" for name in windows_python.EXTENSIONS if name.endswith(".dll")]
 
 
 def _bundle_defines(bundle):
@@ -140,9 +155,10 @@ def _loader_sources(fmi_version, platform):
     return [str(FRONTS[fmi_version][0]), str(RUNTIME[0]), str(RUNTIME[2]), str(PLATFORMS[platform])]
 
 
-def _loader_defines(inner_name, token, slave_survives_release, soname, model_exchange):
+def _loader_defines(inner_name, token, slave_survives_release, soname, model_exchange, fmi_version):
     return [f"-DSBF_INNER_LIBRARY={_c_string(inner_name)}", f"-DSBF_TOKEN={_c_string(token)}",
-            f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}"] + (
+            f"-DSBF_LIBPYTHON_SONAME={_c_string(soname)}",
+            f"-DSBF_PYTHON_FLOOR_MINOR={PYTHON_FLOORS[fmi_version][1]}"] + (
         ["-DSBF_SLAVE_SURVIVES_RELEASE"] if slave_survives_release else []) + (
         ["-DSBF_MODEL_EXCHANGE"] if model_exchange else [])
 

@@ -18,6 +18,14 @@
 #define SBF_THREAD_LOCAL _Thread_local
 
 /* ---- libraries ---- */
+/* Whether a library the FMU carries for its CPython is loaded only where the system has none by its file name
+ * (Linux: the system's libffi, zlib... where present), or always from the FMU (Windows: the extension modules'
+ * DLLs, which Windows would look for beside them) */
+#ifdef _WIN32
+#define SBF_SYSTEM_LIBRARIES_FIRST 0
+#else
+#define SBF_SYSTEM_LIBRARIES_FIRST 1
+#endif
 /* The library at `path` loaded (its symbols visible to libraries loaded later where `global`, as RTLD_GLOBAL), or
  * NULL with the system's reason in sbf_library_error(). */
 void *sbf_open_library(const char *path, int global);
@@ -28,6 +36,10 @@ void *sbf_symbol(void *library, const char *name);
 void *sbf_find_function(void *library, const char *path, const char *name);
 /* Why the last sbf_open_library or sbf_symbol of this thread failed */
 const char *sbf_library_error(void);
+/* 1 with why in `why` if a standard stream of the process is one CPython cannot start with (Windows under Wine 8.0: a
+ * regular file, on whose handle GetFileInformationByHandle fails, so that CPython 3.12 and newer cannot create
+ * sys.stdin/stdout/stderr: "init_sys_streams"), else 0 (Linux: always). */
+int sbf_unusable_stdio(char *why, size_t why_size);
 /* 1 with the CPython library already in this process (a Python host) in *library, else 0. */
 int sbf_process_python(void **library);
 /* Make the CPython library `python` (a handle as above) the one the inner library, loaded next, binds to; 0 with the
@@ -35,7 +47,8 @@ int sbf_process_python(void **library);
  * stable ABI's forwarder, which is loaded from beside `python` first, else the one the FMU carries beside its own
  * CPython library, where that has the file name of `python`.) */
 int sbf_bind_inner_to_python(void *python, char *why, size_t why_size);
-/* The path of the loader's own binary into `path`; 0 if it cannot be found. */
+/* The path of the loader's own binary into `path` (Windows: its short form where the path is too long to hand to
+ * programs that are not long-path aware and the volume has one); 0 if it cannot be found. */
 int sbf_loader_path(char *path, size_t size);
 /* Keep the loader's binary loaded until the process ends (see runtime.c, sbf_start); 0 with the reason in `why`. */
 int sbf_pin_loader(char *why, size_t why_size);
@@ -78,9 +91,17 @@ int sbf_uri_path(const char *host, size_t host_length, const char *uri_path, cha
 int sbf_path_kind(const char *path, char *why, size_t why_size);
 /* The text file `path` opened for reading, or NULL. */
 FILE *sbf_open_text(const char *path);
-/* Whether the FMI library's binary can open files under the folder `path` by that path (Linux: always; Windows:
- * if it is ASCII, since PythonFMU's and pythonfmu3's DLLs open files through the ANSI code page) */
-int sbf_library_can_open(const char *path);
+/* NULL if the FMI library's binary can open files under the folder `path` by that path, else why not (Linux: it
+ * always can; Windows: if the path is ASCII, since PythonFMU's and pythonfmu3's DLLs open files through the ANSI
+ * code page, and short enough for programs that are not long-path aware, see sbf_path_fits) */
+const char *sbf_library_cannot_open(const char *path);
+/* Whether the FMU's files below the folder `path` can be opened by that path by the programs the loader runs (Linux:
+ * always; Windows: the path is below MAX_PATH less room for the FMU's own names), else 0 with why not and what to
+ * do in `why`. */
+int sbf_path_fits(const char *path, char *why, size_t why_size);
+/* `path` (an absolute path) in its plain form, in place: Windows' \\?\C:\x and \\?\UNC\host\share\x as C:\x and
+ * \\host\share\x (the same folder; the loader's checks and the FMI library take the plain form); Linux: as it is. */
+void sbf_plain_path(char *path);
 /* Another path to the folder `folder` that the FMI library's binary can open and that has neither "%20" nor "file://"
  * in it, into `path`; 0 with the cause in `why` if the system has none. */
 int sbf_folder_alias(const char *folder, char *path, size_t size, char *why, size_t why_size);

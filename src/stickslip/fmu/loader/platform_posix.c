@@ -39,6 +39,12 @@ const char *sbf_library_error(void)
     return error ? error : "unknown error";
 }
 
+int sbf_unusable_stdio(char *why, size_t why_size)
+{
+    (void)why, (void)why_size;
+    return 0;
+}
+
 int sbf_process_python(void **library)
 {
     if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) return 0;
@@ -304,11 +310,19 @@ int sbf_path_kind(const char *path, char *why, size_t why_size)
 
 FILE *sbf_open_text(const char *path) { return fopen(path, "r"); }
 
-int sbf_library_can_open(const char *path)
+const char *sbf_library_cannot_open(const char *path)
 {
     (void)path;
+    return NULL;
+}
+
+int sbf_path_fits(const char *path, char *why, size_t why_size)
+{
+    (void)path, (void)why, (void)why_size;
     return 1;
 }
+
+void sbf_plain_path(char *path) { (void)path; }
 
 /* Descriptors of folders kept open for sbf_folder_alias, one per folder, for the life of the process: Python's
  * import system keeps the path made from one in sys.path and reads modules through it later. */

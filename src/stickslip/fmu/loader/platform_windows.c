@@ -11,18 +11,39 @@
 #include <errno.h>
 #include <signal.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <wchar.h>
 
 #define WIDE_PATH 32768 /* the longest path Windows takes, in UTF-16 units */
+/* The longest folder path (UTF-16 units) handed as it is to programs that are not long-path aware (CPython's path
+ * calculation, the FMI library's DLL), which take paths below MAX_PATH (260): room is left for the FMU's own names
+ * below the folder (the longest, in resources/, has about 70 characters). A longer one is handed in its short
+ * (8.3) form. */
+#define LONG_PATH (MAX_PATH - 100)
 
 static SBF_THREAD_LOCAL char library_error[512];
 
-/* `text` (UTF-8) as UTF-16 into `wide` (`size` units); 0 if it is not UTF-8 or does not fit */
-static int to_wide(const char *text, wchar_t *wide, int size)
+/* `text` (UTF-8) as UTF-16 in memory of the caller's (free it), or NULL if it is not UTF-8. Every path is converted
+ * into memory of its own call: two threads instantiating at once made each other's checks fail through a shared
+ * buffer ("... is missing", "... which is not a folder"). */
+static wchar_t *to_wide(const char *text)
 {
-    return MultiByteToWideChar(CP_UTF8, MB_ERR_INVALID_CHARS, text, -1, wide, size) > 0;
+    int n = MultiByteToWideChar(CP_UTF8, MB_ERR_INVALID_CHARS, text, -1, NULL, 0);
+    wchar_t *wide = n > 0 ? malloc((size_t)n * sizeof *wide) : NULL;
+    if (wide && MultiByteToWideChar(CP_UTF8, MB_ERR_INVALID_CHARS, text, -1, wide, n) != n) {
+        free(wide);
+        wide = NULL;
+    }
+    return wide;
+}
+
+/* The length of `text` (UTF-8) in UTF-16 units, as Windows counts a path's length */
+static size_t wide_length(const char *text)
+{
+    int n = MultiByteToWideChar(CP_UTF8, 0, text, -1, NULL, 0);
+    return n > 0 ? (size_t)n - 1 : strlen(text);
 }
 
 /* `wide` (UTF-16) as UTF-8 into `text`; 0 if it does not fit */
@@ -50,15 +71,15 @@ static void note_error(DWORD code)
 void *sbf_open_library(const char *path, int global)
 {
     (void)global; /* a Windows library's symbols are looked up in it, never in a global scope */
-    static wchar_t wide[WIDE_PATH];
-    HMODULE library = NULL;
-    if (!to_wide(path, wide, WIDE_PATH)) {
+    wchar_t *wide = to_wide(path);
+    if (!wide) {
         snprintf(library_error, sizeof library_error, "the path is not UTF-8 text");
         return NULL;
     }
     int has_folder = wcschr(wide, L'\\') || wcschr(wide, L'/');
-    library = LoadLibraryExW(wide, NULL, has_folder ? LOAD_WITH_ALTERED_SEARCH_PATH : 0);
+    HMODULE library = LoadLibraryExW(wide, NULL, has_folder ? LOAD_WITH_ALTERED_SEARCH_PATH : 0);
     if (!library) note_error(GetLastError());
+    free(wide);
     return library;
 }
 
@@ -85,6 +106,26 @@ static int is_python_library(const wchar_t *name)
            iswdigit(name[7]) && !_wcsnicmp(name + n - 6, L"_d.dll", 6) == 0;
 }
 
+int sbf_unusable_stdio(char *why, size_t why_size)
+{
+    static const DWORD streams[] = {STD_INPUT_HANDLE, STD_OUTPUT_HANDLE, STD_ERROR_HANDLE};
+    static const char *const names[] = {"input", "output", "error"};
+    BY_HANDLE_FILE_INFORMATION info;
+    for (int i = 0; i < 3; ++i) {
+        HANDLE handle = GetStdHandle(streams[i]);
+        if (!handle || handle == INVALID_HANDLE_VALUE || GetFileType(handle) != FILE_TYPE_DISK ||
+            GetFileInformationByHandle(handle, &info))
+            continue;
+        note_error(GetLastError());
+        snprintf(why, why_size, "The host's standard %s is a file that the system cannot describe "
+                 "(GetFileInformationByHandle: %s; Wine 8.0 does this), and CPython 3.12 and newer cannot start with "
+                 "it: run the host with its standard input, output and error on a console, a pipe or NUL",
+                 names[i], library_error);
+        return 1;
+    }
+    return 0;
+}
+
 int sbf_process_python(void **library)
 {
     HMODULE modules[1024];
@@ -104,12 +145,16 @@ int sbf_process_python(void **library)
 static int module_path(const void *address, char *path, size_t size)
 {
     HMODULE module;
-    static wchar_t wide[WIDE_PATH];
     if (!GetModuleHandleExW(GET_MODULE_HANDLE_EX_FLAG_FROM_ADDRESS | GET_MODULE_HANDLE_EX_FLAG_UNCHANGED_REFCOUNT,
                             (LPCWSTR)address, &module))
         return 0;
-    DWORD n = GetModuleFileNameW(module, wide, WIDE_PATH);
-    return n > 0 && n < WIDE_PATH && from_wide(wide, path, size);
+    wchar_t *wide = malloc(2 * WIDE_PATH * sizeof *wide), *short_path = wide + WIDE_PATH;
+    DWORD n = wide ? GetModuleFileNameW(module, wide, WIDE_PATH) : 0, m = 0;
+    if (n >= LONG_PATH && n < WIDE_PATH) /* CPython starts from its DLL's path, as loaded: the short one */
+        m = GetShortPathNameW(wide, short_path, WIDE_PATH);
+    int found = n > 0 && n < WIDE_PATH && from_wide(m > 0 && m < n ? short_path : wide, path, size);
+    free(wide);
+    return found;
 }
 
 int sbf_loader_path(char *path, size_t size) { return module_path((const void *)&sbf_loader_path, path, size); }
@@ -284,36 +329,60 @@ int sbf_uri_path(const char *host, size_t host_length, const char *uri_path, cha
 
 int sbf_path_kind(const char *path, char *why, size_t why_size)
 {
-    static wchar_t wide[WIDE_PATH];
     struct _stat64 st;
-    if (!to_wide(path, wide, WIDE_PATH)) return snprintf(why, why_size, "the path is not UTF-8 text"), 0;
+    wchar_t *wide = to_wide(path);
+    if (!wide) return snprintf(why, why_size, "the path is not UTF-8 text"), 0;
     size_t n = wcslen(wide); /* _wstat64 finds no folder whose name ends with a separator, save a drive's root */
     while (n > 3 && (wide[n - 1] == L'\\' || wide[n - 1] == L'/')) wide[--n] = L'\0';
-    if (_wstat64(wide, &st) != 0) return snprintf(why, why_size, "%s", strerror(errno)), 0;
+    int found = _wstat64(wide, &st) == 0;
+    free(wide);
+    if (!found) return snprintf(why, why_size, "%s", strerror(errno)), 0;
     return (st.st_mode & S_IFMT) == S_IFDIR ? 1 : (st.st_mode & S_IFMT) == S_IFREG ? 2 : 3;
 }
 
 FILE *sbf_open_text(const char *path)
 {
-    static wchar_t wide[WIDE_PATH];
-    return to_wide(path, wide, WIDE_PATH) ? _wfopen(wide, L"r") : NULL;
+    wchar_t *wide = to_wide(path);
+    FILE *file = wide ? _wfopen(wide, L"r") : NULL;
+    free(wide);
+    return file;
 }
 
-int sbf_library_can_open(const char *path)
+const char *sbf_library_cannot_open(const char *path)
 {
     for (const unsigned char *c = (const unsigned char *)path; *c; ++c)
-        if (*c >= 0x80) return 0;
-    return 1;
+        if (*c >= 0x80) return "its path is not ASCII";
+    return wide_length(path) < LONG_PATH ? NULL : "its path is too long";
+}
+
+int sbf_path_fits(const char *path, char *why, size_t why_size)
+{
+    if (wide_length(path) < LONG_PATH) return 1;
+    snprintf(why, why_size, "its path has %zu characters, and the programs it runs that are not long-path aware (the "
+             "CPython it carries, the FMI library) take at most %d there (Windows' MAX_PATH of %d, less the FMU's own "
+             "file names below it); the volume has no short (8.3) name for it either: extract the FMU to a folder "
+             "with a shorter path (e.g. C:\\fmus\\<name>)", wide_length(path), LONG_PATH - 1, MAX_PATH);
+    return 0;
+}
+
+void sbf_plain_path(char *path)
+{
+    if (strncmp(path, "\\\\?\\UNC\\", 8) == 0)
+        memmove(path + 2, path + 8, strlen(path + 8) + 1); /* \\?\UNC\host\share: \\host\share */
+    else if (strncmp(path, "\\\\?\\", 4) == 0 && has_drive(path + 4))
+        memmove(path, path + 4, strlen(path + 4) + 1); /* \\?\C:\x: C:\x */
 }
 
 /* The folder's short (8.3) path, where the volume keeps short names (ASCII names) */
 int sbf_folder_alias(const char *folder, char *path, size_t size, char *why, size_t why_size)
 {
-    static wchar_t wide[WIDE_PATH], short_path[WIDE_PATH];
-    DWORD n = to_wide(folder, wide, WIDE_PATH) ? GetShortPathNameW(wide, short_path, WIDE_PATH) : 0;
-    if (n > 0 && n < WIDE_PATH && from_wide(short_path, path, size) && !strstr(path, "%20") &&
-        !strstr(path, "file://") && sbf_library_can_open(path))
-        return 1;
+    wchar_t *wide = to_wide(folder), *short_path = malloc(WIDE_PATH * sizeof *short_path);
+    DWORD n = wide && short_path ? GetShortPathNameW(wide, short_path, WIDE_PATH) : 0;
+    int found = n > 0 && n < WIDE_PATH && from_wide(short_path, path, size) && !strstr(path, "%20") &&
+                !strstr(path, "file://") && !sbf_library_cannot_open(path);
+    free(wide);
+    free(short_path);
+    if (found) return 1;
     snprintf(why, why_size, "its volume has no short name for it");
     return 0;
 }

@@ -6,10 +6,12 @@
  *      library's folder, where the build bundled one; the libraries its extension modules need are loaded first
  *      from the FMU where the system has none by their names), else the one the FMU was built with
  *      (SBF_BUILD_LIBPYTHON), else its soname (SBF_LIBPYTHON_SONAME); it is loaded with RTLD_GLOBAL so that
- *      Python's extension modules find its symbols;
+ *      Python's extension modules find its symbols; one older than SBF_PYTHON_FLOOR_MINOR is refused before
+ *      anything is imported (python_new_enough);
  *   2. starts that Python if nobody has, with the standard library of the library's own installation,
- *      through PyConfig, so that a broken installation (a wrong PYTHONHOME) is an error status and a
- *      logged message, not an exit of the host; the host's handlers of SIGINT, SIGPIPE and SIGXFSZ are kept;
+ *      through PyConfig, so that a broken installation is an error status and a logged message, not an exit of
+ *      the host; it reads no environment variable (initialize_python); the host's handlers of SIGINT, SIGPIPE and
+ *      SIGXFSZ are kept; then Python must import ctypes (imports_ctypes);
  *   3. loads the inner library (PythonFMU's or pythonfmu3's binary, SBF_INNER_LIBRARY beside this one; where it
  *      does not load, again after the C++ runtime the FMU carries, SBF_BUNDLED_INNER_NEEDS, so that a host with
  *      a C++ runtime of its own keeps it) and lets the front resolve its entry points.
@@ -63,6 +65,10 @@
 static const char *const bundled_python_needs[] = {SBF_BUNDLED_PYTHON_NEEDS NULL};
 static const char *const bundled_inner_needs[] = {SBF_BUNDLED_INNER_NEEDS NULL};
 #define LIBPYTHON_VARIABLE "SBF_LIBPYTHON"
+/* The oldest CPython the FMU's Python code runs in (FMI 2: the runtime's typing.Final, 3.8; FMI 3: pythonfmu3, 3.9) */
+#ifndef SBF_PYTHON_FLOOR_MINOR
+#error "define SBF_PYTHON_FLOOR_MINOR: the oldest CPython 3 minor version the FMU's Python code runs in"
+#endif
 
 /* ---- CPython: the few functions used, resolved at run time (stable C API since 3.8) ---- */
 typedef struct { int type; const char *func; const char *err_msg; int exitcode; } PyStatus;
@@ -77,12 +83,22 @@ static struct {
     void (*PyThreadState_DeleteCurrent)(void);
     int (*Py_IsFinalizing)(void); /* _Py_IsFinalizing before CPython 3.13; NULL before 3.7 */
     int (*PyOS_InterruptOccurred)(void); /* takes back a SIGINT Python has noted and not handled yet */
+    void (*PyPreConfig_InitPythonConfig)(void *);
+    PyStatus (*Py_PreInitialize)(const void *);
     void (*PyConfig_InitPythonConfig)(void *);
     PyStatus (*PyConfig_SetBytesArgv)(void *, long, char *const *);
     PyStatus (*Py_InitializeFromConfig)(const void *);
     void (*PyConfig_Clear)(void *);
     int (*PyStatus_Exception)(PyStatus);
+    void *(*PyImport_ImportModule)(const char *);
+    void (*Py_DecRef)(void *);
+    void (*PyErr_Fetch)(void **, void **, void **);
+    void *(*PyObject_Str)(void *);
+    const char *(*PyUnicode_AsUTF8)(void *);
 } py;
+/* The leading fields of CPython's PyPreConfig and PyConfig, the same from 3.8 to 3.13 */
+typedef struct { int config_init, parse_argv, isolated, use_environment; } PreConfigHead;
+typedef struct { int config_init, isolated, use_environment; } ConfigHead;
 enum { PyGILState_LOCKED, PyGILState_UNLOCKED };
 #define PYCONFIG_BYTES 16384 /* room for any CPython 3.8-3.13 PyConfig (about 0.5 kB) */
 
@@ -109,14 +125,17 @@ static int resolve_python(void *lib)
     *(void **)&py.Py_IsFinalizing = sbf_symbol(lib, "Py_IsFinalizing");
     if (!py.Py_IsFinalizing) *(void **)&py.Py_IsFinalizing = sbf_symbol(lib, "_Py_IsFinalizing");
     *(void **)&py.PyOS_InterruptOccurred = sbf_symbol(lib, "PyOS_InterruptOccurred");
-    return RESOLVE(Py_IsInitialized) && RESOLVE(PyGILState_Ensure) && RESOLVE(PyGILState_Release) &&
+    return RESOLVE(Py_IsInitialized) && RESOLVE(PyImport_ImportModule) && RESOLVE(Py_DecRef) && RESOLVE(PyErr_Fetch) &&
+           RESOLVE(PyObject_Str) && RESOLVE(PyUnicode_AsUTF8) && RESOLVE(PyGILState_Ensure) &&
+           RESOLVE(PyGILState_Release) &&
            RESOLVE(PyGILState_GetThisThreadState) && RESOLVE(PyEval_SaveThread) && RESOLVE(PyEval_RestoreThread) &&
            RESOLVE(PyThreadState_Clear) && RESOLVE(PyThreadState_DeleteCurrent);
 }
 
 static int resolve_config_api(void *lib)
 {
-    return RESOLVE(PyConfig_InitPythonConfig) && RESOLVE(PyConfig_SetBytesArgv) && RESOLVE(Py_InitializeFromConfig) &&
+    return RESOLVE(PyPreConfig_InitPythonConfig) && RESOLVE(Py_PreInitialize) && RESOLVE(PyConfig_InitPythonConfig) &&
+           RESOLVE(PyConfig_SetBytesArgv) && RESOLVE(Py_InitializeFromConfig) &&
            RESOLVE(PyConfig_Clear) && RESOLVE(PyStatus_Exception);
 #undef RESOLVE
 }
@@ -149,12 +168,14 @@ static void load_bundled(const char *const *needs, int system_first)
     }
 }
 
+#define HOST_PYTHON "the host process's own CPython"
+
 /* A CPython library: the process's own (RTLD_DEFAULT), or the first that loads (RTLD_GLOBAL). 0 after sbf_fail(). */
 static int find_libpython(void **lib_out, const char **where)
 {
     void *lib = NULL;
     if (sbf_process_python(lib_out)) {
-        *where = "the host process's own CPython";
+        *where = HOST_PYTHON;
         return 1;
     }
     const char *override = getenv(LIBPYTHON_VARIABLE);
@@ -177,7 +198,7 @@ static int find_libpython(void **lib_out, const char **where)
     char tried[1024] = "";
     for (size_t i = 0; i < sizeof candidates / sizeof *candidates; ++i) {
         if (!*candidates[i]) continue;
-        if (candidates[i] == bundled) load_bundled(bundled_python_needs, 1);
+        if (candidates[i] == bundled) load_bundled(bundled_python_needs, SBF_SYSTEM_LIBRARIES_FIRST);
         lib = sbf_open_library(candidates[i], 1);
         if (lib) {
             *where = candidates[i];
@@ -195,29 +216,81 @@ static int find_libpython(void **lib_out, const char **where)
     return 0;
 }
 
-/* Py_InitializeFromConfig, keeping the host's signal handlers; leaves the GIL released. */
+/* Whether the CPython library `lib` (found as `where`) is as new as the FMU's Python code needs, read from its
+ * Py_GetVersion before anything is imported (an older one crashed the host in pythonfmu3's import); else 0 after
+ * sbf_fail() naming the version found, the one needed and what to do. */
+static int python_new_enough(void *lib, const char *where)
+{
+    const char *(*version)(void);
+    int major = 0, minor = 0;
+    *(void **)&version = sbf_symbol(lib, "Py_GetVersion");
+    if (!version || sscanf(version(), "%d.%d", &major, &minor) != 2) {
+        sbf_fail("%s is not a CPython library (it has no Py_GetVersion)", where);
+        return 0;
+    }
+    if (major > 3 || (major == 3 && minor >= SBF_PYTHON_FLOOR_MINOR)) return 1;
+    const char *override = getenv(LIBPYTHON_VARIABLE);
+    sbf_fail("%s is version %.*s; this FMU needs CPython 3.%d or newer: %s", where, (int)strcspn(version(), " "),
+             version(), SBF_PYTHON_FLOOR_MINOR,
+             strcmp(where, HOST_PYTHON) == 0 ? "run it in a host process with a newer CPython, or in one without "
+                                               "Python (the FMU then starts its own)"
+             : override && *override ? "point " LIBPYTHON_VARIABLE " at a newer CPython's shared library, or unset it"
+                                     : "set " LIBPYTHON_VARIABLE " to a newer CPython's shared library");
+    return 0;
+}
+
+/* Py_InitializeFromConfig, keeping the host's signal handlers; leaves the GIL released. Python reads none of the
+ * process's environment variables (use_environment = 0 in its pre-configuration and configuration, as -E does):
+ * a PYTHONHOME, PYTHONPATH, PYTHONHASHSEED, PYTHONMALLOC... set for another Python neither stops nor changes it. */
 static void initialize_python(const char *where)
 {
     char name[4096];
     char *argv[] = {name, NULL};
     sbf_python_program_name(*(void **)&py.Py_IsInitialized, name, sizeof name);
-    _Alignas(16) static unsigned char config[PYCONFIG_BYTES];
+    _Alignas(16) static unsigned char preconfig[PYCONFIG_BYTES], config[PYCONFIG_BYTES];
     sbf_save_host_signals();
-    py.PyConfig_InitPythonConfig(config);
-    PyStatus status = py.PyConfig_SetBytesArgv(config, 1, argv);
-    if (!py.PyStatus_Exception(status)) status = py.Py_InitializeFromConfig(config);
-    py.PyConfig_Clear(config);
+    py.PyPreConfig_InitPythonConfig(preconfig);
+    ((PreConfigHead *)preconfig)->use_environment = 0;
+    PyStatus status = py.Py_PreInitialize(preconfig);
+    if (!py.PyStatus_Exception(status)) {
+        py.PyConfig_InitPythonConfig(config);
+        ((ConfigHead *)config)->use_environment = 0;
+        status = py.PyConfig_SetBytesArgv(config, 1, argv);
+        if (!py.PyStatus_Exception(status)) status = py.Py_InitializeFromConfig(config);
+        py.PyConfig_Clear(config);
+    }
     sbf_restore_host_signals();
     if (py.PyStatus_Exception(status)) {
-        const char *home = getenv("PYTHONHOME");
-        sbf_fail("Python (%s) failed to start: %s%s%s. Check PYTHONHOME (%s) and PYTHONPATH: unset them, or point "
-             "them at this Python's installation, or set %s to another CPython 3 shared library.",
-             where, status.func ? status.func : "", status.func ? ": " : "",
-             status.err_msg ? status.err_msg : "unknown error", home ? home : "not set", LIBPYTHON_VARIABLE);
+        char cause[1024];
+        if (!sbf_unusable_stdio(cause, sizeof cause))
+            snprintf(cause, sizeof cause, "Set %s to another CPython 3 shared library (3.%d or newer) with its "
+                     "standard library, or unset it", LIBPYTHON_VARIABLE, SBF_PYTHON_FLOOR_MINOR);
+        sbf_fail("Python (%s) failed to start: %s%s%s. %s", where, status.func ? status.func : "",
+                 status.func ? ": " : "", status.err_msg ? status.err_msg : "unknown error", cause);
         return;
     }
     py.PyEval_SaveThread(); /* this thread keeps its (main) thread state */
     thread_has_state = 1;
+}
+
+/* Whether Python (started) imports ctypes, which the FMU's Python code needs (its C extension _ctypes and the
+ * libraries that loads); else 0 after sbf_fail() with Python's exception: an FMI library whose import of the slave
+ * fails crashes the host (pythonfmu3) or reports a fatal error (PythonFMU). */
+static int imports_ctypes(const char *where)
+{
+    int gil = py.PyGILState_Ensure();
+    void *module = py.PyImport_ImportModule("ctypes"), *type = NULL, *value = NULL, *trace = NULL;
+    if (module)
+        py.Py_DecRef(module);
+    else {
+        py.PyErr_Fetch(&type, &value, &trace);
+        void *text = value ? py.PyObject_Str(value) : NULL;
+        const char *utf8 = text ? py.PyUnicode_AsUTF8(text) : NULL;
+        sbf_fail("Python (%s) cannot import ctypes, which the FMU needs: %s", where, utf8 ? utf8 : "unknown error");
+        py.Py_DecRef(text), py.Py_DecRef(type), py.Py_DecRef(value), py.Py_DecRef(trace); /* each may be NULL */
+    }
+    py.PyGILState_Release(gil);
+    return module != NULL;
 }
 
 /* ---- the inner library's exit fault ----
@@ -280,7 +353,7 @@ static void *start_python(void)
         sbf_fail("%s", why);
         return NULL;
     }
-    int found = find_libpython(&lib, &where);
+    int found = find_libpython(&lib, &where) && python_new_enough(lib, where);
     if (found && !resolve_python(lib))
         sbf_fail("%s is not a usable CPython library: %s", where, sbf_library_error());
     else if (found && !py.Py_IsInitialized()) {
@@ -289,15 +362,26 @@ static void *start_python(void)
         else
             initialize_python(where);
     }
+    if (started == 0) imports_ctypes(where);
     if (started == 0) sbf_defer_interrupts();
     sbf_process_unlock();
     return started == 0 ? lib : NULL;
 }
 
+/* Whether the FMU's files beside this library can be opened by their paths (sbf_path_fits); else 0 after
+ * sbf_fail(). */
+static int binaries_folder_fits(void)
+{
+    char self[4096], why[1024];
+    if (!sbf_loader_path(self, sizeof self) || sbf_path_fits(self, why, sizeof why)) return 1;
+    sbf_fail("the FMU's binary %s cannot start: %s", self, why);
+    return 0;
+}
+
 int sbf_start(sbf_resolve_inner resolve)
 {
     sbf_loader_lock();
-    if (started == 0 && pin_library()) {
+    if (started == 0 && binaries_folder_fits() && pin_library()) {
         void *lib = start_python();
         if (started == 0) sbf_fast_resolve(lib);
         if (started == 0) load_inner(resolve, lib);
@@ -434,6 +518,7 @@ static int location_path(const char *location, char *path, size_t size, char *wh
     if (sbf_is_absolute_path(location)) {
         if (strlen(location) >= size) return snprintf(why, why_size, "is too long"), 0;
         strcpy(path, location);
+        sbf_plain_path(path);
         return 1;
     }
     if (strncasecmp(location, "file:", 5) != 0)
@@ -447,8 +532,11 @@ static int location_path(const char *location, char *path, size_t size, char *wh
         rest = slash;
     }
     if (rest[0] != '/') return snprintf(why, why_size, "is not an absolute file URI (file:///path)"), 0;
-    return percent_decode(rest, decoded, sizeof decoded, why, why_size) &&
-           sbf_uri_path(authority, length, decoded, path, size, why, why_size);
+    if (!percent_decode(rest, decoded, sizeof decoded, why, why_size) ||
+        !sbf_uri_path(authority, length, decoded, path, size, why, why_size))
+        return 0;
+    sbf_plain_path(path);
+    return 1;
 }
 
 /* Whether `text` is well-formed UTF-8 (Unicode's table 3-7), which Python needs to take the folder's path. */
@@ -510,10 +598,10 @@ static int resource_folder(const char *location, char *path, size_t size, char *
 
 /* Whether the inner library (PythonFMU 0.7.0, pythonfmu3 0.3.4) takes `path` as it is: both replace every "%20" in
  * the resource location by a space and then cut its first "file://" out (CppfmuInstantiateSlave), and must be able
- * to open files under it (sbf_library_can_open). */
+ * to open files under it (sbf_library_cannot_open). */
 static int taken_as_is(const char *path)
 {
-    return !strstr(path, "%20") && !strstr(path, "file://") && sbf_library_can_open(path);
+    return !strstr(path, "%20") && !strstr(path, "file://") && !sbf_library_cannot_open(path);
 }
 
 /* The path the inner library is given for the resources folder `folder` (an absolute path), into `path`: `folder`
@@ -522,12 +610,16 @@ static int taken_as_is(const char *path)
 static int inner_library_path(const char *folder, char *path, size_t size, char *why, size_t why_size)
 {
     char cause[1024];
+    const char *unopenable = sbf_library_cannot_open(folder);
     if (taken_as_is(folder)) return snprintf(path, size, "%s", folder), 1;
     if (sbf_folder_alias(folder, path, size, cause, sizeof cause)) return 1;
+    if (!sbf_path_fits(folder, cause, sizeof cause))
+        return snprintf(why, why_size, "the resources folder %s cannot be handed to the FMU's library: %s", folder,
+                        cause), 0;
     snprintf(why, why_size, "the resources folder %s cannot be handed to the FMU's library, which rewrites '%%20' and "
-             "'file://' in it%s (%s): move the FMU to a folder whose name has neither%s", folder,
-             sbf_library_can_open(folder) ? "" : " and cannot open its non-ASCII path", cause,
-             sbf_library_can_open(folder) ? "" : ", in ASCII letters");
+             "'file://' in it%s%s (%s): move the FMU to a folder whose name has neither%s", folder,
+             unopenable ? " and cannot open it: " : "", unopenable ? unopenable : "", cause,
+             unopenable ? ", in ASCII letters" : "");
     return 0;
 }
 

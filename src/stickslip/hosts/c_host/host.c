@@ -30,6 +30,10 @@
  *        default start values, another binary: FMI 2, or FMI 3 co-simulation if BINARY is in an x86_64-linux
  *        folder, RESOURCES then a path) on another, both instantiated at the same time:
  *        "a T X" and "b T X" (its output) at the end of each run
+ * races  thread "a" makes and frees an instance $HOST_ROUNDS times while thread "b" asks for instances at the
+ *        resource location $HOST_RACE_RESOURCES again and again: "races ROUNDS FAILURES ATTEMPTS" (FAILURES: a's
+ *        instantiations that returned NULL, each with its logged message; ATTEMPTS: b's; each distinct message of
+ *        b logged once)
  * ramp   as run, but after initialization sets the first time derivative of the real input ($HOST_RAMP: "VR RATE")
  *        with fmi2SetRealInputDerivatives and prints "status ramp CODE" before the "x" lines
  * With $HOST_LOGGING=1 every instance is made with loggingOn (else off).
@@ -418,6 +422,59 @@ static void mode_pair(void)
     for (int i = 0; i < 2; ++i) pthread_join(threads[i], NULL);
 }
 
+/* Mode "races": thread "a" makes and frees instances; thread "b" meanwhile asks for instances at another resource
+ * location, again and again, so that the two threads' checks of their locations overlap in many of a's rounds. */
+static int race_rounds;
+static volatile int race_over;
+static long race_failures, race_attempts;
+
+/* The logger of mode "races": each distinct message of "b" printed once */
+static void race_logger(void *env, const char *name, Status status, const char *category, const char *message, ...)
+{
+    static char seen[8][1024];
+    static int n_seen;
+    static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
+    char text[1024];
+    va_list args;
+    va_start(args, message);
+    vsnprintf(text, sizeof text, message, args);
+    va_end(args);
+    pthread_mutex_lock(&lock);
+    int known = 0;
+    for (int i = 0; i < n_seen && !known; ++i) known = !strcmp(seen[i], text);
+    if (!known && n_seen < 8) strcpy(seen[n_seen++], text);
+    pthread_mutex_unlock(&lock);
+    if (strcmp(name, "b") || !known) logger(env, name, status, category, "%s", text);
+}
+
+static const Callbacks race_callbacks = {race_logger, calloc, free, NULL, NULL};
+
+static void *race_thread(void *name)
+{
+    int first = !strcmp(name, "a");
+    const char *location = first ? resources : getenv("HOST_RACE_RESOURCES");
+    for (int round = 0; first ? round < race_rounds : !race_over; ++round) {
+        Component c = fmi.instantiate(name, 1, token, location, &race_callbacks, 0, 0);
+        if (c) fmi.free_instance(c);
+        if (first && !c) ++race_failures;
+        if (!first) ++race_attempts;
+    }
+    race_over = 1;
+    return NULL;
+}
+
+static void mode_races(void)
+{
+    const char *rounds = getenv("HOST_ROUNDS");
+    pthread_t threads[2];
+    race_rounds = rounds ? atoi(rounds) : 1000;
+    if (!getenv("HOST_RACE_RESOURCES")) exit(2);
+    if (pthread_create(&threads[0], NULL, race_thread, "a") || pthread_create(&threads[1], NULL, race_thread, "b"))
+        exit(2);
+    for (int i = 0; i < 2; ++i) pthread_join(threads[i], NULL);
+    say("races %d %ld %ld\n", race_rounds, race_failures, race_attempts);
+}
+
 int main(int argc, char **argv)
 {
     if (!start_host(argc, argv, function_names, N_FUNCTIONS, (void **)&fmi)) return argc < 8 ? 2 : 1;
@@ -433,6 +490,7 @@ int main(int argc, char **argv)
     else if (!strcmp(mode, "thread_steps")) mode_thread_steps();
     else if (!strcmp(mode, "unload")) unload_after_runs(thread_main);
     else if (!strcmp(mode, "pair")) mode_pair();
+    else if (!strcmp(mode, "races")) mode_races();
     else {
         fprintf(stderr, "unknown mode %s\n", mode);
         return 2;
