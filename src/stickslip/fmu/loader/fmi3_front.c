@@ -565,10 +565,12 @@ EXPORT fmi3Status fmi3Reset(fmi3Instance c)
 }
 
 /* fmi3DoStep of an instance made with earlyReturnAllowed, by the slave's step_to_event (sbf_slave_event_step):
- * fmi3OK with *early and the time reached in *reached, fmi3Error after a message (and the time where the failed
- * step left the FMU), or fmi3Discard, nothing done, if no slave is bound (the step goes the usual way). */
+ * fmi3OK with the time reached in *reached, *early if that is short of t + h, and *handling if the instance uses
+ * event mode and the step stopped at an event (inside it or at its end, left for Event Mode), fmi3Error after a
+ * message (and the time where the failed step left the FMU), or fmi3Discard, nothing done, if no slave is bound
+ * (the step goes the usual way). */
 static fmi3Status event_step(Instance *inst, double t, double h, char *why, size_t size, fmi3Boolean *early,
-                             fmi3Float64 *reached)
+                             fmi3Boolean *handling, fmi3Float64 *reached)
 {
     int stopped = 0;
     sbf_call_begin();
@@ -576,7 +578,8 @@ static fmi3Status event_step(Instance *inst, double t, double h, char *why, size
     int outcome = sbf_slave_event_step(&inst->fast, t, h, inst->event_mode, reached, &stopped, why, size);
     sbf_call_end();
     if (outcome < 0) return fmi3Discard;
-    *early = outcome == 0 && stopped;
+    *early = outcome == 0 && stopped && *reached < t + h;
+    *handling = outcome == 0 && stopped && inst->event_mode;
     if (outcome == 0) return fmi3OK;
     host_log(inst, fmi3Error, why);
     sbf_slave_time(&inst->fast, reached);
@@ -598,11 +601,8 @@ EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3B
     }
     sbf_keep_thread_state();
     if (((Instance *)c)->early_return) {
-        fmi3Status status = event_step(c, t, h, why, sizeof why, earlyReturn, lastSuccessfulTime);
-        if (status != fmi3Discard) {
-            *eventHandlingNeeded = *earlyReturn && ((Instance *)c)->event_mode;
-            return status;
-        }
+        fmi3Status status = event_step(c, t, h, why, sizeof why, earlyReturn, eventHandlingNeeded, lastSuccessfulTime);
+        if (status != fmi3Discard) return status;
     }
     fmi3Status status;
     switch (sbf_model_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
