@@ -463,7 +463,8 @@ static fmi2Status exchanged(fmi2Component c, const char *function, const double 
 }
 
 /* FMI 2.0 section 3.2.3 allows it in Event and Continuous-Time Mode; before, it sets the start time too */
-#define SET_TIME_ALLOWED (SBF_IN(SBF_INSTANTIATED) | SBF_IN(SBF_INITIALIZING) | SBF_IN(SBF_EVENT) | SBF_IN(SBF_CONTINUOUS))
+#define SET_TIME_ALLOWED \
+    (SBF_IN(SBF_INSTANTIATED) | SBF_IN(SBF_INITIALIZING) | SBF_IN(SBF_EVENT) | SBF_IN(SBF_CONTINUOUS))
 
 EXPORT fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time)
 {
