@@ -72,11 +72,16 @@ def default_fmu_path(fmi_version=2):
     named = os.environ.get("STICKSLIP_DIST")
     if named:
         folder = Path(named).resolve()
-    elif (CHECKOUT / "pyproject.toml").is_file() and (CHECKOUT / "build_fmu.py").is_file():
+    elif in_checkout():
         folder = CHECKOUT / "dist"
     else:
         folder = USER_CACHE / "fmus" / sources_tag()
     return folder / FILE_NAMES[fmi_version]
+
+
+def in_checkout():
+    """True if this package runs from a checkout of its sources (:data:`CHECKOUT`), not from an installation."""
+    return (CHECKOUT / "pyproject.toml").is_file() and (CHECKOUT / "build_fmu.py").is_file()
 
 
 def ensure_fmu(fmu_path=None, fmi_version=2):
