@@ -163,16 +163,17 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
     def step_to_event(self, current_time, step_size, event_mode):
         """fmi3DoStep with early return (the C loader calls it for an instance made with earlyReturnAllowed): the step
         of :meth:`do_step` that stops at the first stick, breakaway or overshoot inside it. ``event_mode``: the
-        instance uses event mode, so the event is left for :meth:`apply_step_events` (the outputs are its left
-        limit); else it is applied at once. ``(time reached (s), True if it stopped short of the step's end, every
-        output there)`` (:meth:`Trajectory.outputs`, the values the getters answer: the loader keeps them)."""
+        instance uses event mode, so the step also stops at an event at its end, and the event is left for
+        :meth:`apply_step_events` (the outputs are its left limit); else it is applied at once. ``(time reached (s),
+        True if it stopped at an event, every output there)`` (:meth:`Trajectory.outputs`, the values the getters
+        answer: the loader keeps them)."""
         self._start_at(current_time)
         self.outputs_changed()
         trajectory = self.current_trajectory()
-        early = trajectory.communicate_to_event(current_time, step_size)
-        if early and not event_mode:
+        stopped = trajectory.communicate_to_event(current_time, step_size, bool(event_mode))
+        if stopped and not event_mode:
             trajectory.apply_events()
-        return trajectory.t, early, trajectory.outputs()
+        return trajectory.t, stopped, trajectory.outputs()
 
     def apply_step_events(self):
         """fmi3UpdateDiscreteStates of a co-simulation instance in event mode (the C loader calls it): the inputs set

@@ -1,11 +1,16 @@
 """Ctrl-C in the commands: ``stickslip run`` and ``stickslip system run`` stop within seconds, print one line (no
-traceback), exit with 130 and leave no report of another run; a SIGINT that lands inside an FMI call is an
-interrupt, never the FMU's error. Each command runs in a child process that gets SIGINT as a terminal's Ctrl-C
-sends it (to the process group) or as ``kill -INT`` does (to the process alone)."""
+traceback), exit with 130 and leave no report of another run, also while a command still loads its modules; a
+SIGINT that lands inside an FMI call is an interrupt, never the FMU's error. Each command runs in a child process
+that gets SIGINT as a terminal's Ctrl-C sends it (to the process group) or as ``kill -INT`` does (to the process
+alone)."""
 
 import os
+import queue
+import shutil
 import signal
 import subprocess
+import sys
+import threading
 import time
 from pathlib import Path
 
@@ -125,3 +130,72 @@ def test_an_interrupt_inside_an_fmi_call_is_not_the_fmus_error(fmu_path):
             with pytest.raises(FmuCallError, match="fmi2DoStep failed with status 3"):
                 instance.call(lambda: (_ for _ in ()).throw(FMICallException("fmi2DoStep", 3)))
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+#: the console script ``stickslip`` that installing the package made beside this Python
+CONSOLE_SCRIPT = shutil.which("stickslip", path=str(Path(sys.executable).parent))
+#: the modules the console script imports before its ``main`` runs: the package and the command line's entry point
+ENTRY_MODULES = {"stickslip", "stickslip.cli"}
+#: seconds after a command began loading its own modules at which the early-interrupt test sends SIGINT
+EARLY_DELAYS = (0.0, 0.05, 0.1, 0.2, 0.4, 0.7, 1.0)
+
+
+def test_the_entry_point_imports_nothing_else():
+    """The console script's imports before ``main`` runs, which no Ctrl-C handling can cover, load the package and
+    the entry point alone: every other module of the command loads inside ``main``."""
+    code = ("import sys; before = set(sys.modules); import stickslip.cli; "
+            "print(sorted(set(sys.modules) - before))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
+    assert done.stdout.strip() == repr(sorted(ENTRY_MODULES)), done.stdout
+
+
+def _module_loads(proc, lines):
+    """Put ``(time, line)`` of each line of the child's stderr into the queue ``lines``, then ``None``."""
+    for line in proc.stderr:
+        lines.put((time.monotonic(), line))
+    lines.put(None)
+
+
+def _interrupted_while_loading(args, delay):
+    """``stickslip args`` run by the console script with Python's import timing on (a line on stderr per module
+    loaded), SIGINT sent to its process group ``delay`` s after its first module beyond :data:`ENTRY_MODULES`
+    loaded; ``(exit code, stderr without the timing lines)``."""
+    proc = subprocess.Popen([CONSOLE_SCRIPT, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True, env={**os.environ, "PYTHONPROFILEIMPORTTIME": "1"})
+    lines = queue.Queue()
+    threading.Thread(target=_module_loads, args=(proc, lines), daemon=True).start()
+    stderr = []
+    try:
+        while (item := lines.get(timeout=60)) is not None:
+            stderr.append(item[1])
+            name = item[1].rpartition("|")[2].strip()
+            if name.startswith("stickslip.") and name not in ENTRY_MODULES:
+                time.sleep(max(0.0, item[0] + delay - time.monotonic()))
+                break
+        assert proc.poll() is None, f"{args} ended before the signal: {''.join(stderr)}"
+        os.killpg(proc.pid, signal.SIGINT)
+        proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    while (item := lines.get(timeout=60)) is not None:
+        stderr.append(item[1])
+    return proc.returncode, "".join(line for line in stderr if not line.startswith("import time:"))
+
+
+@pytest.mark.parametrize("delay", EARLY_DELAYS)
+@pytest.mark.parametrize("command", ["bifurcation", "system"])
+def test_ctrl_c_while_a_command_loads_its_modules(tmp_path, request, command, delay):
+    """From the moment a command loads its first module (NumPy, SciPy, FMPy, Matplotlib and the package's own
+    still to come) to its work a second later, Ctrl-C ends it with one line and exit code 130, three times in a
+    row at each delay."""
+    if command == "bifurcation":
+        args = ["bifurcation", "--preset", "elmer-fig3", "--jobs", "1", "--out", str(tmp_path)]
+    else:
+        args = ["system", "run", str(ROOT / "systems" / "bk10-velocity-weakening.toml"), "--master", "me",
+                "--out", str(tmp_path), "--fmu", str(request.getfixturevalue("fmu3_path"))]
+    for _ in range(3):
+        code, stderr = _interrupted_while_loading(args, delay)
+        assert code == 130, stderr
+        assert one_line(stderr, command) == f"stickslip {command}: interrupted"

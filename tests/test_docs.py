@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from stickslip.cli import COMMANDS
+from stickslip.cli.commands import COMMANDS
 
 REPO = Path(__file__).resolve().parents[1]
 DOCUMENTS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md")), REPO / "benchmarks" / "README.md",

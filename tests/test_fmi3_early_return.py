@@ -118,3 +118,41 @@ def test_output_derivatives_are_the_fmi2_fmu_s(runs):
     fmi2GetRealOutputDerivatives there, bit for bit; der(x) is v."""
     assert runs["plain"]["derivatives"] == runs["fmi2"]["derivatives"]
     assert [d[0] for d in runs["plain"]["derivatives"]] == [s[2] for s in runs["plain"]["samples"][1:]]
+
+
+#: the README's block: stuck at x = 0 on a surface at 0.1 m/s, F_S = 1 N, kappa = 1 N/m: it breaks away at x = 1 m,
+#: t = 10 s exactly, a communication point of 1 s steps
+ON_A_POINT = {**{name: value for name, value in VALUES.items() if name != "solver.rtol"}, "x_start": 0.0,
+              "solver.rtol": 1e-10}
+BREAKAWAY = 10.0
+
+
+@pytest.fixture(scope="module")
+def runs_on_a_point(fmu3_path, fmu_path):
+    """The runner's record of the README's block over 30 s in 1 s steps."""
+    machine_needs.c_compiler("the FMU's loader, which answers early return and event mode")
+    scene = json.dumps({"values": ON_A_POINT, "stop": 30.0, "interval": 1.0})
+    run = subprocess.run([sys.executable, str(RUNNER), str(fmu3_path), str(fmu_path), scene], capture_output=True,
+                         text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    return json.loads(run.stdout)
+
+
+def test_in_event_mode_an_event_on_a_communication_point_is_handled_in_event_mode(runs_on_a_point):
+    """eventModeUsed: the step that ends on the breakaway returns no early return but asks for event handling; the
+    sample there is stuck (the left limit), the one after Event Mode slipping, with x and v unchanged and one event
+    more. No other step asks for it."""
+    record = runs_on_a_point["event"]
+    assert [step for step in record["steps"] if step[0] or step[1]] == [[True, False, BREAKAWAY]]
+    before, after = [sample for sample in record["samples"] if sample[0] == BREAKAWAY]
+    assert (before[3], after[3]) == (0, 1)
+    assert after[4] == before[4] + 1 and before[1:3] == after[1:3] == [1.0, 0.1]
+
+
+def test_without_event_mode_an_event_on_a_communication_point_is_applied_in_the_step(runs_on_a_point):
+    """earlyReturnAllowed alone, or no flag: the step to the breakaway applies it (slipping there), and every sample
+    is the FMI 2 FMU's."""
+    for way in ("early", "plain"):
+        assert not any(handling or returned for handling, returned, _ in runs_on_a_point[way]["steps"])
+        assert runs_on_a_point[way]["samples"] == runs_on_a_point["fmi2"]["samples"]
+    assert [s[3] for s in runs_on_a_point["plain"]["samples"] if s[0] == BREAKAWAY] == [1]

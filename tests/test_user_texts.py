@@ -59,7 +59,8 @@ def test_package_strings_and_user_docs_name_no_issue():
 #: prints the commands seen and which numerical modules got imported
 HELP_CHILD = r"""
 import argparse, contextlib, io, json, sys
-from stickslip.cli import build_parser, main
+from stickslip.cli import main
+from stickslip.cli.commands import build_parser
 
 def commands(parser, prefix=()):
     yield prefix

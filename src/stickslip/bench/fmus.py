@@ -11,12 +11,15 @@ import sys
 from pathlib import Path
 
 from ..fmu import loader
+from ..fmu.build import CHECKOUT, announce_build, in_checkout
+from ..fmu.compile_runtime import USER_CACHE
 from ..fmu.python_path import preserved_sys_path
 from ..hosts.fmpy_host import ExtractedFMU
 
 FLOOR_SOURCE = Path(__file__).resolve().parent / "floor_fmu" / "TrivialFloorSlave_sbfbench.py"
-#: where the benchmark builds its FMUs and C hosts (relative to the current folder)
-BUILD_DIR = Path("build") / "bench"
+#: where the benchmark builds its FMUs and C hosts: a checkout's ``build/bench/``, else the user's cache
+#: (``~/.cache/stickslip/bench/``, under ``$XDG_CACHE_HOME`` if set)
+BUILD_DIR = (CHECKOUT / "build" if in_checkout() else USER_CACHE) / "bench"
 
 __all__ = ["BUILD_DIR", "ExtractedFMU", "FLOOR_SOURCE", "ensure_floor_fmu"]
 
@@ -30,6 +33,7 @@ def ensure_floor_fmu(build_dir=None):
     newest_source = max(path.stat().st_mtime for path in (FLOOR_SOURCE, *loader.SOURCES))
     if dest.is_file() and dest.stat().st_mtime >= newest_source:
         return dest
+    announce_build(dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
     partial = dest.with_name(f".{dest.name}.{os.getpid()}.part.fmu")
     try:

@@ -11,6 +11,7 @@ from pathlib import Path
 from .. import core
 from ..core._implementation import import_pure_copy
 from ..fmu import build, source_tag
+from ..fmu.build import announce_build
 
 PURE_CORE = import_pure_copy(os.path.dirname(core.__file__), "stickslip_bench_pure_core")
 
@@ -29,6 +30,7 @@ def ensure_pure_fmu(build_dir):
     marker = dest.with_suffix(".tag")
     tag = source_tag()
     if not (dest.is_file() and marker.is_file() and marker.read_text() == tag):
+        announce_build(dest)
         build(dest, pure=True)
         marker.write_text(tag)
     return dest

@@ -12,9 +12,10 @@ def add_bench_parser(subparsers):
                    help="20 s scenes, a few configurations, one timed run each (a smoke test, not a measurement)")
     p.add_argument("--out", default="bench-results", help="output directory (default: bench-results)")
     p.add_argument("--scenes", nargs="+", metavar="NAME", help="scenes to run (default: all; see benchmarks/README.md)")
-    p.add_argument("--fmu", help="FMU to measure (default: dist/SpringBlockFriction.fmu, built if missing or stale)")
+    p.add_argument("--fmu", help="FMU to measure (default: SpringBlockFriction.fmu of the FMU folder, built if missing "
+                                 "or stale; the folder: stickslip build --help)")
     p.add_argument("--fmu3", help="FMI 3 FMU whose model exchange is measured (default: "
-                                  "dist/SpringBlockFriction-fmi3.fmu, built if missing or stale)")
+                                  "SpringBlockFriction-fmi3.fmu of the FMU folder, built if missing or stale)")
     p.set_defaults(handler=run_bench)
 
 
@@ -75,7 +76,8 @@ def add_c_hosts_parser(subparsers):
     p.add_argument("--fmusim", help="fmusim of Reference-FMUs (scripts/build_fmusim.sh); Feedthrough.fmu and "
                                     "Dahlquist.fmu beside it are measured too")
     p.add_argument("--out", default="bench-c-hosts", help="output directory (default: bench-c-hosts)")
-    p.add_argument("--fmu", help="our FMI 2 FMU (default: dist/SpringBlockFriction.fmu, built if missing or stale)")
+    p.add_argument("--fmu", help="our FMI 2 FMU (default: SpringBlockFriction.fmu of the FMU folder, built if missing "
+                                 "or stale; the folder: stickslip build --help)")
     p.add_argument("--steps", type=int, default=50_000, help="steps of 0.01 s in a long host run (default: 50000)")
     p.add_argument("--repeats", type=int, default=5, help="timed runs of each measurement (default: 5)")
     p.set_defaults(handler=run_c_hosts)

@@ -19,7 +19,8 @@ def add_stress_parser(subparsers):
                         "comm-step, input-jumps, long")
     p.add_argument("--case", action="append", metavar="NAME", help="only the case(s) whose name contains NAME")
     p.add_argument("--list", action="store_true", help="list the cases and exit")
-    p.add_argument("--fmu", help="FMU to test (default: dist/SpringBlockFriction.fmu, built if missing or stale)")
+    p.add_argument("--fmu", help="FMU to test (default: SpringBlockFriction.fmu of the FMU folder, built if missing or "
+                                 "stale; the folder: stickslip build --help)")
     p.add_argument("--out", default="results", metavar="DIR",
                    help=f"output folder (default: results): DIR/{REPORT_NAME}, the tables by group and by case with "
                         "every column, the failures and the details")

@@ -221,15 +221,16 @@ class Trajectory:
             raise SolverError(f"cannot advance from t = {self.t!r} s back to t = {t!r} s")
         return left
 
-    def advance_to_event(self, t: float) -> bool:
+    def advance_to_event(self, t: float, at_end: bool = False) -> bool:
         """Advance towards ``t >= self.t`` (s) as :meth:`advance_to` does, but stop at the first event (stick,
-        breakaway or overshoot) strictly between ``self.t`` and ``t``: True, ``self.t`` the event's time and the
-        state its left limit (the mode before it, the event not yet applied: :meth:`apply_events` applies it, and
-        so does any later advance). False if no event lies inside: then at ``t``, every event up to and at it
-        applied. The segments are the same as :meth:`advance_to`'s, so stopping changes no result."""
+        breakaway or overshoot) strictly between ``self.t`` and ``t``, or with ``at_end`` at ``t`` itself: True,
+        ``self.t`` the event's time and the state its left limit (the mode before it, the event not yet applied:
+        :meth:`apply_events` applies it, and so does any later advance). False if no such event lies there: then at
+        ``t``, every event up to and at it applied. The segments are the same as :meth:`advance_to`'s, so stopping
+        changes no result."""
         left = self._segments_allowed(t)
         start, end = self.t, float(t)
-        while self._segment.t1 < end:
+        while self._segment.t1 < end or (at_end and self._segment.t1 == end):
             segment = self._segment
             if segment.ends_in_event and segment.t1 > start:
                 self.t = segment.t1
@@ -307,11 +308,12 @@ class Trajectory:
             return self._x, self._v
         return self.x, self.v
 
-    def communicate_to_event(self, current_time: float, step_size: float) -> bool:
+    def communicate_to_event(self, current_time: float, step_size: float, at_end: bool = False) -> bool:
         """A co-simulation step as :meth:`communicate`, that stops at the first event inside it (FMI 3's early
-        return): :meth:`advance_to_event` to ``current_time + step_size`` (s); True if it stopped there."""
+        return), or with ``at_end`` also at one at its end (FMI 3's event mode): :meth:`advance_to_event` to
+        ``current_time + step_size`` (s); True if it stopped at an event."""
         check_step(current_time, step_size, self.t)
-        return self.advance_to_event(current_time + step_size)
+        return self.advance_to_event(current_time + step_size, at_end)
 
     # ------------------------------------------------------------------
     # state and outputs at self.t

@@ -22,7 +22,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import archive, documentation, floors, loader, model_description, trim, windows_python
-from .sources import MODEL_NAME, RUNTIME, INTERFACE, SLAVES, is_current, runtime_tag, source_tag
+from .compile_runtime import USER_CACHE
+from .sources import (MODEL_NAME, RUNTIME, INTERFACE, SLAVES, is_current, runtime_tag, source_tag,  # noqa: I001
+                      sources_tag)
 from .python_path import preserved_sys_path
 from .staging import LOADERS, stage_runtime
 
@@ -42,6 +44,8 @@ SUMMARY = (
     "outputs: its position, velocity, forces, mode and event counts.")
 #: FMI version: the FMU's file name
 FILE_NAMES = {2: f"{MODEL_NAME}.fmu", 3: f"{MODEL_NAME}-fmi3.fmu"}
+#: the checkout this module would lie in (``src/stickslip/fmu/``), if it is one: then its ``dist/`` holds the FMUs
+CHECKOUT = Path(__file__).resolve().parents[3]
 
 
 @dataclass(frozen=True)
@@ -61,18 +65,38 @@ LIBRARIES = {
 
 
 def default_fmu_path(fmi_version=2):
-    """Where :func:`ensure_fmu` keeps the FMU of ``fmi_version``: ``dist/<file name>`` in the current folder
-    (``$STICKSLIP_DIST`` instead of ``dist`` if set)."""
-    return Path(os.environ.get("STICKSLIP_DIST") or "dist").resolve() / FILE_NAMES[fmi_version]
+    """Where :func:`ensure_fmu` keeps the FMU of ``fmi_version`` (:data:`FILE_NAMES`) when no command names one: in
+    ``$STICKSLIP_DIST`` if set, else in a checkout its ``dist/``, else the user's cache
+    (``$XDG_CACHE_HOME/stickslip/fmus/<sources tag>/``, default ``~/.cache/...``: one folder per state of the
+    sources, :func:`~stickslip.fmu.sources.sources_tag`)."""
+    named = os.environ.get("STICKSLIP_DIST")
+    if named:
+        folder = Path(named).resolve()
+    elif in_checkout():
+        folder = CHECKOUT / "dist"
+    else:
+        folder = USER_CACHE / "fmus" / sources_tag()
+    return folder / FILE_NAMES[fmi_version]
+
+
+def in_checkout():
+    """True if this package runs from a checkout of its sources (:data:`CHECKOUT`), not from an installation."""
+    return (CHECKOUT / "pyproject.toml").is_file() and (CHECKOUT / "build_fmu.py").is_file()
 
 
 def ensure_fmu(fmu_path=None, fmi_version=2):
-    """Build the FMU of ``fmi_version`` at ``fmu_path`` (default :func:`default_fmu_path`) unless it is current;
-    return its path."""
+    """Build the FMU of ``fmi_version`` at ``fmu_path`` (default :func:`default_fmu_path`) unless it is current,
+    saying where on stderr; return its path."""
     fmu_path = Path(fmu_path or default_fmu_path(fmi_version))
     if not is_current(fmu_path, fmi_version):
+        announce_build(fmu_path)
         build(fmu_path, fmi_version)
     return fmu_path
+
+
+def announce_build(path):
+    """Say on stderr that the FMU at ``path`` is being built (it was missing or built from other sources)."""
+    print(f"stickslip: building {Path(path).resolve()} (missing or out of date) ...", file=sys.stderr, flush=True)
 
 
 def build(dest=None, fmi_version=2, pure=False):

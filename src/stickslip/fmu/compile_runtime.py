@@ -39,6 +39,9 @@ COMPILED_ARTIFACTS = ("__pycache__", "*.pyc", "*.so", "*.pyd", implementation.ST
 WINDOWS_PLATFORM = "win-amd64"
 #: the FMUs' runtime compiled when the package was built (setup.py), one folder per :func:`prebuilt_key`
 PREBUILT = HERE / "prebuilt"
+#: the user's cache folder of stickslip (``$XDG_CACHE_HOME/stickslip``, default ``~/.cache/stickslip``): compiled
+#: runtimes, the Windows CPython's package, FMUs built outside a checkout
+USER_CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stickslip"
 #: the file that marks a folder of compiled files complete, and mypy's licence beside them (mypyc's C runtime is in
 #: the compiled files: the FMUs' documentation carries it)
 COMPLETE, MYPY_LICENSE = "complete", "mypy-license.txt"

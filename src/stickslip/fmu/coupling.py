@@ -15,7 +15,7 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from . import archive, documentation, model_description, trim
-from .build import default_fmu_path, forget_modules, write_with_loader
+from .build import announce_build, default_fmu_path, forget_modules, write_with_loader
 from .python_path import preserved_sys_path
 from .sources import BUILDERS, LOADER_BINDING, SLAVE_FOLDER, files_tag
 from .staging import FMI2_TEMPLATE, LIBRARY_ARCHIVE, byte_compile, rewrite_once
@@ -57,7 +57,7 @@ def _staged_slave(folder, tag):
 
 
 def default_coupling_path():
-    """``ChainCoupling.fmu`` beside the block's default FMU (``dist/``, or ``$STICKSLIP_DIST``)."""
+    """``ChainCoupling.fmu`` beside the block's default FMI 2 FMU (:func:`~stickslip.fmu.build.default_fmu_path`)."""
     return default_fmu_path(2).with_name(COUPLING_FILE)
 
 
@@ -75,6 +75,7 @@ def ensure_coupling_fmu(path=None):
     """Build the coupling FMU at ``path`` (default :func:`default_coupling_path`) unless it is current; its path."""
     path = Path(path or default_coupling_path())
     if not coupling_is_current(path):
+        announce_build(path)
         build_coupling(path)
     return path
 

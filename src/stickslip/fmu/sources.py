@@ -33,8 +33,17 @@ BUILDERS = (*(Path(__file__).resolve().with_name(name) for name in
 
 def source_tag(fmi_version=2):
     """10 hex digits identifying the runtime, the slave of ``fmi_version``, the shared table and the builders."""
-    sources = sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts)
-    return files_tag([*sources, SLAVES[fmi_version], INTERFACE, LOADER_BINDING, *BUILDERS])
+    return files_tag([*_runtime_sources(), SLAVES[fmi_version], INTERFACE, LOADER_BINDING, *BUILDERS])
+
+
+def sources_tag():
+    """10 hex digits identifying the sources of every FMU this package builds (both slaves): the name of the user's
+    cache folder of FMUs built from them (:func:`stickslip.fmu.build.default_fmu_path`)."""
+    return files_tag([*_runtime_sources(), *SLAVES.values(), INTERFACE, LOADER_BINDING, *BUILDERS])
+
+
+def _runtime_sources():
+    return sorted(p for p in RUNTIME.rglob("*.py") if "__pycache__" not in p.parts)
 
 
 def built_tag(fmu_path, fmi_version=2):

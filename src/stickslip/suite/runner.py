@@ -105,9 +105,9 @@ def run_scenario(scenario, fmu_path, out_dir=None, interface=None):
 def run_suite(paths, out_dir, jobs=2, fmu_path=None, interface=None):
     """Run the scenarios in ``paths`` (files or directories) with ``jobs`` worker processes.
 
-    ``fmu_path``: the FMU to test; by default ``dist/SpringBlockFriction.fmu``, built
-    if missing or stale (an explicit path is used as it is). ``interface`` "cs" or "me" tests the FMU at
-    ``fmu_path`` (default: the FMI 3 FMU ``dist/SpringBlockFriction-fmi3.fmu``, built if missing or stale)
+    ``fmu_path``: the FMU to test; by default ``SpringBlockFriction.fmu`` at
+    :func:`~stickslip.fmu.default_fmu_path`, built if missing or stale (an explicit path is used as it is).
+    ``interface`` "cs" or "me" tests the FMU at ``fmu_path`` (default: the FMI 3 FMU there, built if missing or stale)
     through that interface (an FMI 2 FMU's "cs" is its default); None (default) the FMU at ``fmu_path`` through
     co-simulation.
 

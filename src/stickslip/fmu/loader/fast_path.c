@@ -268,7 +268,7 @@ static int unbound(const sbf_fast_path *fast, const char *function, char *why, s
 
 /* ---- FMI 3's early return and event mode ---- */
 
-int sbf_slave_event_step(sbf_fast_path *fast, double t, double h, int event_mode, double *reached, int *early,
+int sbf_slave_event_step(sbf_fast_path *fast, double t, double h, int event_mode, double *reached, int *stopped,
                          char *why, size_t why_size)
 {
     if (!fast->slave) return -1;
@@ -280,12 +280,12 @@ int sbf_slave_event_step(sbf_fast_path *fast, double t, double h, int event_mode
     int outcome = 1;
     if (result && py.PyTuple_Size(result) == 3) {
         double time = py.PyFloat_AsDouble(py.PyTuple_GetItem(result, 0));
-        long stopped = py.PyLong_AsLong(py.PyTuple_GetItem(result, 1));
+        long at_event = py.PyLong_AsLong(py.PyTuple_GetItem(result, 1));
         if (!py.PyErr_Occurred() && keep_outputs(fast, py.PyTuple_GetItem(result, 2)))
-            *reached = time, *early = stopped != 0, outcome = 0;
+            *reached = time, *stopped = at_event != 0, outcome = 0;
     }
     if (outcome) {
-        if (!py.PyErr_Occurred()) snprintf(why, why_size, "[doStep] step_to_event gave no (time, early, outputs)");
+        if (!py.PyErr_Occurred()) snprintf(why, why_size, "[doStep] step_to_event gave no (time, stopped, outputs)");
         else exception_text("doStep", why, why_size);
     }
     if (result) py.Py_DecRef(result);

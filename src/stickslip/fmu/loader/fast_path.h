@@ -86,11 +86,12 @@ int sbf_slave_exchange(sbf_fast_path *fast, const char *function, const double *
                        double *out, size_t n_out, char *why, size_t why_size);
 
 /* fmi3DoStep with early return: the bound slave's step_to_event (fmu_src/SpringBlockFriction_fmi3.py) from `t` by
- * `h` (s), `event_mode`: the instance uses event mode (the event is left for sbf_slave_apply_events). 0 with the time
- * reached in *reached, *early = 1 if that is short of t + h (at an event), and every output there in the buffer (the
- * reads after the step are answered from it, as after sbf_fast_step); -1 if no slave is bound (take the step another
- * way); 1 if the step failed, with the slave's exception as "[doStep] <repr>" in `why`. */
-int sbf_slave_event_step(sbf_fast_path *fast, double t, double h, int event_mode, double *reached, int *early,
+ * `h` (s), `event_mode`: the instance uses event mode (the step also stops at an event at t + h, and the event is left
+ * for sbf_slave_apply_events). 0 with the time reached in *reached, *stopped = 1 if it stopped at an event there
+ * (short of t + h, or with `event_mode` at it), and every output there in the buffer (the reads after the step are
+ * answered from it, as after sbf_fast_step); -1 if no slave is bound (take the step another way); 1 if the step
+ * failed, with the slave's exception as "[doStep] <repr>" in `why`. */
+int sbf_slave_event_step(sbf_fast_path *fast, double t, double h, int event_mode, double *reached, int *stopped,
                          char *why, size_t why_size);
 
 /* fmi3UpdateDiscreteStates of a co-simulation instance in Event Mode: the bound slave's apply_step_events. 0 if done,

@@ -119,7 +119,8 @@ static struct {
 /* ---- one instance ---- */
 typedef struct {
     fmi2Component inner;
-    sbf_mode mode; /* where FMI 2.0's co-simulation state machine is, or SBF_EXCHANGING */
+    sbf_mode mode; /* where FMI 2.0's state machine of the instance's interface is */
+    int exchange;  /* a model-exchange instance */
     fmi2CallbackFunctions host;   /* the importer's callbacks */
     fmi2CallbackFunctions relay;  /* handed to PythonFMU: logs through relay_log */
     char *name;
@@ -251,6 +252,7 @@ static Instance *renewed(Instance *old, Instance *fresh)
     old->relay.componentEnvironment = old;
     sbf_set_log_filter(&old->logging, fresh->logging.on, 0, NULL);
     old->mode = fresh->mode;
+    old->exchange = fresh->exchange;
     memcpy(old->folder, fresh->folder, sizeof old->folder);
     free_instance(fresh);
     sbf_call_begin();
@@ -289,7 +291,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
     }
     sbf_keep_thread_state();
     /* a model-exchange instance is PythonFMU's co-simulation instance, the model-exchange calls answered here */
-    inst->mode = type == fmi2ModelExchange ? SBF_EXCHANGING : SBF_INSTANTIATED;
+    inst->exchange = type == fmi2ModelExchange, inst->mode = SBF_INSTANTIATED;
     Instance *old = take_kept(inst->inner_path, visible);
     if (old) return renewed(old, inst);
     sbf_instantiate_begin();
@@ -363,8 +365,18 @@ STATE_USED(FORWARD)
 static fmi2Status moved(fmi2Component c, fmi2Status status, sbf_mode mode)
 {
     Instance *inst = c;
-    if (inst && inst->mode != SBF_EXCHANGING && status <= fmi2Warning) inst->mode = mode;
+    if (inst && status <= fmi2Warning) inst->mode = mode;
     return status;
+}
+
+/* 1 (after a message naming `function` and the state) unless the instance `c` is in one of the states `allowed`
+ * (sbf_call_refused) */
+static int refused_in_state(fmi2Component c, const char *function, unsigned allowed)
+{
+    char why[512];
+    if (!sbf_call_refused(((Instance *)c)->mode, allowed, function, why, sizeof why)) return 0;
+    host_log(c, fmi2Error, why);
+    return 1;
 }
 
 EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
@@ -386,7 +398,8 @@ EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c)
 
 EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 {
-    return moved(c, forward_fmi2ExitInitializationMode(c), SBF_STEPPING);
+    /* model exchange goes on in Event Mode (FMI 2.0 section 3.2.3), co-simulation in Step Mode */
+    return moved(c, forward_fmi2ExitInitializationMode(c), c && ((Instance *)c)->exchange ? SBF_EVENT : SBF_STEPPING);
 }
 
 EXPORT fmi2Status fmi2Terminate(fmi2Component c) { return moved(c, forward_fmi2Terminate(c), SBF_TERMINATED); }
@@ -404,7 +417,7 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolea
 {
     char why[4096];
     if (!c) return fmi2Error;
-    if (sbf_step_refused(((Instance *)c)->mode, "fmi2DoStep", t, why, sizeof why)) {
+    if (sbf_step_refused(((Instance *)c)->mode, ((Instance *)c)->exchange, "fmi2DoStep", t, why, sizeof why)) {
         host_log(c, fmi2Error, why);
         return fmi2Error;
     }
@@ -441,10 +454,10 @@ static fmi2Status derivatives(fmi2Component c, const char *function, const char 
         host_log(c, fmi2Error, why);
         return fmi2Error;
     }
-    if (inst->mode == SBF_TERMINATED || inst->mode == SBF_EXCHANGING) {
+    if (inst->exchange || inst->mode == SBF_TERMINATED) {
         snprintf(why, sizeof why, "%s: not allowed %s", function,
-                 inst->mode == SBF_TERMINATED ? "after fmi2Terminate"
-                                              : "for a model-exchange instance: it is a co-simulation function");
+                 inst->exchange ? "for a model-exchange instance: it is a co-simulation function"
+                                : "after fmi2Terminate");
         host_log(c, fmi2Error, why);
         return fmi2Error;
     }
@@ -482,7 +495,7 @@ SBF_DESERIALIZE(fmi2Status, fmi2Error, fmi2Warning, fmi2Byte, fmi2DeSerializeFMU
 static int refused_in_co_simulation(fmi2Component c, const char *function)
 {
     char why[512];
-    if (c && ((Instance *)c)->mode == SBF_EXCHANGING) return 0;
+    if (c && ((Instance *)c)->exchange) return 0;
     if (!c) return 1;
     snprintf(why, sizeof why, "%s is not allowed for a co-simulation instance: it is a model-exchange function (the "
              "instance was made by fmi2Instantiate with fmuType = fmi2CoSimulation)", function);
@@ -513,7 +526,16 @@ static fmi2Status exchanged(fmi2Component c, const char *function, const double 
     return fmi2Error;
 }
 
-EXPORT fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) { return exchanged(c, "fmi2SetTime", &time, 1, 0, NULL, 0); }
+/* FMI 2.0 section 3.2.3 allows it in Event and Continuous-Time Mode; before, it sets the start time too */
+#define SET_TIME_ALLOWED \
+    (SBF_IN(SBF_INSTANTIATED) | SBF_IN(SBF_INITIALIZING) | SBF_IN(SBF_EVENT) | SBF_IN(SBF_CONTINUOUS))
+
+EXPORT fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time)
+{
+    if (refused_in_co_simulation(c, "fmi2SetTime") || refused_in_state(c, "fmi2SetTime", SET_TIME_ALLOWED))
+        return fmi2Error;
+    return exchanged(c, "fmi2SetTime", &time, 1, 0, NULL, 0);
+}
 
 EXPORT fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx)
 {
@@ -532,21 +554,30 @@ ARRAY_GETTER(fmi2GetNominalsOfContinuousStates, nx)
 ARRAY_GETTER(fmi2GetEventIndicators, ni)
 #undef ARRAY_GETTER
 
-/* The mode changes need nothing of the slave: the event update is fmi2NewDiscreteStates */
+/* The mode changes need nothing of the slave (the event update is fmi2NewDiscreteStates): from Event or
+ * Continuous-Time Mode to Event Mode, from Event Mode to Continuous-Time Mode */
 EXPORT fmi2Status fmi2EnterEventMode(fmi2Component c)
 {
-    return refused_in_co_simulation(c, "fmi2EnterEventMode") ? fmi2Error : fmi2OK;
+    if (refused_in_co_simulation(c, "fmi2EnterEventMode") ||
+        refused_in_state(c, "fmi2EnterEventMode", SBF_IN(SBF_EVENT) | SBF_IN(SBF_CONTINUOUS)))
+        return fmi2Error;
+    return moved(c, fmi2OK, SBF_EVENT);
 }
 
 EXPORT fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c)
 {
-    return refused_in_co_simulation(c, "fmi2EnterContinuousTimeMode") ? fmi2Error : fmi2OK;
+    if (refused_in_co_simulation(c, "fmi2EnterContinuousTimeMode") ||
+        refused_in_state(c, "fmi2EnterContinuousTimeMode", SBF_IN(SBF_EVENT)))
+        return fmi2Error;
+    return moved(c, fmi2OK, SBF_CONTINUOUS);
 }
 
 EXPORT fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *info)
 {
     double answer[6];
-    if (refused_in_co_simulation(c, "fmi2NewDiscreteStates")) return fmi2Error;
+    if (refused_in_co_simulation(c, "fmi2NewDiscreteStates") ||
+        refused_in_state(c, "fmi2NewDiscreteStates", SBF_IN(SBF_EVENT)))
+        return fmi2Error;
     if (!info) return exchanged(c, "fmi2NewDiscreteStates", NULL, 0, 0, NULL, 1); /* refused: a NULL fmi2EventInfo */
     fmi2Status status = exchanged(c, "fmi2NewDiscreteStates", NULL, 0, 0, answer, 6);
     if (status > fmi2Warning) return status;
@@ -560,7 +591,9 @@ EXPORT fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean noSet
 {
     double answer[2];
     (void)noSetFMUStatePriorToCurrentPoint;
-    if (refused_in_co_simulation(c, "fmi2CompletedIntegratorStep")) return fmi2Error;
+    if (refused_in_co_simulation(c, "fmi2CompletedIntegratorStep") ||
+        refused_in_state(c, "fmi2CompletedIntegratorStep", SBF_IN(SBF_CONTINUOUS)))
+        return fmi2Error;
     if (!enterEventMode || !terminateSimulation)
         return exchanged(c, "fmi2CompletedIntegratorStep", NULL, 0, 0, NULL, 2); /* refused: a NULL argument */
     fmi2Status status = exchanged(c, "fmi2CompletedIntegratorStep", NULL, 0, 0, answer, 2);

@@ -6,7 +6,8 @@
  * the model's calls as fmi3Error where the slave allows it: see FORWARDED). The functions pythonfmu3 leaves
  * unimplemented would throw a C++ exception through the host (std::terminate); they are answered here with
  * fmi3Error and a logged message instead (UNSUPPORTED), as is scheduled execution, and so are the model-exchange
- * functions on a co-simulation instance (EXCHANGE_ONLY).
+ * functions on a co-simulation instance (EXCHANGE_ONLY) and the calls that FMI 3.0's state machines do not allow
+ * in the state the instance is in (sbf_call_refused).
  * pythonfmu3 filters its error messages by the host's log categories too; it is therefore instantiated with
  * logging on and no categories, and this library filters: warnings, discards, errors and fatals always reach
  * the host's logMessage, other messages only as the host asked (loggingOn, fmi3SetDebugLogging categories).
@@ -78,17 +79,19 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
       (unknowns, nUnknowns, knowns, nKnowns, seed, nSeed, sensitivity, nSensitivity))
 
 /* The model-exchange functions forwarded as they are, refused for a co-simulation instance (FMI 3.0 section
- * 2.3: "Not allowed in Co-Simulation"): forwarded by forward_<name>, exported below (the model-exchange arrays
- * are refused by refused_array). */
+ * 2.3: "Not allowed in Co-Simulation") and outside the states they are allowed in (the last argument,
+ * sbf_call_refused; fmi3SetTime also before Event Mode, where it sets the start time): forwarded by
+ * forward_<name>, exported below (the model-exchange arrays are refused by refused_array). */
+#define ANY_STATE (~0u)
 #define EXCHANGE_ONLY(X)                                                                                           \
-    X(fmi3EnterContinuousTimeMode, KEPT, (fmi3Instance c), ())                                                    \
     X(fmi3CompletedIntegratorStep, KEPT,                                                                          \
       (fmi3Instance c, fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *enterEventMode,                 \
        fmi3Boolean *terminateSimulation),                                                                         \
-      (noSetFMUStatePriorToCurrentPoint, enterEventMode, terminateSimulation))                                    \
-    X(fmi3SetTime, RECOVERABLE, (fmi3Instance c, fmi3Float64 time), (time))                                       \
-    X(fmi3GetNumberOfEventIndicators, RECOVERABLE, (fmi3Instance c, size_t *n), (n))                              \
-    X(fmi3GetNumberOfContinuousStates, RECOVERABLE, (fmi3Instance c, size_t *n), (n))
+      (noSetFMUStatePriorToCurrentPoint, enterEventMode, terminateSimulation), SBF_IN(SBF_CONTINUOUS))            \
+    X(fmi3SetTime, RECOVERABLE, (fmi3Instance c, fmi3Float64 time), (time),                                       \
+      SBF_IN(SBF_INSTANTIATED) | SBF_IN(SBF_INITIALIZING) | SBF_IN(SBF_EVENT) | SBF_IN(SBF_CONTINUOUS))           \
+    X(fmi3GetNumberOfEventIndicators, RECOVERABLE, (fmi3Instance c, size_t *n), (n), ANY_STATE)                   \
+    X(fmi3GetNumberOfContinuousStates, RECOVERABLE, (fmi3Instance c, size_t *n), (n), ANY_STATE)
 
 /* The getters of the outputs' types: answered from the fast path's buffer where it holds every value asked for
  * (fast_path.h), else forwarded by forward_<name> as calls that only read; exported below. X(name, failure,
@@ -101,6 +104,7 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
  * the discrete-state update: model exchange only), the deserialization of states, and the model-exchange arrays
  * whose size is checked (COUNTED): forwarded by forward_<name>, exported below. */
 #define TRACKED(X)                                                                                                 \
+    X(fmi3EnterContinuousTimeMode, KEPT, (fmi3Instance c), ())                                                    \
     X(fmi3SetContinuousStates, RECOVERABLE, (fmi3Instance c, const fmi3Float64 *x, size_t n), (x, n))             \
     X(fmi3GetEventIndicators, RECOVERABLE, (fmi3Instance c, fmi3Float64 *z, size_t n), (z, n))                    \
     X(fmi3GetContinuousStates, RECOVERABLE, (fmi3Instance c, fmi3Float64 *x, size_t n), (x, n))                   \
@@ -198,7 +202,8 @@ static struct {
 /* ---- one instance ---- */
 typedef struct {
     fmi3Instance inner;
-    sbf_mode mode; /* where FMI 3.0's state machine is (co-simulation), or SBF_EXCHANGING */
+    sbf_mode mode; /* where FMI 3.0's state machine of the instance's interface is */
+    int exchange;  /* a model-exchange instance */
     fmi3InstanceEnvironment environment; /* the host's */
     fmi3LogMessageCallback log_message;   /* the host's */
     sbf_log_filter logging;
@@ -333,7 +338,7 @@ EXPORT fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3St
     Instance *inst = new_instance("fmi3InstantiateModelExchange", instanceName, instantiationToken, resourcePath,
                                   path, sizeof path, loggingOn, instanceEnvironment, logMessage);
     if (inst) {
-        inst->mode = SBF_EXCHANGING;
+        inst->exchange = 1;
         sbf_instantiate_begin();
         inst->inner = inner.fmi3InstantiateModelExchange(instanceName, instantiationToken, path, visible, true,
                                                          inst, relay_log);
@@ -418,7 +423,7 @@ static int fast_int32(sbf_fast_path *fast, const fmi3ValueReference *vr, size_t 
     SBF_READER(fmi3Status, fmi3OK, fmi3Error, fmi3Fatal, name, failure, params, args, read)
 READERS(READER)
 #undef READER
-#define FORWARD(name, failure, params, args) \
+#define FORWARD(name, failure, params, args, ...) \
     SBF_FORWARD_AS(static, forward_##name, fmi3Status, fmi3Error, fmi3Fatal, name, failure, params, args)
 EXCHANGE_ONLY(FORWARD)
 TRACKED(FORWARD)
@@ -428,12 +433,22 @@ STATE_USED(FORWARD)
 STATE_USED(FORWARD)
 #undef FORWARD
 
-/* `status` of a call that moves the co-simulation instance `c` to `mode` when it succeeds */
+/* `status` of a call that moves the instance `c` to `mode` when it succeeds */
 static fmi3Status moved(fmi3Instance c, fmi3Status status, sbf_mode mode)
 {
     Instance *inst = c;
-    if (inst && inst->mode != SBF_EXCHANGING && status <= fmi3Warning) inst->mode = mode;
+    if (inst && status <= fmi3Warning) inst->mode = mode;
     return status;
+}
+
+/* 1 (after a message naming `function` and the state) unless the instance `c` is in one of the states `allowed`
+ * (sbf_call_refused); 0 for no instance (the call refuses it) */
+static int refused_in_state(fmi3Instance c, const char *function, unsigned allowed)
+{
+    char why[512];
+    if (!c || !sbf_call_refused(((Instance *)c)->mode, allowed, function, why, sizeof why)) return 0;
+    host_log(c, fmi3Error, why);
+    return 1;
 }
 
 EXPORT fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
@@ -454,18 +469,20 @@ EXPORT fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean tolera
     return moved(c, status, SBF_INITIALIZING);
 }
 
-/* FMI 3.0 section 4.2: a co-simulation instance that uses event mode goes on in Event Mode, any other in Step Mode */
+/* FMI 3.0 sections 3.2 and 4.2: model exchange, and a co-simulation instance that uses event mode, go on in Event
+ * Mode, any other in Step Mode */
 EXPORT fmi3Status fmi3ExitInitializationMode(fmi3Instance c)
 {
     fmi3Status status = forward_fmi3ExitInitializationMode(c);
-    return moved(c, status, c && ((Instance *)c)->event_mode ? SBF_EVENT : SBF_STEPPING);
+    const Instance *inst = c;
+    return moved(c, status, inst && (inst->exchange || inst->event_mode) ? SBF_EVENT : SBF_STEPPING);
 }
 
 /* True (and a logged error naming `function` and `reason`) if `c` is a co-simulation instance */
 static int refused_in_co_simulation(fmi3Instance c, const char *function, const char *reason)
 {
     char why[512];
-    if (!c || ((Instance *)c)->mode == SBF_EXCHANGING) return 0;
+    if (!c || ((Instance *)c)->exchange) return 0;
     snprintf(why, sizeof why, "%s is not allowed for a co-simulation instance: %s", function, reason);
     host_log(c, fmi3Error, why);
     return 1;
@@ -474,27 +491,26 @@ static int refused_in_co_simulation(fmi3Instance c, const char *function, const 
     "it is a model-exchange function (FMI 3.0: not allowed in co-simulation; the instance was made by " \
     "fmi3InstantiateCoSimulation)"
 
-#define EXPORT_EXCHANGE_ONLY(name, failure, params, args)                         \
-    EXPORT fmi3Status name params                                                 \
-    {                                                                             \
-        if (refused_in_co_simulation(c, #name, EXCHANGE_FUNCTION)) return fmi3Error; \
-        return forward_##name(c SBF_FORWARD_ARGS args);                           \
+#define EXPORT_EXCHANGE_ONLY(name, failure, params, args, allowed)                                          \
+    EXPORT fmi3Status name params                                                                          \
+    {                                                                                                      \
+        if (refused_in_co_simulation(c, #name, EXCHANGE_FUNCTION) || refused_in_state(c, #name, allowed))  \
+            return fmi3Error;                                                                              \
+        return forward_##name(c SBF_FORWARD_ARGS args);                                                    \
     }
 EXCHANGE_ONLY(EXPORT_EXCHANGE_ONLY)
 #undef EXPORT_EXCHANGE_ONLY
 
 /* 1 (after a message naming `function`) unless the co-simulation instance `c` uses event mode and is in `mode`
- * (SBF_STEPPING or SBF_EVENT), which `where` names */
-static int refused_event_call(fmi3Instance c, const char *function, sbf_mode mode, const char *where)
+ * (SBF_STEPPING or SBF_EVENT; the message as sbf_call_refused's) */
+static int refused_event_call(fmi3Instance c, const char *function, sbf_mode mode)
 {
     char why[512];
     Instance *inst = c;
     if (!inst->event_mode)
         snprintf(why, sizeof why, "%s is not allowed: this co-simulation instance was made with eventModeUsed = false",
                  function);
-    else if (inst->mode != mode)
-        snprintf(why, sizeof why, "%s is allowed only in %s", function, where);
-    else
+    else if (!sbf_call_refused(inst->mode, SBF_IN(mode), function, why, sizeof why))
         return 0;
     host_log(c, fmi3Error, why);
     return 1;
@@ -504,8 +520,11 @@ static int refused_event_call(fmi3Instance c, const char *function, sbf_mode mod
 EXPORT fmi3Status fmi3EnterEventMode(fmi3Instance c)
 {
     if (!c) return fmi3Error;
-    if (((Instance *)c)->mode == SBF_EXCHANGING) return forward_fmi3EnterEventMode(c);
-    if (refused_event_call(c, "fmi3EnterEventMode", SBF_STEPPING, "Step Mode")) return fmi3Error;
+    if (((Instance *)c)->exchange) {
+        if (refused_in_state(c, "fmi3EnterEventMode", SBF_IN(SBF_EVENT) | SBF_IN(SBF_CONTINUOUS))) return fmi3Error;
+        return moved(c, forward_fmi3EnterEventMode(c), SBF_EVENT);
+    }
+    if (refused_event_call(c, "fmi3EnterEventMode", SBF_STEPPING)) return fmi3Error;
     ((Instance *)c)->mode = SBF_EVENT;
     return fmi3OK;
 }
@@ -520,10 +539,12 @@ EXPORT fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *discrete
     char why[4096];
     Instance *inst = c;
     if (!inst) return fmi3Error;
-    if (inst->mode == SBF_EXCHANGING)
+    if (inst->exchange) {
+        if (refused_in_state(c, "fmi3UpdateDiscreteStates", SBF_IN(SBF_EVENT))) return fmi3Error;
         return forward_fmi3UpdateDiscreteStates(c, discreteStatesNeedUpdate, terminateSimulation, nominalsChanged,
                                                 valuesChanged, nextEventTimeDefined, nextEventTime);
-    if (refused_event_call(c, "fmi3UpdateDiscreteStates", SBF_EVENT, "Event Mode")) return fmi3Error;
+    }
+    if (refused_event_call(c, "fmi3UpdateDiscreteStates", SBF_EVENT)) return fmi3Error;
     sbf_keep_thread_state();
     sbf_call_begin();
     sbf_fast_forward(&inst->fast, 1);
@@ -539,16 +560,25 @@ EXPORT fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *discrete
     return fmi3OK;
 }
 
+/* Model exchange: from Event Mode to Continuous-Time Mode */
+EXPORT fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance c)
+{
+    if (refused_in_co_simulation(c, "fmi3EnterContinuousTimeMode", EXCHANGE_FUNCTION) ||
+        refused_in_state(c, "fmi3EnterContinuousTimeMode", SBF_IN(SBF_EVENT)))
+        return fmi3Error;
+    return moved(c, forward_fmi3EnterContinuousTimeMode(c), SBF_CONTINUOUS);
+}
+
 /* Co-simulation: from Event Mode back to Step Mode (FMI 3.0: not allowed in model exchange) */
 EXPORT fmi3Status fmi3EnterStepMode(fmi3Instance c)
 {
     if (!c) return fmi3Error;
-    if (((Instance *)c)->mode == SBF_EXCHANGING) {
+    if (((Instance *)c)->exchange) {
         host_log(c, fmi3Error, "fmi3EnterStepMode is not allowed for a model-exchange instance: it is a "
                                "co-simulation function (FMI 3.0)");
         return fmi3Error;
     }
-    if (refused_event_call(c, "fmi3EnterStepMode", SBF_EVENT, "Event Mode")) return fmi3Error;
+    if (refused_event_call(c, "fmi3EnterStepMode", SBF_EVENT)) return fmi3Error;
     ((Instance *)c)->mode = SBF_STEPPING;
     return fmi3OK;
 }
@@ -565,10 +595,12 @@ EXPORT fmi3Status fmi3Reset(fmi3Instance c)
 }
 
 /* fmi3DoStep of an instance made with earlyReturnAllowed, by the slave's step_to_event (sbf_slave_event_step):
- * fmi3OK with *early and the time reached in *reached, fmi3Error after a message (and the time where the failed
- * step left the FMU), or fmi3Discard, nothing done, if no slave is bound (the step goes the usual way). */
+ * fmi3OK with the time reached in *reached, *early if that is short of t + h, and *handling if the instance uses
+ * event mode and the step stopped at an event (inside it or at its end, left for Event Mode), fmi3Error after a
+ * message (and the time where the failed step left the FMU), or fmi3Discard, nothing done, if no slave is bound
+ * (the step goes the usual way). */
 static fmi3Status event_step(Instance *inst, double t, double h, char *why, size_t size, fmi3Boolean *early,
-                             fmi3Float64 *reached)
+                             fmi3Boolean *handling, fmi3Float64 *reached)
 {
     int stopped = 0;
     sbf_call_begin();
@@ -576,7 +608,8 @@ static fmi3Status event_step(Instance *inst, double t, double h, char *why, size
     int outcome = sbf_slave_event_step(&inst->fast, t, h, inst->event_mode, reached, &stopped, why, size);
     sbf_call_end();
     if (outcome < 0) return fmi3Discard;
-    *early = outcome == 0 && stopped;
+    *early = outcome == 0 && stopped && *reached < t + h;
+    *handling = outcome == 0 && stopped && inst->event_mode;
     if (outcome == 0) return fmi3OK;
     host_log(inst, fmi3Error, why);
     sbf_slave_time(&inst->fast, reached);
@@ -592,17 +625,14 @@ EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3B
      * terminates, and returns early (at an event, handled in Event Mode if the instance uses it) only if allowed */
     *eventHandlingNeeded = *terminateSimulation = *earlyReturn = false;
     if (!c) return fmi3Error;
-    if (sbf_step_refused(((Instance *)c)->mode, "fmi3DoStep", t, why, sizeof why)) {
+    if (sbf_step_refused(((Instance *)c)->mode, ((Instance *)c)->exchange, "fmi3DoStep", t, why, sizeof why)) {
         host_log(c, fmi3Error, why);
         return fmi3Error;
     }
     sbf_keep_thread_state();
     if (((Instance *)c)->early_return) {
-        fmi3Status status = event_step(c, t, h, why, sizeof why, earlyReturn, lastSuccessfulTime);
-        if (status != fmi3Discard) {
-            *eventHandlingNeeded = *earlyReturn && ((Instance *)c)->event_mode;
-            return status;
-        }
+        fmi3Status status = event_step(c, t, h, why, sizeof why, earlyReturn, eventHandlingNeeded, lastSuccessfulTime);
+        if (status != fmi3Discard) return status;
     }
     fmi3Status status;
     switch (sbf_model_fast_step(&((Instance *)c)->fast, t, h, why, sizeof why)) {
@@ -678,7 +708,7 @@ EXPORT fmi3Status fmi3GetOutputDerivatives(fmi3Instance c, const fmi3ValueRefere
     char why[4096];
     Instance *inst = c;
     if (!inst) return fmi3Error;
-    if (inst->mode == SBF_EXCHANGING)
+    if (inst->exchange)
         snprintf(why, sizeof why, "fmi3GetOutputDerivatives is not allowed for a model-exchange instance: it is a "
                  "co-simulation function (FMI 3.0)");
     else if (n != nvr)

@@ -639,17 +639,37 @@ int sbf_check_instance(const char *function, const char *name, const char *token
     return 0;
 }
 
-int sbf_step_refused(sbf_mode mode, const char *function, double t, char *why, size_t why_size)
+int sbf_call_refused(sbf_mode mode, unsigned allowed, const char *function, char *why, size_t why_size)
+{
+    static const char *const names[] = {
+        [SBF_INSTANTIATED] = "Instantiated", [SBF_INITIALIZING] = "Initialization Mode", [SBF_STEPPING] = "Step Mode",
+        [SBF_TERMINATED] = "Terminated", [SBF_EVENT] = "Event Mode", [SBF_CONTINUOUS] = "Continuous-Time Mode"};
+    if (allowed & SBF_IN(mode)) return 0;
+    int n = snprintf(why, why_size, "%s is not allowed in %s (allowed in", function, names[mode]);
+    const char *separator = " ";
+    for (size_t i = 0; i < sizeof names / sizeof *names; ++i) {
+        if (!(allowed & SBF_IN(i)) || n < 0 || (size_t)n >= why_size) continue;
+        n += snprintf(why + n, why_size - (size_t)n, "%s%s", separator, names[i]);
+        separator = ", ";
+    }
+    if (n >= 0 && (size_t)n < why_size)
+        snprintf(why + n, why_size - (size_t)n, "%s", mode == SBF_INITIALIZING
+                 ? "; exiting Initialization Mode has not succeeded)" : ")");
+    return 1;
+}
+
+int sbf_step_refused(sbf_mode mode, int exchange, const char *function, double t, char *why, size_t why_size)
 {
     static const char *const refusal[] = {
         [SBF_INSTANTIATED] = "before initialization (enter and exit initialization mode first)",
         [SBF_INITIALIZING] = "during initialization (exiting initialization mode has not succeeded)",
         [SBF_STEPPING] = NULL,
         [SBF_TERMINATED] = "after termination (reset the instance to start again)",
-        [SBF_EXCHANGING] = "for a model-exchange instance",
-        [SBF_EVENT] = "in Event Mode (call fmi3EnterStepMode first)"};
-    if (!refusal[mode]) return 0;
-    snprintf(why, why_size, "%s at t = %g s is not allowed %s", function, t, refusal[mode]);
+        [SBF_EVENT] = "in Event Mode (call fmi3EnterStepMode first)",
+        [SBF_CONTINUOUS] = "in Continuous-Time Mode"};
+    const char *refused = exchange ? "for a model-exchange instance" : refusal[mode];
+    if (!refused) return 0;
+    snprintf(why, why_size, "%s at t = %g s is not allowed %s", function, t, refused);
     return 1;
 }
 

@@ -51,13 +51,21 @@ void sbf_instantiate_end(void);
 /* sbf_fast_step (fast_path.h) as such a call */
 int sbf_model_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size);
 
-/* The states of FMI's co-simulation state machine that the fronts tell apart (FMI 2.0 section 4.2.4, FMI 3.0
- * section 4.2; SBF_EVENT: FMI 3's Event Mode of a co-simulation instance made with eventModeUsed); a model-exchange
- * instance is SBF_EXCHANGING throughout. */
-typedef enum { SBF_INSTANTIATED, SBF_INITIALIZING, SBF_STEPPING, SBF_TERMINATED, SBF_EXCHANGING, SBF_EVENT } sbf_mode;
-/* 0 if a communication step (`function` at `t` s) is allowed in `mode` (only in SBF_STEPPING), else 1 with the
- * message saying why not in `why`. */
-int sbf_step_refused(sbf_mode mode, const char *function, double t, char *why, size_t why_size);
+/* The states of FMI's state machines that the fronts tell apart (co-simulation: FMI 2.0 section 4.2.4, FMI 3.0
+ * section 4.2, SBF_EVENT there FMI 3's Event Mode of an instance made with eventModeUsed; model exchange: FMI 2.0
+ * section 3.2.3, FMI 3.0 section 3.2, from Initialization Mode to Event Mode and Continuous-Time Mode). */
+typedef enum {
+    SBF_INSTANTIATED, SBF_INITIALIZING, SBF_STEPPING, SBF_TERMINATED, SBF_EVENT, SBF_CONTINUOUS
+} sbf_mode;
+/* The set of the states `mode`, ... in sbf_call_refused's `allowed`: SBF_IN(SBF_EVENT) | SBF_IN(SBF_CONTINUOUS) */
+#define SBF_IN(mode) (1u << (mode))
+/* 0 if `function` is allowed in `mode`, one of the states in `allowed`, else 1 with the message saying why not in
+ * `why`: the call, the state the instance is in and those where the call is allowed. */
+int sbf_call_refused(sbf_mode mode, unsigned allowed, const char *function, char *why, size_t why_size);
+/* 0 if a communication step (`function` at `t` s) is allowed in `mode` (only in SBF_STEPPING of a co-simulation
+ * instance; `exchange`: a model-exchange instance, which takes none), else 1 with the message saying why not in
+ * `why`. */
+int sbf_step_refused(sbf_mode mode, int exchange, const char *function, double t, char *why, size_t why_size);
 
 /* 0 if the experiment's times `function` (fmi2SetupExperiment, fmi3EnterInitializationMode) was given are finite
  * (the start time; the stop time and the tolerance where defined), else 1 with the message naming the first that
