@@ -69,7 +69,7 @@ def test_dotted_names_without_quotes_are_the_fmus_names(tmp_path):
     (("M = 1.0", "F_ext = 1.0"), r"key 'b2.F_ext': allowed is an FMU parameter \(the master sets it\)"),
     (("M = 1.0", "M = -1.0"), r"block b2: M = -1.0 kg is out of range: allowed is a finite value in \(0, inf\)"),
     (("M = 1.0", "M = nan"), r"key 'b2.M': allowed is a finite number"),
-    (('"kinetic.law" = 1', '"kinetic.law" = 5'), r"key 'b2.kinetic.law': allowed is an integer in \[1, 4\]"),
+    (('"kinetic.law" = 1', '"kinetic.law" = 6'), r"key 'b2.kinetic.law': allowed is an integer in \[1, 5\]"),
     (('"kinetic.law" = 1', '"kinetic.law" = 1.0'), r"key 'b2.kinetic.law': allowed is an integer"),
     (("x_start = 0.0", '"kinetic.gamma" = 0.1'),
      r"key 'b2.kinetic.gamma': allowed is a parameter of kinetic law 1 \(coulomb\): kinetic.F0"),
