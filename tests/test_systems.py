@@ -307,13 +307,15 @@ def test_an_unjudged_run_with_a_non_finite_error_fails():
 
 
 def test_masters_sharing_a_folder_keep_their_own_files(tmp_path, fmu_path, fmu3_path):
-    """zoh and me into the same folder: each run's files are named by its master, neither overwrites the other."""
+    """zoh and me into the same folder: each run's files are named by its master, neither overwrites the other; the
+    judged run (me) also shows its Lyapunov exponent."""
     out = tmp_path / "out"
     for master, fmu in (("zoh", fmu_path), ("me", fmu3_path)):
         assert main(["system", "run", str(CHAIN2), "--master", master, "--out", str(out), "--fmu", str(fmu),
                      "--quiet"]) == 0
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        f"chain2-coulomb-{m}{suffix}" for m in ("me", "zoh") for suffix in (".csv", ".md", ".png", "-spacetime.png"))
+        [f"chain2-coulomb-{m}{suffix}" for m in ("me", "zoh") for suffix in (".csv", ".md", ".png", "-spacetime.png")]
+        + ["chain2-coulomb-me-lyapunov.png"])
     zoh, me = (np.loadtxt(out / f"chain2-coulomb-{m}.csv", delimiter=",", skiprows=1) for m in ("zoh", "me"))
     assert np.max(np.abs(zoh[:, 1:3] - me[:, 1:3])) > 0.1  # zoh's 39% of the amplitude against me's 1e-6
     assert "master `me`" in (out / "chain2-coulomb-me.md").read_text()
