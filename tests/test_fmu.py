@@ -90,7 +90,7 @@ def test_spec_variables_with_units_and_declared_types(fmu_path):
     damping = units["N.s/m"].baseUnit
     assert (damping.kg, damping.m, damping.s) == (1, 0, -1)
     assert variables["kinetic.F0"].min == "0.0" and variables["M"].min is None  # M > 0 is exclusive
-    assert (variables["kinetic.law"].min, variables["kinetic.law"].max) == ("1", "4")
+    assert (variables["kinetic.law"].min, variables["kinetic.law"].max) == ("1", "5")
 
 
 def test_capabilities_structure_and_default_experiment(fmu_path):

@@ -71,7 +71,7 @@ def test_the_fmu_carries_the_runtime_compiled_for_windows_beside_linuxs(windows_
 def test_windows_cpython_imports_the_compiled_runtime_and_gets_the_numbers_of_its_sources_and_of_linux(
         wine_env, windows_hosts, windows_fmu, host):
     folder, package = windows_fmu
-    verbose = {"PYTHONVERBOSE": "1"}  # Python says on stderr from which file it imports each module
+    verbose = {"SBF_PYTHON_VERBOSE": "1"}  # Python says on stderr from which file it imports each module
     compiled = windows_run(wine_env, windows_hosts, 2, folder, "run", SCENE.stop_time, env=verbose)
     pure = windows_run(wine_env, windows_hosts, 2, folder, "run", SCENE.stop_time,
                        env={**verbose, "STICKSLIP_PURE_PYTHON": "1"})
@@ -89,7 +89,7 @@ def test_windows_cpython_imports_the_compiled_runtime_and_gets_the_numbers_of_it
 
 def imports(stderr, package):
     """{module of ``package``: the end of the file name Python imported it from} of a host's stderr with
-    ``PYTHONVERBOSE=1``: ``.py`` for a module imported from its source, the suffix of an extension module's file."""
+    ``SBF_PYTHON_VERBOSE=1``: ``.py`` for a module imported from its source, the suffix of an extension module's file."""
     sources = {name: ".py"
                for name in re.findall(rf"^import '{package}\.(\w+)' # <\w+\.SourceFileLoader", stderr, re.M)}
     extensions = {name: SUFFIX if path.endswith(SUFFIX) else Path(path).suffix

@@ -241,11 +241,14 @@ static int python_new_enough(void *lib, const char *where)
 
 /* Py_InitializeFromConfig, keeping the host's signal handlers; leaves the GIL released. Python reads none of the
  * process's environment variables (use_environment = 0 in its pre-configuration and configuration, as -E does):
- * a PYTHONHOME, PYTHONPATH, PYTHONHASHSEED, PYTHONMALLOC... set for another Python neither stops nor changes it. */
+ * a PYTHONHOME, PYTHONPATH, PYTHONHASHSEED, PYTHONMALLOC... set for another Python neither stops nor changes it.
+ * SBF_PYTHON_VERBOSE set to anything but empty passes Python's -v: it reports on stderr where it imports each
+ * module from (PYTHONVERBOSE is ignored with the rest). */
 static void initialize_python(const char *where)
 {
-    char name[4096];
-    char *argv[] = {name, NULL};
+    char name[4096], verbose[] = "-v";
+    const char *wanted = getenv("SBF_PYTHON_VERBOSE");
+    char *argv[] = {name, wanted && *wanted ? verbose : NULL, NULL};
     sbf_python_program_name(*(void **)&py.Py_IsInitialized, name, sizeof name);
     _Alignas(16) static unsigned char preconfig[PYCONFIG_BYTES], config[PYCONFIG_BYTES];
     sbf_save_host_signals();
@@ -255,7 +258,7 @@ static void initialize_python(const char *where)
     if (!py.PyStatus_Exception(status)) {
         py.PyConfig_InitPythonConfig(config);
         ((ConfigHead *)config)->use_environment = 0;
-        status = py.PyConfig_SetBytesArgv(config, 1, argv);
+        status = py.PyConfig_SetBytesArgv(config, argv[1] ? 2 : 1, argv);
         if (!py.PyStatus_Exception(status)) status = py.Py_InitializeFromConfig(config);
         py.PyConfig_Clear(config);
     }
