@@ -149,6 +149,21 @@ def test_the_entry_point_imports_nothing_else():
     assert done.stdout.strip() == repr(sorted(ENTRY_MODULES)), done.stdout
 
 
+def test_ctrl_c_that_breaks_a_compiled_modules_loading_is_an_interrupt():
+    """Ctrl-C inside a compiled module's initialisation reaches the command as that module's ImportError, caused by
+    the KeyboardInterrupt (Matplotlib's ft2font did so): the one line and exit code 130, and no crash in Python's
+    finalization, which such a half-made module can cause."""
+    code = ("import sys; import stickslip.cli.commands as c\n"
+            "def dispatch(argv):\n"
+            "    try:\n        raise KeyboardInterrupt\n"
+            "    except KeyboardInterrupt as exc:\n        raise ImportError('initialization failed') from exc\n"
+            "c.dispatch = dispatch\n"
+            "from stickslip.cli import main; sys.exit(main(['system', 'run', 'x']))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 130, done.stderr
+    assert one_line(done.stderr, "system") == "stickslip system: interrupted"
+
+
 def _module_loads(proc, lines):
     """Put ``(time, line)`` of each line of the child's stderr into the queue ``lines``, then ``None``."""
     for line in proc.stderr:

@@ -4,6 +4,7 @@ This module is the console script's entry point and imports nothing: :func:`main
 before the command's modules (NumPy, SciPy, FMPy, Matplotlib, the package's own) load.
 """
 
+import os
 import sys
 
 #: the exit code after Ctrl-C (128 + SIGINT, as a shell reports a process that SIGINT ended)
@@ -24,6 +25,26 @@ def main(argv=None):
     except KeyboardInterrupt as exc:  # Ctrl-C: one line, the shell's status for SIGINT
         print(f"{_command(argv)}: interrupted" + (f" ({exc})" if str(exc) else ""), file=sys.stderr)
         return INTERRUPTED
+    except Exception as exc:
+        if not _raised_by_ctrl_c(exc):
+            raise
+        # Ctrl-C broke the loading of a compiled module (an ImportError from its KeyboardInterrupt): the same line,
+        # then an exit without Python's finalization, which such a half-made module can crash
+        print(f"{_command(argv)}: interrupted", file=sys.stderr)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(INTERRUPTED)
+
+
+def _raised_by_ctrl_c(exc):
+    """Whether a KeyboardInterrupt is among the causes of ``exc`` (its ``__cause__`` and ``__context__`` chain)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def _command(argv):
