@@ -19,6 +19,7 @@ from fmpy.fmi1 import FMICallException
 
 from stickslip.hosts import interrupts
 from stickslip.hosts.fmpy_host import ExtractedFMU, FmuCallError
+from stickslip.hosts.progress import TimeProgress
 
 from cli_child import STICKSLIP
 
@@ -127,9 +128,33 @@ def test_an_interrupt_inside_an_fmi_call_is_not_the_fmus_error(fmu_path):
         with interrupts.counting():
             with pytest.raises(KeyboardInterrupt):
                 _interrupted_inside(instance)
+        with interrupts.counting():
             with pytest.raises(FmuCallError, match="fmi2DoStep failed with status 3"):
                 instance.call(lambda: (_ for _ in ()).throw(FMICallException("fmi2DoStep", 3)))
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def _swallowed_interrupt():
+    """A SIGINT whose KeyboardInterrupt a library swallows where it is raised (a bare ``except``; a compiled module's
+    initialisation that it breaks, taken for a missing module, as FMPy's import of lxml can)."""
+    try:
+        signal.raise_signal(signal.SIGINT)
+    except KeyboardInterrupt:
+        pass
+
+
+def test_a_swallowed_interrupt_ends_the_command_at_the_next_call_or_progress_step(fmu_path):
+    """Within the command line's SIGINT counting, a Ctrl-C that a library swallowed raises KeyboardInterrupt at the
+    next FMI call and at the next step of a progress bar; a new counting starts clean."""
+    with ExtractedFMU(fmu_path) as fmu, fmu.new_instance() as instance:
+        with interrupts.counting():
+            _swallowed_interrupt()
+            with pytest.raises(KeyboardInterrupt):
+                instance.call(instance.fmu.getReal, [0])
+            with pytest.raises(KeyboardInterrupt), TimeProgress("run", 1.0, shown=False) as step:
+                step(0.5)
+        with interrupts.counting():
+            instance.call(instance.fmu.getReal, [0])
 
 
 #: the console script ``stickslip`` that installing the package made beside this Python
@@ -171,10 +196,10 @@ def _module_loads(proc, lines):
     lines.put(None)
 
 
-def _interrupted_while_loading(args, delay):
+def _interrupted_while_loading(args, delay, after=None):
     """``stickslip args`` run by the console script with Python's import timing on (a line on stderr per module
-    loaded), SIGINT sent to its process group ``delay`` s after its first module beyond :data:`ENTRY_MODULES`
-    loaded; ``(exit code, stderr without the timing lines)``."""
+    loaded), SIGINT sent to its process group ``delay`` s after the module ``after`` (default: its first module
+    beyond :data:`ENTRY_MODULES`) loaded; ``(exit code, stderr without the timing lines)``."""
     proc = subprocess.Popen([CONSOLE_SCRIPT, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                             start_new_session=True, env={**os.environ, "PYTHONPROFILEIMPORTTIME": "1"})
     lines = queue.Queue()
@@ -184,7 +209,7 @@ def _interrupted_while_loading(args, delay):
         while (item := lines.get(timeout=60)) is not None:
             stderr.append(item[1])
             name = item[1].rpartition("|")[2].strip()
-            if name.startswith("stickslip.") and name not in ENTRY_MODULES:
+            if name == after or after is None and name.startswith("stickslip.") and name not in ENTRY_MODULES:
                 time.sleep(max(0.0, item[0] + delay - time.monotonic()))
                 break
         assert proc.poll() is None, f"{args} ended before the signal: {''.join(stderr)}"
@@ -214,3 +239,15 @@ def test_ctrl_c_while_a_command_loads_its_modules(tmp_path, request, command, de
         code, stderr = _interrupted_while_loading(args, delay)
         assert code == 130, stderr
         assert one_line(stderr, command) == f"stickslip {command}: interrupted"
+
+
+def test_ctrl_c_that_a_compiled_modules_initialisation_swallows_still_ends_the_command(tmp_path, fmu3_path):
+    """A SIGINT 1 ms after the package lxml loaded lands in the initialisation of lxml.etree, whose KeyboardInterrupt
+    never reaches the command (the run went on to its end with exit code 0): the next FMI call or progress step ends
+    it with one line and exit code 130, three times in a row."""
+    args = ["system", "run", str(ROOT / "systems" / "bk10-velocity-weakening.toml"), "--master", "me",
+            "--out", str(tmp_path), "--fmu", str(fmu3_path)]
+    for _ in range(3):
+        code, stderr = _interrupted_while_loading(args, 0.001, after="lxml")
+        assert code == 130, stderr
+        assert one_line(stderr, "system") == "stickslip system: interrupted"

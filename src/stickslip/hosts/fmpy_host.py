@@ -38,7 +38,8 @@ from fmpy.logging import addLoggerProxy
 
 from ..core.errors import StickSlipError
 from ..fmu.python_path import preserved_sys_path
-from .interrupts import count as interrupt_count
+from .interrupts import check as check_interrupts
+from .interrupts import interrupted
 
 #: interface: (FMPy's fmi_type, the model description's attribute, FMI 2 class, FMI 3 class)
 INTERFACES = {"cs": ("CoSimulation", "coSimulation", FMU2Slave, FMU3Slave),
@@ -125,19 +126,19 @@ class Instance:
         """``method(*args, **kwargs)``, a method of :attr:`fmu` (or anything that makes FMI calls on it);
         :class:`FmuCallError` with this instance's new log messages if an FMI call fails; KeyboardInterrupt if a
         SIGINT arrived during it (:mod:`.interrupts`), whatever the call returned."""
-        first, interrupts = log_mark(), interrupt_count()
+        check_interrupts()
+        first = log_mark()
         try:
             result = method(*args, **kwargs)
         except Exception as error:
             if isinstance(error, FMICallException) and error.status == FATAL[self.extracted.fmi_version]:
                 self.fatal = True  # the library released the slave
-            if interrupt_count() != interrupts:  # Ctrl-C, which the FMU's library reported as its own error
+            if interrupted():  # Ctrl-C, which the FMU's library reported as its own error
                 raise KeyboardInterrupt from None
             if not isinstance(error, FMICallException):
                 raise
             raise FmuCallError(error.function, error.status, self.messages(first)) from None
-        if interrupt_count() != interrupts:  # Ctrl-C that a callback swallowed (FMPy's solver calls Python)
-            raise KeyboardInterrupt
+        check_interrupts()  # Ctrl-C that a callback swallowed (FMPy's solver calls Python)
         return result
 
     def messages(self, first=0):
@@ -235,6 +236,7 @@ class ExtractedFMU:
                 flags = ({"eventModeUsed": event_mode_used, "earlyReturnAllowed": early_return_allowed}
                          if interface == "cs" else {})
                 fmu.instantiate(loggingOn=logging_on, logMessage=fmi3_logger(name), **flags)
+        check_interrupts()
         return self.instance_type(self, fmu, name)
 
     def simulate(self, start_values, stop_time, output_interval, outputs=None, **options):

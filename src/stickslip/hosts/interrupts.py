@@ -3,9 +3,11 @@
 Python runs its SIGINT handler in the main thread, wherever the interpreter is: also inside an FMU's Python slave
 during an FMI call. The KeyboardInterrupt it raises there is caught by the FMU's library (PythonFMU, pythonfmu3),
 which reports it as the call's error status ("[doStep] KeyboardInterrupt()"). Within :func:`counting`, SIGINT
-raises KeyboardInterrupt as Python's default handler does and is counted (:func:`count`), so that a failed FMI call
-during which one arrived is re-raised as KeyboardInterrupt (:meth:`stickslip.hosts.fmpy_host.Instance.call`), not
-reported as the FMU's error.
+raises KeyboardInterrupt as Python's default handler does and is counted (:func:`interrupted`), so that a failed
+FMI call during which one arrived is re-raised as KeyboardInterrupt (:meth:`stickslip.hosts.fmpy_host.Instance.call`), not
+reported as the FMU's error. A KeyboardInterrupt that a library swallowed where it was raised (a bare ``except``,
+a compiled module whose failed initialisation is taken for a missing module) still ends the command: at the next
+:func:`check` (each FMI call, each progress step).
 """
 
 import contextlib
@@ -15,9 +17,16 @@ import threading
 _count = 0  # SIGINTs received within counting()
 
 
-def count():
-    """The number of SIGINTs received so far within :func:`counting` (compare two readings)."""
-    return _count
+def interrupted():
+    """Whether a SIGINT arrived within :func:`counting`."""
+    return _count > 0
+
+
+def check():
+    """KeyboardInterrupt if a SIGINT arrived within :func:`counting`: within it every Ctrl-C ends the command, also
+    one whose KeyboardInterrupt was swallowed where it was raised."""
+    if interrupted():
+        raise KeyboardInterrupt
 
 
 def _count_and_raise(signum, frame):
@@ -28,12 +37,14 @@ def _count_and_raise(signum, frame):
 
 @contextlib.contextmanager
 def counting():
-    """SIGINT counted and raised as KeyboardInterrupt while the context lasts; nothing changes outside the main
+    """SIGINT counted (from zero) and raised as KeyboardInterrupt while the context lasts; nothing changes outside the main
     thread (only it can set signal handlers) or where SIGINT is not Python's default handler (a caller's own)."""
     if threading.current_thread() is not threading.main_thread() or \
             signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
         yield
         return
+    global _count
+    _count = 0
     signal.signal(signal.SIGINT, _count_and_raise)
     try:
         yield

@@ -2,9 +2,11 @@
 
 from tqdm import tqdm
 
+from .interrupts import check as check_interrupts
+
 
 class TimeProgress:
-    """A progress bar over the simulated time (s) as a context: gives ``step(t)``, which moves it to ``t``; it shows
+    """A progress bar over the simulated time (s) as a context: gives ``step(t)``, which moves it to ``t`` (and ends the command there after a Ctrl-C that was swallowed); it shows
     the time left as tqdm estimates it from the rate so far. ``reached``: the last ``t`` given (s)."""
 
     def __init__(self, label, total, shown):
@@ -16,6 +18,7 @@ class TimeProgress:
         return self.step
 
     def step(self, t):
+        check_interrupts()
         self.reached = t
         self.bar.update(min(t, self.bar.total) - self.bar.n)
 
