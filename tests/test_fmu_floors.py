@@ -11,7 +11,7 @@ import zipfile
 
 import pytest
 
-from stickslip.fmu.floors import DEPENDENCIES_FILE, NotELF, binary_needs
+from stickslip.fmu.bundle.floors import DEPENDENCIES_FILE, NotELF, binary_needs
 from stickslip.fmu.loader.install import build_libpython
 
 VERSION = re.compile(r"\(?\b([A-Z]+)_(\d+(?:\.\d+)*)\)?")

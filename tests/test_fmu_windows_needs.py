@@ -10,8 +10,8 @@ import zipfile
 
 import pytest
 
-from stickslip.fmu.floors import DEPENDENCIES_FILE
-from stickslip.fmu.windows_needs import API_SINCE, NotPE, release, windows_needs
+from stickslip.fmu.bundle.floors import DEPENDENCIES_FILE
+from stickslip.fmu.bundle.windows_needs import API_SINCE, NotPE, release, windows_needs
 
 OBJDUMP = "x86_64-w64-mingw32-objdump"
 

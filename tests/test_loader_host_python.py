@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from stickslip.fmu.loader import LIBPYTHON_VARIABLE
-from stickslip.fmu.floors import PYTHON_FLOORS
+from stickslip.fmu.bundle.floors import PYTHON_FLOORS
 from stickslip.hosts.c_host import run_host
 
 PYENV = Path.home() / ".pyenv" / "versions"

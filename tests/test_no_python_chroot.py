@@ -1,6 +1,6 @@
 """The FMUs on a Linux machine with nothing but glibc: the project's C hosts in a chroot that holds only the files
 ``ldd`` lists for them and the extracted FMUs, so that the only CPython, standard library and C++ runtime there are
-the ones the FMUs carry (``stickslip.fmu.loader.python_bundle``). Their results equal FMPy's on the full machine, bit
+the ones the FMUs carry (``stickslip.fmu.bundle.linux_python``). Their results equal FMPy's on the full machine, bit
 for bit (the same CPython and runtime). Outside the chroot: which libraries the processes load (``LD_DEBUG=files``),
 so that the carried CPython is the one used where no other is, and a host's own Python, ``$SBF_LIBPYTHON`` and the
 system's C++ runtime keep precedence. Skipped, saying why, where this process may not chroot (not even in a user
@@ -18,8 +18,8 @@ from xml.etree import ElementTree
 import pytest
 
 from stickslip.fmu import build
-from stickslip.fmu.floors import DEPENDENCIES_FILE
-from stickslip.fmu.loader import python_bundle
+from stickslip.fmu.bundle.floors import DEPENDENCIES_FILE
+from stickslip.fmu.bundle import linux_python, packing
 from stickslip.fmu.loader.install import LIBPYTHON_VARIABLE, build_libpython
 from stickslip.hosts.c_host import host_env, run_host
 from stickslip.hosts.fmpy_host import run_fmu
@@ -227,7 +227,7 @@ def test_fmus_that_carry_a_python_for_every_platform_need_no_execution_tool(fmu_
         with zipfile.ZipFile(path) as fmu:
             names, description = fmu.namelist(), ElementTree.fromstring(fmu.read("modelDescription.xml"))
         platforms = {name.split("/")[1] for name in names if name.startswith("binaries/") and name.count("/") >= 2}
-        carried = {name.split("/")[1] for name in names if name.startswith("binaries/") and "/python/" in name}
+        carried = {packing.carried_python_platform(name) for name in names} - {None}
         interfaces = [element for element in description if element.tag in ("CoSimulation", "ModelExchange")]
         assert interfaces and {element.get("needsExecutionTool") for element in interfaces} == {
             "false" if platforms <= carried else "true"}, (path, platforms, carried)
@@ -235,10 +235,10 @@ def test_fmus_that_carry_a_python_for_every_platform_need_no_execution_tool(fmu_
 
 def test_a_python_without_a_shared_library_builds_fmus_without_one_and_says_so(tmp_path, monkeypatch, capsys):
     machine_needs.c_compiler("the FMU's Linux loader")
-    monkeypatch.setattr(python_bundle, "_shared_library", lambda: None)
+    monkeypatch.setattr(linux_python, "_shared_library", lambda: None)
     path = build(tmp_path / "SpringBlockFriction.fmu")
     with zipfile.ZipFile(path) as fmu:
-        assert not [name for name in fmu.namelist() if name.startswith("binaries/linux64/python/")]
+        assert packing.packed_name("linux64") not in fmu.namelist()
         needs = fmu.read(DEPENDENCIES_FILE).decode()
         assert b'needsExecutionTool="true"' in fmu.read("modelDescription.xml")  # a Python must be installed
     assert f"else {build_libpython()[1]} (the build's;" in needs and "the one the FMU carries" not in needs

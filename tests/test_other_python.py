@@ -16,7 +16,7 @@ import pytest
 
 from stickslip.fmu import build, staging
 from stickslip.fmu.compile_runtime import COMPLETE, RUNTIME_PREFIX, runtime_tag
-from stickslip.fmu.floors import DEPENDENCIES_FILE
+from stickslip.fmu.bundle.floors import DEPENDENCIES_FILE
 from stickslip.hosts.fmpy_host import run_fmu
 from stickslip.suite.compare import compare
 from stickslip.suite.runner import OUTPUTS, reference_on

@@ -25,7 +25,8 @@ import fmpy
 import pytest
 
 import stickslip.core
-from stickslip.fmu import archive, build, sources, staging, windows_python
+from stickslip.fmu import archive, build, sources, staging
+from stickslip.fmu.bundle import windows_python
 
 ROOT = Path(__file__).resolve().parents[1]
 STEPS = {"stop_time": 0.5, "output_interval": 0.1}  # a few communication steps at the FMU's default parameters

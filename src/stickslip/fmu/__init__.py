@@ -7,6 +7,7 @@
 - :mod:`~stickslip.fmu.model_description`: completion of the library's model description;
 - :mod:`~stickslip.fmu.archive`: the FMU's zip archive, written reproducibly;
 - :mod:`~stickslip.fmu.loader`: the C loader that becomes the FMU's Linux binary;
+- :mod:`~stickslip.fmu.bundle`: the CPythons the FMU carries for hosts without one, and the floors of its binaries;
 - :mod:`~stickslip.fmu.variable_docs`: ``docs/variables.md`` from a built FMU.
 """
 

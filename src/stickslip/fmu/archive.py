@@ -4,11 +4,8 @@ Entries are written in the order of their names, each with one date and time (:f
 1980-01-01 00:00, the earliest a zip entry can hold), the Unix permissions ``rw-r--r--`` and deflate at
 zlib's default level, except the shared libraries and zip archives (:data:`STORED_SUFFIXES`), which are
 stored: every host extracts them before its first step, and inflating them cost more than writing them (2.4 ms
-of a 0.94 MB library; the FMU file is larger instead). The CPythons an FMU carries (``binaries/<platform>/python/``)
-are most of its bytes: the Linux one's shared libraries (``.so``, ``.so.N``) are stored too (extracting the FMI 2
-FMU took a median 94 ms instead of 123 ms with them deflated, measured with Python's ``zipfile``), its standard
-library's zip and the Windows one (:data:`DEFLATED_PYTHONS`) are deflated whatever their suffixes, which keeps
-each FMU under 20 MB.
+of a 0.94 MB library; the FMU file is larger instead), and the carried CPythons, compressed already
+(:mod:`stickslip.fmu.bundle.packing`).
 :func:`identity` names one build of an FMU in its model description.
 """
 
@@ -25,11 +22,7 @@ ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 #: the entries' Unix file type and permissions: a regular file, rw-r--r--
 FILE_MODE = 0o100644
 #: the entries stored without compression: shared libraries, most of an FMU's bytes, and zip archives
-STORED_SUFFIXES = (".so", ".dll", ".dylib", ".pyd", ".zip")
-#: the folder (below ``binaries/<platform>/``) of the CPython an FMU carries
-PYTHON_FOLDER = "python"
-#: the platforms whose carried CPython is deflated whatever the suffixes
-DEFLATED_PYTHONS = ("win64", "x86_64-windows")
+STORED_SUFFIXES = (".so", ".dll", ".dylib", ".pyd", ".zip", ".lzma")
 #: the name of a Linux shared library, with or without a version after ``.so``
 SHARED_LIBRARY = re.compile(r".*\.so(\.\d+)*")
 #: the namespace of the FMUs' GUIDs (uuid5 of the model name, the FMI version and the source tag)
@@ -71,16 +64,6 @@ def write_entries(path, entries):
             archive.writestr(info, entries[name])
 
 
-def carried_python_platform(name):
-    """The platform folder (``linux64``, ``win64``, ...) of the CPython whose folder holds the archive name ``name``
-    (``binaries/<platform>/python/...``), or None if no carried CPython's folder holds it."""
-    parts = name.split("/")
-    return parts[1] if len(parts) > 3 and parts[0] == "binaries" and parts[2] == PYTHON_FOLDER else None
-
-
 def _deflated(name):
     """Whether the entry ``name`` is deflated (see the module)."""
-    platform = carried_python_platform(name)
-    if platform is not None:
-        return platform in DEFLATED_PYTHONS or not SHARED_LIBRARY.fullmatch(name.rsplit("/", 1)[1])
     return not name.endswith(STORED_SUFFIXES)

@@ -21,7 +21,8 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import archive, documentation, floors, loader, model_description, trim, windows_python
+from . import archive, documentation, loader, model_description, trim
+from .bundle import floors, windows_python
 from .compile_runtime import USER_CACHE
 from .sources import (MODEL_NAME, RUNTIME, INTERFACE, SLAVES, is_current, runtime_tag, source_tag,  # noqa: I001
                       sources_tag)
@@ -146,7 +147,7 @@ def write_with_loader(dest, entries, model_name, fmi_version=2):
     """Write the FMU ``model_name`` of ``fmi_version`` with the ``entries`` (``{name: bytes}``) to ``dest``
     (replaced atomically, reproducibly: :mod:`stickslip.fmu.archive`), with the loader as its Linux and Windows
     binary and, in its documentation, what the host machine needs of the binaries it ends up with
-    (:mod:`stickslip.fmu.floors`) and the licence of the CPython its Windows binaries carry, if they do.
+    (:mod:`stickslip.fmu.bundle.floors`) and the licence of the CPython its Windows binaries carry, if they do.
     """
     partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
     archive.write_entries(partial, entries)

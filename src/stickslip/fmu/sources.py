@@ -27,8 +27,8 @@ MODULE_PREFIXES = {2: "springblockfriction_", 3: "springblockfriction3_"}
 #: the builder modules whose source decides an FMU's content
 BUILDERS = (*(Path(__file__).resolve().with_name(name) for name in
               ("build.py", "archive.py", "model_description.py", "staging.py", "compile_runtime.py", "sources.py",
-               "trim.py", "documentation.py", "floors.py", "windows_needs.py", "windows_python.py")),
-            *loader.SOURCES)
+               "trim.py", "documentation.py")),
+            *sorted((Path(__file__).resolve().parent / "bundle").glob("*.py")), *loader.SOURCES)
 
 
 def source_tag(fmi_version=2):

@@ -12,7 +12,7 @@ the platform layer of the target (``platform_posix.c`` or ``platform_windows.c``
   binary, which loads only inside a Python process, and the build says so on stderr.
 - Windows (x86_64): ``binaries/<windows folder>/<model identifier>.dll``, the library's own as
   ``<model identifier>_pythonfmu.dll`` (the start lock is a named mutex: no guard library), and the trimmed
-  embeddable CPython in ``python/`` beside them (:mod:`stickslip.fmu.windows_python`; left out, with a note on
+  embeddable CPython in ``python/`` beside them (:mod:`stickslip.fmu.bundle.windows_python`; left out, with a note on
   stderr, where the build cannot get it). It tries the process's own CPython, ``$SBF_LIBPYTHON``, that bundled
   one, then ``python3XY.dll`` of the building Python's version. The compiler is
   ``$SBF_WINDOWS_CC`` (default ``x86_64-w64-mingw32-gcc``, Debian's ``gcc-mingw-w64-x86-64``); without it the FMU
@@ -29,11 +29,11 @@ import tempfile
 from pathlib import Path
 from xml.etree import ElementTree
 
-from .. import windows_python
-from ..archive import PYTHON_FOLDER, carried_python_platform, read_entries, write_entries
+from ..bundle import packing, windows_python
+from ..archive import read_entries, write_entries
 from ..documentation import with_carried_licenses
-from ..floors import PYTHON_FLOORS
-from .python_bundle import linux_bundle
+from ..bundle.floors import PYTHON_FLOORS
+from ..bundle.linux_python import linux_bundle
 
 HERE = Path(__file__).resolve().parent
 #: FMI version: (the front's source, the FMU's folder of Linux binaries, the library that built the FMU)
@@ -41,7 +41,8 @@ FRONTS = {2: (HERE / "fmi2_front.c", "binaries/linux64", "PythonFMU"),
           3: (HERE / "fmi3_front.c", "binaries/x86_64-linux", "pythonfmu3")}
 #: FMI version: the FMU's folder of Windows (x86_64) binaries
 WINDOWS_FOLDERS = {2: "binaries/win64", 3: "binaries/x86_64-windows"}
-RUNTIME = (HERE / "runtime.c", HERE / "runtime.h", HERE / "fast_path.c", HERE / "fast_path.h", HERE / "platform.h")
+RUNTIME = (HERE / "runtime.c", HERE / "runtime.h", HERE / "fast_path.c", HERE / "fast_path.h", HERE / "platform.h",
+           HERE / "carried.c", HERE / "carried.h")
 PLATFORMS = {"linux": HERE / "platform_posix.c", "windows": HERE / "platform_windows.c"}
 #: the variable naming the cross-compiler of the Windows binaries, and its default
 WINDOWS_CC_VARIABLE, WINDOWS_CC = "SBF_WINDOWS_CC", "x86_64-w64-mingw32-gcc"
@@ -80,12 +81,13 @@ def offers_model_exchange(model_description):
 
 
 def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, token="", model_exchange=False,
-                   bundle=None):
+                   bundle=None, packed=None):
     """Compile the Linux loader of ``fmi_version`` to ``dest``, forwarding to ``inner_name`` beside it and accepting
     the GUID or instantiation token ``token`` only, and the start guard beside ``dest`` (``START_GUARD_NAME``);
     ``model_exchange``: an FMI 2 loader that makes model-exchange instances (the inner library has none, the slave
-    answers them); ``bundle``: the :class:`~stickslip.fmu.loader.python_bundle.Bundle` the FMU carries beside the
-    loader, if any. None on success, else why not."""
+    answers them); ``bundle``: the :class:`~stickslip.fmu.bundle.linux_python.Bundle` the FMU carries beside the
+    loader, if any, packed as ``packed`` (:class:`~stickslip.fmu.bundle.packing.Packed`). None on success, else why
+    not."""
     compiler = os.environ.get("CC") or "cc"
     if shutil.which(compiler) is None:
         return f"no C compiler ({compiler!r} not found; set CC)"
@@ -96,7 +98,7 @@ def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, toke
         *_loader_defines(inner_name, token, slave_survives_release, soname, model_exchange and fmi_version == 2,
                                 fmi_version),
         f"-DSBF_START_GUARD={_c_string(START_GUARD_NAME)}", f"-DSBF_BUILD_LIBPYTHON={_c_string(path)}",
-        *_bundle_defines(bundle), "-ldl", "-lpthread"]
+        *_bundle_defines(bundle, packed), "-ldl", "-lpthread"]
     guard = [compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o",
              str(Path(dest).with_name(START_GUARD_NAME)), str(START_GUARD), "-lpthread"]
     return _run_compiler(compiler, (command, guard))
@@ -112,11 +114,11 @@ def windows_compiler():
 
 
 def compile_windows_loader(dest, inner_name, slave_survives_release, fmi_version=2, token="", model_exchange=False,
-                           bundled=""):
+                           bundled="", packed=None):
     """Cross-compile the Windows (x86_64) loader of ``fmi_version`` to ``dest`` (arguments as
     :func:`compile_loader`), linked statically (it needs only Windows' own kernel32.dll and msvcrt.dll); ``bundled``:
-    the path of the CPython DLL the FMU carries, relative to the loader's folder ("" if none); None on success, else
-    why not."""
+    the path of the CPython DLL the FMU carries below its ``python`` folder ("" if none), packed as ``packed``; None
+    on success, else why not."""
     compiler, why_not = windows_compiler()
     if why_not:
         return why_not
@@ -127,7 +129,8 @@ def compile_windows_loader(dest, inner_name, slave_survives_release, fmi_version
                *_loader_defines(inner_name, token, slave_survives_release, soname, model_exchange and fmi_version == 2,
                                 fmi_version),
                f"-DSBF_BUNDLED_LIBPYTHON={_c_string(bundled)}",
-               f"-DSBF_BUNDLED_PYTHON_NEEDS={''.join(_c_string(path) + ',' for path in _carried_dlls(bundled))}"]
+               f"-DSBF_BUNDLED_PYTHON_NEEDS={''.join(_c_string(path) + ',' for path in _carried_dlls(bundled))}",
+               *_packed_defines(packed)]
     return _run_compiler(compiler, (command,))
 
 
@@ -142,17 +145,29 @@ def _carried_dlls(bundled):
     return [f"{folder}\\{name}" for name in windows_python.EXTENSIONS if name.endswith(".dll")]
 
 
-def _bundle_defines(bundle):
-    """The defines that tell the Linux loader where the CPython ``bundle`` lies (none without one)."""
+def _bundle_defines(bundle, packed):
+    """The defines that tell the Linux loader where the CPython ``bundle`` lies, packed as ``packed`` (none
+    without one)."""
     if bundle is None:
         return []
     return [f"-DSBF_BUNDLED_LIBPYTHON={_c_string(bundle.libpython)}",
             f"-DSBF_BUNDLED_PYTHON_NEEDS={''.join(_c_string(path) + ',' for path in bundle.python_needs)}",
-            f"-DSBF_BUNDLED_INNER_NEEDS={''.join(_c_string(path) + ',' for path in bundle.inner_needs)}"]
+            f"-DSBF_BUNDLED_INNER_NEEDS={''.join(_c_string(path) + ',' for path in bundle.inner_needs)}",
+            *_packed_defines(packed)]
+
+
+def _packed_defines(packed):
+    """The defines that tell the loader where its CPython is packed and what it holds (carried.c; none without
+    one)."""
+    if packed is None:
+        return []
+    files = "".join(f"{{{_c_string(name)}, {size}}}," for name, size in packed.files)
+    return [f"-DSBF_CARRIED_PACK={_c_string(packed.name)}", f"-DSBF_CARRIED_KEY={_c_string(packed.key)}",
+            f"-DSBF_CARRIED_TAR_SIZE={packed.tar_size}", f"-DSBF_CARRIED_FILES={files}"]
 
 
 def _loader_sources(fmi_version, platform):
-    return [str(FRONTS[fmi_version][0]), str(RUNTIME[0]), str(RUNTIME[2]), str(PLATFORMS[platform])]
+    return [str(FRONTS[fmi_version][0]), str(RUNTIME[0]), str(RUNTIME[2]), str(RUNTIME[5]), str(PLATFORMS[platform])]
 
 
 def _loader_defines(inner_name, token, slave_survives_release, soname, model_exchange, fmi_version):
@@ -201,7 +216,7 @@ def _declare_execution_tool(entries):
     """``needsExecutionTool="false"`` in the model description where the binaries of every platform the FMU lists
     carry a CPython (the FMU then runs on a machine with no Python), else as the FMI library wrote it (true)."""
     platforms = {name.split("/")[1] for name in entries if name.startswith("binaries/") and name.count("/") >= 2}
-    carrying = {carried_python_platform(name) for name in entries} - {None}
+    carrying = {packing.carried_python_platform(name) for name in entries} - {None}
     if platforms and platforms <= carrying:
         entries["modelDescription.xml"] = entries["modelDescription.xml"].replace(
             b'needsExecutionTool="true"', b'needsExecutionTool="false"')
@@ -217,7 +232,9 @@ def _install_linux(entries, tmp, model_identifier, arguments):
         print(f"note: the {model_identifier} FMU carries no CPython for Linux hosts without one: {bundle}",
               file=sys.stderr)
         bundle = None
-    why_not = compile_loader(loader, inner_name, *arguments, bundle=bundle)
+    packed = bundle and packing.pack(folder.split("/")[1], {name.removeprefix(f"{packing.PYTHON_FOLDER}/"): data
+                                                            for name, data in bundle.entries.items()})
+    why_not = compile_loader(loader, inner_name, *arguments, bundle=bundle, packed=packed)
     if why_not is not None:
         print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads "
               f"only inside a Python process: {why_not}", file=sys.stderr)
@@ -225,9 +242,9 @@ def _install_linux(entries, tmp, model_identifier, arguments):
     _front(entries, binary, inner_name, loader)
     entries[f"{folder}/{START_GUARD_NAME}"] = loader.with_name(START_GUARD_NAME).read_bytes()
     if bundle:
-        entries.update({f"{folder}/{name}": data for name, data in bundle.entries.items()})
+        entries[packed.name] = packed.data
         with_carried_licenses(entries, bundle.licenses, f"the CPython for hosts without one, with the libraries it "
-                              f"and the FMI library's binary need that are not glibc's ({folder}/{PYTHON_FOLDER}/)")
+                              f"and the FMI library's binary need that are not glibc's ({packed.name})")
     return True
 
 
@@ -239,19 +256,24 @@ def _install_windows(entries, tmp, model_identifier, arguments):
     inner_name = f"{model_identifier}_pythonfmu.dll"
     loader = tmp / f"{model_identifier}.dll"
     python, bundled = _windows_python(folder, model_identifier) if windows_compiler()[1] is None else ({}, "")
-    why_not = compile_windows_loader(loader, inner_name, *arguments, bundled=bundled)
+    prefix = f"{folder}/{packing.PYTHON_FOLDER}/"
+    carried = {name.removeprefix(prefix): data for name, data in python.items() if name.startswith(prefix)}
+    packed = packing.pack(folder.split("/")[1], carried) if carried else None
+    why_not = compile_windows_loader(loader, inner_name, *arguments, bundled=bundled, packed=packed)
     if why_not is not None:
         for name in [name for name in entries if name.startswith(f"{folder}/")]:
             del entries[name]
         print(f"note: the {model_identifier} FMU has no Windows binaries: {why_not}", file=sys.stderr)
         return
     _front(entries, binary, inner_name, loader)
-    entries.update(python)
+    entries.update({name: data for name, data in python.items() if not name.startswith(prefix)})
+    if packed:
+        entries[packed.name] = packed.data
 
 
 def _windows_python(folder, model_identifier):
     """``(entries, path)``: the trimmed embeddable CPython for the Windows binaries in ``folder``
-    (:mod:`stickslip.fmu.windows_python`) and its DLL's path relative to the loader; ``({}, "")`` after a note on
+    (:mod:`stickslip.fmu.bundle.windows_python`) and its DLL's path relative to the loader; ``({}, "")`` after a note on
     stderr where the build cannot have it."""
     files, why_not = windows_python.bundle()
     if files is not None:

@@ -106,4 +106,28 @@ void sbf_plain_path(char *path);
  * in it, into `path`; 0 with the cause in `why` if the system has none. */
 int sbf_folder_alias(const char *folder, char *path, size_t size, char *why, size_t why_size);
 
+/* ---- files and folders (the carried CPython's cache, carried.c) ---- */
+#ifdef _WIN32
+#define SBF_SEPARATOR '\\'
+#else
+#define SBF_SEPARATOR '/'
+#endif
+/* The size of the regular file `path` in bytes, -1 if there is none. */
+long long sbf_file_size(const char *path);
+/* The whole file `path` in memory of the caller's (free it), its size in *size; NULL with the system's reason. */
+unsigned char *sbf_read_file(const char *path, size_t *size, char *why, size_t why_size);
+/* Write `data` (`n` bytes) to the new file `path`; 0 with the system's reason (a full disk among them). */
+int sbf_write_file(const char *path, const void *data, size_t n, char *why, size_t why_size);
+/* Make the folder `path` (1 also if it exists); 0 with the system's reason. */
+int sbf_make_folder(const char *path, char *why, size_t why_size);
+/* Remove the file or empty folder `path`, if it can. */
+void sbf_remove(const char *path);
+/* Rename the folder `from` to `to`: 1 done, 0 `to` exists, -1 another failure (the system's reason in `why`). */
+int sbf_rename_folder(const char *from, const char *to, char *why, size_t why_size);
+/* The user's cache folder for the carried CPython into `path` (Linux: $XDG_CACHE_HOME/stickslip/python, else
+ * $HOME/.cache/stickslip/python; Windows: %LOCALAPPDATA%\\stickslip\\python); 0 if the variables are not set. */
+int sbf_cache_root(char *path, size_t size);
+/* A name no other process or thread of the machine uses now: the process and thread ids and `counter` */
+const char *sbf_unique_name(int counter);
+
 #endif

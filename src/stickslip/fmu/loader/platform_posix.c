@@ -363,3 +363,73 @@ int sbf_folder_alias(const char *folder, char *path, size_t size, char *why, siz
     snprintf(why, why_size, "%s", fd < 0 ? strerror(errno) : "so does the folder's own name");
     return 0;
 }
+
+/* ---- files and folders ---- */
+
+long long sbf_file_size(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0 && S_ISREG(st.st_mode) ? (long long)st.st_size : -1;
+}
+
+unsigned char *sbf_read_file(const char *path, size_t *size, char *why, size_t why_size)
+{
+    struct stat st;
+    unsigned char *data = NULL;
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd >= 0 && fstat(fd, &st) == 0 && (data = malloc((size_t)st.st_size + 1))) {
+        size_t done = 0;
+        for (ssize_t n; done < (size_t)st.st_size && (n = read(fd, data + done, (size_t)st.st_size - done)) > 0;)
+            done += (size_t)n;
+        if (done != (size_t)st.st_size) free(data), data = NULL, errno = EIO;
+        *size = done;
+    }
+    if (!data) snprintf(why, why_size, "%s", strerror(errno));
+    if (fd >= 0) close(fd);
+    return data;
+}
+
+int sbf_write_file(const char *path, const void *data, size_t n, char *why, size_t why_size)
+{
+    errno = 0;
+    int fd = open(path, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    size_t done = 0;
+    for (ssize_t k; fd >= 0 && done < n && (k = write(fd, (const char *)data + done, n - done)) > 0;) done += (size_t)k;
+    int ok = fd >= 0 && done == n;
+    if (fd >= 0 && close(fd) != 0) ok = 0;
+    if (!ok) snprintf(why, why_size, "%s", strerror(errno ? errno : EIO));
+    return ok;
+}
+
+int sbf_make_folder(const char *path, char *why, size_t why_size)
+{
+    struct stat st;
+    if (mkdir(path, 0755) == 0 || (errno == EEXIST && stat(path, &st) == 0 && S_ISDIR(st.st_mode))) return 1;
+    snprintf(why, why_size, "%s", strerror(errno));
+    return 0;
+}
+
+void sbf_remove(const char *path) { remove(path); }
+
+int sbf_rename_folder(const char *from, const char *to, char *why, size_t why_size)
+{
+    if (rename(from, to) == 0) return 1;
+    if (errno == EEXIST || errno == ENOTEMPTY) return 0;
+    snprintf(why, why_size, "%s", strerror(errno));
+    return -1;
+}
+
+int sbf_cache_root(char *path, size_t size)
+{
+    const char *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
+    int n = xdg && *xdg ? snprintf(path, size, "%s/stickslip/python", xdg)
+            : home && *home ? snprintf(path, size, "%s/.cache/stickslip/python", home) : -1;
+    return n > 0 && (size_t)n < size;
+}
+
+const char *sbf_unique_name(int counter)
+{
+    static SBF_THREAD_LOCAL char name[64];
+    snprintf(name, sizeof name, "%ld-%ld-%d", (long)getpid(), (long)syscall(SYS_gettid), counter);
+    return name;
+}

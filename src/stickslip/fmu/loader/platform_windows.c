@@ -4,6 +4,8 @@
 #define UNICODE
 #include "platform.h"
 
+#include "carried.h"
+
 #include <windows.h>
 #include <psapi.h>
 
@@ -182,19 +184,17 @@ static size_t folder_length(const char *path)
 #define SBF_BUNDLED_LIBPYTHON ""
 #endif
 
-/* The path of the python3.dll that the FMU carries beside its own CPython library (SBF_BUNDLED_LIBPYTHON, relative
- * to the loader's folder) into `path`, if that library has the file name of the CPython library `python_path` (the
+/* The path of the python3.dll that the FMU carries beside its own CPython library (SBF_BUNDLED_LIBPYTHON, a path
+ * below its "python" folder, unpacked where needed: carried.c) into `path`, if that library has the file name of the CPython library `python_path` (the
  * forwarder names the library of its version, which is then the one already loaded); 0 if not. */
 static int bundled_forwarder(const char *python_path, char *path, size_t size)
 {
-    char loader[4096];
+    char relative[4096], why[4096];
     const char *bundled = SBF_BUNDLED_LIBPYTHON, *name = python_path + folder_length(python_path);
     size_t bundled_folder = folder_length(bundled);
-    if (!*bundled || _stricmp(bundled + bundled_folder, name) != 0 || !sbf_loader_path(loader, sizeof loader))
-        return 0;
-    int n = snprintf(path, size, "%.*s%.*spython3.dll", (int)folder_length(loader), loader, (int)bundled_folder,
-                     bundled);
-    return n > 0 && (size_t)n < size;
+    if (!*bundled || _stricmp(bundled + bundled_folder, name) != 0) return 0;
+    snprintf(relative, sizeof relative, "%.*spython3.dll", (int)bundled_folder, bundled);
+    return sbf_carried_path(relative, path, size, why, sizeof why);
 }
 
 int sbf_bind_inner_to_python(void *python, char *why, size_t why_size)
@@ -385,4 +385,108 @@ int sbf_folder_alias(const char *folder, char *path, size_t size, char *why, siz
     if (found) return 1;
     snprintf(why, why_size, "its volume has no short name for it");
     return 0;
+}
+
+/* ---- files and folders ---- */
+
+/* The system's text of the last error into `why` */
+static void last_error(char *why, size_t why_size)
+{
+    note_error(GetLastError());
+    snprintf(why, why_size, "%s", library_error);
+}
+
+long long sbf_file_size(const char *path)
+{
+    WIN32_FILE_ATTRIBUTE_DATA data;
+    wchar_t *wide = to_wide(path);
+    BOOL found = wide && GetFileAttributesExW(wide, GetFileExInfoStandard, &data);
+    free(wide);
+    if (!found || (data.dwFileAttributes & FILE_ATTRIBUTE_DIRECTORY)) return -1;
+    return ((long long)data.nFileSizeHigh << 32) | data.nFileSizeLow;
+}
+
+unsigned char *sbf_read_file(const char *path, size_t *size, char *why, size_t why_size)
+{
+    wchar_t *wide = to_wide(path);
+    HANDLE file = wide ? CreateFileW(wide, GENERIC_READ, FILE_SHARE_READ, NULL, OPEN_EXISTING, 0, NULL)
+                       : INVALID_HANDLE_VALUE;
+    free(wide);
+    LARGE_INTEGER length;
+    unsigned char *data = NULL;
+    DWORD got = 0;
+    if (file != INVALID_HANDLE_VALUE && GetFileSizeEx(file, &length) && length.QuadPart < 0x7FFFFFFF &&
+        (data = malloc((size_t)length.QuadPart + 1)) && ReadFile(file, data, (DWORD)length.QuadPart, &got, NULL) &&
+        got == (DWORD)length.QuadPart)
+        *size = got;
+    else {
+        last_error(why, why_size);
+        free(data);
+        data = NULL;
+    }
+    if (file != INVALID_HANDLE_VALUE) CloseHandle(file);
+    return data;
+}
+
+int sbf_write_file(const char *path, const void *data, size_t n, char *why, size_t why_size)
+{
+    wchar_t *wide = to_wide(path);
+    HANDLE file = wide ? CreateFileW(wide, GENERIC_WRITE, 0, NULL, CREATE_NEW, FILE_ATTRIBUTE_NORMAL, NULL)
+                       : INVALID_HANDLE_VALUE;
+    free(wide);
+    DWORD written = 0;
+    int ok = file != INVALID_HANDLE_VALUE && WriteFile(file, data, (DWORD)n, &written, NULL) && written == n;
+    if (!ok) last_error(why, why_size);
+    if (file != INVALID_HANDLE_VALUE && !CloseHandle(file) && ok) ok = 0, last_error(why, why_size);
+    return ok;
+}
+
+int sbf_make_folder(const char *path, char *why, size_t why_size)
+{
+    wchar_t *wide = to_wide(path);
+    BOOL made = wide && CreateDirectoryW(wide, NULL);
+    DWORD code = GetLastError(), attributes = wide ? GetFileAttributesW(wide) : INVALID_FILE_ATTRIBUTES;
+    free(wide);
+    if (made || (attributes != INVALID_FILE_ATTRIBUTES && (attributes & FILE_ATTRIBUTE_DIRECTORY))) return 1;
+    note_error(code);
+    snprintf(why, why_size, "%s", library_error);
+    return 0;
+}
+
+void sbf_remove(const char *path)
+{
+    wchar_t *wide = to_wide(path);
+    if (wide && !DeleteFileW(wide)) RemoveDirectoryW(wide);
+    free(wide);
+}
+
+int sbf_rename_folder(const char *from, const char *to, char *why, size_t why_size)
+{
+    wchar_t *wide_from = to_wide(from), *wide_to = to_wide(to);
+    BOOL moved = wide_from && wide_to && MoveFileExW(wide_from, wide_to, 0);
+    DWORD code = GetLastError(), attributes = wide_to ? GetFileAttributesW(wide_to) : INVALID_FILE_ATTRIBUTES;
+    free(wide_from);
+    free(wide_to);
+    if (moved) return 1;
+    if (attributes != INVALID_FILE_ATTRIBUTES) return 0;
+    note_error(code);
+    snprintf(why, why_size, "%s", library_error);
+    return -1;
+}
+
+int sbf_cache_root(char *path, size_t size)
+{
+    const wchar_t *local = _wgetenv(L"LOCALAPPDATA");
+    char utf8[4096];
+    if (!local || !*local || !from_wide(local, utf8, sizeof utf8)) return 0;
+    int n = snprintf(path, size, "%s\\stickslip\\python", utf8);
+    return n > 0 && (size_t)n < size;
+}
+
+const char *sbf_unique_name(int counter)
+{
+    static SBF_THREAD_LOCAL char name[64];
+    snprintf(name, sizeof name, "%lu-%lu-%d", (unsigned long)GetCurrentProcessId(),
+             (unsigned long)GetCurrentThreadId(), counter);
+    return name;
 }

@@ -2,9 +2,10 @@
  *
  * On the first instantiation a front calls sbf_start, which
  *   1. finds a CPython: the process's own if it has one (never a second one), else the shared library
- *      named by $SBF_LIBPYTHON, else the one the FMU carries (SBF_BUNDLED_LIBPYTHON, a path relative to this
- *      library's folder, where the build bundled one; the libraries its extension modules need are loaded first
- *      from the FMU where the system has none by their names), else the one the FMU was built with
+ *      named by $SBF_LIBPYTHON, else the one the FMU carries (SBF_BUNDLED_LIBPYTHON, a path below its "python/"
+ *      folder, unpacked where it is needed: carried.c; where it cannot be, the start fails saying why; the libraries
+ *      its extension modules need are loaded first from it where the system has none by their names), else, in an
+ *      FMU that carries none, the one the FMU was built with
  *      (SBF_BUILD_LIBPYTHON), else its soname (SBF_LIBPYTHON_SONAME); it is loaded with RTLD_GLOBAL so that
  *      Python's extension modules find its symbols; one older than SBF_PYTHON_FLOOR_MINOR is refused before
  *      anything is imported (python_new_enough);
@@ -36,6 +37,7 @@
 #include <string.h>
 #include <strings.h>
 
+#include "carried.h"
 #include "platform.h"
 
 #ifndef SBF_INNER_LIBRARY
@@ -160,11 +162,11 @@ static int beside_this_library(const char *name, char *path, size_t size)
  * has them. A library that does not load is left out: what needs it then fails, saying so. */
 static void load_bundled(const char *const *needs, int system_first)
 {
-    char path[4096];
+    char path[4096], why[4096];
     for (; *needs; ++needs) {
         const char *slash = strrchr(*needs, '/');
         if (system_first && sbf_open_library(slash ? slash + 1 : *needs, 0)) continue;
-        if (beside_this_library(*needs, path, sizeof path)) sbf_open_library(path, 1);
+        if (sbf_carried_path(*needs, path, sizeof path, why, sizeof why)) sbf_open_library(path, 1);
     }
 }
 
@@ -190,10 +192,11 @@ static int find_libpython(void **lib_out, const char **where)
         return lib != NULL;
     }
     static char bundled[4096];
-    char why[1024];
-    if (*SBF_BUNDLED_LIBPYTHON && (!beside_this_library(SBF_BUNDLED_LIBPYTHON, bundled, sizeof bundled) ||
-                                   sbf_path_kind(bundled, why, sizeof why) != 2))
-        *bundled = '\0'; /* the FMU carries none for this platform */
+    char why[4096];
+    if (sbf_carries_python() && !sbf_carried_path(SBF_BUNDLED_LIBPYTHON, bundled, sizeof bundled, why, sizeof why)) {
+        sbf_fail("%s", why);
+        return 0;
+    }
     const char *candidates[] = {bundled, SBF_BUILD_LIBPYTHON, SBF_LIBPYTHON_SONAME};
     char tried[1024] = "";
     for (size_t i = 0; i < sizeof candidates / sizeof *candidates; ++i) {

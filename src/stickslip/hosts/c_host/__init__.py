@@ -17,7 +17,7 @@ from pathlib import Path, PureWindowsPath
 
 import fmpy
 
-from ...fmu.windows_python import embeddable_files
+from ...fmu.bundle.windows_python import embeddable_files
 
 HERE = Path(__file__).resolve().parent
 #: FMI version: the host's source

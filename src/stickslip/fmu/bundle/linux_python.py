@@ -35,7 +35,8 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..archive import PYTHON_FOLDER, ZIP_EPOCH
+from ..archive import ZIP_EPOCH
+from .packing import PYTHON_FOLDER
 
 #: libraries every Linux system has (glibc's), never bundled
 GLIBC_LIBRARIES = re.compile(r"(libc|libm|libdl|libpthread|librt|libutil|libresolv|ld-linux-x86-64)\.so")

@@ -4,7 +4,7 @@ which Windows checks when it loads the DLL; the operating system version beside 
 newest Windows API function it imports needs (from :data:`API_SINCE`, Microsoft's "minimum supported client").
 
 :func:`windows_needs` reads one DLL; :func:`windows_text` is the Windows part of the FMU's
-``documentation/externalDependencies.txt`` (:mod:`stickslip.fmu.floors` writes the rest). Only the standard
+``documentation/externalDependencies.txt`` (:mod:`stickslip.fmu.bundle.floors` writes the rest). Only the standard
 library: no binutils needed.
 """
 

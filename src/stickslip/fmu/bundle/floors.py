@@ -2,12 +2,12 @@
 binary accepts, read from its ELF symbol version needs (the section ``.gnu.version_r``: for each shared library,
 the versions of it whose symbols the binary uses, e.g. ``GLIBC_2.34`` of ``libc.so.6``), the libraries it names
 (``DT_NEEDED``), and the CPython shared library the loader starts in a process without Python. The libraries an
-FMU carries beside its loader (the CPython of :mod:`stickslip.fmu.loader.python_bundle` and the libraries it needs
+FMU carries beside its loader (the CPython of :mod:`stickslip.fmu.bundle.linux_python` and the libraries it needs
 that are not glibc's) are measured too, and named as the FMU's own where they provide a version a binary needs.
 
 :func:`fmu_floors` measures an FMU's entries; :func:`dependencies_text` is the FMU's
 ``documentation/externalDependencies.txt`` (the FMI 2.0.3 / 3.0 place for what the host must provide), which the
-builder writes from them, with the Windows DLLs' needs from :mod:`stickslip.fmu.windows_needs`. Only the standard
+builder writes from them, with the Windows DLLs' needs from :mod:`stickslip.fmu.bundle.windows_needs`. Only the standard
 library: no binutils needed.
 """
 
@@ -15,7 +15,8 @@ import re
 import struct
 from dataclasses import dataclass
 
-from .archive import SHARED_LIBRARY, carried_python_platform
+from ..archive import SHARED_LIBRARY
+from .packing import carried_entries, carried_python_platform
 from .windows_needs import windows_needs, windows_text
 
 #: FMI version: the oldest CPython (major, minor) the FMU's Python code runs in, which the loader checks before it
@@ -144,7 +145,7 @@ class FmuFloors:
     """The measured needs of an FMU's ELF binaries: ``binaries`` ({archive name: :class:`BinaryNeeds`}),
     ``libpython`` (the CPython library name compiled into the loaders, or None) and ``compiled_for`` (the CPython
     versions, e.g. ("3.11", "3.13"), its compiled extension modules are built for, oldest first); ``windows``: the
-    needs of its Windows DLLs ({archive name: :class:`~stickslip.fmu.windows_needs.WindowsNeeds`}); ``others``:
+    needs of its Windows DLLs ({archive name: :class:`~stickslip.fmu.bundle.windows_needs.WindowsNeeds`}); ``others``:
     the archive names of its binaries for other platforms (neither ELF nor DLL); ``carried``: {file name: archive
     name} of the shared libraries of the CPython the FMU carries for Linux (its libpython and the libraries beside
     it that are not glibc's), empty if it carries none; ``python_floor``: the oldest CPython its Python code runs in,
@@ -186,7 +187,8 @@ def fmu_floors(entries):
     ``.so.N``) under ``binaries/`` and ``resources/`` (NotELF if one is no ELF shared object), every ``.dll`` and
     ``.pyd`` under ``binaries/`` and every ``.pyd`` under ``resources/`` (the runtime compiled for Windows; NotPE if
     one is no PE binary); the other files of a carried CPython (its standard library, its ``._pth``) are its
-    data."""
+    data. The CPythons packed in it (:mod:`~stickslip.fmu.bundle.packing`) are read unpacked."""
+    entries = {**entries, **carried_entries(entries)}
     binaries, libpython, compiled_for = {}, None, set()
     windows = {name: windows_needs(entries[name]) for name in sorted(entries)
                if (name.startswith("binaries/") and name.endswith(WINDOWS_SUFFIXES))

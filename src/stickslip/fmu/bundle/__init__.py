@@ -1,0 +1,10 @@
+"""The CPythons an FMU carries for hosts that have none, and what a host machine needs to run the FMU's binaries.
+
+- :mod:`~stickslip.fmu.bundle.linux_python`: the building Python's shared library, the part of its standard library
+  the FMU imports and the libraries beside them that glibc does not provide;
+- :mod:`~stickslip.fmu.bundle.windows_python`: python.org's embeddable CPython for Windows, trimmed;
+- :mod:`~stickslip.fmu.bundle.packing`: each platform's carried CPython as one compressed file of the FMU, which the
+  loader unpacks only where it starts that CPython;
+- :mod:`~stickslip.fmu.bundle.floors`, :mod:`~stickslip.fmu.bundle.windows_needs`: the oldest glibc, libstdc++ and
+  Windows versions the FMU's ELF and PE binaries (carried CPythons included) need, read from the binaries.
+"""
