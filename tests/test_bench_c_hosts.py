@@ -141,13 +141,19 @@ def _made_up_results():
                                  "PythonFMU floor": record(1.6, 70.0), "C floor": record(0.5, 2.0)}},
             "fmpy": [row], "dense_grid": [row],
             "one_step": {"fmu": {"wall_ms": 6.0, "cpu_ms": 6.0}, "floor": {"wall_ms": 5.0, "cpu_ms": 5.0},
-                         "ratio_wall": 1.2, "ratio_cpu": 1.2}}
+                         "ratio_wall": 1.2, "ratio_cpu": 1.2},
+            "carried_python": {"fmi2": {"size_mb": {"ours": 7.5, "without": 2.4},
+                                        "fmpy_ms": {clock: {"ours": 44.0, "without": 40.0, "ratio": 1.1}
+                                                    for clock in ("wall", "cpu")},
+                                        "c_host_ms": {clock: {"ours": 120.0, "without": 100.0, "first": 500.0,
+                                                              "ratio": 1.2} for clock in ("wall", "cpu")}}}}
 
 
 def test_report_states_the_load_and_the_ratios_of_the_same_run(tmp_path):
     results = _made_up_results()
     report = markdown(results)
     assert "at the start [1.5, 1, 1], at the end [2.5, 2, 2]" in report
+    assert "| fmi2 | cpu | 7.50 / 2.40 | 44.0 / 40.0 | 1.1 | 120.0 / 100.0 | 1.2 | 500 |" in report
     # 4/2, 4/0.5, 4/1.6, 2/0.5; start-up 90/80; own cost 4 - 0.5, 2 - 0.5
     assert "| C host | 2 / 2 | 8 / 8 | 2.5 / 2.5 | 4 / 4 | 1.12 / 1.12 | 3.5, 1.5 |" in report
     paths = write(tmp_path / "out", results)
@@ -167,7 +173,7 @@ def test_bench_c_hosts_without_its_inputs_measures_ours_and_the_floors(tmp_path,
     parser = argparse.ArgumentParser()
     add_c_hosts_parser(parser.add_subparsers())
     args = parser.parse_args(["bench-c-hosts", "--fmu", str(fmu_path), "--out", str(tmp_path / "out"),
-                              "--steps", "20", "--repeats", "1"])
+                              "--steps", "20", "--repeats", "1", "--no-carried-python"])
     assert args.handler(args) == 0
     results = json.loads((tmp_path / "out" / "c-hosts.json").read_text())
     assert set(results["hosts"]) == {"C host"}

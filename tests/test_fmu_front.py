@@ -22,6 +22,7 @@ from fmpy.validation import validate_fmu
 
 from stickslip.core import KINETIC_LAWS, STATIC_LAWS
 from stickslip.fmu import build, compile_runtime, documentation, model_description, staging, variables
+from stickslip.fmu.bundle import packing
 from stickslip.fmu.coupling import UNITS as COUPLING_UNITS, build_coupling
 from stickslip.fmu_src.block_interface import VARIABLES
 from stickslip.hosts.c_host import run_host
@@ -166,6 +167,12 @@ def test_the_documentation_lists_every_variable_with_its_unit_and_range(request,
             assert allowed == "any" and default == "", variable.name
 
 
+def carried_pythons(names):
+    """Whether the FMU whose archive names are ``names`` carries a CPython for Windows, and for Linux."""
+    platforms = {packing.carried_python_platform(name) for name in names} - {None}
+    return bool(platforms & {"win64", "x86_64-windows"}), bool(platforms & {"linux64", "x86_64-linux"})
+
+
 @pytest.mark.parametrize("fmu, library", [("fmu_path", "pythonfmu"), ("fmu3_path", "pythonfmu3")])
 def test_the_documentation_carries_the_licences_and_the_fmu_no_sources(request, fmu, library):
     path = request.getfixturevalue(fmu)
@@ -175,8 +182,7 @@ def test_the_documentation_carries_the_licences_and_the_fmu_no_sources(request, 
                     if name.startswith(documentation.LICENSES)}
         page = archive.read(documentation.INDEX).decode()
     compiled = any(name.startswith("resources/") and name.endswith(".so") for name in names)
-    python = any("/python/python3" in name and name.endswith(".dll") for name in names)  # the Windows binaries'
-    linux_python = any("/python/libpython3" in name for name in names)  # the Linux binaries' CPython
+    python, linux_python = carried_pythons(names)  # the Windows and the Linux binaries' CPython
     expected = {"stickslip.txt", f"{library}.txt", *(("mypy.txt",) if compiled else ()),
                 *(("python.txt",) if python else ())}
     carried = set(licences) - expected  # CPython's and the Debian copyright file of each library it carries
@@ -227,8 +233,9 @@ def test_the_coupling_fmu_is_documented_and_valid(tmp_path):
     with zipfile.ZipFile(path) as fmu:
         names = fmu.namelist()
     licences = {n.rsplit("/", 1)[1] for n in names if n.startswith("documentation/licenses/")}
-    carried = {"cpython.txt"} if any("/python/libpython3" in n for n in names) else set()
-    carried |= {"python.txt"} if any("/python/python3" in n and n.endswith(".dll") for n in names) else set()
+    windows, linux = carried_pythons(names)
+    carried = {"cpython.txt"} if linux else set()
+    carried |= {"python.txt"} if windows else set()
     assert {"stickslip.txt", "pythonfmu.txt", *carried} <= licences
     assert not licences - {"stickslip.txt", "pythonfmu.txt", *carried} or "cpython.txt" in carried
 

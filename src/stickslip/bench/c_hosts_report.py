@@ -41,7 +41,28 @@ def markdown(results):
               f"ours {one['fmu']['wall_ms']:.1f} ms wall, {one['fmu']['cpu_ms']:.1f} ms CPU; the PythonFMU floor "
               f"{one['floor']['wall_ms']:.1f} ms, {one['floor']['cpu_ms']:.1f} ms: ours / floor "
               f"{one['ratio_wall']:.3g} (wall), {one['ratio_cpu']:.3g} (CPU)."]
+    if "carried_python" in results:
+        lines += ["", *_carried_lines(results["carried_python"])]
     return "\n".join(lines) + "\n"
+
+
+def _carried_lines(rows):
+    """The table of what the carried CPython costs (:mod:`.carried_cost`)."""
+    lines = ["## What the carried CPython costs: each FMU against the same FMU built without it", "",
+             "simulate_fmu: the .fmu file, elmer-fig3 from rest, v = 0.1 m/s, 2000 s, 1 s outputs, rtol 1e-10; C host: "
+             "a fresh process's one-step run, the whole .fmu extracted first (ours: its CPython in the cache from an "
+             "earlier run; first run: into an empty cache). Medians (ms) of alternating rounds; CPU: the process's and "
+             "the host processes'.", "",
+             "| FMU | clock | size ours / without (MB) | simulate_fmu ours / without | ratio | C host ours / without | "
+             "ratio | C host first run |", "|---|---|---|---|---|---|---|---|"]
+    for name, r in rows.items():
+        size = r["size_mb"]
+        for clock in ("wall", "cpu"):
+            fmpy, host = r["fmpy_ms"][clock], r["c_host_ms"][clock]
+            lines.append(f"| {name} | {clock} | {size['ours']:.2f} / {size['without']:.2f} | {fmpy['ours']:.1f} / "
+                         f"{fmpy['without']:.1f} | {fmpy['ratio']:.3g} | {host['ours']:.1f} / {host['without']:.1f} | "
+                         f"{host['ratio']:.3g} | {host['first']:.0f} |")
+    return lines
 
 
 def _matched_lines(found):

@@ -1,7 +1,7 @@
 """``stickslip bench-c-hosts``: every measurement of the C-host benchmarks in one run (see
 benchmarks/README.md): the C-host family (:mod:`.c_hosts`) with ours at the peer's error, the FMPy family
 against the peer (:mod:`.matched_error`), the ``.fmu`` file against DOP853 and against the floor
-(:mod:`.fmu_file_runs`). The result is one JSON-ready dict; :mod:`.c_hosts_report` writes it out.
+(:mod:`.fmu_file_runs`), and each block FMU against the same FMU without its carried CPython (:mod:`.carried_cost`). The result is one JSON-ready dict; :mod:`.c_hosts_report` writes it out.
 """
 
 import datetime
@@ -11,7 +11,9 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import c_hosts, dymola_peer
+from ..fmu.build import FILE_NAMES
+from ..hosts.c_host import compile_host
+from . import c_hosts, carried_cost, dymola_peer
 from .c_floor import ensure_c_floor_fmu
 from .fmu_file_runs import dense_grid, one_step
 from .matched_error import fmpy_family, loosest_rtol
@@ -24,7 +26,8 @@ REFERENCE_FLOORS = (("Feedthrough.fmu", "Float64_continuous_output"), ("Dahlquis
 
 @dataclass
 class Inputs:
-    """What a run measures: FMU files (``peer`` and ``fmusim`` may be None), the C host, the build folder."""
+    """What a run measures: FMU files (``peer`` and ``fmusim`` may be None), the C host, the build folder;
+    ``carried_python``: also each block FMU against the same FMU built without its carried CPython."""
 
     fmu: Path
     python_floor: Path
@@ -32,6 +35,7 @@ class Inputs:
     build_dir: Path
     peer: Path | None = None
     fmusim: Path | None = None
+    carried_python: bool = True
 
 
 def run_all(inputs, steps, repeats, progress=print):
@@ -58,8 +62,19 @@ def run_all(inputs, steps, repeats, progress=print):
         out["fmpy"] = fmpy_family(inputs.peer, peer, inputs.fmu, scene, repeats, progress)
     out["dense_grid"] = dense_grid(inputs.fmu, repeats, progress)
     out["one_step"] = one_step(inputs.fmu, inputs.python_floor, 3 * repeats, progress)
+    if inputs.carried_python:
+        out["carried_python"] = carried_cost.measure(*_block_fmus(inputs), inputs.build_dir, 3 * repeats, progress)
     meta["load_end"] = _load()
     return out
+
+
+def _block_fmus(inputs):
+    """``({FMI version: FMU}, {FMI version: C host})``: the FMI 2 FMU and, where it lies beside it, the FMI 3 one."""
+    fmus = {2: Path(inputs.fmu)}
+    fmi3 = Path(inputs.fmu).with_name(FILE_NAMES[3])
+    if fmi3.is_file():
+        fmus[3] = fmi3
+    return fmus, {2: inputs.host, **({3: compile_host(inputs.build_dir, 3)} if 3 in fmus else {})}
 
 
 def _load():

@@ -80,6 +80,9 @@ def add_c_hosts_parser(subparsers):
                                  "or stale; the folder: stickslip build --help)")
     p.add_argument("--steps", type=int, default=50_000, help="steps of 0.01 s in a long host run (default: 50000)")
     p.add_argument("--repeats", type=int, default=5, help="timed runs of each measurement (default: 5)")
+    p.add_argument("--no-carried-python", dest="carried_python", action="store_false",
+                   help="leave out the FMUs against the same FMUs built without their carried CPython (which this "
+                        "builds, about 20 s)")
     p.set_defaults(handler=run_c_hosts)
 
 
@@ -104,7 +107,8 @@ def run_c_hosts(args):
         print(f"stickslip bench-c-hosts: {exc}", file=sys.stderr)
         return 1
     inputs = Inputs(Path(args.fmu) if args.fmu else ensure_fmu(), ensure_floor_fmu(), host, BUILD_DIR,
-                    args.peer and Path(args.peer).resolve(), args.fmusim and Path(args.fmusim).resolve())
+                    args.peer and Path(args.peer).resolve(), args.fmusim and Path(args.fmusim).resolve(),
+                    args.carried_python)
     results = run_all(inputs, args.steps, args.repeats, lambda text: print(text, file=sys.stderr, flush=True))
     paths = write(Path(args.out), results)
     print("wrote " + ", ".join(str(p) for p in paths))

@@ -2,10 +2,11 @@
 
 Entries are written in the order of their names, each with one date and time (:func:`source_date`, else
 1980-01-01 00:00, the earliest a zip entry can hold), the Unix permissions ``rw-r--r--`` and deflate at
-zlib's default level, except the shared libraries and zip archives (:data:`STORED_SUFFIXES`), which are
+zlib's default level, except the Linux shared libraries and zip archives (:data:`STORED_SUFFIXES`), which are
 stored: every host extracts them before its first step, and inflating them cost more than writing them (2.4 ms
 of a 0.94 MB library; the FMU file is larger instead), and the carried CPythons, compressed already
-(:mod:`stickslip.fmu.bundle.packing`).
+(:mod:`stickslip.fmu.bundle.packing`). The Windows binaries (``.dll``, ``.pyd``: the loader, the FMI library's DLL
+and the runtime compiled for Windows, 0.4-1.4 MB) are deflated, which keeps each FMU under 8 MB.
 :func:`identity` names one build of an FMU in its model description.
 """
 
@@ -22,7 +23,7 @@ ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 #: the entries' Unix file type and permissions: a regular file, rw-r--r--
 FILE_MODE = 0o100644
 #: the entries stored without compression: shared libraries, most of an FMU's bytes, and zip archives
-STORED_SUFFIXES = (".so", ".dll", ".dylib", ".pyd", ".zip", ".lzma")
+STORED_SUFFIXES = (".so", ".dylib", ".zip", ".lzma")
 #: the name of a Linux shared library, with or without a version after ``.so``
 SHARED_LIBRARY = re.compile(r".*\.so(\.\d+)*")
 #: the namespace of the FMUs' GUIDs (uuid5 of the model name, the FMI version and the source tag)
@@ -50,9 +51,9 @@ def read_entries(path):
         return {item.filename: archive.read(item) for item in archive.infolist() if not item.is_dir()}
 
 
-def write_entries(path, entries):
+def write_entries(path, entries, deflate=True):
     """Write ``entries`` (``{name: bytes}``) as a new zip archive at ``path`` (or into a binary file object),
-    reproducibly (see the module)."""
+    reproducibly (see the module); ``deflate``: False stores every entry (for a zip that is compressed whole)."""
     date = source_date()
     stamp = ZIP_EPOCH if date is None else max(ZIP_EPOCH, date.timetuple()[:6])
     with zipfile.ZipFile(path, "w") as archive:
@@ -60,7 +61,7 @@ def write_entries(path, entries):
             info = zipfile.ZipInfo(name, stamp)
             info.create_system = 3  # Unix, so that hosts read external_attr as Unix permissions
             info.external_attr = FILE_MODE << 16
-            info.compress_type = zipfile.ZIP_DEFLATED if _deflated(name) else zipfile.ZIP_STORED
+            info.compress_type = zipfile.ZIP_DEFLATED if deflate and _deflated(name) else zipfile.ZIP_STORED
             archive.writestr(info, entries[name])
 
 

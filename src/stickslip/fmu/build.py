@@ -100,10 +100,11 @@ def announce_build(path):
     print(f"stickslip: building {Path(path).resolve()} (missing or out of date) ...", file=sys.stderr, flush=True)
 
 
-def build(dest=None, fmi_version=2, pure=False):
+def build(dest=None, fmi_version=2, pure=False, carry_python=True):
     """Build the FMU of ``fmi_version`` at ``dest`` (default :func:`default_fmu_path`; replaced atomically) and
     return its path. ``pure``: leave the runtime uncompiled, under a package name of its own (so it runs beside
-    the compiled FMU in one process)."""
+    the compiled FMU in one process). ``carry_python``: False leaves out the CPythons the FMU carries for hosts
+    without one (:mod:`stickslip.fmu.bundle`), to measure what they cost."""
     dest = Path(dest or default_fmu_path(fmi_version)).resolve()
     dest.parent.mkdir(parents=True, exist_ok=True)
     library = LIBRARIES[fmi_version]
@@ -132,7 +133,7 @@ def build(dest=None, fmi_version=2, pure=False):
         entries.update(documentation.entries(entries["modelDescription.xml"], SUMMARY,
                                              ("stickslip", library.module, *(("mypy",) if compiled else ())),
                                              instance.variable_enumerations))
-        write_with_loader(dest, entries, MODEL_NAME, fmi_version)
+        write_with_loader(dest, entries, MODEL_NAME, fmi_version, carry_python)
     return dest
 
 
@@ -143,7 +144,7 @@ def forget_modules(tags, module):
         del sys.modules[name]
 
 
-def write_with_loader(dest, entries, model_name, fmi_version=2):
+def write_with_loader(dest, entries, model_name, fmi_version=2, carry_python=True):
     """Write the FMU ``model_name`` of ``fmi_version`` with the ``entries`` (``{name: bytes}``) to ``dest``
     (replaced atomically, reproducibly: :mod:`stickslip.fmu.archive`), with the loader as its Linux and Windows
     binary and, in its documentation, what the host machine needs of the binaries it ends up with
@@ -151,7 +152,8 @@ def write_with_loader(dest, entries, model_name, fmi_version=2):
     """
     partial = dest.with_name(f".{dest.name}.{os.getpid()}.part")
     archive.write_entries(partial, entries)
-    loader.install(partial, model_name, slave_survives_release=True, fmi_version=fmi_version)
+    loader.install(partial, model_name, slave_survives_release=True, fmi_version=fmi_version,
+                   carry_python=carry_python)
     built = archive.read_entries(partial)
     if windows_python.LICENSE_ENTRY in built:  # the Windows binaries carry CPython
         built[documentation.INDEX] = documentation.with_license(built[documentation.INDEX], "python")

@@ -17,7 +17,9 @@ import io
 import lzma
 import os
 import tarfile
+import zipfile
 from dataclasses import dataclass
+from pathlib import Path
 
 from ..archive import ZIP_EPOCH
 from ..compile_runtime import USER_CACHE
@@ -73,6 +75,17 @@ def carried_entries(entries):
         if platform is not None:
             out.update({f"binaries/{platform}/{PYTHON_FOLDER}/{path}": content for path, content in unpack(data).items()})
     return out
+
+
+def extract(fmu_path, folder):
+    """Extract the FMU at ``fmu_path`` into ``folder`` with the files of its carried CPythons beside, as
+    :func:`carried_entries` names them (to read every binary of the FMU with binutils)."""
+    with zipfile.ZipFile(fmu_path) as archive:
+        archive.extractall(folder)
+        packed = {name: archive.read(name) for name in archive.namelist() if _packed_platform(name)}
+    for name, data in carried_entries(packed).items():
+        (Path(folder) / name).parent.mkdir(parents=True, exist_ok=True)
+        (Path(folder) / name).write_bytes(data)
 
 
 def carried_python_platform(name):

@@ -187,13 +187,14 @@ def _run_compiler(compiler, commands):
     return None
 
 
-def install(fmu_path, model_identifier, slave_survives_release=False, fmi_version=2):
+def install(fmu_path, model_identifier, slave_survives_release=False, fmi_version=2, carry_python=True):
     """Replace the Linux and Windows binaries of the FMI ``fmi_version`` FMU at ``fmu_path`` (rewritten in place) by
     the loader.
 
     ``slave_survives_release``: the slave's methods balance PythonFMU's release of the slave on an exception
     (as ``fmu_src/SpringBlockFriction.py`` does); the loader then reports their failures as fmi2Error, which
-    lets the host reset or free the instance, instead of the library's fatal status.
+    lets the host reset or free the instance, instead of the library's fatal status. ``carry_python``: the FMU
+    carries a CPython for each platform where the build can have one (False: for hosts that have their own).
 
     The FMU is written again as :func:`stickslip.fmu.archive.write_entries` writes it (reproducibly).
     Returns True if the Linux loader was installed; False (after a notice on stderr) if the FMU keeps
@@ -205,8 +206,8 @@ def install(fmu_path, model_identifier, slave_survives_release=False, fmi_versio
     token = model_token(entries["modelDescription.xml"], fmi_version)
     arguments = (slave_survives_release, fmi_version, token, offers_model_exchange(entries["modelDescription.xml"]))
     with tempfile.TemporaryDirectory(prefix="sbf_loader_") as tmp:
-        installed = _install_linux(entries, Path(tmp), model_identifier, arguments)
-        _install_windows(entries, Path(tmp), model_identifier, arguments)
+        installed = _install_linux(entries, Path(tmp), model_identifier, arguments, carry_python)
+        _install_windows(entries, Path(tmp), model_identifier, arguments, carry_python)
         _declare_execution_tool(entries)
         write_entries(fmu_path, entries)
     return installed
@@ -222,12 +223,12 @@ def _declare_execution_tool(entries):
             b'needsExecutionTool="true"', b'needsExecutionTool="false"')
 
 
-def _install_linux(entries, tmp, model_identifier, arguments):
+def _install_linux(entries, tmp, model_identifier, arguments, carry_python):
     _, folder, library = FRONTS[arguments[1]]
     binary = f"{folder}/{model_identifier}.so"
     inner_name = f"{model_identifier}_pythonfmu.so"
     loader = tmp / binary.rsplit("/", 1)[1]
-    bundle = linux_bundle(entries, entries[binary])
+    bundle = linux_bundle(entries, entries[binary]) if carry_python else None
     if isinstance(bundle, str):
         print(f"note: the {model_identifier} FMU carries no CPython for Linux hosts without one: {bundle}",
               file=sys.stderr)
@@ -248,14 +249,15 @@ def _install_linux(entries, tmp, model_identifier, arguments):
     return True
 
 
-def _install_windows(entries, tmp, model_identifier, arguments):
+def _install_windows(entries, tmp, model_identifier, arguments, carry_python):
     folder = WINDOWS_FOLDERS[arguments[1]]
     binary = f"{folder}/{model_identifier}.dll"
     if binary not in entries:
         return
     inner_name = f"{model_identifier}_pythonfmu.dll"
     loader = tmp / f"{model_identifier}.dll"
-    python, bundled = _windows_python(folder, model_identifier) if windows_compiler()[1] is None else ({}, "")
+    carried = carry_python and windows_compiler()[1] is None
+    python, bundled = _windows_python(folder, model_identifier) if carried else ({}, "")
     prefix = f"{folder}/{packing.PYTHON_FOLDER}/"
     carried = {name.removeprefix(prefix): data for name, data in python.items() if name.startswith(prefix)}
     packed = packing.pack(folder.split("/")[1], carried) if carried else None
