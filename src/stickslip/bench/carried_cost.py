@@ -65,10 +65,10 @@ def measure(fmus, hosts, build_dir, repeats, progress=print):
 
 def _alternating(calls, repeats):
     """{"wall": {name: median (ms)}, "cpu": {...}} of ``repeats`` rounds, each calling every one of ``calls`` once in
-    turn."""
+    turn, in reversed order every other round."""
     times = {clock: {name: [] for name in calls} for clock in ("wall", "cpu")}
-    for _ in range(repeats):
-        for name, call in calls.items():
+    for round_ in range(repeats):
+        for name, call in list(calls.items())[::1 if round_ % 2 == 0 else -1]:
             wall, cpu = time.perf_counter(), _cpu()
             call()
             times["wall"][name].append(1e3 * (time.perf_counter() - wall))
