@@ -16,7 +16,7 @@ import struct
 from dataclasses import dataclass
 
 from ..archive import SHARED_LIBRARY
-from .packing import carried_entries, carried_python_platform
+from .packing import carried_entries, carried_python_platform, packed_name
 from .windows_needs import windows_needs, windows_text
 
 #: FMI version: the oldest CPython (major, minor) the FMU's Python code runs in, which the loader checks before it
@@ -237,7 +237,8 @@ def _python_need(floors):
     carried = next((name for file, name in floors.carried.items() if file.startswith("libpython")), None)
     text = (f"the host process's own CPython ({floors.python_floor} or newer) if it runs one, else the one named by "
             f"the environment variable SBF_LIBPYTHON if set, else the one the FMU carries ({carried}, with the part of its standard "
-            "library the FMU imports; nothing else needed)" if carried else
+            f"library the FMU imports; nothing else needed; packed in {packed_name(carried.split('/')[1])}, unpacked into "
+            "the user's cache where it is started, or into $SBF_PYTHON_CACHE)" if carried else
             f"the host process's own CPython ({floors.python_floor} or newer) if it runs one, else "
             + (f"{floors.libpython} (the build's; the environment variable SBF_LIBPYTHON names another)"
                if floors.libpython else "one named by the environment variable SBF_LIBPYTHON"))
