@@ -256,8 +256,8 @@ def _install_windows(entries, tmp, model_identifier, arguments, carry_python):
         return
     inner_name = f"{model_identifier}_pythonfmu.dll"
     loader = tmp / f"{model_identifier}.dll"
-    carried = carry_python and windows_compiler()[1] is None
-    python, bundled = _windows_python(folder, model_identifier) if carried else ({}, "")
+    wanted = carry_python and windows_compiler()[1] is None
+    python, bundled = _windows_python(folder, model_identifier) if wanted else ({}, "")
     prefix = f"{folder}/{packing.PYTHON_FOLDER}/"
     carried = {name.removeprefix(prefix): data for name, data in python.items() if name.startswith(prefix)}
     packed = packing.pack(folder.split("/")[1], carried) if carried else None
