@@ -505,7 +505,7 @@ def test_ctrl_c_ends_a_host_without_python_as_without_the_fmu(wine_env, windows_
                     host_env(wine_variables))
     with watched(child, 60) as errors:  # a host that Ctrl-C did not end fails the test, killed
         printed = child.stdout.readline()
-        time.sleep(0.5)
+        time.sleep(0.2)
         child.send_signal(signal.SIGINT)
         printed += child.stdout.read()
     lines = [line.split() for line in printed.splitlines()]
