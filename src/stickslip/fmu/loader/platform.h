@@ -31,9 +31,6 @@
 void *sbf_open_library(const char *path, int global);
 /* The symbol `name` of `library`, NULL if it has none. */
 void *sbf_symbol(void *library, const char *name);
-/* The function `name` of `library` (loaded from `path`): its exported symbol, or where the system allows, its entry
- * in the file's full symbol table; NULL if neither. */
-void *sbf_find_function(void *library, const char *path, const char *name);
 /* Why the last sbf_open_library or sbf_symbol of this thread failed */
 const char *sbf_library_error(void);
 /* 1 with why in `why` if a standard stream of the process is one CPython cannot start with (Windows under Wine 8.0: a
@@ -52,6 +49,11 @@ int sbf_bind_inner_to_python(void *python, char *why, size_t why_size);
 int sbf_loader_path(char *path, size_t size);
 /* Keep the loader's binary loaded until the process ends (see runtime.c, sbf_start); 0 with the reason in `why`. */
 int sbf_pin_loader(char *why, size_t why_size);
+/* Make the inner library (`library`, loaded from `path`) destroy its Python start-up object once at process exit,
+ * given the name of its function that resets it (see runtime.c, the inner library's exit fault). Linux: that function
+ * (in the file's full symbol table: it is not exported) is called by an exit handler registered now, which runs
+ * before the library's destructors. Windows: nothing (the library's own detach destroys the object once). */
+void sbf_reset_inner_at_exit(void *library, const char *path, const char *reset);
 /* The program name CPython derives its prefix from, for the CPython library holding `python_function` (one of its
  * functions): the interpreter executable of that installation, so that the library and the standard library
  * found belong together. */
@@ -65,12 +67,13 @@ void sbf_loader_unlock(void);
  * copy); 0 with the reason in `why` if it cannot be had. sbf_process_unlock gives it back. */
 int sbf_process_lock(char *why, size_t why_size);
 void sbf_process_unlock(void);
-/* Around CPython's start: the host's handlers of the signals Python would take over are saved, then restored. */
-void sbf_save_host_signals(void);
+/* Around the start of the CPython library `python`: the host's handlers of the signals Python would take over are
+ * saved, then restored (Windows: SIGINT's in that CPython's C runtime, through its PyOS_getsig and PyOS_setsig). */
+void sbf_save_host_signals(void *python);
 void sbf_restore_host_signals(void);
-/* Once Python is ready (under the process lock): Ctrl-C during calls into the model reaches the host after them
- * (see sbf_call_begin in runtime.h). */
-void sbf_defer_interrupts(void);
+/* Once the CPython library `python` is ready (under the process lock): Ctrl-C during calls into the model reaches
+ * the host after them (see sbf_call_begin in runtime.h). */
+void sbf_defer_interrupts(void *python);
 /* The interrupt bookkeeping of sbf_call_begin/sbf_call_end; `interrupt_pending` (may be NULL) tells whether Python
  * has noted an interrupt it has not acted on (it takes it back). */
 void sbf_interrupts_begin(int (*interrupt_pending)(void));

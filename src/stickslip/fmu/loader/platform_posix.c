@@ -67,7 +67,7 @@ int sbf_loader_path(char *path, size_t size)
 }
 
 /* The function `name` in the full symbol table (SHT_SYMTAB) of the ELF file `path`, loaded at `base`; NULL if
- * absent. PythonFMU does not export finalizePythonInterpreter (runtime.c, reset_inner_python_state). */
+ * absent. PythonFMU does not export finalizePythonInterpreter (sbf_reset_inner_at_exit). */
 static void *elf_function(const char *path, ElfW(Addr) base, const char *name)
 {
     void *function = NULL;
@@ -103,12 +103,27 @@ static void *elf_function(const char *path, ElfW(Addr) base, const char *name)
     return function;
 }
 
-void *sbf_find_function(void *library, const char *path, const char *name)
+/* The function `name` of `library` (loaded from `path`): its exported symbol, else its entry in the file's full
+ * symbol table; NULL if neither. */
+static void *find_function(void *library, const char *path, const char *name)
 {
     void *function = dlsym(library, name);
     struct link_map *map;
     if (function || dlinfo(library, RTLD_DI_LINKMAP, &map) != 0) return function;
     return elf_function(path, map->l_addr, name);
+}
+
+/* The inner library's static destructor and its ELF destructor (which calls the reset) each destroy the object: the
+ * exit handler registered here, after the library was loaded, runs before its static destructor (exit handlers run
+ * last-in, first-out) and so before both, which then find nothing to destroy. */
+static void (*inner_reset)(void);
+
+static void reset_inner(void) { inner_reset(); }
+
+void sbf_reset_inner_at_exit(void *library, const char *path, const char *reset)
+{
+    *(void **)&inner_reset = find_function(library, path, reset);
+    if (inner_reset) atexit(reset_inner);
 }
 
 /* The loader pins itself with RTLD_NODELETE rather than being linked with -z nodelete: a host that loads it and
@@ -188,8 +203,9 @@ static const int kept_signals[] = {SIGINT, SIGPIPE, SIGXFSZ};
 #define N_KEPT (sizeof kept_signals / sizeof *kept_signals)
 static struct sigaction host_handlers[N_KEPT];
 
-void sbf_save_host_signals(void)
+void sbf_save_host_signals(void *python)
 {
+    (void)python;
     for (size_t i = 0; i < N_KEPT; ++i) sigaction(kept_signals[i], NULL, &host_handlers[i]);
 }
 
@@ -233,9 +249,10 @@ static void deferring_handler(int signal, siginfo_t *info, void *context)
         host_sigint.sa_handler(signal);
 }
 
-void sbf_defer_interrupts(void)
+void sbf_defer_interrupts(void *python)
 {
     struct sigaction now, wrapper;
+    (void)python;
     if (sigaction(SIGINT, NULL, &now) != 0) return;
     if (now.sa_flags & SA_SIGINFO ? !now.sa_sigaction : now.sa_handler == SIG_DFL || now.sa_handler == SIG_IGN) return;
     host_sigint = now;

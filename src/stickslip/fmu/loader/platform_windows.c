@@ -1,5 +1,6 @@
 /* platform.h for Windows (x86_64, MinGW-w64): LoadLibraryExW and GetProcAddress, module handles, a named mutex per
- * process, fiber-local storage for thread-exit callbacks, and paths handed to the system as UTF-16. */
+ * process, a console control handler for Ctrl-C, fiber-local storage for thread-exit callbacks, and paths handed to
+ * the system as UTF-16. */
 #define WIN32_LEAN_AND_MEAN
 #define UNICODE
 #include "platform.h"
@@ -8,6 +9,7 @@
 
 #include <windows.h>
 #include <psapi.h>
+#include <tlhelp32.h>
 
 #include <ctype.h>
 #include <errno.h>
@@ -92,12 +94,6 @@ void *sbf_symbol(void *library, const char *name)
     return symbol;
 }
 
-void *sbf_find_function(void *library, const char *path, const char *name)
-{
-    (void)path;
-    return (void *)GetProcAddress((HMODULE)library, name);
-}
-
 const char *sbf_library_error(void) { return *library_error ? library_error : "unknown error"; }
 
 /* Whether `name` is the file name of a CPython library (python3XY.dll, not the forwarder python3.dll) */
@@ -170,6 +166,15 @@ int sbf_pin_loader(char *why, size_t why_size)
     note_error(GetLastError());
     snprintf(why, why_size, "%s", library_error);
     return 0;
+}
+
+/* The inner library's DLL_PROCESS_DETACH destroys its Python start-up object once, and comes before the loader's
+ * (Windows detaches the libraries in the reverse of the order they were loaded in): an exit handler of the loader's
+ * runs at the loader's detach, and resetting the object there decremented the freed object's count (a write into
+ * freed memory: Wine's heap check found the block overwritten). So nothing is done. */
+void sbf_reset_inner_at_exit(void *library, const char *path, const char *reset)
+{
+    (void)library, (void)path, (void)reset;
 }
 
 /* The length of the folder part of `path` (with its last separator) */
@@ -255,23 +260,141 @@ int sbf_process_lock(char *why, size_t why_size)
 
 void sbf_process_unlock(void) { ReleaseMutex(process_lock); }
 
-static void (*host_sigint)(int);
+/* ---- the host's SIGINT handler: CPython's C runtime's (the UCRT's for python.org's builds, not this library's
+ * msvcrt), reached through CPython's PyOS_getsig and PyOS_setsig ---- */
+typedef void (*sigint_handler)(int);
+static sigint_handler (*python_getsig)(int), (*python_setsig)(int, sigint_handler);
+static sigint_handler host_sigint = SIG_ERR;
 
-void sbf_save_host_signals(void)
+/* PyOS_getsig and PyOS_setsig of the CPython library `python` (NULL where it lacks them) */
+static void resolve_python_signals(void *python)
 {
-    host_sigint = signal(SIGINT, SIG_DFL);
-    signal(SIGINT, host_sigint);
+    *(void **)&python_getsig = sbf_symbol(python, "PyOS_getsig");
+    *(void **)&python_setsig = sbf_symbol(python, "PyOS_setsig");
 }
 
-void sbf_restore_host_signals(void) { signal(SIGINT, host_sigint); }
+void sbf_save_host_signals(void *python)
+{
+    resolve_python_signals(python);
+    host_sigint = python_getsig ? python_getsig(SIGINT) : SIG_ERR;
+}
 
-/* Ctrl-C reaches a Windows process on a thread of its own, which runs the handler at once; its deferral is not
- * implemented here: an interrupt during a call into the model acts in the model's Python code. */
-void sbf_defer_interrupts(void) {}
+void sbf_restore_host_signals(void)
+{
+    if (python_setsig && host_sigint != SIG_ERR) python_setsig(SIGINT, host_sigint);
+}
 
-void sbf_interrupts_begin(int (*interrupt_pending)(void)) { (void)interrupt_pending; }
+/* ---- Ctrl-C during a call into the model ----
+ * Windows hands Ctrl-C (and GenerateConsoleCtrlEvent's CTRL_C_EVENT; Wine turns a SIGINT into one) to a process on a
+ * new thread, which runs the console control handlers, the last registered first. The C runtime's, registered when
+ * CPython set its SIGINT handler, calls that handler, and Python raises KeyboardInterrupt in the main thread at its
+ * next Python instruction: while that thread is inside a call into the model, an instruction of the slave's, which
+ * the inner library then reports as the slave's failure ("[doStep] KeyboardInterrupt()"). So once Python is ready,
+ * the first loader copy in the process registers a handler of its own, which runs before the C runtime's, and
+ * reports every Ctrl-C handled: while the main thread (the process's oldest) is inside a call into any copy's model,
+ * it only notes it, and the end of that call hands it to CPython's SIGINT handler on the main thread, so that the
+ * host gets it when the call returns. Otherwise it hands it on itself, on its own thread; a call that the main
+ * thread begins meanwhile waits until it has, then takes it back from Python if Python has not acted on it yet
+ * (PyOS_InterruptOccurred) and defers it too. Where CPython's SIGINT handler is the default or ignores it (a host
+ * that is not Python keeps its own, the default), the event goes on to the next handler, as without the FMU. The
+ * state is one word in memory that every loader copy in the process shares (named after the process, as the start
+ * lock is); a call's state changes are two interlocked additions on the main thread, and a thread-local read on
+ * the others. */
+#define IN_CALL 0x100     /* per call of the main thread into a model */
+#define HANDING 0x2       /* per Ctrl-C being handed to Python on the console's thread */
+#define HANDING_MASK 0xFE
+#define DEFERRED 0x1      /* a Ctrl-C waits for the main thread's calls to end */
+static struct {
+    volatile LONG state;  /* IN_CALL, HANDING and DEFERRED, added up */
+    volatile LONG handed; /* a Ctrl-C was handed to Python since the main thread last took one back */
+} *interrupts;            /* NULL until sbf_defer_interrupts */
+static DWORD main_thread;
+static SBF_THREAD_LOCAL int on_main_thread = -1; /* -1 not known yet */
 
-void sbf_interrupts_end(void) {}
+/* CPython's SIGINT handler, NULL where it is the default or ignores the signal */
+static sigint_handler python_sigint(void)
+{
+    sigint_handler handler = python_getsig ? python_getsig(SIGINT) : SIG_DFL;
+    return handler == SIG_DFL || handler == SIG_IGN || handler == SIG_ERR ? NULL : handler;
+}
+
+static BOOL WINAPI on_console_event(DWORD event)
+{
+    sigint_handler handler = event == CTRL_C_EVENT ? python_sigint() : NULL;
+    if (!handler) return FALSE;
+    LONG state = interrupts->state, seen;
+    for (;; state = seen) {
+        LONG next = state >= IN_CALL ? state | DEFERRED : state + HANDING;
+        if ((seen = InterlockedCompareExchange(&interrupts->state, next, state)) == state) break;
+    }
+    if (state >= IN_CALL) return TRUE; /* the main thread's call hands it on when it ends */
+    handler(SIGINT);
+    InterlockedExchange(&interrupts->handed, 1);
+    InterlockedExchangeAdd(&interrupts->state, -HANDING);
+    return TRUE;
+}
+
+/* The id of the process's oldest thread, its main one (0 if it cannot be had) */
+static DWORD oldest_thread(void)
+{
+    DWORD oldest = 0;
+    ULONGLONG oldest_start = ~0ULL;
+    HANDLE snapshot = CreateToolhelp32Snapshot(TH32CS_SNAPTHREAD, 0);
+    THREADENTRY32 entry = {.dwSize = sizeof entry};
+    for (BOOL more = snapshot != INVALID_HANDLE_VALUE && Thread32First(snapshot, &entry); more;
+         more = Thread32Next(snapshot, &entry)) {
+        HANDLE thread = entry.th32OwnerProcessID == GetCurrentProcessId()
+                            ? OpenThread(THREAD_QUERY_LIMITED_INFORMATION, FALSE, entry.th32ThreadID) : NULL;
+        FILETIME start, end, kernel, user;
+        if (thread && GetThreadTimes(thread, &start, &end, &kernel, &user) &&
+            ((ULONGLONG)start.dwHighDateTime << 32 | start.dwLowDateTime) < oldest_start) {
+            oldest_start = (ULONGLONG)start.dwHighDateTime << 32 | start.dwLowDateTime;
+            oldest = entry.th32ThreadID;
+        }
+        if (thread) CloseHandle(thread);
+    }
+    if (snapshot != INVALID_HANDLE_VALUE) CloseHandle(snapshot);
+    return oldest;
+}
+
+void sbf_defer_interrupts(void *python)
+{
+    wchar_t name[64];
+    resolve_python_signals(python);
+    if (!python_getsig) return;
+    python_sigint(); /* the C runtime registers its console handler when first asked: before this library's */
+    swprintf(name, sizeof name / sizeof *name, L"Local\\sbf_interrupts.%lu", (unsigned long)GetCurrentProcessId());
+    HANDLE shared = CreateFileMappingW(INVALID_HANDLE_VALUE, NULL, PAGE_READWRITE, 0, sizeof *interrupts, name);
+    int first = shared && GetLastError() != ERROR_ALREADY_EXISTS;
+    void *state = shared ? MapViewOfFile(shared, FILE_MAP_ALL_ACCESS, 0, 0, sizeof *interrupts) : NULL;
+    if (!state) return;
+    main_thread = oldest_thread();
+    interrupts = state;
+    if (first) SetConsoleCtrlHandler(on_console_event, TRUE);
+}
+
+void sbf_interrupts_begin(int (*interrupt_pending)(void))
+{
+    if (!interrupts) return;
+    if (on_main_thread < 0) on_main_thread = GetCurrentThreadId() == main_thread;
+    if (!on_main_thread) return;
+    if (InterlockedExchangeAdd(&interrupts->state, IN_CALL) & HANDING_MASK)
+        while (interrupts->state & HANDING_MASK) SwitchToThread(); /* until Python has it, to take it back */
+    if (interrupts->handed && InterlockedExchange(&interrupts->handed, 0) && interrupt_pending && interrupt_pending())
+        InterlockedOr(&interrupts->state, DEFERRED);
+}
+
+void sbf_interrupts_end(void)
+{
+    if (on_main_thread != 1) return;
+    LONG state = InterlockedExchangeAdd(&interrupts->state, -IN_CALL) - IN_CALL, seen;
+    for (; state < IN_CALL && (state & DEFERRED); state = seen)
+        if ((seen = InterlockedCompareExchange(&interrupts->state, state & ~DEFERRED, state)) == state) {
+            sigint_handler handler = python_sigint();
+            if (handler) handler(SIGINT);
+            return;
+        }
+}
 
 /* ---- threads: a fiber-local slot whose callback runs when the thread ends ---- */
 static DWORD exit_slot = FLS_OUT_OF_INDEXES;

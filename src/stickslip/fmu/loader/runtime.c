@@ -21,11 +21,11 @@
  * Each host thread gets one Python thread state, kept for the thread's life (sbf_keep_thread_state).
  * The resource location a host passes is decoded and checked here for both fronts (sbf_check_instance), and the
  * inner library is handed a path to that folder that it does not rewrite (inner_library_path).
- * A SIGINT that arrives while the process's main thread is inside a call into the model reaches the host's handler
- * when that call returns (sbf_call_begin).
+ * A Ctrl-C (SIGINT) that arrives while the process's main thread is inside a call into the model reaches the host's
+ * handler when that call returns (sbf_call_begin).
  * What depends on the operating system is in platform.h (platform_posix.c, platform_windows.c).
- * At process exit the inner library's Python start-up object is reset once before its own destructors run
- * (see reset_inner_python_state).
+ * At process exit the inner library's Python start-up object is destroyed once (see "the inner library's exit
+ * fault").
  */
 #include "runtime.h"
 
@@ -247,14 +247,14 @@ static int python_new_enough(void *lib, const char *where)
  * a PYTHONHOME, PYTHONPATH, PYTHONHASHSEED, PYTHONMALLOC... set for another Python neither stops nor changes it.
  * SBF_PYTHON_VERBOSE set to anything but empty passes Python's -v: it reports on stderr where it imports each
  * module from (PYTHONVERBOSE is ignored with the rest). */
-static void initialize_python(const char *where)
+static void initialize_python(void *lib, const char *where)
 {
     char name[4096], verbose[] = "-v";
     const char *wanted = getenv("SBF_PYTHON_VERBOSE");
     char *argv[] = {name, wanted && *wanted ? verbose : NULL, NULL};
     sbf_python_program_name(*(void **)&py.Py_IsInitialized, name, sizeof name);
     _Alignas(16) static unsigned char preconfig[PYCONFIG_BYTES], config[PYCONFIG_BYTES];
-    sbf_save_host_signals();
+    sbf_save_host_signals(lib);
     py.PyPreConfig_InitPythonConfig(preconfig);
     ((PreConfigHead *)preconfig)->use_environment = 0;
     PyStatus status = py.Py_PreInitialize(preconfig);
@@ -300,24 +300,22 @@ static int imports_ctypes(const char *where)
 }
 
 /* ---- the inner library's exit fault ----
- * PythonFMU 0.7.0 and pythonfmu3 0.3.4 keep their Python start-up object in a global std::shared_ptr, which is
- * destroyed twice at process exit: by its static destructor (an exit handler) and again by the library's ELF
- * destructor, which calls finalizePythonInterpreter() to reset the pointer the first one left dangling. The
- * second one decrements a reference count in freed memory (and may free the object again): glibc then aborts
- * the host at exit at random ("corrupted double-linked list", "double free"). Resetting the pointer once,
- * through that same function, before either runs makes both harmless: the handler registered here, after the
- * library was loaded, runs before its static destructor (exit handlers run last-in, first-out). */
-static void (*inner_reset_python_state)(void);
-
-static void reset_inner_python_state(void) { inner_reset_python_state(); }
+ * PythonFMU 0.7.0 and pythonfmu3 0.3.4 keep their Python start-up object in a global std::shared_ptr, which their
+ * function finalizePythonInterpreter() resets. On Linux the object is destroyed twice at process exit: by the
+ * pointer's static destructor and again by the library's ELF destructor, which calls finalizePythonInterpreter()
+ * on the pointer the first one left dangling (glibc then aborted the host at random: "corrupted double-linked list",
+ * "double free"); the loader calls it once before either runs. On Windows the library's own DLL_PROCESS_DETACH
+ * destroys it once, before the loader's (DLLs loaded later are detached first), and a call from the loader's exit
+ * handlers, which run at the loader's DLL_PROCESS_DETACH, would destroy it again. Each platform does what it needs in
+ * sbf_reset_inner_at_exit (platform.h). */
 
 /* Keep this library loaded until the process ends (0 after sbf_fail() if it cannot be). Once sbf_start has run, the
  * library has code that runs after any call of the host: the destructor of every host thread's Python thread state
- * (sbf_at_thread_exit, run when the thread ends, which may be after the host's dlclose), the SIGINT handler
- * (sbf_call_begin) and the exit handler (reset_inner_python_state); Python, started once, cannot be started again
- * in the process, and the inner library it runs stays loaded too. Unloading it would leave those pointing into
- * unmapped memory (a host that unloads the FMU and then ends a thread that called it died with SIGSEGV). So the
- * library pins itself here (sbf_pin_loader); a host's unloading then only drops a reference. */
+ * (sbf_at_thread_exit, run when the thread ends, which may be after the host's dlclose), the Ctrl-C handler
+ * (sbf_defer_interrupts) and the exit handler (sbf_reset_inner_at_exit, Linux); Python, started once, cannot be
+ * started again in the process, and the inner library it runs stays loaded too. Unloading it would leave those
+ * pointing into unmapped memory (a host that unloads the FMU and then ends a thread that called it died with
+ * SIGSEGV). So the library pins itself here (sbf_pin_loader); a host's unloading then only drops a reference. */
 static int pin_library(void)
 {
     char why[1024];
@@ -344,9 +342,7 @@ static void load_inner(sbf_resolve_inner resolve, void *python)
                  *bundled_inner_needs ? " (also with the C++ runtime the FMU carries)" : "", sbf_library_error());
         return;
     }
-    if (!resolve(lib, path)) return;
-    *(void **)&inner_reset_python_state = sbf_find_function(lib, path, "finalizePythonInterpreter");
-    if (inner_reset_python_state) atexit(reset_inner_python_state);
+    if (resolve(lib, path)) sbf_reset_inner_at_exit(lib, path, "finalizePythonInterpreter");
 }
 
 /* Steps 1 and 2 of sbf_start, under the process-wide lock: the CPython library (NULL after sbf_fail()), started. */
@@ -366,10 +362,10 @@ static void *start_python(void)
         if (!resolve_config_api(lib))
             sbf_fail("%s lacks the PyConfig API: CPython 3.8 or newer is needed (set %s)", where, LIBPYTHON_VARIABLE);
         else
-            initialize_python(where);
+            initialize_python(lib, where);
     }
     if (started == 0) imports_ctypes(where);
-    if (started == 0) sbf_defer_interrupts();
+    if (started == 0) sbf_defer_interrupts(lib);
     sbf_process_unlock();
     return started == 0 ? lib : NULL;
 }
