@@ -143,8 +143,11 @@ class _Blocks:
         forces = ("F_ext", RATE_INPUT) if self.fmi3 else ("F_ext",)
         self._force_refs = (c_uint * len(forces))(*references(fmu, forces))
         self._forces, self._rate, self._order = (c_double * 2)(), (c_double * 1)(), (c_int * 1)(1)
-        self._cell_refs, self._cell = (c_uint * len(_READ_CELL))(*self.cell_refs), (c_double * len(_READ_CELL))()
+        reals = self.cell_refs + self.end_refs
+        self._real_refs, self._reals = (c_uint * len(reals))(*reals), (c_double * len(reals))()
+        self._int_refs, self._ints = (c_uint * 2)(*self.int_refs), (c_int * 2)()
         self.n_events_ref, self.v_ref = references(fmu, ("n_events",)), references(fmu, ("v",))
+        self.ends = [None] * len(instances)  # each block's end outputs (see end()) where its last step ended
         self.states = [None] * len(instances)
         self.moved = [False] * len(instances)  # stepped since the save or the last restore
         self.do_steps = self.restores = self.early_returns = 0
@@ -181,7 +184,8 @@ class _Blocks:
         answer = b.call(self._set_step_read, b.fmu, t, h, force, rate)
         self.moved[i] = True
         self.do_steps += 1
-        self.stepped = tuple(self._cell)
+        reals, ints = self._reals[:], self._ints[:]
+        self.stepped, self.ends[i] = tuple(reals[:len(_READ_CELL)]), (*reals[len(_READ_CELL):], *ints)
         if self.early_return and answer[2]:  # (eventHandlingNeeded, terminateSimulation, earlyReturn, lastSuccessfulTime)
             self.early_returns += 1
             return float(answer[3])
@@ -189,7 +193,8 @@ class _Blocks:
 
     def _set_step_read(self, fmu, t, h, force, rate):
         """The FMI calls of :meth:`step`, on arrays made once: the force and its rate set (FMI 2: setting ``F_ext``
-        sets its rate to 0; FMI 3: the input ``der(F_ext)``), ``doStep``, the cell's end read."""
+        sets its rate to 0; FMI 3: the input ``der(F_ext)``), ``doStep``, the outputs of the cell's end and of
+        :meth:`end` read."""
         if force is not None:
             self._forces[0], self._forces[1] = force, rate
             if self.fmi3:
@@ -200,11 +205,13 @@ class _Blocks:
                     self._rate[0] = rate
                     fmu.fmi2SetRealInputDerivatives(fmu.component, self._force_refs, 1, self._order, self._rate)
         answer = fmu.doStep(t, h)
-        n = len(_READ_CELL)
+        n = len(self._reals)
         if self.fmi3:
-            fmu.fmi3GetFloat64(fmu.component, self._cell_refs, n, self._cell, n)
+            fmu.fmi3GetFloat64(fmu.component, self._real_refs, n, self._reals, n)
+            fmu.fmi3GetInt32(fmu.component, self._int_refs, 2, self._ints, 2)
         else:
-            fmu.fmi2GetReal(fmu.component, self._cell_refs, n, self._cell)
+            fmu.fmi2GetReal(fmu.component, self._real_refs, n, self._reals)
+            fmu.fmi2GetInteger(fmu.component, self._int_refs, 2, self._ints)
         return answer
 
     def cell(self, i):
@@ -218,13 +225,15 @@ class _Blocks:
         return b.call(b.fmu.getOutputDerivatives, self.v_ref, [2])[0]
 
     def n_events(self, i):
-        """Block ``i``'s ``n_events``."""
-        b = self.instances[i]
-        return b.call(getattr(b.fmu, self.get_integer), self.n_events_ref)[0]
+        """Block ``i``'s ``n_events`` where its last step ended."""
+        return self.ends[i][4]
 
     def end(self):
-        """``(z_slip, z_stick, t_last_event, mode, n_events)`` of every block, each an array over blocks."""
-        return [np.array(column) for column in read_values(self.instances, self.end_refs, self.int_refs)]
+        """``(z_slip, z_stick, t_last_event, mode, n_events)`` of every block, each an array over blocks: read where
+        each block's last step ended (a block is restored only to be stepped again), or now before any step."""
+        if any(end is None for end in self.ends):
+            return [np.array(column) for column in read_values(self.instances, self.end_refs, self.int_refs)]
+        return [np.array(column) for column in zip(*self.ends)]
 
 
 class _Attempt:
