@@ -7,7 +7,10 @@ A communication step ``[t, T]`` is cut into cells; every block's FMU state at ``
 ``F_ext`` taken from the neighbours' positions of the previous sweep (iteration 0: extrapolated), interpolated
 by cubic Hermite polynomials through ``x`` and ``v`` at the cell ends; the states are restored
 (``fmi2SetFMUstate``) before every new sweep, until the cell-end positions change by less than a hundredth of
-the step's tolerance. A slipping block steps each cell in one ``doStep`` under a straight line of force, ``F_ext``
+the step's tolerance. The first sweep's waveforms are cubic (each slipping block's ``d2v/dt2`` from its output
+derivative, stuck blocks moving with the surface), and a block whose forces changed so little since it was last
+stepped in the attempt that its cell ends could not move by a tenth of the convergence floor is not stepped (nor
+restored) again. A slipping block steps each cell in one ``doStep`` under a straight line of force, ``F_ext``
 set at the cell's start with its rate (FMI 2: ``fmi2SetRealInputDerivatives``; FMI 3: the input ``der(F_ext)``),
 the line carrying the interpolated force's impulse and first moment over the cell (the block's end state is then
 exact to ``omega^2 delta^4`` for a cell of length ``delta``, third order in all). A
@@ -32,10 +35,7 @@ wrong side (a spurious overshoot). Every communication point of the output grid 
 
 With ``fmi=3`` the blocks are instances of the FMI 3 FMU made with ``earlyReturnAllowed``: a block's ``doStep``
 that returns early at an event more than ``EVENT_TOL`` before the step's end (after the first sweep) stops the
-attempt, which is redone to end on that event; a block whose forces did not change since it was last stepped in
-the attempt is not stepped again, and the first sweep's
-waveforms are cubic (each slipping block's ``d2v/dt2`` from ``fmi3GetOutputDerivatives``). The FMI 2 scheme is
-the one above.
+attempt, which is redone to end on that event. The rest of the scheme is the same for both.
 """
 
 import dataclasses
@@ -220,9 +220,11 @@ class _Blocks:
         return b.call(getattr(b.fmu, self.get_real), self.cell_refs)
 
     def jerk(self, i):
-        """Block ``i``'s ``d2v/dt2`` (m/s^3) now, with the force it holds (``fmi3GetOutputDerivatives``)."""
+        """Block ``i``'s ``d2v/dt2`` (m/s^3) now, with its force going on as set (``fmi2GetRealOutputDerivatives``,
+        ``fmi3GetOutputDerivatives``)."""
         b = self.instances[i]
-        return b.call(b.fmu.getOutputDerivatives, self.v_ref, [2])[0]
+        get = b.fmu.getOutputDerivatives if self.fmi3 else b.fmu.getRealOutputDerivatives
+        return b.call(get, self.v_ref, [2])[0]
 
     def n_events(self, i):
         """Block ``i``'s ``n_events`` where its last step ended."""
@@ -245,7 +247,8 @@ class _Attempt:
         self.cuttable = cuttable  # an early return more than EVENT_TOL before T (after the first sweep) stops it
         self.friction = np.zeros_like(X)
         self.spring = np.zeros(X.shape[0])
-        self.held = np.zeros(X.shape[0])  # N: each block's F_ext over its last cell
+        self.held = np.zeros(X.shape[0])  # N: each block's F_ext at the end of its last cell
+        self.held_rate = np.zeros(X.shape[0])  # N/s: and its rate there
         self.error, self.sweeps, self.converged = 0.0, 0, False
         self.end = None
         self.cut = None  # (t_e, block): the first event a block's early return showed inside the step
@@ -272,13 +275,13 @@ class _Run:
         self.x, self.v = first[:, 0], first[:, 1]
         self.a = (first[:, 3] + first[:, 2] + self.K @ self.x) / self.M
         self.end = blocks.end()
-        self.jerk = self._jerk()
+        self.jerk = self._jerk(np.zeros(system.n))
         self.margin = self.end[0]  # N: each block's true z_slip at t (F_ext set from the positions there)
         self.rows = [(self.x.copy(), self.v.copy(), self.end[3].copy())]
         self.events, self.complete = [], True
         self.h = self.h_slip / 4.0
         self.stats = {"communication steps": 0, "rejected steps": 0, "event redos": 0, "events not landed": 0,
-                      "sweeps": 0, **({"sweeps of a block skipped": 0} if blocks.early_return else {})}
+                      "sweeps": 0, "sweeps of a block skipped": 0}
 
     def run(self):
         start = time.perf_counter()
@@ -350,9 +353,9 @@ class _Run:
             delta = times[1] - times[0]
             change = max(float(np.max(np.abs(attempt.X - X))), float(np.max(np.abs(attempt.V - V))) * delta)
             attempt.sweeps += 1
-            # with early return: a hold that had an event is swept before the attempt converges (the cubic predictor
+            # a hold that had an event is swept before the attempt converges (the cubic predictor
             # can make the first sweep's change tiny on a short step)
-            unswept = self.blocks.early_return and attempt.sweeps == 1 and np.any(~slipping & ~settled)
+            unswept = attempt.sweeps == 1 and np.any(~slipping & ~settled)
             attempt.converged = change <= floor and not unswept
             attempt.error = self._estimate(attempt, residual, slipping)
             if attempt.error > 4.0 * self.tol * (T - self.t):
@@ -364,8 +367,8 @@ class _Run:
     def _sweep(self, attempt, slipping, settled, floor):
         """Step every block not ``settled`` (updated: True for a block stuck at ``t`` that stayed stuck without an
         event) once over ``attempt``; return the force residuals (:meth:`_forces`) of the waveforms before it.
-        Jacobi: every block's forces from the waveforms before the sweep. With early return (FMI 3), a block whose
-        forces did not change is not stepped again (:meth:`_unchanged`)."""
+        Jacobi: every block's forces from the waveforms before the sweep. A block whose forces did not change is not
+        stepped again (:meth:`_unchanged`)."""
         start, rate, f_start, residual = self._forces(attempt)
         for i in np.flatnonzero(~settled):
             if slipping[i] or attempt.sweeps > 0:  # a stuck block: the force at each cell's start, held
@@ -381,12 +384,10 @@ class _Run:
         return residual
 
     def _predicted_acceleration(self):
-        """Each block's acceleration (m/s^2) at ``t`` for the first sweep's waveforms: with early return (FMI 3),
-        0 for a stuck block (it moves with the surface, as its first sweep gives it: a slipping neighbour's forces
-        are then unchanged in the second sweep and it is not stepped again)."""
-        if self.blocks.early_return:
-            return np.where(self.end[3] == 0, 0.0, self.a)
-        return self.a
+        """Each block's acceleration (m/s^2) at ``t`` for the first sweep's waveforms: 0 for a stuck block (it moves
+        with the surface, as its first sweep gives it: a slipping neighbour's forces are then unchanged in the second
+        sweep and it is not stepped again)."""
+        return np.where(self.end[3] == 0, 0.0, self.a)
 
     def _hold_block(self, i, attempt, force):
         """Step block ``i``, stuck at ``t``, over the whole of ``attempt`` in one ``doStep`` with ``F_ext = force``
@@ -397,6 +398,7 @@ class _Run:
         u = (attempt.times[1:] - self.t) / (attempt.T - self.t)
         attempt.X[i, 1:], attempt.V[i, 1:] = self.x[i] + u * (x - self.x[i]), v
         attempt.friction[i, 1:], attempt.spring[i], attempt.held[i] = friction, spring, force
+        attempt.held_rate[i] = 0.0
         return self.blocks.n_events(i) == self.end[4][i]
 
     def _sweep_block(self, i, attempt, start, rate):
@@ -410,6 +412,7 @@ class _Run:
             x, v, friction, spring = self.blocks.stepped
             attempt.X[i, k + 1], attempt.V[i, k + 1], attempt.friction[i, k + 1] = x, v, friction
             attempt.spring[i], attempt.held[i] = spring, start[k] + rate[k] * (t1 - t0)
+            attempt.held_rate[i] = rate[k]
 
     def _step(self, i, t0, t1, force, rate, attempt, may_cut):
         """Block ``i`` from ``t0`` to ``t1`` (s) with ``F_ext = force + rate (s - t0)`` (N); True if it returned early
@@ -425,11 +428,11 @@ class _Run:
         return False
 
     def _unchanged(self, i, attempt, forces, floor):
-        """True if block ``i`` need not be stepped again: with early return (FMI 3), when the ``forces`` (N) it would
+        """True if block ``i`` need not be stepped again: when the ``forces`` (N) it would
         be stepped with differ from those it was last stepped with in ``attempt`` by so little that its cell ends
         could move by at most a tenth of the convergence ``floor`` (m): ``|dF| (T - t)^2 / M``."""
         last = attempt.forces.get(i)
-        if not self.blocks.early_return or last is None:
+        if last is None:
             return False
         change = float(np.max(np.abs(forces - last)))
         unchanged = change * (attempt.T - self.t) ** 2 / self.M[i] <= 0.1 * floor
@@ -472,17 +475,16 @@ class _Run:
         self.t, self.end, self.margin = attempt.T, end, self._held_margin(attempt)
         self.x, self.v = attempt.X[:, -1].copy(), attempt.V[:, -1].copy()
         self.a = (attempt.spring + attempt.friction[:, -1] + self.K @ self.x) / self.M
-        self.jerk = self._jerk()
+        self.jerk = self._jerk(attempt.held_rate)
         self.stats["communication steps"] += 1
 
-    def _jerk(self):
-        """Each block's ``d2v/dt2`` (m/s^3) at ``t`` for the first sweep's waveforms: with early return (FMI 3), a
-        slipping block's from its output derivative (which holds its force) plus the coupling force's rate
-        ``(K v) / M``; else (and while stuck) 0."""
+    def _jerk(self, rate):
+        """Each block's ``d2v/dt2`` (m/s^3) at ``t`` for the first sweep's waveforms: a slipping block's from its
+        output derivative, with the coupling force's rate ``K v`` in place of the ``rate`` (N/s) its force was last
+        set with; 0 while stuck."""
         jerk = np.zeros(self.system.n)
-        if self.blocks.early_return:
-            for i in np.flatnonzero(self.end[3] != 0):
-                jerk[i] = self.blocks.jerk(i) + (self.K[i] @ self.v) / self.M[i]
+        for i in np.flatnonzero(self.end[3] != 0):
+            jerk[i] = self.blocks.jerk(i) + (self.K[i] @ self.v - rate[i]) / self.M[i]
         return jerk
 
     def _held_margin(self, attempt):
