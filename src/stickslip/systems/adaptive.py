@@ -45,8 +45,8 @@ from ctypes import c_double, c_int, c_uint
 
 import numpy as np
 
-from ..hosts.fmpy_host import FmuCallError, FMUError
 from ..fmu.variables import RATE_INPUT
+from ..hosts.fmpy_host import FmuCallError, FMUError
 from .master import ACCESSORS, SystemResult, block_instances, checked_rtol, read_values, references, step_events
 
 DEFAULT_RTOL = 3e-10  # keeps the 2- and 3-block chains' event times within 1e-8 s (1e-9: 4e-8 s)
@@ -132,9 +132,9 @@ class _Blocks:
 
     def __init__(self, fmu, instances, early_return=False):
         self.instances, self.early_return = instances, early_return
-        self.get_real, self.get_integer, self.set_real = ACCESSORS[fmu.fmi_version]
+        self.get_real = ACCESSORS[fmu.fmi_version][0]
         self.cell_refs, self.end_refs = references(fmu, _READ_CELL), references(fmu, _READ_END)
-        self.int_refs, self.F_ext = references(fmu, _READ_INT), references(fmu, ("F_ext",))
+        self.int_refs = references(fmu, _READ_INT)
         if fmu.fmi_version == 3 and RATE_INPUT not in fmu.variables:
             raise FMUError(f"adaptive: the FMI 3 FMU {fmu.path} has no input {RATE_INPUT}: it was built by an "
                            f"older stickslip; rebuild it (stickslip build)")
@@ -146,7 +146,7 @@ class _Blocks:
         reals = self.cell_refs + self.end_refs
         self._real_refs, self._reals = (c_uint * len(reals))(*reals), (c_double * len(reals))()
         self._int_refs, self._ints = (c_uint * 2)(*self.int_refs), (c_int * 2)()
-        self.n_events_ref, self.v_ref = references(fmu, ("n_events",)), references(fmu, ("v",))
+        self.v_ref = references(fmu, ("v",))
         self.ends = [None] * len(instances)  # each block's end outputs (see end()) where its last step ended
         self.states = [None] * len(instances)
         self.moved = [False] * len(instances)  # stepped since the save or the last restore
