@@ -92,19 +92,24 @@ class _Chain:
         stuck = self.mode == 0
         return np.concatenate([np.where(stuck, c.v_drive, v), np.where(stuck, 0.0, a)])
 
-    def margin(self, i, t, y):
-        """Block ``i``'s holding margin ``F_S(t_stick) - |kappa x - F_ext|`` (N) at ``(t, y)``."""
-        c, x = self.c, y[:self.n]
-        F = (self.kc_left[i] * (x[i - 1] - x[i]) if i > 0 else 0.0) + \
+    def force(self, i, y):
+        """Block ``i``'s ``F_ext`` (N) at the state ``y``."""
+        x = y[:self.n]
+        return (self.kc_left[i] * (x[i - 1] - x[i]) if i > 0 else 0.0) + \
             (self.kc_right[i] * (x[i + 1] - x[i]) if i < self.n - 1 else 0.0)
+
+    def margin(self, i, t, y):
+        """Block ``i``'s holding margin ``F_S(t_stick) - |kappa x - F_ext|`` (N) at ``(t, y)``, stuck since
+        ``t_stuck``."""
+        c = self.c
         held = static_friction(c.static_law[i], c.static[i], t - self.t_stuck[i])
-        return held - abs(c.kappa[i] * x[i] - F), F
+        return held - abs(c.kappa[i] * y[i] - self.force(i, y))
 
     def event(self, i):
         """Block ``i``'s terminal event function, falling through zero."""
         def g(t, y):
             if self.mode[i] == 0:
-                return self.margin(i, t, y)[0]
+                return self.margin(i, t, y)
             return self.mode[i] * (self.c.v_drive - y[self.n + i])
         g.terminal, g.direction = True, -1
         return g
@@ -116,19 +121,18 @@ class _Chain:
             if vrel != 0.0:
                 self.mode[i] = 1 if vrel > 0.0 else -1
             else:
-                self.mode[i] = 0 if self.margin(i, 0.0, y)[0] >= 0.0 else self._slip_direction(i, y)
+                self.mode[i] = 0 if self.margin(i, 0.0, y) >= 0.0 else self._slip_direction(i, y)
 
     def _slip_direction(self, i, y):
-        _, F = self.margin(i, 0.0, y)
-        return 1 if F - self.c.kappa[i] * y[i] < 0.0 else -1
+        """+1 where the net force without friction, ``F_ext - kappa x``, is negative, else -1."""
+        return 1 if self.force(i, y) - self.c.kappa[i] * y[i] < 0.0 else -1
 
     def transition(self, i, t, y):
         """Block ``i``'s event at ``(t, y)``: its new mode (SPEC section 1); a stick sets ``v = v_drive``."""
         c = self.c
         if self.mode[i] == 0:
             return self._slip_direction(i, y)
-        margin, F = self.margin(i, t, y)
-        if abs(c.kappa[i] * y[i] - F) <= static_friction(c.static_law[i], c.static[i], 0.0):
+        if abs(c.kappa[i] * y[i] - self.force(i, y)) <= static_friction(c.static_law[i], c.static[i], 0.0):
             self.t_stuck[i] = t
             y[self.n + i] = c.v_drive
             return 0
