@@ -1,6 +1,6 @@
 """The FMI 3 FMU's input ``der(F_ext)`` (N/s), in place of FMI 2's fmi2SetRealInputDerivatives (FMI 3 co-simulation
 has none): a ramp of F_ext set through it is followed to the closed form through the FMU, setting F_ext keeps the
-rate (an input of its own), a saved state keeps it, and a rate that is not finite is refused, the rate kept."""
+rate (an input of its own), a saved state keeps it, and a rate that is not finite is refused by name, the rate kept."""
 
 import math
 
@@ -24,10 +24,10 @@ def steps(fmu, unzipped3, t0, t1, h=0.25):
     return out
 
 
-def test_a_ramp_set_through_der_F_ext_is_followed_to_the_closed_form(unzipped3):
+def test_a_ramp_set_through_der_F_ext_is_followed_to_the_closed_form(unzipped3, capfd):
     """A Coulomb block at rest on a still surface loaded by F_ext = RATE t: stuck until RATE t = F_S (4 s), then the
     forced oscillator of the closed form; F_ext set to its ramp value at 5 s keeps the rate; a state saved at 5 s
-    goes on the same; der(F_ext) = NaN is refused."""
+    goes on the same; der(F_ext) = NaN is refused, the log naming it."""
     fmu = instance(unzipped3, FMU3Slave, COULOMB_AT_REST, "ramp")
     refs = unzipped3[2]
     try:
@@ -44,8 +44,10 @@ def test_a_ramp_set_through_der_F_ext_is_followed_to_the_closed_form(unzipped3):
         fmu.setFMUState(state)
         assert steps(fmu, unzipped3, 5.0, 6.5) == after
         fmu.freeFMUState(state)
+        capfd.readouterr()
         with pytest.raises(Exception, match="fmi3SetFloat64"):
             fmu.setFloat64([refs["der(F_ext)"].valueReference], [math.nan])
+        assert "der(F_ext, 1) = nan" in capfd.readouterr().out  # the log names it
         assert reals(fmu, unzipped3, ["der(F_ext)"]) == [RATE]
     finally:
         fmu.terminate()
