@@ -9,6 +9,12 @@ results). Model exchange hands the states ``x``, ``v`` and the indicators ``indi
 (``block_interface.ExchangeInterface``, first among the bases so that pythonfmu3's defaults do not hide it).
 ``build_fmu.py`` bundles the runtime and the shared table under names only this FMU uses.
 
+FMI 3 co-simulation has no ``fmi3SetInputDerivatives``: the input ``der(F_ext)`` (N/s) takes the place of FMI 2's
+``fmi2SetRealInputDerivatives`` of ``F_ext``. Over a ``doStep``, ``F_ext`` grows at that rate from where it was set (or
+from its value when the rate was set); unlike FMI 2's input derivative it keeps its value when ``F_ext`` is set, as
+any input does, so a master that sets both (in one ``fmi3SetFloat64``, in either order) steps each cell under a
+straight line of force. Model exchange ignores it (the host sets ``F_ext`` at every evaluation).
+
 pythonfmu3 0.3.4 passes no start time to the slave: a co-simulation starts at the first ``do_step``'s
 time, model exchange at t = 0, unless the host (or the FMU's loader) calls ``fmi3SetTime`` during initialization. Its
 ``Fmi3UpdateDiscreteStatesResult`` misspells two fields that its C++ wrapper reads
@@ -21,8 +27,8 @@ from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, 
                         ModelExchange)
 
 from block_interface import (
-    DERIVATIVES, EXCHANGE_STATE_KINDS, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, BlockInterface, ExchangeInterface,
-    balance_release, saved_state, serialized_states,
+    DERIVATIVES, EXCHANGE_STATE_KINDS, F_EXT_RATE, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, BlockInterface,
+    ExchangeInterface, balance_release, saved_state, serialized_states,
 )
 
 _CAUSALITY = {"parameter": Fmi3Causality.parameter, "input": Fmi3Causality.input, "output": Fmi3Causality.output}
@@ -60,6 +66,7 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
             unit, text = INDICATOR_VARIABLES[name]
             self._local(f"indicator.{name}", unit, text, lambda i=index: self._block_now().indicators()[i])
             self.register_event_indicator(len(self.vars) - 1)
+        self._rate_input()
         self.variable_units["time"], self.variable_bounds["time"] = "s", (None, None)
         self.register_variable(Float64("time", causality=Fmi3Causality.independent,
                                        variability=Fmi3Variability.continuous, description="simulation time",
@@ -76,6 +83,34 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
         co_simulation.set("mightReturnEarlyFromDoStep", "true")
         co_simulation.set("maxOutputDerivativeOrder", str(MAX_OUTPUT_DERIVATIVE_ORDER))
         return root
+
+    def _rate_input(self):
+        """The input ``der(F_ext)`` (N/s; see the module text)."""
+        self.variable_units[F_EXT_RATE], self.variable_bounds[F_EXT_RATE] = "N/s", (None, None)
+        self.register_variable(
+            Float64(F_EXT_RATE, causality=Fmi3Causality.input, variability=Fmi3Variability.continuous, start=0.0,
+                    description="rate of change of F_ext over a doStep: F_ext grows at this rate from where it was "
+                                "set (co-simulation; FMI 3 has no fmi3SetInputDerivatives); allowed: a finite value, "
+                                "sqrt(M/kappa) |der(F_ext)| at most 1e150 N",
+                    getter=lambda: self.values[F_EXT_RATE], setter=self._set_rate),
+            nested=False,
+        )
+
+    def _set_rate(self, value):
+        self.set_input_derivatives(["F_ext"], [1], [value])
+
+    def check_setting(self, name, value):
+        """:meth:`BlockInterface.check_setting`, and ``der(F_ext)`` checked as FMI 2's input derivative."""
+        if name == F_EXT_RATE:
+            self._check_input_derivative("F_ext", 1, value)
+        else:
+            super().check_setting(name, value)
+
+    def set_variable(self, name, value):
+        """:meth:`ExchangeInterface.set_variable`; setting ``F_ext`` keeps ``der(F_ext)``, an input of its own."""
+        rate = self.values[F_EXT_RATE]
+        super().set_variable(name, value)
+        self.values[F_EXT_RATE] = rate
 
     def _local(self, name, unit, description, getter, derivative=None):
         self.variable_units[name] = unit

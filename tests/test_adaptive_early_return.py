@@ -2,12 +2,15 @@
 block's event, blocks whose forces did not change not stepped again, the output derivatives' cubic predictor,
 against the chain's reference; the choice of the FMU and its errors. The FMI 2 scheme is held by ``tests/test_systems.py``."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from stickslip.cli import main
 from stickslip.hosts.fmpy_host import FMUError
-from stickslip.systems import load_system, make_master
+from stickslip.reference import simulate_chain
+from stickslip.systems import adaptive, load_system, make_master
 from stickslip.systems.compare import compare
 from test_systems import CHAIN2, scene
 
@@ -71,3 +74,30 @@ def test_the_command_takes_the_fmi_version_from_the_fmu(tmp_path, fmu3_path, cap
     assert not (tmp_path / "chain2-coulomb-adaptive.md").exists()
     assert main(arguments + ["--fmi", "2"]) == 1
     assert "is an FMI 3 FMU; the master runs the FMI 2 FMU" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_a_slipping_block_steps_each_cell_in_one_do_step(fmi, fmu_path, fmu3_path, monkeypatch):
+    """The force over a cell is a line (F_ext and its rate: FMI 2's input derivative, FMI 3's input der(F_ext)), so
+    every doStep that sets a block's force spans one cell of its attempt, or the whole attempt (a hold): none is a
+    half cell. The 2-block chain over 12 s (two slips of each block), against the reference."""
+    cells, steps = set(), []
+    attempt_init, block_step = adaptive._Attempt.__init__, adaptive._Blocks.step
+
+    def recorded_attempt(self, times, *args):
+        cells.update(zip(times[:-1], times[1:]))
+        cells.add((times[0], times[-1]))
+        attempt_init(self, times, *args)
+
+    def recorded_step(self, i, t, h, force=None, rate=0.0):
+        if force is not None:
+            steps.append((t, t + h))
+        return block_step(self, i, t, h, force, rate)
+
+    monkeypatch.setattr(adaptive._Attempt, "__init__", recorded_attempt)
+    monkeypatch.setattr(adaptive._Blocks, "step", recorded_step)
+    system = dataclasses.replace(load_system(CHAIN2), stop_time=12.0)
+    reference = simulate_chain(system.chain_blocks(), system.coupling, system.v_drive, system.times())
+    result = make_master("adaptive", fmi=fmi).run(system, fmu3_path if fmi == 3 else fmu_path)
+    assert compare(result, reference, system.tolerances["adaptive"]).max_rel_dx < 1e-8
+    assert len(steps) > 100 and all(step in cells for step in steps)

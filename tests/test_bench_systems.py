@@ -35,11 +35,12 @@ def test_order_is_the_slope_of_the_log_error():
 
 def test_the_command_reports_consistent_numbers(tmp_path):
     """chain2 over 12 s (two slips of each block): zoh at 0.1 and 0.01 s, adaptive and me at two rtol values,
-    adaptive on the FMI 3 FMU (early return) at one of them, side by side with the FMI 2 run."""
+    adaptive on the FMI 3 FMU (early return) at one of them, side by side with the FMI 2 run; the scipy peer at two
+    rtol values, exact on this chain (its events paired), and every master's run beside it at matched error."""
     out = tmp_path / "bench"
     code = main(["bench-systems", str(CHAIN2), "--stop-time", "12", "--zoh-steps", "0.1", "0.01",
                  "--adaptive-rtols", "1e-5", "1e-9", "--adaptive-fmi3-rtols", "1e-9", "--me-rtols", "1e-6", "1e-10",
-                 "--out", str(out)])
+                 "--peer-rtols", "1e-8", "1e-12", "--out", str(out)])
     assert code == 0
     assert all((out / name).is_file() for name in ("systems.json", "systems.md", "systems.png"))
     record = json.loads((out / "systems.json").read_text())["scenes"][0]
@@ -59,9 +60,17 @@ def test_the_command_reports_consistent_numbers(tmp_path):
     (side,) = record["early_return"]
     assert (side["fmi2_wall"], side["fmi3_wall"]) == (adaptive[1]["wall"], early[0]["wall"])
     assert side["ratio"] == pytest.approx(early[0]["wall"] / adaptive[1]["wall"])
+    peer = record["runs"]["scipy-peer"]
+    assert [r["setting"] for r in peer] == [1e-8, 1e-12]
+    assert all(r["error"] < 1e-8 and r["events_paired"] for r in peer)
+    masters = [(m, r) for m in ("adaptive", "adaptive-fmi3", "me") for r in record["runs"][m]]
+    assert [(row["master"], row["setting"]) for row in record["peer"]] == [(m, r["setting"]) for m, r in masters]
+    for row in record["peer"]:
+        assert row["peer_error"] <= row["error"] and row["ratio"] == pytest.approx(row["wall"] / row["peer_wall"])
     text = (out / "systems.md").read_text()
     assert "## chain2-coulomb (12 s" in text and "| zoh | h = 0.01 |" in text and "| adaptive | rtol = 1e-09 |" in text
     assert "| adaptive-fmi3 | rtol = 1e-09 |" in text and "| FMI 3 wall / FMI 2 wall |" in text
+    assert "| scipy-peer | rtol = 1e-12 |" in text and "| wall / peer wall |" in text
 
 
 def test_the_command_refuses_a_stop_time_off_the_grid(capsys):

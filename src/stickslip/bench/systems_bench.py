@@ -7,7 +7,10 @@ the measured order of each master (the least-squares slope of ``log10(error)`` a
 against ``log10(rtol)`` for ``adaptive`` and ``me``, and the slope between neighbouring settings), and the wall-time
 ratio at matched error: for each ``zoh`` run, ``adaptive``'s wall at an error at most ``zoh``'s, interpolated on
 ``adaptive``'s measured curve (``log10`` wall against ``log10`` error between its two runs that bracket the error;
-beyond its loosest run, that run's wall: nothing extrapolated), against ``zoh``'s wall.
+beyond its loosest run, that run's wall: nothing extrapolated), against ``zoh``'s wall; and for each run of
+``adaptive``, ``adaptive-fmi3`` and ``me``, the wall of the scipy peer (:mod:`.scipy_chain_peer`: ``solve_ivp`` over
+the whole chain with events, timed the same way at each of its ``rtol``) at the master's error, interpolated the same
+way on the peer's curve, and the master's wall over it.
 """
 
 import dataclasses
@@ -17,14 +20,19 @@ import time
 
 import numpy as np
 
-from ..reference import simulate_chain
+from ..reference import ChainEvent, simulate_chain
 from ..systems.compare import compare
+from ..systems.master import SystemResult, event_kind
 from ..systems.masters import make_master
+from .scipy_chain_peer import run_scipy_peer
 
 #: run label: (the master, its option varied, the option's name in the report, the master's other options);
 #: ``adaptive`` runs the FMI 2 FMU (events landed by root search), ``adaptive-fmi3`` the FMI 3 FMU with early return
 SETTINGS = {"zoh": ("zoh", "step", "h", {}), "adaptive": ("adaptive", "rtol", "rtol", {}),
-            "adaptive-fmi3": ("adaptive", "rtol", "rtol", {"fmi": 3}), "me": ("me", "rtol", "rtol", {})}
+            "adaptive-fmi3": ("adaptive", "rtol", "rtol", {"fmi": 3}), "me": ("me", "rtol", "rtol", {}),
+            "scipy-peer": (None, "rtol", "rtol", {})}
+#: the runs that are set beside the scipy peer's at matched error
+PEER_MATCHED = ("adaptive", "adaptive-fmi3", "me")
 
 
 def bench_system(system, fmu_paths, settings, progress=print):
@@ -42,6 +50,7 @@ def bench_system(system, fmu_paths, settings, progress=print):
     record["orders"] = {master: order(runs) for master, runs in record["runs"].items()}
     record["matched"] = matched(record["runs"].get("zoh", []), record["runs"].get("adaptive", []))
     record["early_return"] = side_by_side(record["runs"].get("adaptive", []), record["runs"].get("adaptive-fmi3", []))
+    record["peer"] = against_peer(record["runs"])
     return record
 
 
@@ -50,10 +59,15 @@ def timed_run(system, master, value, fmu_paths, reference, progress):
     "wall", "events_paired"}`` (``error``: of the amplitude; ``events_paired``: every block's events pair with the
     reference's)."""
     name, option, label, others = SETTINGS[master]
-    runner = make_master(name, **{option: value}, **others)
-    start = time.perf_counter()
-    result = runner.run(system, fmu_paths[runner.FMI_VERSION])
-    wall = time.perf_counter() - start
+    if name is None:
+        start = time.perf_counter()
+        result = peer_result(system, value)
+        wall = time.perf_counter() - start
+    else:
+        runner = make_master(name, **{option: value}, **others)
+        start = time.perf_counter()
+        result = runner.run(system, fmu_paths[runner.FMI_VERSION])
+        wall = time.perf_counter() - start
     comparison = compare(result, reference, math.inf)
     run = {"setting": value, "error": comparison.max_rel_dx, "wall": wall,
            "events_paired": bool(np.all(np.isfinite(comparison.max_event_dt))),
@@ -61,6 +75,28 @@ def timed_run(system, master, value, fmu_paths, reference, progress):
     progress(f"{system.name}: {master} {label} = {value:g}: error {run['error']:.3g} of the amplitude, "
              f"{wall:.2f} s (load {os.getloadavg()[0]:.2f})")
     return run
+
+
+def peer_result(system, rtol):
+    """The scipy peer's run of ``system`` at ``rtol`` as a :class:`~stickslip.systems.master.SystemResult`."""
+    run = run_scipy_peer(system, rtol)
+    events = [ChainEvent(t, block, event_kind(before, after), before, after) for t, block, before, after in run.events]
+    counts = np.bincount([e.block for e in events], minlength=system.n)
+    return SystemResult("scipy-peer", run.t, run.x, run.v, run.mode, events, True, counts, 0.0)
+
+
+def against_peer(runs):
+    """Per run of the masters :data:`PEER_MATCHED`: ``{"master", "setting", "error", "wall", "peer_error",
+    "peer_wall", "ratio"}``: :func:`wall_at_error` of the scipy peer at the run's error and the run's wall over it
+    (None where no peer run is that accurate)."""
+    rows = []
+    for master in PEER_MATCHED:
+        for r in runs.get(master, []):
+            found = wall_at_error(runs.get("scipy-peer", []), r["error"])
+            error, wall = found if found else (None, None)
+            rows.append({"master": master, "setting": r["setting"], "error": r["error"], "wall": r["wall"],
+                         "peer_error": error, "peer_wall": wall, "ratio": r["wall"] / wall if wall else None})
+    return rows
 
 
 def side_by_side(fmi2_runs, fmi3_runs):

@@ -52,6 +52,15 @@ def markdown(meta, records):
             lines += [f"| {r['rtol']:g} | {_g(r['fmi2_error'])} | {_g(r['fmi3_error'])} | {r['fmi2_wall']:.3g} | "
                       f"{r['fmi3_wall']:.3g} | {_g(r['ratio'], 3)} |" for r in record["early_return"]]
             lines.append("")
+        if record.get("peer"):
+            lines += ["Each master's run against the scipy peer (`solve_ivp` over the whole chain with events) at the "
+                      "run's error, the peer's wall interpolated on its measured runs.", "",
+                      "| master | setting | error | wall (s) | peer at that error | peer wall (s) | wall / peer wall |",
+                      "|---|---|---|---|---|---|---|"]
+            lines += [f"| {r['master']} | {SETTINGS[r['master']][2]} = {r['setting']:g} | {_g(r['error'])} | "
+                      f"{r['wall']:.3g} | {_g(r['peer_error'])} | {_g(r['peer_wall'], 3)} | {_g(r['ratio'], 3)} |"
+                      for r in record["peer"]]
+            lines.append("")
     return "\n".join(lines) + "\n"
 
 

@@ -119,6 +119,7 @@ def run_c_hosts(args):
 ZOH_STEPS = (0.1, 0.01, 0.001, 1e-4)
 ADAPTIVE_RTOLS = (1e-5, 1e-7, 1e-9, 3e-10, 1e-11)
 ME_RTOLS = (1e-6, 1e-8, 1e-10, 1e-12)
+PEER_RTOLS = (1e-8, 1e-10, 1e-11, 1e-12)
 #: the chain part's defaults: the engine's and the peer's rtol, the template chains' sizes, the large chain
 CHAIN_RTOLS = (1e-6, 1e-8, 1e-10, 1e-12)
 CHAIN_FILES = ("systems/bk10-velocity-weakening.toml",)
@@ -128,7 +129,8 @@ LARGE_RTOLS = (1e-6, 1e-8)
 
 def add_systems_parser(subparsers):
     p = subparsers.add_parser("bench-systems", help="the masters on chain scenes: error against wall time, "
-                                                    "orders, zoh's wall against adaptive's at matched error")
+                                                    "orders, zoh's wall against adaptive's and each master's against "
+                                                    "a scipy peer's at matched error")
     p.add_argument("files", nargs="*", metavar="FILE.toml", help="system files (e.g. systems/chain2-coulomb.toml)")
     p.add_argument("--out", default="bench-systems", help="output directory (default: bench-systems)")
     _add_chain_options(p)
@@ -143,6 +145,9 @@ def add_systems_parser(subparsers):
                         "as --adaptive-rtols)")
     p.add_argument("--me-rtols", type=float, nargs="*", default=list(ME_RTOLS), metavar="RTOL",
                    help=f"me's rtol values (default: {ME_RTOLS})")
+    p.add_argument("--peer-rtols", type=float, nargs="*", default=list(PEER_RTOLS), metavar="RTOL",
+                   help="rtol values of the scipy peer (solve_ivp over the whole chain with events), which each "
+                        f"master's run is set beside at matched error (default: {PEER_RTOLS})")
     p.set_defaults(handler=run_systems)
 
 
@@ -261,7 +266,8 @@ def _run_masters(args, meta, progress):
         return None
     settings = {master: values for master, values in
                 (("zoh", args.zoh_steps), ("adaptive", args.adaptive_rtols),
-                 ("adaptive-fmi3", args.adaptive_fmi3_rtols), ("me", args.me_rtols)) if values}
+                 ("adaptive-fmi3", args.adaptive_fmi3_rtols), ("me", args.me_rtols),
+                 ("scipy-peer", args.peer_rtols)) if values}
     meta["settings"] = settings
     fmu_paths = {2: ensure_fmu(), 3: ensure_fmu(fmi_version=3)}
     records = [bench_system(system, fmu_paths, settings, progress) for system in systems]

@@ -23,6 +23,7 @@ UNITS = {
     "N s/m": ("N.s/m", "TranslationalDampingConstant", {"kg": 1, "s": -1}),
     "m/s2": ("m/s2", "Acceleration", {"m": 1, "s": -2}),
     "s/m": ("s/m", "InverseVelocity", {"m": -1, "s": 1}),
+    "N/s": ("N/s", "ForceRate", {"kg": 1, "m": 1, "s": -3}),
 }
 DIMENSIONLESS = ("", "1")
 

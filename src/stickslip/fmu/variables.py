@@ -6,7 +6,7 @@ the first value out of its range).
 The runtime keeps its own list (``stickslip.core.OUTPUT_NAMES``): it stays independent of the FMU's glue.
 """
 
-from ..fmu_src.block_interface import VARIABLES, check_values
+from ..fmu_src.block_interface import F_EXT_RATE, VARIABLES, check_values
 
 
 def names(causality, kind=None):
@@ -21,6 +21,9 @@ REAL_OUTPUTS = names("output", "real")
 INTEGER_OUTPUTS = names("output", "integer")
 #: the inputs, ``v_drive`` (m/s) and ``F_ext`` (N)
 INPUTS = names("input")
+#: the FMI 3 FMU's input ``der(F_ext)`` (N/s), the rate ``F_ext`` grows at over a doStep (FMI 2 takes it through
+#: fmi2SetRealInputDerivatives)
+RATE_INPUT = F_EXT_RATE
 #: {variable name: unit} ("" or "1" when dimensionless)
 UNITS = {v.name: v.unit for v in VARIABLES}
 #: {parameter or input name: start value}

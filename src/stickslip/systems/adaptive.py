@@ -7,16 +7,21 @@ A communication step ``[t, T]`` is cut into cells; every block's FMU state at ``
 ``F_ext`` taken from the neighbours' positions of the previous sweep (iteration 0: extrapolated), interpolated
 by cubic Hermite polynomials through ``x`` and ``v`` at the cell ends; the states are restored
 (``fmi2SetFMUstate``) before every new sweep, until the cell-end positions change by less than a hundredth of
-the step's tolerance. The FMU holds its input over a ``doStep``, so a slipping block steps each cell in two
-halves whose constant forces carry the interpolated force's impulse and first moment over the cell (the
-block's end state is then exact to ``omega^2 delta^4`` for a cell of length ``delta``, third order in all). A
+the step's tolerance. The first sweep's waveforms are cubic (each slipping block's ``d2v/dt2`` from its output
+derivative, stuck blocks moving with the surface), and a block whose forces changed so little since it was last
+stepped in the attempt that its cell ends could not move by a tenth of the convergence floor is not stepped (nor
+restored) again. A slipping block steps each cell in one ``doStep`` under a straight line of force, ``F_ext``
+set at the cell's start with its rate (FMI 2: ``fmi2SetRealInputDerivatives``; FMI 3: the input ``der(F_ext)``),
+the line carrying the interpolated force's impulse and first moment over the cell (the block's end state is then
+exact to ``omega^2 delta^4`` for a cell of length ``delta``, third order in all). A
 block stuck at ``t``, whose motion ``F_ext`` does not change, is stepped over the whole step in one ``doStep`` with
-the force at ``t`` in the first sweep only (its cell ends on the line between its ends); if its FMU had an event,
-it is stepped again cell by cell with the force at each cell's start (a block is restored only if it was stepped).
+the force at ``t`` held in the first sweep only (its cell ends on the line between its ends); if its FMU had an
+event, it is stepped again cell by cell with the force at each cell's start (a block is restored only if it was
+stepped).
 Each block's ``solver.rtol`` (its own integration tolerance) is lowered to ``BLOCK_RTOL_FACTOR`` times ``rtol``:
 a block slipping with a numeric law restarts its integration at every ``doStep``.
 
-Step control: the leading error term of each cell (the force's residual against the two constants, weighted by
+Step control: the leading error term of each cell (the force's residual against the line, weighted by
 ``(T - s)^2``, times ``omega^2 + (dF_friction/dv / M)^2`` from the block's own outputs) summed over the step
 must stay below ``rtol`` times the chain's length scale (largest ``F_S/kappa``) per second; else the step is
 redone shorter. Events: when a block's ``n_events`` moves within a step, or a block stuck at ``t`` ends it with
@@ -30,18 +35,17 @@ wrong side (a spurious overshoot). Every communication point of the output grid 
 
 With ``fmi=3`` the blocks are instances of the FMI 3 FMU made with ``earlyReturnAllowed``: a block's ``doStep``
 that returns early at an event more than ``EVENT_TOL`` before the step's end (after the first sweep) stops the
-attempt, which is redone to end on that event; a block whose forces did not change since it was last stepped in
-the attempt is not stepped again, and the first sweep's
-waveforms are cubic (each slipping block's ``d2v/dt2`` from ``fmi3GetOutputDerivatives``). The FMI 2 scheme is
-the one above.
+attempt, which is redone to end on that event. The rest of the scheme is the same for both.
 """
 
 import dataclasses
 import math
 import time
+from ctypes import c_double, c_int, c_uint
 
 import numpy as np
 
+from ..fmu.variables import RATE_INPUT
 from ..hosts.fmpy_host import FmuCallError, FMUError
 from .master import ACCESSORS, SystemResult, block_instances, checked_rtol, read_values, references, step_events
 
@@ -128,13 +132,26 @@ class _Blocks:
 
     def __init__(self, fmu, instances, early_return=False):
         self.instances, self.early_return = instances, early_return
-        self.get_real, self.get_integer, self.set_real = ACCESSORS[fmu.fmi_version]
+        self.get_real = ACCESSORS[fmu.fmi_version][0]
         self.cell_refs, self.end_refs = references(fmu, _READ_CELL), references(fmu, _READ_END)
-        self.int_refs, self.F_ext = references(fmu, _READ_INT), references(fmu, ("F_ext",))
-        self.n_events_ref, self.v_ref = references(fmu, ("n_events",)), references(fmu, ("v",))
+        self.int_refs = references(fmu, _READ_INT)
+        if fmu.fmi_version == 3 and RATE_INPUT not in fmu.variables:
+            raise FMUError(f"adaptive: the FMI 3 FMU {fmu.path} has no input {RATE_INPUT}: it was built by an "
+                           f"older stickslip; rebuild it (stickslip build)")
+        self.fmi3 = fmu.fmi_version == 3
+        # the arrays of the calls in a cell (set the force and its rate, doStep, read the cell's end), made once
+        forces = ("F_ext", RATE_INPUT) if self.fmi3 else ("F_ext",)
+        self._force_refs = (c_uint * len(forces))(*references(fmu, forces))
+        self._forces, self._rate, self._order = (c_double * 2)(), (c_double * 1)(), (c_int * 1)(1)
+        reals = self.cell_refs + self.end_refs
+        self._real_refs, self._reals = (c_uint * len(reals))(*reals), (c_double * len(reals))()
+        self._int_refs, self._ints = (c_uint * 2)(*self.int_refs), (c_int * 2)()
+        self.v_ref = references(fmu, ("v",))
+        self.ends = [None] * len(instances)  # each block's end outputs (see end()) where its last step ended
         self.states = [None] * len(instances)
         self.moved = [False] * len(instances)  # stepped since the save or the last restore
         self.do_steps = self.restores = self.early_returns = 0
+        self.stepped = None  # (x, v, F_friction, F_spring) where the last step ended
 
     def save(self):
         """Save every block's FMU state (the previous one freed)."""
@@ -158,18 +175,44 @@ class _Blocks:
                 b.call(b.fmu.freeFMUState, state)
         self.states = [None] * len(self.instances)
 
-    def step(self, i, t, h, force):
-        """Block ``i`` from ``t`` over ``h`` s with ``F_ext = force`` (N): None, or the time (s) of the event inside
-        the step where it returned early (its state there the event's left limit; the next step starts there)."""
+    def step(self, i, t, h, force=None, rate=0.0):
+        """Block ``i`` from ``t`` over ``h`` s with ``F_ext = force + rate (s - t)`` (N, N/s; ``force`` None: the
+        force goes on as it was set): None, or the time (s) of the event inside the step where it returned early
+        (its state there the event's left limit; the next step starts there). :attr:`stepped` is then
+        ``(x, v, F_friction, F_spring)`` where the step ended."""
         b = self.instances[i]
-        b.call(getattr(b.fmu, self.set_real), self.F_ext, [float(force)])
-        answer = b.call(b.fmu.doStep, t, h)
+        answer = b.call(self._set_step_read, b.fmu, t, h, force, rate)
         self.moved[i] = True
         self.do_steps += 1
+        reals, ints = self._reals[:], self._ints[:]
+        self.stepped, self.ends[i] = tuple(reals[:len(_READ_CELL)]), (*reals[len(_READ_CELL):], *ints)
         if self.early_return and answer[2]:  # (eventHandlingNeeded, terminateSimulation, earlyReturn, lastSuccessfulTime)
             self.early_returns += 1
             return float(answer[3])
         return None
+
+    def _set_step_read(self, fmu, t, h, force, rate):
+        """The FMI calls of :meth:`step`, on arrays made once: the force and its rate set (FMI 2: setting ``F_ext``
+        sets its rate to 0; FMI 3: the input ``der(F_ext)``), ``doStep``, the outputs of the cell's end and of
+        :meth:`end` read."""
+        if force is not None:
+            self._forces[0], self._forces[1] = force, rate
+            if self.fmi3:
+                fmu.fmi3SetFloat64(fmu.component, self._force_refs, 2, self._forces, 2)
+            else:
+                fmu.fmi2SetReal(fmu.component, self._force_refs, 1, self._forces)
+                if rate != 0.0:
+                    self._rate[0] = rate
+                    fmu.fmi2SetRealInputDerivatives(fmu.component, self._force_refs, 1, self._order, self._rate)
+        answer = fmu.doStep(t, h)
+        n = len(self._reals)
+        if self.fmi3:
+            fmu.fmi3GetFloat64(fmu.component, self._real_refs, n, self._reals, n)
+            fmu.fmi3GetInt32(fmu.component, self._int_refs, 2, self._ints, 2)
+        else:
+            fmu.fmi2GetReal(fmu.component, self._real_refs, n, self._reals)
+            fmu.fmi2GetInteger(fmu.component, self._int_refs, 2, self._ints)
+        return answer
 
     def cell(self, i):
         """``(x, v, F_friction, F_spring)`` of block ``i``."""
@@ -177,18 +220,22 @@ class _Blocks:
         return b.call(getattr(b.fmu, self.get_real), self.cell_refs)
 
     def jerk(self, i):
-        """Block ``i``'s ``d2v/dt2`` (m/s^3) now, with the force it holds (``fmi3GetOutputDerivatives``)."""
+        """Block ``i``'s ``d2v/dt2`` (m/s^3) now, with its force going on as set (``fmi2GetRealOutputDerivatives``,
+        ``fmi3GetOutputDerivatives``)."""
         b = self.instances[i]
-        return b.call(b.fmu.getOutputDerivatives, self.v_ref, [2])[0]
+        get = b.fmu.getOutputDerivatives if self.fmi3 else b.fmu.getRealOutputDerivatives
+        return b.call(get, self.v_ref, [2])[0]
 
     def n_events(self, i):
-        """Block ``i``'s ``n_events``."""
-        b = self.instances[i]
-        return b.call(getattr(b.fmu, self.get_integer), self.n_events_ref)[0]
+        """Block ``i``'s ``n_events`` where its last step ended."""
+        return self.ends[i][4]
 
     def end(self):
-        """``(z_slip, z_stick, t_last_event, mode, n_events)`` of every block, each an array over blocks."""
-        return [np.array(column) for column in read_values(self.instances, self.end_refs, self.int_refs)]
+        """``(z_slip, z_stick, t_last_event, mode, n_events)`` of every block, each an array over blocks: read where
+        each block's last step ended (a block is restored only to be stepped again), or now before any step."""
+        if any(end is None for end in self.ends):
+            return [np.array(column) for column in read_values(self.instances, self.end_refs, self.int_refs)]
+        return [np.array(column) for column in zip(*self.ends)]
 
 
 class _Attempt:
@@ -200,7 +247,8 @@ class _Attempt:
         self.cuttable = cuttable  # an early return more than EVENT_TOL before T (after the first sweep) stops it
         self.friction = np.zeros_like(X)
         self.spring = np.zeros(X.shape[0])
-        self.held = np.zeros(X.shape[0])  # N: each block's F_ext over its last cell
+        self.held = np.zeros(X.shape[0])  # N: each block's F_ext at the end of its last cell
+        self.held_rate = np.zeros(X.shape[0])  # N/s: and its rate there
         self.error, self.sweeps, self.converged = 0.0, 0, False
         self.end = None
         self.cut = None  # (t_e, block): the first event a block's early return showed inside the step
@@ -227,13 +275,13 @@ class _Run:
         self.x, self.v = first[:, 0], first[:, 1]
         self.a = (first[:, 3] + first[:, 2] + self.K @ self.x) / self.M
         self.end = blocks.end()
-        self.jerk = self._jerk()
+        self.jerk = self._jerk(np.zeros(system.n))
         self.margin = self.end[0]  # N: each block's true z_slip at t (F_ext set from the positions there)
         self.rows = [(self.x.copy(), self.v.copy(), self.end[3].copy())]
         self.events, self.complete = [], True
         self.h = self.h_slip / 4.0
         self.stats = {"communication steps": 0, "rejected steps": 0, "event redos": 0, "events not landed": 0,
-                      "sweeps": 0, **({"sweeps of a block skipped": 0} if blocks.early_return else {})}
+                      "sweeps": 0, "sweeps of a block skipped": 0}
 
     def run(self):
         start = time.perf_counter()
@@ -305,9 +353,9 @@ class _Run:
             delta = times[1] - times[0]
             change = max(float(np.max(np.abs(attempt.X - X))), float(np.max(np.abs(attempt.V - V))) * delta)
             attempt.sweeps += 1
-            # with early return: a hold that had an event is swept before the attempt converges (the cubic predictor
+            # a hold that had an event is swept before the attempt converges (the cubic predictor
             # can make the first sweep's change tiny on a short step)
-            unswept = self.blocks.early_return and attempt.sweeps == 1 and np.any(~slipping & ~settled)
+            unswept = attempt.sweeps == 1 and np.any(~slipping & ~settled)
             attempt.converged = change <= floor and not unswept
             attempt.error = self._estimate(attempt, residual, slipping)
             if attempt.error > 4.0 * self.tol * (T - self.t):
@@ -319,15 +367,16 @@ class _Run:
     def _sweep(self, attempt, slipping, settled, floor):
         """Step every block not ``settled`` (updated: True for a block stuck at ``t`` that stayed stuck without an
         event) once over ``attempt``; return the force residuals (:meth:`_forces`) of the waveforms before it.
-        Jacobi: every block's forces from the waveforms before the sweep. With early return (FMI 3), a block whose
-        forces did not change is not stepped again (:meth:`_unchanged`)."""
-        c1, c2, f_start, residual = self._forces(attempt)
+        Jacobi: every block's forces from the waveforms before the sweep. A block whose forces did not change is not
+        stepped again (:meth:`_unchanged`)."""
+        start, rate, f_start, residual = self._forces(attempt)
         for i in np.flatnonzero(~settled):
-            if slipping[i] or attempt.sweeps > 0:
-                used = np.concatenate([c1[i], c2[i]]) if slipping[i] else f_start[i]
+            if slipping[i] or attempt.sweeps > 0:  # a stuck block: the force at each cell's start, held
+                line = (start[i], rate[i]) if slipping[i] else (f_start[i], np.zeros_like(rate[i]))
+                used = np.concatenate([line[0], line[0] + line[1] * np.diff(attempt.times)])
                 if not self._unchanged(i, attempt, used, floor):
                     self.blocks.restore(i)
-                    self._sweep_block(i, attempt, c1[i], c2[i] if slipping[i] else f_start[i], slipping[i])
+                    self._sweep_block(i, attempt, *line)
                     attempt.forces[i] = used
             else:  # its motion does not depend on the force: stepped again only after an event
                 self.blocks.restore(i)
@@ -335,60 +384,55 @@ class _Run:
         return residual
 
     def _predicted_acceleration(self):
-        """Each block's acceleration (m/s^2) at ``t`` for the first sweep's waveforms: with early return (FMI 3),
-        0 for a stuck block (it moves with the surface, as its first sweep gives it: a slipping neighbour's forces
-        are then unchanged in the second sweep and it is not stepped again)."""
-        if self.blocks.early_return:
-            return np.where(self.end[3] == 0, 0.0, self.a)
-        return self.a
+        """Each block's acceleration (m/s^2) at ``t`` for the first sweep's waveforms: 0 for a stuck block (it moves
+        with the surface, as its first sweep gives it: a slipping neighbour's forces are then unchanged in the second
+        sweep and it is not stepped again)."""
+        return np.where(self.end[3] == 0, 0.0, self.a)
 
     def _hold_block(self, i, attempt, force):
         """Step block ``i``, stuck at ``t``, over the whole of ``attempt`` in one ``doStep`` with ``F_ext = force``
         (N); True if it stayed stuck: its cell ends are then on the line from its start to its end (it moves with
         the surface)."""
-        self._step(i, self.t, attempt.T, force, attempt, may_cut=False)
-        x, v, friction, spring = self.blocks.cell(i)
+        self._step(i, self.t, attempt.T, force, 0.0, attempt, may_cut=False)
+        x, v, friction, spring = self.blocks.stepped
         u = (attempt.times[1:] - self.t) / (attempt.T - self.t)
         attempt.X[i, 1:], attempt.V[i, 1:] = self.x[i] + u * (x - self.x[i]), v
         attempt.friction[i, 1:], attempt.spring[i], attempt.held[i] = friction, spring, force
+        attempt.held_rate[i] = 0.0
         return self.blocks.n_events(i) == self.end[4][i]
 
-    def _sweep_block(self, i, attempt, first, second, slipping):
-        """Step block ``i`` over every cell of ``attempt``: two halves with ``first[k]``, ``second[k]`` while it
-        slips, one step with ``second[k]`` (the force at the cell's start) while it sticks (or over a cell too
-        short to halve); read the cell ends."""
+    def _sweep_block(self, i, attempt, start, rate):
+        """Step block ``i`` over every cell ``k`` of ``attempt`` in one ``doStep`` with ``F_ext`` from ``start[k]``
+        (N) at the cell's start, growing at ``rate[k]`` (N/s); read the cell ends."""
         times, may_cut = attempt.times, attempt.sweeps > 0 and attempt.cuttable
         for k in range(times.size - 1):
             t0, t1 = float(times[k]), float(times[k + 1])
-            mid = 0.5 * (t0 + t1)
-            if slipping and t0 < mid < t1:
-                if (self._step(i, t0, mid, first[k], attempt, may_cut)
-                        or self._step(i, mid, t1, second[k], attempt, may_cut)):
-                    return
-            elif self._step(i, t0, t1, second[k], attempt, may_cut):
+            if self._step(i, t0, t1, start[k], rate[k], attempt, may_cut):
                 return
-            x, v, friction, spring = self.blocks.cell(i)
+            x, v, friction, spring = self.blocks.stepped
             attempt.X[i, k + 1], attempt.V[i, k + 1], attempt.friction[i, k + 1] = x, v, friction
-            attempt.spring[i], attempt.held[i] = spring, second[k]
+            attempt.spring[i], attempt.held[i] = spring, start[k] + rate[k] * (t1 - t0)
+            attempt.held_rate[i] = rate[k]
 
-    def _step(self, i, t0, t1, force, attempt, may_cut):
-        """Block ``i`` from ``t0`` to ``t1`` (s) with ``F_ext = force`` (N); True if it returned early at an event
-        more than ``EVENT_TOL`` before the attempt's end and ``may_cut``: the event is then ``attempt.cut`` (the
-        earliest of such) and the block stays there. Any other early return is stepped on from (the event applied)."""
-        t_e = self.blocks.step(i, t0, t1 - t0, force)
+    def _step(self, i, t0, t1, force, rate, attempt, may_cut):
+        """Block ``i`` from ``t0`` to ``t1`` (s) with ``F_ext = force + rate (s - t0)`` (N); True if it returned early
+        at an event more than ``EVENT_TOL`` before the attempt's end and ``may_cut``: the event is then
+        ``attempt.cut`` (the earliest of such) and the block stays there. Any other early return is stepped on from
+        (the event applied, the force going on along its line)."""
+        t_e = self.blocks.step(i, t0, t1 - t0, force, rate)
         while t_e is not None:
             if may_cut and attempt.T - t_e > EVENT_TOL:
                 attempt.cut = min(attempt.cut or (math.inf, -1), (t_e, int(i)))
                 return True
-            t_e = self.blocks.step(i, t_e, t1 - t_e, force)
+            t_e = self.blocks.step(i, t_e, t1 - t_e)
         return False
 
     def _unchanged(self, i, attempt, forces, floor):
-        """True if block ``i`` need not be stepped again: with early return (FMI 3), when the ``forces`` (N) it would
+        """True if block ``i`` need not be stepped again: when the ``forces`` (N) it would
         be stepped with differ from those it was last stepped with in ``attempt`` by so little that its cell ends
         could move by at most a tenth of the convergence ``floor`` (m): ``|dF| (T - t)^2 / M``."""
         last = attempt.forces.get(i)
-        if not self.blocks.early_return or last is None:
+        if last is None:
             return False
         change = float(np.max(np.abs(forces - last)))
         unchanged = change * (attempt.T - self.t) ** 2 / self.M[i] <= 0.1 * floor
@@ -396,21 +440,20 @@ class _Run:
         return unchanged
 
     def _forces(self, attempt):
-        """Per block and cell (arrays ``(N, cells)``): the two half-cell forces (N) carrying the interpolated
-        coupling force's impulse and first moment about the cell's end, the force at the cell's start, and the
-        residual ``int (F - c) (T_cell - s)^2 ds`` (N s^3) of the two constants."""
+        """Per block and cell (arrays ``(N, cells)``): the line ``F_ext = start + rate (s - t_cell)`` (N, N/s) that
+        carries the interpolated coupling force's impulse and first moment about the cell's end, the force at the
+        cell's start (N, a stuck block's) and the residual ``int (F - line) (T_cell - s)^2 ds`` (N s^3)."""
         X, V, delta = attempt.X, attempt.V, attempt.times[1] - attempt.times[0]
         u = _GAUSS_U[None, None, :]
         x_nodes = hermite(u, X[:, :-1, None], V[:, :-1, None], X[:, 1:, None], V[:, 1:, None], delta)
         F = np.einsum("ij,jkq->ikq", self.K, x_nodes)  # (N, cells, 3)
-        h = 0.5 * delta
         impulse = delta * F @ _GAUSS_W
         moment = delta ** 2 * F @ (_GAUSS_W * (1.0 - _GAUSS_U))
-        A, B = impulse / h, moment / h ** 2
-        c1, c2 = B - 0.5 * A, 1.5 * A - B
+        rate = (6.0 * impulse * delta - 12.0 * moment) / delta ** 3
+        start = impulse / delta - 0.5 * rate * delta
         second = delta ** 3 * F @ (_GAUSS_W * (1.0 - _GAUSS_U) ** 2)
-        residual = second - h ** 3 * (7.0 * c1 + c2) / 3.0
-        return c1, c2, self.K @ X[:, :-1], residual
+        residual = second - (start * delta ** 3 / 3.0 + rate * delta ** 4 / 12.0)
+        return start, rate, self.K @ X[:, :-1], residual
 
     def _estimate(self, attempt, residual, slipping):
         """The step's error estimate (m): per slipping block, the velocity error of its cells' force residuals
@@ -432,17 +475,16 @@ class _Run:
         self.t, self.end, self.margin = attempt.T, end, self._held_margin(attempt)
         self.x, self.v = attempt.X[:, -1].copy(), attempt.V[:, -1].copy()
         self.a = (attempt.spring + attempt.friction[:, -1] + self.K @ self.x) / self.M
-        self.jerk = self._jerk()
+        self.jerk = self._jerk(attempt.held_rate)
         self.stats["communication steps"] += 1
 
-    def _jerk(self):
-        """Each block's ``d2v/dt2`` (m/s^3) at ``t`` for the first sweep's waveforms: with early return (FMI 3), a
-        slipping block's from its output derivative (which holds its force) plus the coupling force's rate
-        ``(K v) / M``; else (and while stuck) 0."""
+    def _jerk(self, rate):
+        """Each block's ``d2v/dt2`` (m/s^3) at ``t`` for the first sweep's waveforms: a slipping block's from its
+        output derivative, with the coupling force's rate ``K v`` in place of the ``rate`` (N/s) its force was last
+        set with; 0 while stuck."""
         jerk = np.zeros(self.system.n)
-        if self.blocks.early_return:
-            for i in np.flatnonzero(self.end[3] != 0):
-                jerk[i] = self.blocks.jerk(i) + (self.K[i] @ self.v) / self.M[i]
+        for i in np.flatnonzero(self.end[3] != 0):
+            jerk[i] = self.blocks.jerk(i) + (self.K[i] @ self.v - rate[i]) / self.M[i]
         return jerk
 
     def _held_margin(self, attempt):

@@ -151,7 +151,7 @@ class _Run:
         sign = self.signs[i, k]
 
         def g(t):
-            return sign * self.blocks.indicators(t, dense(t))[i, k]
+            return sign * self.blocks.block_indicators(t, dense(t), i)[k]
 
         s = np.linspace(t_a, t_b, 5)
         gs = [g(t) for t in s]
