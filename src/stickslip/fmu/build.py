@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import archive, documentation, floors, loader, model_description, trim, windows_python
+from .bundle import platform_needs
 from .compile_runtime import USER_CACHE
 from .sources import (MODEL_NAME, RUNTIME, INTERFACE, SLAVES, is_current, runtime_tag, source_tag,  # noqa: I001
                       sources_tag)
@@ -154,6 +155,6 @@ def write_with_loader(dest, entries, model_name, fmi_version=2):
     built = archive.read_entries(partial)
     if windows_python.LICENSE_ENTRY in built:  # the Windows binaries carry CPython
         built[documentation.INDEX] = documentation.with_license(built[documentation.INDEX], "python")
-    built[floors.DEPENDENCIES_FILE] = floors.dependencies_text(model_name, floors.fmu_floors(built)).encode()
+    built[floors.DEPENDENCIES_FILE] = platform_needs.dependencies_text(model_name, built).encode()
     archive.write_entries(partial, built)
     os.replace(partial, dest)

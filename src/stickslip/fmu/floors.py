@@ -207,10 +207,10 @@ def fmu_floors(entries):
                      windows, others, carried, ".".join(map(str, PYTHON_FLOORS[fmi_version])))
 
 
-def dependencies_text(model_name, floors):
-    """The text of the FMU's :data:`DEPENDENCIES_FILE` from its measured ``floors`` (:class:`FmuFloors`): what
-    the host machine must provide, then what each binary needs."""
-    lines = [f"What the host machine needs to run {model_name} on Linux x86_64, measured from the symbol version",
+def dependencies_text(model_name, floors, platform="Linux x86_64"):
+    """The text of the FMU's :data:`DEPENDENCIES_FILE` from its measured ``floors`` (:class:`FmuFloors`) of the
+    binaries of ``platform``: what the host machine must provide, then what each binary needs."""
+    lines = [f"What the host machine needs to run {model_name} on {platform}, measured from the symbol version",
              "needs of the FMU's binaries when it was built (the oldest versions that have every symbol they use):",
              ""]
     measured = floors.floors()
