@@ -4,7 +4,8 @@ toolchain's, Debian 12's 2.36) and QEMU's static emulator, with the FMU extracte
 standard library and libraries besides glibc there are the ones the FMU carries. A bad parameter is an error naming
 it, then the default scene's x equals the x86_64 host's run of the same FMU to 1e-13 m; FMU states replay; two
 instances on two threads run side by side. Three emulated processes in all. Skipped, saying why, where QEMU, the
-cross-compiler or chroot are missing, or the build could not give the FMU its aarch64 binaries."""
+cross-compiler or chroot are missing, or the build could not give the FMU its aarch64 binaries. Also: a build
+without the cross-compiler or Debian's packages leaves the platform out and says why."""
 
 import shutil
 import subprocess
@@ -13,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from stickslip.fmu.bundle import aarch64_binaries, debian_packages
 from stickslip.fmu.bundle.aarch64_binaries import FOLDER
 from stickslip.fmu.bundle.aarch64_python import GLIBC
 from stickslip.fmu.floors import DEPENDENCIES_FILE
@@ -105,3 +107,21 @@ def test_the_fmu_says_what_an_aarch64_host_needs(fmu3_path):
     section = needs.split("on Linux aarch64", 1)[1]
     assert "GLIBC_2.3" in section and f"{FOLDER}/python/libpython3.11.so.1.0" in section
     assert "libstdc++" not in section  # pythonfmu3's binary has its C++ runtime linked in
+
+
+def test_a_build_without_the_cross_compiler_or_the_packages_leaves_the_platform_out_and_says_so(
+        monkeypatch, tmp_path, capsys):
+    """No aarch64 entries, and a note naming what is missing (the loader's compile function is never reached)."""
+    entries = {"modelDescription.xml": b""}
+    arguments = (True, 3, "token", True)
+    monkeypatch.setattr(aarch64_binaries, "compilers", lambda: (("cc", "c++"), "no aarch64 cross-compiler (...)"))
+    aarch64_binaries.install(entries, tmp_path, "SpringBlockFriction", arguments, None, None)
+    assert "has no aarch64 Linux binaries: no aarch64 cross-compiler" in capsys.readouterr().err
+    monkeypatch.setattr(aarch64_binaries, "compilers", lambda: (("cc", "c++"), None))
+    monkeypatch.setattr(debian_packages, "arm64_root", lambda: (None, "apt-get download failed: ..."))
+    aarch64_binaries.install(entries, tmp_path, "SpringBlockFriction", arguments, "the x86_64 bundle", None)
+    assert "Debian's arm64 packages of CPython could not be had: apt-get download failed" in capsys.readouterr().err
+    assert entries == {"modelDescription.xml": b""}
+    monkeypatch.setenv("PATH", str(tmp_path))
+    assert debian_packages.download(tmp_path) == (None, "apt-get is not installed (a Debian or Ubuntu machine fetches "
+                                                        "Debian's arm64 packages)")

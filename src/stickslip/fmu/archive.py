@@ -7,8 +7,8 @@ stored: every host extracts them before its first step, and inflating them cost 
 of a 0.94 MB library; the FMU file is larger instead). The CPythons an FMU carries (``binaries/<platform>/python/``)
 are most of its bytes: the Linux one's shared libraries (``.so``, ``.so.N``) are stored too (extracting the FMI 2
 FMU took a median 94 ms instead of 123 ms with them deflated, measured with Python's ``zipfile``), its standard
-library's zip and the Windows and aarch64 Linux ones (:data:`DEFLATED_PYTHONS`) are deflated whatever their
-suffixes, which keeps each FMU under 20 MB.
+library's zip and the Windows one (:data:`DEFLATED_PYTHONS`) are deflated whatever their suffixes, which keeps
+each FMU under 20 MB.
 :func:`identity` names one build of an FMU in its model description.
 """
 
@@ -29,10 +29,7 @@ STORED_SUFFIXES = (".so", ".dll", ".dylib", ".pyd", ".zip")
 #: the folder (below ``binaries/<platform>/``) of the CPython an FMU carries
 PYTHON_FOLDER = "python"
 #: the platforms whose carried CPython is deflated whatever the suffixes
-DEFLATED_PYTHONS = ("win64", "x86_64-windows", "aarch64-linux")
-#: the platform folders whose binaries are deflated too: the aarch64 ones, which a host on another machine extracts
-#: without loading them (deflated, the FMI 3 FMU is 1 MB smaller)
-DEFLATED_PLATFORMS = ("binaries/aarch64-linux/",)
+DEFLATED_PYTHONS = ("win64", "x86_64-windows")
 #: the name of a Linux shared library, with or without a version after ``.so``
 SHARED_LIBRARY = re.compile(r".*\.so(\.\d+)*")
 #: the namespace of the FMUs' GUIDs (uuid5 of the model name, the FMI version and the source tag)
@@ -84,8 +81,6 @@ def carried_python_platform(name):
 def _deflated(name):
     """Whether the entry ``name`` is deflated (see the module)."""
     platform = carried_python_platform(name)
-    if name.startswith(DEFLATED_PLATFORMS):
-        return True
     if platform is not None:
         return platform in DEFLATED_PYTHONS or not SHARED_LIBRARY.fullmatch(name.rsplit("/", 1)[1])
     return not name.endswith(STORED_SUFFIXES)

@@ -35,8 +35,10 @@ FOLDER = "binaries/aarch64-linux"
 #: the variables naming the cross-compilers, and their defaults (Debian's)
 CC_VARIABLE, CC = "SBF_AARCH64_CC", "aarch64-linux-gnu-gcc"
 CXX_VARIABLE, CXX = "SBF_AARCH64_CXX", "aarch64-linux-gnu-g++"
-#: where pythonfmu3's source distribution and its aarch64 binary are kept
+#: where pythonfmu3's source distribution, its aarch64 binary and the aarch64 loaders are kept
 CACHE = USER_CACHE / "aarch64"
+#: the folder of the loader's C sources, on which a cached loader depends
+LOADER_SOURCES = Path(__file__).resolve().parents[1] / "loader"
 #: the C++ sources of pythonfmu3's binary in its source distribution, below ``pythonfmu3/pythonfmu-export/src``
 INNER_SOURCES = ("cppfmu/cppfmu_cs.cpp", "cppfmu/fmi_functions.cpp", "pythonfmu/PySlaveInstance.cpp")
 #: how pythonfmu3's binary is compiled: as its CMake build does (C++17, the stable ABI, optimized), with the C++
@@ -77,18 +79,37 @@ def _install(entries, tmp, model_identifier, arguments, linux_bundle, compile_lo
     inner, why = inner_binary(cxx)
     if inner is None:
         return why
-    loader = tmp / "aarch64" / f"{model_identifier}.so"
-    loader.parent.mkdir(parents=True, exist_ok=True)
     inner_name = f"{model_identifier}_pythonfmu.so"
-    why = compile_loader(loader, inner_name, *arguments, bundle=bundle, compiler=cc)
+    loader, why = _loader(compile_loader, (f"{model_identifier}.so", inner_name, *arguments), bundle, cc)
     if why:
         return why
-    entries.update({f"{FOLDER}/{path.name}": path.read_bytes() for path in sorted(loader.parent.iterdir())})
+    entries.update({f"{FOLDER}/{path.name}": path.read_bytes() for path in sorted(loader.iterdir())})
     entries[f"{FOLDER}/{inner_name}"] = inner.read_bytes()
     entries.update({f"{FOLDER}/{name}": data for name, data in bundle.entries.items()})
     with_carried_licenses(entries, bundle.licenses, f"the CPython for aarch64 hosts without one, with the libraries it "
                           f"needs that are not glibc's ({FOLDER}/python/)")
     return None
+
+
+def _loader(compile_loader, arguments, bundle, cc):
+    """``(the folder holding the aarch64 loader and its start guard, None)``, compiled with ``cc`` by
+    ``compile_loader`` (``arguments``: the loader's file name, then that function's) unless :data:`CACHE` has them
+    from the same sources and arguments, or ``(None, why not)``."""
+    version = subprocess.run([cc, "--version"], capture_output=True, text=True).stdout.split("\n", 1)[0]
+    digest = hashlib.sha256(repr((arguments, bundle.libpython, bundle.python_needs, bundle.inner_needs, version))
+                            .encode())
+    for source in sorted(LOADER_SOURCES.glob("*.[ch]")):
+        digest.update(source.read_bytes())
+    folder = CACHE / f"loader-{digest.hexdigest()[:16]}"
+    if folder.is_dir():
+        return folder, None
+    partial = CACHE / f".{folder.name}.{os.getpid()}"
+    partial.mkdir(parents=True, exist_ok=True)
+    why = compile_loader(partial / arguments[0], *arguments[1:], bundle=bundle, compiler=cc)
+    if why:
+        return None, why
+    os.replace(partial, folder)
+    return folder, None
 
 
 @functools.cache

@@ -19,6 +19,7 @@ The FMI library's binary (:mod:`stickslip.fmu.bundle.aarch64_binaries`) needs no
 platform out.
 """
 
+import functools
 import io
 import os
 import subprocess
@@ -32,8 +33,9 @@ from ..floors import binary_needs
 from ..loader.python_bundle import Bundle
 from . import debian_packages
 
-#: the CPython version of Debian 12's packages
+#: the CPython version of Debian 12's packages, and the name of its standard library's zip in the bundles
 VERSION = (3, 11)
+ZIP_NAME = f"python{VERSION[0]}{VERSION[1]}.zip"
 #: the folders of the unpacked packages that hold the standard library, its extension modules and the libraries
 STDLIB, DYNLOAD = "usr/lib/python3.11", "usr/lib/python3.11/lib-dynload"
 LIBRARY_FOLDERS = ("lib/aarch64-linux-gnu", "usr/lib/aarch64-linux-gnu")
@@ -58,19 +60,21 @@ def aarch64_bundle(linux_bundle):
     root, why = debian_packages.arm64_root()
     if root is None:
         return f"Debian's arm64 packages of CPython could not be had: {why}"
+    folder = f"{PYTHON_FOLDER}/"
+    with zipfile.ZipFile(io.BytesIO(linux_bundle.entries[f"{folder}{ZIP_NAME}"])) as modules:
+        names = tuple(name for name in modules.namelist() if name.endswith(".pyc"))
+    extensions = tuple(name.rsplit("/", 1)[1].split(".")[0] for name in linux_bundle.entries
+                       if name.startswith(folder + "lib-dynload/"))
     try:
-        return _bundle(root, linux_bundle)
+        return _bundle(root, names, extensions)
     except (BundleError, OSError, subprocess.SubprocessError) as exc:
         return str(exc)
 
 
-def _bundle(root, linux_bundle):
-    folder = f"{PYTHON_FOLDER}/"
-    zip_name = f"python{VERSION[0]}{VERSION[1]}.zip"
-    with zipfile.ZipFile(io.BytesIO(linux_bundle.entries[folder + zip_name])) as modules:
-        names = [name for name in modules.namelist() if name.endswith(".pyc")]
-    extensions = [name.rsplit("/", 1)[1].split(".")[0] for name in linux_bundle.entries
-                  if name.startswith(folder + "lib-dynload/")]
+@functools.cache  # the same for every FMU a process builds
+def _bundle(root, names, extensions):
+    """The :class:`Bundle` of the byte code ``names`` and the extension modules ``extensions`` from ``root``."""
+    folder, zip_name = f"{PYTHON_FOLDER}/", ZIP_NAME
     libpython = root / "usr/lib/aarch64-linux-gnu" / f"libpython{VERSION[0]}.{VERSION[1]}.so.1.0"
     files = {f"{folder}{libpython.name}": libpython,
              **{f"{folder}lib-dynload/{path.name}": path for path in _extension_modules(root, extensions, libpython)}}
