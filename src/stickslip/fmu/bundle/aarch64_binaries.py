@@ -88,7 +88,20 @@ def _install(entries, tmp, model_identifier, arguments, linux_bundle, compile_lo
     entries.update({f"{FOLDER}/{name}": data for name, data in bundle.entries.items()})
     with_carried_licenses(entries, bundle.licenses, f"the CPython for aarch64 hosts without one, with the libraries it "
                           f"needs that are not glibc's ({FOLDER}/python/)")
+    with_carried_licenses(entries, _runtime_licenses(cxx), f"the C++ runtime linked into pythonfmu3's aarch64 binary "
+                          f"({FOLDER}/{inner_name}), under the GCC Runtime Library Exception")
     return None
+
+
+def _runtime_licenses(cxx):
+    """{Debian package: its copyright file} of the C++ runtime that ``cxx`` links in statically (libstdc++), where
+    dpkg knows its package; else none."""
+    library = subprocess.run([cxx, "-print-file-name=libstdc++.a"], capture_output=True, text=True).stdout.strip()
+    owner = subprocess.run(["dpkg", "-S", os.path.realpath(library)], capture_output=True, text=True) if shutil.which(
+        "dpkg") and library else None
+    package = owner.stdout.split(":", 1)[0] if owner and owner.returncode == 0 else ""
+    copyright_file = Path("/usr/share/doc", package, "copyright")
+    return {package: copyright_file.read_bytes()} if package and copyright_file.is_file() else {}
 
 
 def _loader(compile_loader, arguments, bundle, cc):
