@@ -28,7 +28,7 @@ MODULE_PREFIXES = {2: "springblockfriction_", 3: "springblockfriction3_"}
 BUILDERS = (*(Path(__file__).resolve().with_name(name) for name in
               ("build.py", "archive.py", "model_description.py", "staging.py", "compile_runtime.py", "sources.py",
                "trim.py", "documentation.py", "floors.py", "windows_needs.py", "windows_python.py")),
-            *loader.SOURCES)
+            *sorted(Path(__file__).resolve().with_name("bundle").glob("*.py")), *loader.SOURCES)
 
 
 def source_tag(fmi_version=2):
