@@ -39,8 +39,9 @@ def apt_options(folder):
     options = {"Dir::Etc::SourceList": folder / "sources.list", "Dir::Etc::SourceParts": folder / "sources.list.d",
                "Dir::State": folder / "state", "Dir::State::status": os.devnull, "Dir::Cache": folder / "cache",
                "APT::Architecture": "arm64", "APT::Architectures::": "arm64", "Debug::NoLocking": "1",
-               "APT::Sandbox::User": "root" if os.geteuid() == 0 else os.environ.get("USER", ""),
                "Acquire::Retries": "1", "Acquire::http::Timeout": "30"}
+    if os.geteuid() == 0:  # apt's download user could not write into the user's cache folder
+        options["APT::Sandbox::User"] = "root"
     return [item for key, value in options.items() for item in ("-o", f"{key}={value}")]
 
 
