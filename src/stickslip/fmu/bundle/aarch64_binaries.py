@@ -29,6 +29,7 @@ from pathlib import Path
 from ..compile_runtime import USER_CACHE
 from ..documentation import with_carried_licenses
 from .aarch64_python import aarch64_bundle
+from .debian_packages import replace_folder
 
 #: the FMU's folder of aarch64 Linux binaries (FMI 3's platform tuple)
 FOLDER = "binaries/aarch64-linux"
@@ -120,8 +121,9 @@ def _loader(compile_loader, arguments, bundle, cc):
     partial.mkdir(parents=True, exist_ok=True)
     why = compile_loader(partial / arguments[0], *arguments[1:], bundle=bundle, compiler=cc)
     if why:
+        shutil.rmtree(partial, ignore_errors=True)
         return None, why
-    os.replace(partial, folder)
+    replace_folder(partial, folder)
     return folder, None
 
 

@@ -116,6 +116,16 @@ def arm64_root(folder=CACHE):
     for deb in debs:
         unpack(deb, partial)
     (partial / COMPLETE).write_text("".join(f"{deb.name}\n" for deb in debs))
-    shutil.rmtree(root, ignore_errors=True)
-    os.replace(partial, root)
+    replace_folder(partial, root)
     return root, None
+
+
+def replace_folder(partial, folder):
+    """Move the folder ``partial`` to ``folder``, unless another process has made ``folder`` meanwhile (its copy is
+    then dropped)."""
+    try:
+        os.replace(partial, folder)
+    except OSError:
+        if not folder.is_dir():
+            raise
+        shutil.rmtree(partial, ignore_errors=True)
