@@ -3,13 +3,15 @@ emulator: the project's FMI 3 C host, built for aarch64, runs in an aarch64 root
 toolchain's, Debian 12's 2.36) and QEMU's static emulator, with the FMU extracted there, so that the only CPython,
 standard library and libraries besides glibc there are the ones the FMU carries. A bad parameter is an error naming
 it, then the default scene's x equals the x86_64 host's run of the same FMU to 1e-13 m; FMU states replay; two
-instances on two threads run side by side. Three emulated processes in all. Skipped, saying why, where QEMU, the
+instances on two threads run side by side. Three emulated processes in all, as many at once as there are cores. Skipped, saying why, where QEMU, the
 cross-compiler or chroot are missing, or the build could not give the FMU its aarch64 binaries. Also: a build
 without the cross-compiler or Debian's packages leaves the platform out and says why."""
 
+import os
 import shutil
 import subprocess
 import zipfile
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -64,13 +66,15 @@ def runs(jail, host3, unzipped3):
     """``{mode: (the aarch64 host's run, the x86_64 host's run of the FMU's x86_64 binaries)}`` of the modes bad
     (M = -1, then the whole scene), state and unload (two instances on two threads), SHORT s for the last two."""
     root, wrapper, host = jail
-    out = {}
-    for mode, stop, start in (("bad", SCENE.stop_time, [*START.items(), ("M", -1.0)]), ("state", SHORT, START),
-                              ("unload", SHORT, START)):
+
+    def both(mode, stop, start):
         emulated = run_host(host, root / "fmu3", mode, stop, SCENE.output_interval, start, wrapper=wrapper, root=root)
-        native = run_host(host3, unzipped3[0], mode, stop, SCENE.output_interval, start)
-        out[mode] = completed(emulated), completed(native)
-    return out
+        return mode, (emulated, run_host(host3, unzipped3[0], mode, stop, SCENE.output_interval, start))
+
+    modes = (("bad", SCENE.stop_time, [*START.items(), ("M", -1.0)]), ("state", SHORT, START), ("unload", SHORT, START))
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:  # each emulated process keeps a core busy
+        runs = dict(pool.map(lambda arguments: both(*arguments), modes))
+    return {mode: (completed(emulated), completed(native)) for mode, (emulated, native) in runs.items()}
 
 
 def assert_close(series, reference):
