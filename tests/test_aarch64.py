@@ -18,9 +18,8 @@ import pytest
 
 from stickslip.fmu.bundle import aarch64_binaries, debian_packages
 from stickslip.fmu.bundle.aarch64_binaries import FOLDER
-from stickslip.fmu.bundle.aarch64_python import GLIBC
 from stickslip.fmu.floors import DEPENDENCIES_FILE
-from stickslip.hosts.c_host import compile_host, host_env, run_host
+from stickslip.hosts.c_host import aarch64_root, compile_host, host_env, run_host
 from stickslip.suite.scenario import load_scenario
 
 import machine_needs
@@ -30,8 +29,6 @@ START = SCENE.start_values()
 SHORT = 20.0  # s: stop time of the runs that check behaviour rather than the whole scene
 BAD_MASS = "M = -1.0 kg is out of range: allowed is a finite value in (0, inf)"
 TOLERANCE = 1e-13  # m
-#: where the cross toolchain keeps its aarch64 glibc (Debian's libc6-arm64-cross)
-CROSS_GLIBC = Path("/usr/aarch64-linux-gnu/lib")
 
 
 @pytest.fixture(scope="module")
@@ -45,11 +42,7 @@ def jail(tmp_path_factory, fmu3_path):
         root = tmp_path_factory.mktemp("aarch64_root")
         fmu.extractall(root / "fmu3")
     host = compile_host(root, fmi_version=3, aarch64=True)
-    (root / "lib" / "aarch64-linux-gnu").mkdir(parents=True)
-    for name in GLIBC:
-        shutil.copy2(CROSS_GLIBC / name, root / ("lib" if name.startswith("ld-") else "lib/aarch64-linux-gnu") / name)
-    shutil.copy2(qemu, root / qemu.name)
-    wrapper = ["chroot", str(root), f"/{qemu.name}"]
+    wrapper = aarch64_root(root, qemu)
     probe = subprocess.run(wrapper + [f"/{host.name}"], capture_output=True, text=True, env=host_env())
     if probe.stderr.startswith("chroot:") or shutil.which("chroot") is None:
         pytest.skip(f"this process may not chroot: {probe.stderr.strip() or 'chroot is not installed'}")

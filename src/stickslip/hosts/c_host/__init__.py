@@ -18,6 +18,7 @@ from pathlib import Path, PureWindowsPath
 
 import fmpy
 
+from ...fmu.bundle.aarch64_python import GLIBC
 from ...fmu.windows_python import embeddable_files
 
 HERE = Path(__file__).resolve().parent
@@ -33,6 +34,9 @@ WINDOWS_CC = "x86_64-w64-mingw32-gcc-posix"
 #: FMI version: the folder of the FMU's aarch64 Linux binaries, and the cross-compiler of the hosts' aarch64 build
 #: (Debian's gcc-aarch64-linux-gnu); an aarch64 host's file name ends with ``.aarch64``
 AARCH64_BINARY_FOLDERS, AARCH64_CC = {3: "aarch64-linux"}, "aarch64-linux-gnu-gcc"
+#: where the cross toolchain keeps glibc's libraries for aarch64 (Debian's libc6-arm64-cross, which
+#: gcc-aarch64-linux-gnu brings), those every aarch64 Linux machine has (``GLIBC``)
+AARCH64_GLIBC_FOLDER = Path("/usr/aarch64-linux-gnu/lib")
 #: the model description's types of the variables the hosts set as integers ("i" settings): FMI 3's host sets them
 #: with fmi3SetInt64 (its integer parameters are the law selectors, Enumerations), FMI 2's with fmi2SetInteger
 INTEGER_TYPES = ("Integer", "Int32", "Int64", "Enumeration")
@@ -146,6 +150,20 @@ def host_command(host, fmu_folder, mode, stop_time, step, start_values=(), outpu
         resources = base.as_uri() if version == 2 else f"{base}{separator}"
     return [str(host), str(binary), resources, description.guid, mode, repr(stop_time), repr(step),
             str(variables[output].valueReference), *settings]
+
+
+def aarch64_root(root, emulator):
+    """Make ``root`` an aarch64 Linux root that holds glibc alone (its libraries from :data:`AARCH64_GLIBC_FOLDER`,
+    the cross toolchain's) and the static user-mode ``emulator`` (a path, QEMU's
+    ``qemu-aarch64-static``); return the command prefix that runs an aarch64 program of ``root`` there (``chroot``,
+    which needs root's privileges), for :func:`run_host`'s ``wrapper`` with ``root``."""
+    root = Path(root)
+    (root / "lib" / "aarch64-linux-gnu").mkdir(parents=True, exist_ok=True)
+    for name in GLIBC:
+        shutil.copy2(AARCH64_GLIBC_FOLDER / name,
+                     root / ("lib" if name.startswith("ld-") else "lib/aarch64-linux-gnu") / name)
+    shutil.copy2(emulator, root / Path(emulator).name)
+    return ["chroot", str(root), f"/{Path(emulator).name}"]
 
 
 def wine_path(path):
