@@ -112,11 +112,11 @@ def test_a_build_without_the_cross_compiler_or_the_packages_leaves_the_platform_
     entries = {"modelDescription.xml": b""}
     arguments = (True, 3, "token", True)
     monkeypatch.setattr(aarch64_binaries, "compilers", lambda: (("cc", "c++"), "no aarch64 cross-compiler (...)"))
-    aarch64_binaries.install(entries, tmp_path, "SpringBlockFriction", arguments, None, None)
+    aarch64_binaries.install(entries, "SpringBlockFriction", arguments, None, None)
     assert "has no aarch64 Linux binaries: no aarch64 cross-compiler" in capsys.readouterr().err
     monkeypatch.setattr(aarch64_binaries, "compilers", lambda: (("cc", "c++"), None))
     monkeypatch.setattr(debian_packages, "arm64_root", lambda: (None, "apt-get download failed: ..."))
-    aarch64_binaries.install(entries, tmp_path, "SpringBlockFriction", arguments, "the x86_64 bundle", None)
+    aarch64_binaries.install(entries, "SpringBlockFriction", arguments, "the x86_64 bundle", None)
     assert "Debian's arm64 packages of CPython could not be had: apt-get download failed" in capsys.readouterr().err
     assert entries == {"modelDescription.xml": b""}
     monkeypatch.setenv("PATH", str(tmp_path))

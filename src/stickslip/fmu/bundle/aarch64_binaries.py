@@ -29,7 +29,7 @@ from pathlib import Path
 from ..compile_runtime import USER_CACHE
 from ..documentation import with_carried_licenses
 from .aarch64_python import aarch64_bundle
-from .debian_packages import replace_folder
+from .debian_packages import SAFE_EXTRACTION, replace_folder
 
 #: the FMU's folder of aarch64 Linux binaries (FMI 3's platform tuple)
 FOLDER = "binaries/aarch64-linux"
@@ -57,18 +57,18 @@ def compilers():
                    if missing else None)
 
 
-def install(entries, tmp, model_identifier, arguments, linux_bundle, compile_loader):
+def install(entries, model_identifier, arguments, linux_bundle, compile_loader):
     """Add the aarch64 binaries to the FMI 3 FMU's ``entries`` (``arguments``: those of the loader's
     ``compile_loader``, the FMI version second; ``linux_bundle``: the x86_64 CPython bundle, whose modules the aarch64
     one carries; ``compile_loader``: the loader's compile function); a note on stderr where it cannot."""
     if arguments[1] != 3:
         return
-    why = _install(entries, Path(tmp), model_identifier, arguments, linux_bundle, compile_loader)
+    why = _install(entries, model_identifier, arguments, linux_bundle, compile_loader)
     if why:
         print(f"note: the {model_identifier} FMU has no aarch64 Linux binaries: {why}", file=sys.stderr)
 
 
-def _install(entries, tmp, model_identifier, arguments, linux_bundle, compile_loader):
+def _install(entries, model_identifier, arguments, linux_bundle, compile_loader):
     (cc, cxx), why = compilers()
     if why:
         return why
@@ -142,7 +142,7 @@ def inner_binary(cxx):
     with tempfile.TemporaryDirectory(prefix="sbf_pythonfmu3_") as tmp:
         with tarfile.open(sdist) as archive:
             members = [m for m in archive.getmembers() if "/pythonfmu-export/src/" in m.name and m.isfile()]
-            archive.extractall(tmp, members=members)
+            archive.extractall(tmp, members=members, **SAFE_EXTRACTION)
         src = next(Path(tmp).glob("*/pythonfmu3/pythonfmu-export/src"))
         partial = CACHE / f".{dest.name}.{os.getpid()}"
         command = [cxx, *INNER_FLAGS, f"-ffile-prefix-map={src}=pythonfmu-export", "-I", str(src), "-I",

@@ -32,6 +32,8 @@ PACKAGES = ("libpython3.11", "libpython3.11-minimal", "libpython3.11-stdlib", "z
             "libuuid1")
 #: a file in the unpacked tree that marks it complete
 COMPLETE = "complete"
+#: tarfile's extraction that refuses members outside the folder and device files (CPython 3.11.4 and newer)
+SAFE_EXTRACTION = {"filter": "tar"} if hasattr(tarfile, "tar_filter") else {}
 
 
 def apt_options(folder):
@@ -96,9 +98,8 @@ def deb_members(path):
 def unpack(deb, root):
     """Unpack the files of the Debian package ``deb`` (a path) below ``root``, as dpkg would (links as links)."""
     member = next(name for name in deb_members(deb) if name.startswith("data.tar"))
-    safe = {"filter": "tar"} if hasattr(tarfile, "tar_filter") else {}  # the filter: CPython 3.11.4 and newer
     with tarfile.open(fileobj=io.BytesIO(deb_members(deb)[member])) as data:
-        data.extractall(root, **safe)
+        data.extractall(root, **SAFE_EXTRACTION)
 
 
 @functools.cache

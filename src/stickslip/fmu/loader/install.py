@@ -196,7 +196,7 @@ def install(fmu_path, model_identifier, slave_survives_release=False, fmi_versio
     arguments = (slave_survives_release, fmi_version, token, offers_model_exchange(entries["modelDescription.xml"]))
     with tempfile.TemporaryDirectory(prefix="sbf_loader_") as tmp:
         installed, bundle = _install_linux(entries, Path(tmp), model_identifier, arguments)
-        aarch64_binaries.install(entries, Path(tmp), model_identifier, arguments, bundle, compile_loader)
+        aarch64_binaries.install(entries, model_identifier, arguments, bundle, compile_loader)
         _install_windows(entries, Path(tmp), model_identifier, arguments)
         _declare_execution_tool(entries)
         write_entries(fmu_path, entries)
