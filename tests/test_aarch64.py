@@ -3,7 +3,7 @@ emulator: the project's FMI 3 C host, built for aarch64, runs in an aarch64 root
 toolchain's, Debian 12's 2.36) and QEMU's static emulator, with the FMU extracted there, so that the only CPython,
 standard library and libraries besides glibc there are the ones the FMU carries. A bad parameter is an error naming
 it, then the default scene's x equals the x86_64 host's run of the same FMU to 1e-13 m; FMU states replay; two
-instances on two threads run side by side. Three emulated processes in all, as many at once as there are cores. Skipped, saying why, where QEMU, the
+instances on two threads run side by side; the CPython, packed in the FMU, was unpacked by the aarch64 loader. Three emulated processes in all, as many at once as there are cores. Skipped, saying why, where QEMU, the
 cross-compiler or chroot are missing, or the build could not give the FMU its aarch64 binaries. Also: a build
 without the cross-compiler or Debian's packages leaves the platform out and says why."""
 
@@ -39,6 +39,7 @@ def jail(tmp_path_factory, fmu3_path):
     with zipfile.ZipFile(fmu3_path) as fmu:
         if packing.packed_name(FOLDER.split("/")[1]) not in fmu.namelist():
             pytest.skip(f"the FMU has no aarch64 binaries with their CPython (the build said why on stderr)")
+        assert not any(name.startswith(f"{FOLDER}/python/") for name in fmu.namelist())  # packed, not laid out
         root = tmp_path_factory.mktemp("aarch64_root")
         fmu.extractall(root / "fmu3")
     host = compile_host(root, fmi_version=3, aarch64=True)
@@ -92,6 +93,13 @@ def test_fmu_states_replay_and_two_instances_run_side_by_side(runs):
     assert len(emulated.series("x")[1]) == len(native.series("x")[1])
     # both threads' lines, interleaved
     assert max(abs(a - b) for a, b in zip(sorted(emulated.series("x")[1]), sorted(native.series("x")[1]))) <= TOLERANCE
+
+
+def test_the_aarch64_loader_unpacked_the_cpython_it_started(jail, runs):
+    """The emulated processes ran with no cache folder set: the loader unpacked the packed CPython beside itself."""
+    root = jail[0]
+    assert (root / "fmu3" / FOLDER / "python" / "libpython3.11.so.1.0").is_file()
+    assert not list((root / "fmu3" / FOLDER).glob("*.part"))  # no half-written folder left behind
 
 
 def test_the_fmu_says_what_an_aarch64_host_needs(fmu3_path):

@@ -46,9 +46,11 @@ LOADER_SOURCES = Path(__file__).resolve().parents[1] / "loader"
 #: the C++ sources of pythonfmu3's binary in its source distribution, below ``pythonfmu3/pythonfmu-export/src``
 INNER_SOURCES = ("cppfmu/cppfmu_cs.cpp", "cppfmu/fmi_functions.cpp", "pythonfmu/PySlaveInstance.cpp")
 #: how pythonfmu3's binary is compiled: as its CMake build does (C++17, the stable ABI, optimized), with the C++
-#: runtime linked in and its symbols kept out of the dynamic symbol table
+#: runtime linked in and its symbols kept out of the dynamic symbol table, and the sections of that runtime the
+#: binary does not use left out (1.32 MB without, 0.86 MB with)
 INNER_FLAGS = ("-O2", "-DNDEBUG", "-std=c++17", "-shared", "-fPIC", "-DPy_LIMITED_API", "-static-libstdc++",
-               "-static-libgcc", "-Wl,--exclude-libs,ALL", "-s")
+               "-static-libgcc", "-Wl,--exclude-libs,ALL", "-s", "-ffunction-sections", "-fdata-sections",
+               "-Wl,--gc-sections")
 
 
 def compilers():
