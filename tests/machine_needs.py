@@ -69,3 +69,14 @@ def fmpy_windows(what):
         pytest.skip(f"{what} needs FMPy's wheels for Windows: scripts/test.sh downloads them into "
                     f"{FMPY_WINDOWS_WHEELS}")
     return wheels
+
+
+def qemu_aarch64(what):
+    """The path of QEMU's static aarch64 Linux user-mode emulator (Debian's qemu-user-static), after checking that the
+    aarch64 cross-compiler (Debian's gcc-aarch64-linux-gnu, whose glibc the emulated root holds) is there too; skip
+    where either is missing. ``what`` needs them."""
+    for command in ("qemu-aarch64-static", "aarch64-linux-gnu-gcc"):
+        if shutil.which(command) is None:
+            pytest.skip(f"{what} needs {command}: install Debian's qemu-user-static and gcc-aarch64-linux-gnu "
+                        "(scripts/test.sh does)")
+    return Path(shutil.which("qemu-aarch64-static"))

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import archive, documentation, loader, model_description, trim
-from .bundle import floors, windows_python
+from .bundle import floors, platform_needs, windows_python
 from .compile_runtime import USER_CACHE
 from .sources import (MODEL_NAME, RUNTIME, INTERFACE, SLAVES, is_current, runtime_tag, source_tag,  # noqa: I001
                       sources_tag)
@@ -157,6 +157,6 @@ def write_with_loader(dest, entries, model_name, fmi_version=2, carry_python=Tru
     built = archive.read_entries(partial)
     if windows_python.LICENSE_ENTRY in built:  # the Windows binaries carry CPython
         built[documentation.INDEX] = documentation.with_license(built[documentation.INDEX], "python")
-    built[floors.DEPENDENCIES_FILE] = floors.dependencies_text(model_name, floors.fmu_floors(built)).encode()
+    built[floors.DEPENDENCIES_FILE] = platform_needs.dependencies_text(model_name, built).encode()
     archive.write_entries(partial, built)
     os.replace(partial, dest)

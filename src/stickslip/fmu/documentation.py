@@ -27,7 +27,8 @@ CARRIED = {
                          "loader forwards to (binaries/linux64/*_pythonfmu.so, binaries/win64/*_pythonfmu.dll)"),
     "pythonfmu3": ("MIT", "pythonfmu3: its Python package (resources/pythonfmu3.zip) and its binaries, which the "
                           "loader forwards to (binaries/x86_64-linux/*_pythonfmu.so, "
-                          "binaries/x86_64-windows/*_pythonfmu.dll)"),
+                          "binaries/x86_64-windows/*_pythonfmu.dll; binaries/aarch64-linux/*_pythonfmu.so built from "
+                          "its C++ sources when the FMU is built)"),
     "mypy": ("MIT, with parts of mypyc's C runtime under the PSF License 2 (CPython's)",
              "mypyc's C runtime, compiled into the runtime's compiled modules (resources/*__mypyc*.so)"),
     "python": ("the PSF License Agreement (CPython's), with the licences of what its Windows build includes",
@@ -42,7 +43,10 @@ BINARY_SOURCES = (
     "(for Windows with MinGW-w64) from runtime.c, fast_path.c, platform_posix.c or platform_windows.c and "
     "fmi{version}_front.c in the stickslip package (stickslip/fmu/loader/; stickslip.fmu.loader.install says how). "
     "It loads the CPython shared library and forwards what it does not answer itself to the FMI library's own "
-    "binary ({model}_pythonfmu.so, {model}_pythonfmu.dll), which is {library}'s, built from its C++ sources.")
+    "binary ({model}_pythonfmu.so, {model}_pythonfmu.dll), which is {library}'s, built from its C++ sources. The "
+    "aarch64 Linux binaries (FMI 3 only), the loader and pythonfmu3's, are cross-compiled with Debian's GCC for "
+    "arm64 when the FMU is built, the second from the sources of pythonfmu3's source distribution "
+    "(stickslip.fmu.bundle.aarch64_binaries).")
 
 
 def split_description(description):

@@ -193,8 +193,9 @@ def fmu_floors(entries):
     windows = {name: windows_needs(entries[name]) for name in sorted(entries)
                if (name.startswith("binaries/") and name.endswith(WINDOWS_SUFFIXES))
                or (name.startswith("resources/") and name.endswith(".pyd"))}
-    others = tuple(name for name in sorted(entries) if name.startswith("binaries/") and not carried_python_platform(name) is not None
-                   and not ELF_NAME.fullmatch(name) and not name.endswith(WINDOWS_SUFFIXES))
+    others = tuple(name for name in sorted(entries) if name.startswith("binaries/")
+                   and carried_python_platform(name) is None and not ELF_NAME.fullmatch(name)
+                   and not name.endswith(WINDOWS_SUFFIXES))
     carried = {name.rsplit("/", 1)[1]: name for name in sorted(entries)
                if carried_python_platform(name) is not None and ELF_NAME.fullmatch(name) and "/lib-dynload/" not in name}
     for name in sorted(entries):
@@ -209,10 +210,10 @@ def fmu_floors(entries):
                      windows, others, carried, ".".join(map(str, PYTHON_FLOORS[fmi_version])))
 
 
-def dependencies_text(model_name, floors):
-    """The text of the FMU's :data:`DEPENDENCIES_FILE` from its measured ``floors`` (:class:`FmuFloors`): what
-    the host machine must provide, then what each binary needs."""
-    lines = [f"What the host machine needs to run {model_name} on Linux x86_64, measured from the symbol version",
+def dependencies_text(model_name, floors, platform="Linux x86_64"):
+    """The text of the FMU's :data:`DEPENDENCIES_FILE` from its measured ``floors`` (:class:`FmuFloors`) of the
+    binaries of ``platform``: what the host machine must provide, then what each binary needs."""
+    lines = [f"What the host machine needs to run {model_name} on {platform}, measured from the symbol version",
              "needs of the FMU's binaries when it was built (the oldest versions that have every symbol they use):",
              ""]
     measured = floors.floors()

@@ -60,6 +60,14 @@ def pack(platform, files):
                   tuple((name, len(files[name])) for name in sorted(files)))
 
 
+def pack_folder(platform, entries, folder=PYTHON_FOLDER):
+    """The :class:`Packed` CPython of ``platform`` from the files of ``entries`` ({path: bytes}) below ``folder``;
+    None where there are none."""
+    prefix = f"{folder}/"
+    files = {name.removeprefix(prefix): data for name, data in entries.items() if name.startswith(prefix)}
+    return pack(platform, files) if files else None
+
+
 def unpack(data):
     """{path below ``python/``: bytes} of a packed CPython's ``data``."""
     with tarfile.open(fileobj=io.BytesIO(lzma.decompress(data, format=lzma.FORMAT_ALONE))) as archive:

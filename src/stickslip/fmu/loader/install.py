@@ -18,6 +18,8 @@ the platform layer of the target (``platform_posix.c`` or ``platform_windows.c``
   ``$SBF_WINDOWS_CC`` (default ``x86_64-w64-mingw32-gcc``, Debian's ``gcc-mingw-w64-x86-64``); without it the FMU
   has no Windows binaries (the library's own would not do what the model description declares), and the build
   says so on stderr.
+- aarch64 Linux (FMI 3 only): ``binaries/aarch64-linux/``, the loader cross-compiled beside pythonfmu3's binary
+  built for aarch64 and a CPython for aarch64 (:mod:`stickslip.fmu.bundle.aarch64_binaries`).
 """
 
 import os
@@ -34,6 +36,7 @@ from ..archive import read_entries, write_entries
 from ..documentation import with_carried_licenses
 from ..bundle.floors import PYTHON_FLOORS
 from ..bundle.linux_python import linux_bundle
+from ..bundle import aarch64_binaries
 
 HERE = Path(__file__).resolve().parent
 #: FMI version: (the front's source, the FMU's folder of Linux binaries, the library that built the FMU)
@@ -81,17 +84,19 @@ def offers_model_exchange(model_description):
 
 
 def compile_loader(dest, inner_name, slave_survives_release, fmi_version=2, token="", model_exchange=False,
-                   bundle=None, packed=None):
+                   bundle=None, packed=None, compiler=None):
     """Compile the Linux loader of ``fmi_version`` to ``dest``, forwarding to ``inner_name`` beside it and accepting
     the GUID or instantiation token ``token`` only, and the start guard beside ``dest`` (``START_GUARD_NAME``);
     ``model_exchange``: an FMI 2 loader that makes model-exchange instances (the inner library has none, the slave
     answers them); ``bundle``: the :class:`~stickslip.fmu.bundle.linux_python.Bundle` the FMU carries beside the
-    loader, if any, packed as ``packed`` (:class:`~stickslip.fmu.bundle.packing.Packed`). None on success, else why
-    not."""
-    compiler = os.environ.get("CC") or "cc"
+    loader, if any, packed as ``packed`` (:class:`~stickslip.fmu.bundle.packing.Packed`); ``compiler``: a
+    cross-compiler for another Linux machine (default ``$CC``, else ``cc``), whose loader then tries no library of the
+    build's CPython. None on success, else why not."""
+    cross, compiler = compiler is not None, compiler or os.environ.get("CC") or "cc"
     if shutil.which(compiler) is None:
         return f"no C compiler ({compiler!r} not found; set CC)"
     path, soname = build_libpython()
+    path = "" if cross else path
     command = [
         compiler, "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o", str(dest),
         *_loader_sources(fmi_version, "linux"),
@@ -206,7 +211,8 @@ def install(fmu_path, model_identifier, slave_survives_release=False, fmi_versio
     token = model_token(entries["modelDescription.xml"], fmi_version)
     arguments = (slave_survives_release, fmi_version, token, offers_model_exchange(entries["modelDescription.xml"]))
     with tempfile.TemporaryDirectory(prefix="sbf_loader_") as tmp:
-        installed = _install_linux(entries, Path(tmp), model_identifier, arguments, carry_python)
+        installed, bundle = _install_linux(entries, Path(tmp), model_identifier, arguments, carry_python)
+        aarch64_binaries.install(entries, model_identifier, arguments, bundle, compile_loader)
         _install_windows(entries, Path(tmp), model_identifier, arguments, carry_python)
         _declare_execution_tool(entries)
         write_entries(fmu_path, entries)
@@ -224,6 +230,7 @@ def _declare_execution_tool(entries):
 
 
 def _install_linux(entries, tmp, model_identifier, arguments, carry_python):
+    """The Linux loader in ``entries``: ``(whether it was installed, the CPython bundle it carries or None)``."""
     _, folder, library = FRONTS[arguments[1]]
     binary = f"{folder}/{model_identifier}.so"
     inner_name = f"{model_identifier}_pythonfmu.so"
@@ -233,20 +240,19 @@ def _install_linux(entries, tmp, model_identifier, arguments, carry_python):
         print(f"note: the {model_identifier} FMU carries no CPython for Linux hosts without one: {bundle}",
               file=sys.stderr)
         bundle = None
-    packed = bundle and packing.pack(folder.split("/")[1], {name.removeprefix(f"{packing.PYTHON_FOLDER}/"): data
-                                                            for name, data in bundle.entries.items()})
+    packed = bundle and packing.pack_folder(folder.split("/")[1], bundle.entries)
     why_not = compile_loader(loader, inner_name, *arguments, bundle=bundle, packed=packed)
     if why_not is not None:
         print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads "
               f"only inside a Python process: {why_not}", file=sys.stderr)
-        return False
+        return False, None
     _front(entries, binary, inner_name, loader)
     entries[f"{folder}/{START_GUARD_NAME}"] = loader.with_name(START_GUARD_NAME).read_bytes()
     if bundle:
         entries[packed.name] = packed.data
         with_carried_licenses(entries, bundle.licenses, f"the CPython for hosts without one, with the libraries it "
                               f"and the FMI library's binary need that are not glibc's ({packed.name})")
-    return True
+    return True, bundle
 
 
 def _install_windows(entries, tmp, model_identifier, arguments, carry_python):
@@ -258,9 +264,8 @@ def _install_windows(entries, tmp, model_identifier, arguments, carry_python):
     loader = tmp / f"{model_identifier}.dll"
     wanted = carry_python and windows_compiler()[1] is None
     python, bundled = _windows_python(folder, model_identifier) if wanted else ({}, "")
-    prefix = f"{folder}/{packing.PYTHON_FOLDER}/"
-    carried = {name.removeprefix(prefix): data for name, data in python.items() if name.startswith(prefix)}
-    packed = packing.pack(folder.split("/")[1], carried) if carried else None
+    prefix = f"{folder}/{packing.PYTHON_FOLDER}"
+    packed = packing.pack_folder(folder.split("/")[1], python, prefix)
     why_not = compile_windows_loader(loader, inner_name, *arguments, bundled=bundled, packed=packed)
     if why_not is not None:
         for name in [name for name in entries if name.startswith(f"{folder}/")]:
@@ -268,7 +273,7 @@ def _install_windows(entries, tmp, model_identifier, arguments, carry_python):
         print(f"note: the {model_identifier} FMU has no Windows binaries: {why_not}", file=sys.stderr)
         return
     _front(entries, binary, inner_name, loader)
-    entries.update({name: data for name, data in python.items() if not name.startswith(prefix)})
+    entries.update({name: data for name, data in python.items() if not name.startswith(f"{prefix}/")})
     if packed:
         entries[packed.name] = packed.data
 

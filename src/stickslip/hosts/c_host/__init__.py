@@ -3,10 +3,11 @@ RK4 integrator and event locator of its own), that run an FMU outside any Python
 
 They stand for the C/C++ system simulators: they open the FMU's binary with
 ``dlopen(RTLD_NOW | RTLD_LOCAL)`` and nothing preloaded. :func:`compile_host`
-builds one with the system C compiler (``$CC``, default ``cc``), or for Windows (x86_64) with MinGW-w64
-(``host_windows.h`` stands in for dlopen there); :func:`run_host`
+builds one with the system C compiler (``$CC``, default ``cc``), for Windows (x86_64) with MinGW-w64
+(``host_windows.h`` stands in for dlopen there), or for aarch64 Linux with Debian's cross-compiler; :func:`run_host`
 runs one of its modes (see the sources) in a child process, so that a crash only
-shows as a return code, and parses what it printed; a Windows host runs under Wine (``wrapper``).
+shows as a return code, and parses what it printed; a Windows host runs under Wine, an aarch64 one under QEMU
+(``wrapper``).
 """
 
 import os
@@ -17,6 +18,7 @@ from pathlib import Path, PureWindowsPath
 
 import fmpy
 
+from ...fmu.bundle.aarch64_python import GLIBC
 from ...fmu.bundle.windows_python import embeddable_files
 
 HERE = Path(__file__).resolve().parent
@@ -29,6 +31,12 @@ BINARY_FOLDERS = {2: "linux64", 3: "x86_64-linux"}
 WINDOWS_BINARY_FOLDERS = {2: "win64", 3: "x86_64-windows"}
 #: the cross-compiler of the hosts' Windows build: MinGW-w64 with POSIX threads (winpthreads), as the hosts use them
 WINDOWS_CC = "x86_64-w64-mingw32-gcc-posix"
+#: FMI version: the folder of the FMU's aarch64 Linux binaries, and the cross-compiler of the hosts' aarch64 build
+#: (Debian's gcc-aarch64-linux-gnu); an aarch64 host's file name ends with ``.aarch64``
+AARCH64_BINARY_FOLDERS, AARCH64_CC = {3: "aarch64-linux"}, "aarch64-linux-gnu-gcc"
+#: where the cross toolchain keeps glibc's libraries for aarch64 (Debian's libc6-arm64-cross, which
+#: gcc-aarch64-linux-gnu brings), those every aarch64 Linux machine has (``GLIBC``)
+AARCH64_GLIBC_FOLDER = Path("/usr/aarch64-linux-gnu/lib")
 #: the model description's types of the variables the hosts set as integers ("i" settings): FMI 3's host sets them
 #: with fmi3SetInt64 (its integer parameters are the law selectors, Enumerations), FMI 2's with fmi2SetInteger
 INTEGER_TYPES = ("Integer", "Int32", "Int64", "Enumeration")
@@ -38,17 +46,20 @@ class HostBuildError(RuntimeError):
     """The C host cannot be compiled here."""
 
 
-def compile_host(build_dir, fmi_version=2, windows=False):
+def compile_host(build_dir, fmi_version=2, windows=False, aarch64=False):
     """Compile the host of ``fmi_version`` into ``build_dir`` (unless it is newer than its sources); return the
-    executable's path. ``windows``: a Windows (x86_64) executable, statically linked, made with :data:`WINDOWS_CC`."""
+    executable's path. ``windows``: a Windows (x86_64) executable, statically linked, made with :data:`WINDOWS_CC`;
+    ``aarch64``: an aarch64 Linux one, made with :data:`AARCH64_CC`."""
     source = SOURCES[fmi_version]
-    dest = Path(build_dir) / f"sbf_c_host{'' if fmi_version == 2 else fmi_version}{'.exe' if windows else ''}"
+    suffix = ".exe" if windows else ".aarch64" if aarch64 else ""
+    dest = Path(build_dir) / f"sbf_c_host{'' if fmi_version == 2 else fmi_version}{suffix}"
     if dest.is_file() and dest.stat().st_mtime >= max(path.stat().st_mtime for path in (source, *COMMON)):
         return dest
-    compiler = WINDOWS_CC if windows else os.environ.get("CC") or "cc"
+    compiler = WINDOWS_CC if windows else AARCH64_CC if aarch64 else os.environ.get("CC") or "cc"
     if shutil.which(compiler) is None:
         raise HostBuildError(f"no C compiler: {compiler!r} not found " + (
-            "(install Debian's mingw-w64)" if windows else "(set CC)"))
+            "(install Debian's mingw-w64)" if windows else "(install Debian's gcc-aarch64-linux-gnu)" if aarch64
+            else "(set CC)"))
     dest.parent.mkdir(parents=True, exist_ok=True)
     partial = dest.with_name(f".{dest.name}.{os.getpid()}")
     libraries = ["-static", "-lm"] if windows else ["-ldl", "-lpthread", "-lm"]
@@ -130,6 +141,7 @@ def host_command(host, fmu_folder, mode, stop_time, step, start_values=(), outpu
     version = int(description.fmiVersion[0])
     windows = Path(host).suffix == ".exe"
     folders, suffix, path = (WINDOWS_BINARY_FOLDERS, ".dll", wine_path) if windows else (BINARY_FOLDERS, ".so", Path)
+    folders = AARCH64_BINARY_FOLDERS if Path(host).suffix == ".aarch64" else folders
     if root is not None:  # the paths as the host sees them
         host, folder = (Path("/", Path(item).resolve().relative_to(Path(root).resolve())) for item in (host, folder))
     binary = path(folder / "binaries" / folders[version] / f"{description.coSimulation.modelIdentifier}{suffix}")
@@ -138,6 +150,20 @@ def host_command(host, fmu_folder, mode, stop_time, step, start_values=(), outpu
         resources = base.as_uri() if version == 2 else f"{base}{separator}"
     return [str(host), str(binary), resources, description.guid, mode, repr(stop_time), repr(step),
             str(variables[output].valueReference), *settings]
+
+
+def aarch64_root(root, emulator):
+    """Make ``root`` an aarch64 Linux root that holds glibc alone (its libraries from :data:`AARCH64_GLIBC_FOLDER`,
+    the cross toolchain's) and the static user-mode ``emulator`` (a path, QEMU's
+    ``qemu-aarch64-static``); return the command prefix that runs an aarch64 program of ``root`` there (``chroot``,
+    which needs root's privileges), for :func:`run_host`'s ``wrapper`` with ``root``."""
+    root = Path(root)
+    (root / "lib" / "aarch64-linux-gnu").mkdir(parents=True, exist_ok=True)
+    for name in GLIBC:
+        shutil.copy2(AARCH64_GLIBC_FOLDER / name,
+                     root / ("lib" if name.startswith("ld-") else "lib/aarch64-linux-gnu") / name)
+    shutil.copy2(emulator, root / Path(emulator).name)
+    return ["chroot", str(root), f"/{Path(emulator).name}"]
 
 
 def wine_path(path):
