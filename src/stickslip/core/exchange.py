@@ -284,7 +284,28 @@ class ExchangeBlock:
 
     def snapshot(self):
         """The discrete and continuous state as JSON-serializable values."""
-        return {name: getattr(self, name) for name in self._SAVED}
+        return self.state_snapshot(self.state())
+
+    def state(self):
+        """Every field, parameters included, as a dict that nothing changes (:meth:`restore`, :meth:`resumed`):
+        taken and restored without checking anything."""
+        return dict(self.__dict__)
+
+    def restore(self, state):
+        """Go back to a :meth:`state` (of this block or another)."""
+        self.__dict__.update(state)
+
+    @classmethod
+    def resumed(cls, state):
+        """A new block at a :meth:`state` (of any block)."""
+        block = cls.__new__(cls)
+        block.restore(state)
+        return block
+
+    @classmethod
+    def state_snapshot(cls, state):
+        """:meth:`snapshot`'s values of a :meth:`state`."""
+        return {name: state[name] for name in cls._SAVED}
 
     @classmethod
     def from_snapshot(cls, params, snap):
