@@ -4,6 +4,8 @@ host)."""
 
 import json
 
+from . import state_costs
+
 
 def write(out_dir, results):
     """Write the three files into ``out_dir`` (a Path, created if missing); return their paths."""
@@ -41,6 +43,8 @@ def markdown(results):
               f"ours {one['fmu']['wall_ms']:.1f} ms wall, {one['fmu']['cpu_ms']:.1f} ms CPU; the PythonFMU floor "
               f"{one['floor']['wall_ms']:.1f} ms, {one['floor']['cpu_ms']:.1f} ms: ours / floor "
               f"{one['ratio_wall']:.3g} (wall), {one['ratio_cpu']:.3g} (CPU)."]
+    if "states" in results:
+        lines += ["", *state_costs.markdown_lines(results["states"])]
     return "\n".join(lines) + "\n"
 
 

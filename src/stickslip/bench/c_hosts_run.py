@@ -1,7 +1,8 @@
 """``stickslip bench-c-hosts``: every measurement of the C-host benchmarks in one run (see
 benchmarks/README.md): the C-host family (:mod:`.c_hosts`) with ours at the peer's error, the FMPy family
 against the peer (:mod:`.matched_error`), the ``.fmu`` file against DOP853 and against the floor
-(:mod:`.fmu_file_runs`). The result is one JSON-ready dict; :mod:`.c_hosts_report` writes it out.
+(:mod:`.fmu_file_runs`), the FMU states beside a step in the C hosts and FMPy, both FMI versions
+(:mod:`.state_costs`). The result is one JSON-ready dict; :mod:`.c_hosts_report` writes it out.
 """
 
 import datetime
@@ -11,7 +12,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import c_hosts, dymola_peer
+from . import c_hosts, dymola_peer, state_costs
 from .c_floor import ensure_c_floor_fmu
 from .fmu_file_runs import dense_grid, one_step
 from .matched_error import fmpy_family, loosest_rtol
@@ -24,18 +25,22 @@ REFERENCE_FLOORS = (("Feedthrough.fmu", "Float64_continuous_output"), ("Dahlquis
 
 @dataclass
 class Inputs:
-    """What a run measures: FMU files (``peer`` and ``fmusim`` may be None), the C host, the build folder."""
+    """What a run measures: FMU files (``peer`` and ``fmusim`` may be None), the C hosts (FMI 2, FMI 3), the build
+    folder."""
 
     fmu: Path
+    fmu3: Path
     python_floor: Path
     host: Path
+    host3: Path
     build_dir: Path
     peer: Path | None = None
     fmusim: Path | None = None
 
 
-def run_all(inputs, steps, repeats, progress=print):
-    """Every measurement (``steps`` per long host run, ``repeats`` timed runs of each); a dict for JSON."""
+def run_all(inputs, steps, repeats, progress=print, state_rounds=state_costs.ROUNDS):
+    """Every measurement (``steps`` per long host run, ``repeats`` timed runs of each, ``state_rounds`` calls per
+    block of the FMU-state costs); a dict for JSON."""
     scene = SCENES["msl-pendulum"]
     meta = {"date": datetime.datetime.now().isoformat(timespec="seconds"),
             "machine": f"{platform.platform()}, {os.cpu_count()} CPUs", "load_start": _load(),
@@ -58,6 +63,8 @@ def run_all(inputs, steps, repeats, progress=print):
         out["fmpy"] = fmpy_family(inputs.peer, peer, inputs.fmu, scene, repeats, progress)
     out["dense_grid"] = dense_grid(inputs.fmu, repeats, progress)
     out["one_step"] = one_step(inputs.fmu, inputs.python_floor, 3 * repeats, progress)
+    out["states"] = state_costs.measure({2: inputs.fmu, 3: inputs.fmu3}, {2: inputs.host, 3: inputs.host3},
+                                        state_rounds, progress)
     meta["load_end"] = _load()
     return out
 
