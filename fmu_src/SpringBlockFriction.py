@@ -51,7 +51,9 @@ _NAMES = tuple(v.name for v in VARIABLES) + tuple(name for name, _, _ in DERIVAT
 _REFERENCES = {Real: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "real") | frozenset(
     range(FIRST_DERIVATIVE, len(_NAMES))), Integer: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "integer")}
 _FMU_STATE_KINDS = {"block": saved_state.NESTED, **EXCHANGE_STATE_KINDS}  # the fields of a serialized state
-_V_DRIVE, _F_EXT = _REFERENCE_OF["v_drive"], _REFERENCE_OF["F_ext"]
+_INPUTS = slice(_REFERENCE_OF["v_drive"], _REFERENCE_OF["F_ext"] + 1)  # the inputs' value references, in a row
+if _REFERENCE_OF["F_ext"] != _REFERENCE_OF["v_drive"] + 1:
+    raise ImportError("block_interface.VARIABLES must hold the inputs v_drive and F_ext in a row")
 _MAX_READ_PLANS = 64  # distinct sets of value references whose checked reader an instance keeps
 
 
@@ -157,8 +159,9 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
         self._outputs_stale = self._derivatives_stale = True
 
     def outputs_changed(self):
-        """The state moved, or values were restored: the outputs and derivatives need a new evaluation."""
-        super().outputs_changed()
+        """The state moved, or values were restored: the outputs and derivatives need a new evaluation (and
+        :meth:`BlockInterface.outputs_changed`'s cache is forgotten, without super()'s cost at every step and restore)."""
+        self._output_cache.clear()
         self._outputs_stale = self._derivatives_stale = True
 
     def get_real(self, vrs):
@@ -226,11 +229,10 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
         """Go back to a state from :meth:`save_state` (StateError for a refused one); True if the C loader's step
         call still holds (the same trajectory, restored in place, and no input waits for the next step)."""
         trajectory = self.trajectory
-        by_reference, values = self._by_reference, self.values
         if self.restore_fmu_state(state):
-            by_reference[:FIRST_OUTPUT] = [values[v.name] for v in VARIABLES[:FIRST_OUTPUT]]
-        else:
-            by_reference[_V_DRIVE], by_reference[_F_EXT] = values["v_drive"], values["F_ext"]
+            self._by_reference[:FIRST_OUTPUT] = [self.values[v.name] for v in VARIABLES[:FIRST_OUTPUT]]
+        else:  # the inputs only: v_drive and F_ext, the block state's second and third fields
+            self._by_reference[_INPUTS] = state[0][1:3]
         return self.trajectory is trajectory and not self._inputs_set
 
     def _get_fmu_state(self):

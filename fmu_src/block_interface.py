@@ -412,7 +412,8 @@ class BlockInterface:
             self.trajectory.restore(trajectory)
         else:
             self.trajectory = Trajectory.resumed(trajectory)
-        self._inputs_set = set(pending)
+        if pending or self._inputs_set:  # else the set stays empty
+            self._inputs_set = set(pending)
         self.outputs_changed()
         return changed
 
@@ -441,10 +442,11 @@ class ExchangeInterface:
         self.time = 0.0  # the model's time (s)
         self.block = None  # the ExchangeBlock, built when initialization ends
         self.exchange = False  # True once the host made a model-exchange call
+        self._block_saved = None  # the block's state (ExchangeBlock.state) while the block stays as it is, or None
 
     def start_exchange(self):
         """Initialization ends: the ExchangeBlock of the current values (ParameterError for a bad parameter)."""
-        self.block = self._new_block()
+        self.block, self._block_saved = self._new_block(), None
 
     def set_variable(self, name, value):
         """A parameter or an input (:meth:`BlockInterface.set_variable`: checked first, ParameterError naming it and
@@ -452,6 +454,7 @@ class ExchangeInterface:
         interfaces alike."""
         super().set_variable(name, value)
         if name in INPUTS and self.block is not None:
+            self._block_saved = None
             self.block.set_inputs(self.values["v_drive"], self.values["F_ext"])
 
     def current_state(self):
@@ -471,7 +474,7 @@ class ExchangeInterface:
 
     def _exchange_call(self):
         """The block a model-exchange call reads; during initialization, the one the current values start."""
-        self.exchange = True
+        self.exchange, self._block_saved = True, None  # the call may change the block
         self.outputs_changed()
         return self._block_now()
 
@@ -514,8 +517,11 @@ class ExchangeInterface:
 
     def exchange_state(self):
         """The model exchange's part of an FMU state: ``(the block's state or None, the time, the interface)``, the
-        block's :meth:`ExchangeBlock.state`."""
-        return None if self.block is None else self.block.state(), self.time, self.exchange
+        block's :meth:`ExchangeBlock.state`, the same one while the block stays as it is (only the inputs and the
+        model-exchange calls change it)."""
+        if self._block_saved is None and self.block is not None:
+            self._block_saved = self.block.state()
+        return self._block_saved, self.time, self.exchange
 
     def fmu_state(self):
         """An FMU state, a tuple that nothing changes: ``(block_state(), exchange_state())``; a slave adds its own
@@ -533,8 +539,9 @@ class ExchangeInterface:
             self.block = None
         elif self.block is None:
             self.block = ExchangeBlock.resumed(block)
-        else:
+        elif block is not self._block_saved:  # else the block is as saved
             self.block.restore(block)
+        self._block_saved = block
         return changed
 
 
