@@ -160,7 +160,8 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
 
     def outputs_changed(self):
         """The state moved, or values were restored: the outputs and derivatives need a new evaluation (and
-        :meth:`BlockInterface.outputs_changed`'s cache is forgotten, without super()'s cost at every step and restore)."""
+        :meth:`BlockInterface.outputs_changed`'s cache is forgotten, without super()'s cost at every step and
+        restore)."""
         self._output_cache.clear()
         self._outputs_stale = self._derivatives_stale = True
 

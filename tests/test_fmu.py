@@ -314,7 +314,8 @@ class _StateApi:
     def __init__(self, fmu, fmi):
         if fmi == 2:
             self.get = {"Real": fmu.getReal, "Integer": fmu.getInteger, "integer": fmu.getInteger}
-            self.set_real, self.serialize, self.deserialize = fmu.setReal, fmu.serializeFMUstate, fmu.deSerializeFMUstate
+            self.set_real, self.serialize = fmu.setReal, fmu.serializeFMUstate
+            self.deserialize = fmu.deSerializeFMUstate
         else:
             self.get = {"Float64": fmu.getFloat64, "Int32": fmu.getInt32, "integer": fmu.getInt32}
             self.set_real, self.serialize = fmu.setFloat64, fmu.serializeFMUState

@@ -144,7 +144,8 @@ def _blocks(fmu, clock, rounds):
 
 
 def markdown_lines(results):
-    """The report's table: per host and FMI version, a doStep of 1 ms in µs and each FMU-state call as a ratio to it."""
+    """The report's table: per host and FMI version, a doStep of 1 ms in µs and each FMU-state call as a ratio to
+    it."""
     lines = [f"## FMU states beside a doStep of {STEP * 1e3:g} ms ({SCENE}, slipping, after {WARM:g} s)", "",
              "CPU time per call (median of the blocks); each FMU-state call as a ratio to the doStep of the same "
              "instance in the same run.", "",

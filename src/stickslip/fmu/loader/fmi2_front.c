@@ -167,7 +167,8 @@ static void relay_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Status 
 static int resolve_inner(void *lib, const char *path)
 {
 #define LOAD(name, failure, params, args, ...) && (*(void **)&inner.name = sbf_symbol(lib, #name)) != NULL
-    if (1 READERS(LOAD) FORWARDED(LOAD) TRACKED(LOAD) STATE_USED(LOAD) STATE_GOT(LOAD) LOAD(fmi2Instantiate, , , ) LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , )
+    if (1 READERS(LOAD) FORWARDED(LOAD) TRACKED(LOAD) STATE_USED(LOAD) STATE_GOT(LOAD) LOAD(fmi2Instantiate, , , )
+            LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , )
             LOAD(fmi2FreeFMUstate, , , ))
         return 1;
 #undef LOAD
