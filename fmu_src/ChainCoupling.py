@@ -84,21 +84,29 @@ class ChainCoupling(Fmi2Slave):
         """The springs' force on the block (N, +x); ValueError naming the values where it overflows."""
         return checked_springs(0, self.kc_left, self.kc_right, self.x_left, self.x, self.x_right)
 
-    def _get_fmu_state(self):
-        """The positions and stiffnesses, and the derivatives set as ``[order, value]`` pairs (no output)."""
-        return {"values": {name: getattr(self, name) for name in ALLOWED},
-                "rates": {name: [[order, r[order]] for order in sorted(r)] for name, r in self.rates.items()}}
+    def save_state(self):
+        """An FMU state, a tuple that nothing changes: the positions and stiffnesses (in :data:`ALLOWED` order) and
+        each position's derivatives set, ``(order, value)`` pairs (no output)."""
+        return (tuple(getattr(self, name) for name in ALLOWED),
+                tuple(tuple(self.rates[name].items()) for name in POSITIONS))
 
-    def _set_fmu_state(self, state):
-        """Undo to a state from :meth:`_get_fmu_state`, every field checked before any is taken (ValueError naming
-        the first out of place or range; bytes that were no state: their reason)."""
+    def restore_state(self, state):
+        """Go back to a state from :meth:`save_state` (bytes that were no state: ValueError with their reason); True:
+        the C loader has no step call to forget."""
         reason = refusal(state)
         if reason is not None:
             raise ValueError(reason)
-        values, rates = checked_state(state)
-        for name, value in values.items():
+        values, rates = state
+        for name, value in zip(ALLOWED, values):
             setattr(self, name, value)
-        self.rates = rates
+        self.rates = {name: dict(pairs) for name, pairs in zip(POSITIONS, rates)}
+        return True
+
+    def _get_fmu_state(self):
+        return self.save_state()
+
+    def _set_fmu_state(self, state):
+        self.restore_state(state)
 
     def exit_initialization_mode(self):
         self.initialized = True
@@ -158,23 +166,31 @@ def check_value(name, value):
         raise ValueError(f"{name} = {value!r} {unit} is out of range: allowed is a finite value in {text}")
 
 
-def checked_state(state):
-    """``(values, rates)`` of a state from :meth:`ChainCoupling._get_fmu_state`, every field checked (ValueError
-    naming the first out of place or range)."""
-    values, rates = state["values"], state["rates"]
+def state_snapshot(state):
+    """The JSON-serializable values of a state from :meth:`ChainCoupling.save_state`: ``{"values": {name: value},
+    "rates": {position: [[order, value], ...]}}``."""
+    values, rates = state
+    return {"values": dict(zip(ALLOWED, values)),
+            "rates": {name: [[order, value] for order, value in sorted(pairs)]
+                      for name, pairs in zip(POSITIONS, rates)}}
+
+
+def state_from_snapshot(snapshot):
+    """The state (:meth:`ChainCoupling.save_state`) of :func:`state_snapshot`'s values, every field checked
+    (ValueError naming the first out of place or range)."""
+    values, rates = snapshot["values"], snapshot["rates"]
     if not (isinstance(values, dict) and set(values) == set(ALLOWED)):
         raise ValueError(f"saved state values = {values!r}: allowed is a dict with the keys {', '.join(ALLOWED)}")
     for name, value in values.items():
         check_value(name, value)
     if not (isinstance(rates, dict) and set(rates) == set(POSITIONS)):
         raise ValueError(f"saved state rates = {rates!r}: allowed is a dict with the keys {', '.join(POSITIONS)}")
-    taken = {}
     for name, pairs in rates.items():
         if not (isinstance(pairs, list) and all(_rate_pair(pair) for pair in pairs)):
             raise ValueError(f"saved state rates of {name} = {pairs!r}: allowed is a list of [order, value] pairs, "
                              f"each an order >= 1 and a finite value")
-        taken[name] = {int(order): float(value) for order, value in pairs}
-    return {name: float(value) for name, value in values.items()}, taken
+    return (tuple(float(values[name]) for name in ALLOWED),
+            tuple(tuple({int(order): float(value) for order, value in rates[name]}.items()) for name in POSITIONS))
 
 
 def _rate_pair(pair):
@@ -204,4 +220,4 @@ def checked_springs(order, kc_left, kc_right, left, middle, right):
 
 
 balance_release(ChainCoupling, PYTHONFMU_ENTRY_POINTS)
-serialized_states(ChainCoupling, ("values", "rates"))  # the keys of _get_fmu_state()
+serialized_states(ChainCoupling, ("values", "rates"), state_snapshot, state_from_snapshot)

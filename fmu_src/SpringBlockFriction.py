@@ -27,6 +27,7 @@ here (``balance_release``): an importer that terminates and frees the
 instance after the error, as libcosim does, does not crash.
 """
 
+import functools
 import math
 import operator
 from xml.etree.ElementTree import Element
@@ -36,6 +37,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 from block_interface import (
     DERIVATIVES, EXCHANGE_STATE_KINDS, FIRST_OUTPUT, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, PYTHONFMU_ENTRY_POINTS,
     STATES, VARIABLES, BlockInterface, ExchangeInterface, balance_release, saved_state, serialized_states,
+    state_from_snapshot, state_snapshot,
 )
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input, "output": Fmi2Causality.output}
@@ -48,7 +50,10 @@ FIRST_DERIVATIVE = len(VARIABLES)
 _NAMES = tuple(v.name for v in VARIABLES) + tuple(name for name, _, _ in DERIVATIVES)
 _REFERENCES = {Real: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "real") | frozenset(
     range(FIRST_DERIVATIVE, len(_NAMES))), Integer: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "integer")}
-_FMU_STATE_KINDS = {"block": saved_state.NESTED, **EXCHANGE_STATE_KINDS}  # the fields of _get_fmu_state's dict
+_FMU_STATE_KINDS = {"block": saved_state.NESTED, **EXCHANGE_STATE_KINDS}  # the fields of a serialized state
+_INPUTS = slice(_REFERENCE_OF["v_drive"], _REFERENCE_OF["F_ext"] + 1)  # the inputs' value references, in a row
+if _REFERENCE_OF["F_ext"] != _REFERENCE_OF["v_drive"] + 1:
+    raise ImportError("block_interface.VARIABLES must hold the inputs v_drive and F_ext in a row")
 _MAX_READ_PLANS = 64  # distinct sets of value references whose checked reader an instance keeps
 
 
@@ -154,8 +159,10 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
         self._outputs_stale = self._derivatives_stale = True
 
     def outputs_changed(self):
-        """The state moved, or values were restored: the outputs and derivatives need a new evaluation."""
-        super().outputs_changed()
+        """The state moved, or values were restored: the outputs and derivatives need a new evaluation (and
+        :meth:`BlockInterface.outputs_changed`'s cache is forgotten, without super()'s cost at every step and
+        restore)."""
+        self._output_cache.clear()
         self._outputs_stale = self._derivatives_stale = True
 
     def get_real(self, vrs):
@@ -213,12 +220,27 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
             raise ValueError(f"{function}: the model answered {answer!r}: not every value is finite")
         return answer
 
+    # ---- FMU state: the C loader calls save_state and restore_state; PythonFMU the two after them -------------
+
+    def save_state(self):
+        """An FMU state (:meth:`ExchangeInterface.fmu_state`): a tuple that nothing changes, nothing copied."""
+        return self.fmu_state()
+
+    def restore_state(self, state):
+        """Go back to a state from :meth:`save_state` (StateError for a refused one); True if the C loader's step
+        call still holds (the same trajectory, restored in place, and no input waits for the next step)."""
+        trajectory = self.trajectory
+        if self.restore_fmu_state(state):
+            self._by_reference[:FIRST_OUTPUT] = [self.values[v.name] for v in VARIABLES[:FIRST_OUTPUT]]
+        else:  # the inputs only: v_drive and F_ext, the block state's second and third fields
+            self._by_reference[_INPUTS] = state[0][1:3]
+        return self.trajectory is trajectory and not self._inputs_set
+
     def _get_fmu_state(self):
-        return {"block": self.block_state(), **self.exchange_state()}
+        return self.save_state()
 
     def _set_fmu_state(self, state):
-        self.restore_fmu_state(state, _FMU_STATE_KINDS)
-        self._by_reference[:FIRST_OUTPUT] = [self.values[v.name] for v in VARIABLES[:FIRST_OUTPUT]]
+        self.restore_state(state)
 
 
 def _check_kind(kind, references):
@@ -254,4 +276,5 @@ _EXCHANGE_CALLS = {
 }
 
 balance_release(SpringBlockFriction, PYTHONFMU_ENTRY_POINTS)
-serialized_states(SpringBlockFriction, tuple(_FMU_STATE_KINDS))
+serialized_states(SpringBlockFriction, tuple(_FMU_STATE_KINDS), state_snapshot,
+                  functools.partial(state_from_snapshot, kinds=_FMU_STATE_KINDS))

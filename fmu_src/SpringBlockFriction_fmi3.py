@@ -21,6 +21,7 @@ time, model exchange at t = 0, unless the host (or the FMU's loader) calls ``fmi
 (``discreteStatesNeedUpdate``, ``nominalContinuousStatesChanged``), so the update returns its own.
 """
 
+import functools
 import math
 
 from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, Fmi3Variability, Float64, Int32, Int64,
@@ -28,7 +29,7 @@ from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, 
 
 from block_interface import (
     DERIVATIVES, EXCHANGE_STATE_KINDS, F_EXT_RATE, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, BlockInterface,
-    ExchangeInterface, balance_release, saved_state, serialized_states,
+    ExchangeInterface, balance_release, saved_state, serialized_states, state_from_snapshot, state_snapshot,
 )
 
 _CAUSALITY = {"parameter": Fmi3Causality.parameter, "input": Fmi3Causality.input, "output": Fmi3Causality.output}
@@ -41,7 +42,7 @@ INDICATOR_VARIABLES = {
     "graze": ("m/s2", "event indicator: mode * dv_rel/dt while slipping (zero at an extremum of v_rel), 1 while stuck"),
 }
 
-# the fields of _get_fmu_state's dict and their kinds (the runtime's saved_state)
+# the fields of a serialized FMU state and their kinds (the runtime's saved_state)
 _FMU_STATE_KINDS = {"block": saved_state.NESTED, **EXCHANGE_STATE_KINDS, "stepped": saved_state.FLAG}
 
 
@@ -170,13 +171,24 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
         self.start_exchange()
         self.outputs_changed()
 
+    def save_state(self):
+        """An FMU state (:meth:`ExchangeInterface.fmu_state`, then whether a step was taken): a tuple that nothing
+        changes, nothing copied. The C loader calls this and :meth:`restore_state`; pythonfmu3 the two after them."""
+        return self.fmu_state() + (self._stepped,)
+
+    def restore_state(self, state):
+        """Go back to a state from :meth:`save_state` (StateError for a refused one); True if the C loader's step
+        call still holds (the same trajectory, restored in place, stepped, and no input waits for the next step)."""
+        trajectory = self.trajectory
+        self.restore_fmu_state(state)
+        self._stepped = state[2]
+        return self.trajectory is trajectory and self._stepped and not self._inputs_set
+
     def _get_fmu_state(self):
-        return {"block": self.block_state(), **self.exchange_state(), "stepped": self._stepped}
+        return self.save_state()
 
     def _set_fmu_state(self, state):
-        """Undo to a state from :meth:`_get_fmu_state`, each field checked before any is taken (StateError or
-        ParameterError naming the first out of place or range; bytes that were no state: StateError)."""
-        self._stepped = self.restore_fmu_state(state, _FMU_STATE_KINDS)["stepped"]
+        self.restore_state(state)
 
     # ---- FMI: co-simulation ----------------------------------------------------------
 
@@ -262,4 +274,6 @@ ENTRY_POINTS = (
     "get_event_indicators", "set_time", "update_discrete_states", "_get_fmu_state", "_set_fmu_state",
 )
 balance_release(SpringBlockFriction, ENTRY_POINTS)
-serialized_states(SpringBlockFriction, ("block", "exchange", "time", "interface", "stepped"))  # see _get_fmu_state
+serialized_states(SpringBlockFriction, tuple(_FMU_STATE_KINDS),
+                  functools.partial(state_snapshot, extra_names=("stepped",)),
+                  functools.partial(state_from_snapshot, kinds=_FMU_STATE_KINDS))

@@ -10,7 +10,6 @@ answered by pythonfmu3 in FMI 3 and by the C loader in FMI 2). No physics here: 
 their FMU uses (they rewrite the import below).
 """
 
-import copy
 import functools
 import math
 from collections import namedtuple
@@ -22,6 +21,7 @@ from stickslip.fmu_src.loader_binding import (  # the slaves take these from her
 from stickslip.core import (
     ANY_FINITE, INDICATORS, KINETIC_LAWS, OUTPUT_NAMES, POSITIVE, RTOL_RANGE, STATIC_LAWS, ExchangeBlock, ParameterError,
     Parameters, StateError, Trajectory, check, check_input, check_rate_scale, kinetic_law, saved_state, static_law,
+    state_snapshot as trajectory_snapshot,
 )
 
 #: causality "parameter" (fixed), "input" or "output"; kind "real" or "integer"; variability "fixed",
@@ -201,6 +201,7 @@ class BlockInterface:
         self._inputs_set = set()  # the inputs set since the trajectory last saw them (F_EXT_RATE for der(F_ext))
         self._ignored_derivatives = set()  # (input, order) of the derivatives ignored so far (warned about once)
         self._output_cache = {}  # {output name: value} at the current state, filled as outputs are read
+        self._saved_parameters = None  # the parameters' (name, value) pairs of the FMU states saved (block_state)
 
     def register_variables(self, classes, causalities, variabilities):
         """Register :data:`VARIABLES` with the FMI library: ``classes`` maps a kind ("real", "integer", and
@@ -226,6 +227,8 @@ class BlockInterface:
         """Set a parameter (only before initialization ends) or an input, checked first (:meth:`check_setting`)."""
         self.check_setting(name, value)
         self.values[name] = value
+        if name not in INPUTS:
+            self._saved_parameters = None  # the next state saved has parameters of its own
         if name == "F_ext":
             self.values[F_EXT_RATE] = 0.0  # a force set is held, until a rate is set for it
         if name in INPUTS:
@@ -267,12 +270,9 @@ class BlockInterface:
 
     # ---- runtime objects -----------------------------------------------------------
 
-    def parameters(self, values=None):
-        """The runtime's Parameters from ``values`` (default: the current values), each value checked first
-        (:func:`check_values`)."""
-        v = self.values if values is None else values
-        check_values(v)
-        return Parameters(v["M"], v["kappa"], _law(v, "kinetic", kinetic_law), _law(v, "static", static_law))
+    def parameters(self):
+        """The runtime's Parameters from the current values (:func:`parameters_of`)."""
+        return parameters_of(self.values)
 
     def new_trajectory(self, t0=None):
         """A Trajectory from the parameters, start state and inputs, starting at ``t0`` (default start_time)."""
@@ -379,41 +379,43 @@ class BlockInterface:
     # ---- FMU state ---------------------------------------------------------------
 
     def block_state(self):
-        """Values, start time, trajectory snapshot and the inputs set since the trajectory last saw them (the next
-        step applies them) as JSON-serializable values."""
-        snapshot = None if self.trajectory is None else self.trajectory.snapshot()
-        return {"values": dict(self.values), "start_time": self.start_time, "trajectory": snapshot,
-                "pending": sorted(self._inputs_set)}
+        """The block's part of an FMU state, a tuple that nothing changes: ``(parameters, v_drive, F_ext, der(F_ext),
+        start time, trajectory state, inputs pending)``. The parameters are ``(name, value)`` pairs shared by every
+        state saved while they stay as they are; the trajectory's is :meth:`Trajectory.state` (None during
+        initialization); the inputs pending are those set since the trajectory last saw them (the next step applies
+        them). Nothing is copied or checked: :meth:`take_block_state` goes back to it."""
+        values, trajectory = self.values, self.trajectory
+        if self._saved_parameters is None:
+            self._saved_parameters = tuple((name, value) for name, value in values.items() if name not in _INPUT_KEYS)
+        return (self._saved_parameters, values["v_drive"], values["F_ext"], values[F_EXT_RATE], self.start_time,
+                None if trajectory is None else trajectory.state(), frozenset(self._inputs_set))
 
-    def checked_block_state(self, state):
-        """``(values, start time, trajectory, parameters, pending inputs)`` of a state from :meth:`block_state`, every
-        value checked and nothing taken: the parameters and inputs (:func:`check_values`), the start time, the
-        trajectory (:meth:`Trajectory.from_snapshot`) and the inputs pending; StateError or ParameterError names a
-        field out of place or range.
-
-        A state saved during initialization (no trajectory yet) is refused once initialization has ended: the
-        instance would go on without a trajectory, every step discarded (FMI does not say what it means)."""
-        state = copy.deepcopy(state)
-        fields = saved_state.record("", state, _BLOCK_STATE_KINDS)
-        values = saved_state.record("values", fields["values"], dict.fromkeys(self.values, saved_state.NESTED))
-        parameters = self.parameters(values)
-        snapshot = fields["trajectory"]
-        if snapshot is None and self.trajectory is not None:
+    def take_block_state(self, saved):
+        """Go back to a :meth:`block_state` (of this instance or another, or one deserialized); True if the parameter
+        values changed. A state saved during initialization (no trajectory yet) is refused once initialization has
+        ended (StateError): the instance would go on without a trajectory, every step discarded (FMI does not say
+        what it means)."""
+        parameters, v_drive, F_ext, rate, start_time, trajectory, pending = saved
+        if trajectory is None and self.trajectory is not None:
             raise StateError("this FMU state was saved during initialization mode and cannot be restored after "
                              "initialization ended: reset the instance first, or restore a state saved after "
                              "initialization")
-        trajectory = None if snapshot is None else Trajectory.from_snapshot(parameters, snapshot)
-        pending = fields["pending"]
-        if not isinstance(pending, list) or not set(pending) <= _PENDING:
-            raise StateError(f"saved state pending = {pending!r} is not a list of names among {sorted(_PENDING)}")
-        return values, fields["start_time"], trajectory, parameters, set(pending)
-
-    def take_block_state(self, checked):
-        """Take a state from :meth:`checked_block_state`."""
-        values, self.start_time, self.trajectory, _, self._inputs_set = checked
-        self.values.update(values)
+        values, changed = self.values, parameters is not self._saved_parameters
+        if changed:
+            values.update(parameters)
+            self._saved_parameters = parameters
+        values["v_drive"], values["F_ext"], values[F_EXT_RATE] = v_drive, F_ext, rate
+        self.start_time = start_time
+        if trajectory is None:
+            self.trajectory = None
+        elif trajectory[0] is self.trajectory:
+            self.trajectory.restore(trajectory)
+        else:
+            self.trajectory = Trajectory.resumed(trajectory)
+        if pending or self._inputs_set:  # else the set stays empty
+            self._inputs_set = set(pending)
         self.outputs_changed()
-
+        return changed
 
 #: The model-exchange form's state derivatives (name, unit, description), each of the state its name holds, and the
 #: number of its event indicators (:data:`INDICATORS`, the runtime's ExchangeBlock)
@@ -440,10 +442,11 @@ class ExchangeInterface:
         self.time = 0.0  # the model's time (s)
         self.block = None  # the ExchangeBlock, built when initialization ends
         self.exchange = False  # True once the host made a model-exchange call
+        self._block_saved = None  # the block's state (ExchangeBlock.state) while the block stays as it is, or None
 
     def start_exchange(self):
         """Initialization ends: the ExchangeBlock of the current values (ParameterError for a bad parameter)."""
-        self.block = self._new_block()
+        self.block, self._block_saved = self._new_block(), None
 
     def set_variable(self, name, value):
         """A parameter or an input (:meth:`BlockInterface.set_variable`: checked first, ParameterError naming it and
@@ -451,6 +454,7 @@ class ExchangeInterface:
         interfaces alike."""
         super().set_variable(name, value)
         if name in INPUTS and self.block is not None:
+            self._block_saved = None
             self.block.set_inputs(self.values["v_drive"], self.values["F_ext"])
 
     def current_state(self):
@@ -470,7 +474,7 @@ class ExchangeInterface:
 
     def _exchange_call(self):
         """The block a model-exchange call reads; during initialization, the one the current values start."""
-        self.exchange = True
+        self.exchange, self._block_saved = True, None  # the call may change the block
         self.outputs_changed()
         return self._block_now()
 
@@ -517,22 +521,33 @@ class ExchangeInterface:
     # ---- FMU state -----------------------------------------------------------------
 
     def exchange_state(self):
-        """The fields :data:`EXCHANGE_STATE_KINDS` of the FMU state: the block's snapshot, the time, the interface."""
-        block = None if self.block is None else self.block.snapshot()
-        return {"exchange": block, "time": self.time, "interface": self.exchange}
+        """The model exchange's part of an FMU state: ``(the block's state or None, the time, the interface)``, the
+        block's :meth:`ExchangeBlock.state`, the same one while the block stays as it is (only the inputs and the
+        model-exchange calls change it)."""
+        if self._block_saved is None and self.block is not None:
+            self._block_saved = self.block.state()
+        return self._block_saved, self.time, self.exchange
 
-    def restore_fmu_state(self, state, kinds):
-        """Undo to an FMU state ``{"block": BlockInterface.block_state(), **exchange_state(), ...}`` whose fields have
-        the kinds ``kinds``, each checked before any is taken (StateError or ParameterError naming the first out of
-        place or range; bytes that were no state: StateError); return its fields for the slave's own."""
-        check_state(state)
-        fields = saved_state.record("", state, kinds)
-        checked = self.checked_block_state(fields["block"])
-        saved = fields["exchange"]
-        block = None if saved is None else ExchangeBlock.from_snapshot(checked[3], saved)
-        self.take_block_state(checked)
-        self.time, self.exchange, self.block = fields["time"], fields["interface"], block
-        return fields
+    def fmu_state(self):
+        """An FMU state, a tuple that nothing changes: ``(block_state(), exchange_state())``; a slave adds its own
+        fields after them."""
+        return self.block_state(), self.exchange_state()
+
+    def restore_fmu_state(self, state):
+        """Go back to an FMU state from :meth:`fmu_state` (with the slave's fields after; StateError for a refused one,
+        see :func:`check_state`); True if the parameter values changed."""
+        if state.__class__ is not tuple:
+            check_state(state)
+        changed = self.take_block_state(state[0])
+        block, self.time, self.exchange = state[1]
+        if block is None:
+            self.block = None
+        elif self.block is None:
+            self.block = ExchangeBlock.resumed(block)
+        elif block is not self._block_saved:  # else the block is as saved
+            self.block.restore(block)
+        self._block_saved = block
+        return changed
 
 
 def check_state(state):
@@ -542,9 +557,55 @@ def check_state(state):
         raise StateError(reason)
 
 
+def state_snapshot(state, extra_names=()):
+    """The JSON-serializable values of an FMU state from :meth:`ExchangeInterface.fmu_state` (its slave's fields
+    after, named ``extra_names``): ``{"block": {"values", "start_time", "trajectory", "pending"}, "exchange", "time",
+    "interface", ...}``."""
+    (parameters, v_drive, F_ext, rate, start_time, trajectory, pending), (block, time, interface) = state[:2]
+    values = {**dict(parameters), "v_drive": v_drive, "F_ext": F_ext, F_EXT_RATE: rate}
+    snapshot = {"block": {"values": values, "start_time": start_time,
+                          "trajectory": None if trajectory is None else trajectory_snapshot(trajectory),
+                          "pending": sorted(pending)},
+                "exchange": None if block is None else ExchangeBlock.state_snapshot(block), "time": time,
+                "interface": interface}
+    snapshot.update(zip(extra_names, state[2:]))
+    return snapshot
+
+
+def state_from_snapshot(snapshot, kinds):
+    """The FMU state (:meth:`ExchangeInterface.fmu_state`, the slave's fields after, in the order of ``kinds``) of
+    :func:`state_snapshot`'s values ``snapshot``, whose fields have the kinds ``kinds``: every value checked
+    (StateError or ParameterError naming the first out of place or range)."""
+    fields = saved_state.record("", snapshot, kinds)
+    block, parameters = _block_state_from_snapshot(fields["block"])
+    exchange = fields["exchange"]
+    exchange = None if exchange is None else ExchangeBlock.from_snapshot(parameters, exchange).state()
+    return (block, (exchange, fields["time"], fields["interface"])) + tuple(
+        fields[name] for name in kinds if name not in _FMU_STATE_FIELDS)
+
+
+def _block_state_from_snapshot(snapshot):
+    """``(block state, Parameters)`` of the ``"block"`` values of :func:`state_snapshot`, every value checked: the
+    parameters and inputs (:func:`check_values`), the start time, the trajectory (:meth:`Trajectory.from_snapshot`)
+    and the inputs pending; StateError or ParameterError names a field out of place or range."""
+    fields = saved_state.record("", snapshot, _BLOCK_STATE_KINDS)
+    values = saved_state.record("values", fields["values"], dict.fromkeys(_VALUE_NAMES, saved_state.NESTED))
+    parameters = parameters_of(values)
+    trajectory = fields["trajectory"]
+    trajectory = None if trajectory is None else Trajectory.from_snapshot(parameters, trajectory).state()
+    pending = fields["pending"]
+    if not isinstance(pending, list) or not set(pending) <= _PENDING:
+        raise StateError(f"saved state pending = {pending!r} is not a list of names among {sorted(_PENDING)}")
+    record = tuple((name, value) for name, value in values.items() if name not in _INPUT_KEYS)
+    return (record, values["v_drive"], values["F_ext"], values[F_EXT_RATE], fields["start_time"], trajectory,
+            frozenset(pending)), parameters
+
 _BLOCK_STATE_KINDS = {"values": saved_state.NESTED, "start_time": saved_state.REAL, "trajectory": saved_state.NESTED,
                       "pending": saved_state.NESTED}
 _PENDING = frozenset(INPUTS + (F_EXT_RATE,))  # the names a state's inputs pending may hold
+_INPUT_KEYS = _PENDING  # the values an FMU state keeps apart from the parameters
+_VALUE_NAMES = tuple(v.name for v in VARIABLES if v.causality != "output") + (F_EXT_RATE,)  # BlockInterface.values
+_FMU_STATE_FIELDS = ("block", *EXCHANGE_STATE_KINDS)  # the fields of ExchangeInterface.fmu_state's snapshot
 
 
 def _law(values, kind, build):
@@ -552,6 +613,13 @@ def _law(values, kind, build):
     code = values[f"{kind}.law"]
     names = build(code).PARAMETERS  # raises ParameterError for an unknown code
     return build(code, **{name: values[f"{kind}.{name}"] for name in names})
+
+
+def parameters_of(values):
+    """The runtime's Parameters from ``values`` (by FMU name), each value checked first (:func:`check_values`)."""
+    check_values(values)
+    return Parameters(values["M"], values["kappa"], _law(values, "kinetic", kinetic_law),
+                      _law(values, "static", static_law))
 
 
 def check_values(values):

@@ -143,38 +143,53 @@ def hold_loader_namespace(namespace):
 REFUSED_STATE = b"refused FMU state: "
 
 
-def serialized_states(cls, keys):
-    """Give the slave class ``cls`` (whose states are dicts with the keys ``keys``) the library's (de)serializers
-    of FMU states, :func:`state_from_bytes` and :func:`state_to_bytes`."""
-    cls._fmu_state_from_bytes = staticmethod(functools.partial(state_from_bytes, keys=frozenset(keys)))
-    cls._fmu_state_to_bytes = staticmethod(state_to_bytes)
+def serialized_states(cls, keys, to_snapshot, from_snapshot):
+    """Give the slave class ``cls``, whose FMU states turn into JSON-serializable dicts with the keys ``keys`` by
+    ``to_snapshot(state)`` and back by ``from_snapshot(dict)`` (which checks every value, raising with the reason), the
+    library's (de)serializers of FMU states: ``_fmu_state_to_bytes`` (:func:`state_to_bytes`) and
+    ``_fmu_state_from_bytes`` (:func:`state_from_bytes`, which never raises), and the C loader's ``state_from_bytes``,
+    which raises for bytes that are no state of the slave."""
+    strict = functools.partial(state_from_bytes, keys=frozenset(keys), from_snapshot=from_snapshot)
+    cls.state_from_bytes = staticmethod(strict)
+    cls._fmu_state_from_bytes = staticmethod(functools.partial(_refused_instead, strict))
+    cls._fmu_state_to_bytes = staticmethod(functools.partial(state_to_bytes, to_snapshot=to_snapshot))
 
 
-def state_from_bytes(data, keys):
-    """The FMU state serialized in ``data`` (JSON of a dict with the keys ``keys``), or, for bytes that are none, a
-    refused state ``{"refused": why}``: never an exception. PythonFMU and pythonfmu3 call this on the slave's
-    class, and an exception would release the calling instance's slave unbalanced (:func:`balance_release`),
-    which crashed the host at its next call; the loader refuses the bytes instead, with the reason, and the
-    slave's restore refuses the state in hosts without the loader (:func:`refusal`)."""
+def state_from_bytes(data, keys, from_snapshot):
+    """The FMU state serialized in ``data`` (JSON of a dict with the keys ``keys``, turned into a state by
+    ``from_snapshot``); ValueError, or the exception of ``from_snapshot``, saying why bytes are none."""
     try:
         state = json.loads(bytes(data).decode("utf-8"))
-    except Exception as error:  # noqa: BLE001 - any failure is a refusal, see the docstring
-        return {"refused": f"the {len(data)} bytes are not a serialized FMU state of this FMU: {error!r}"}
+    except ValueError as error:
+        raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: {error!r}") from None
     if not isinstance(state, dict) or set(state) != keys:
         found = sorted(state) if isinstance(state, dict) else type(state).__name__
-        return {"refused": f"the {len(data)} bytes are not a serialized FMU state of this FMU: they hold {found}, "
-                           f"not a dict with the keys {sorted(keys)}"}
-    return state
+        raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: they hold {found}, "
+                         f"not a dict with the keys {sorted(keys)}")
+    return from_snapshot(state)
 
 
-def state_to_bytes(state):
-    """The bytes of an FMU state (JSON, as the libraries write it); for a refused state, :data:`REFUSED_STATE`
-    and the reason."""
-    if "refused" in state:
-        return REFUSED_STATE + state["refused"].encode("utf-8")
-    return json.dumps(state).encode("utf-8")
+def _refused_instead(strict, data):
+    """``strict(data)``, or for bytes that are no state a refused state ``{"refused": why}``: never an exception.
+    PythonFMU and pythonfmu3 call this on the slave's class, and an exception would release the calling instance's
+    slave unbalanced (:func:`balance_release`), which crashed the host at its next call; the loader refuses the bytes
+    instead, with the reason, and the slave's restore refuses the state in hosts without the loader
+    (:func:`refusal`)."""
+    try:
+        return strict(data)
+    except Exception as error:  # noqa: BLE001 - any failure is a refusal, see the docstring
+        return {"refused": str(error)}
+
+
+def state_to_bytes(state, to_snapshot):
+    """The bytes of an FMU state (JSON of ``to_snapshot(state)``); for a refused state, :data:`REFUSED_STATE` and the
+    reason."""
+    reason = refusal(state)
+    if reason is not None:
+        return REFUSED_STATE + reason.encode("utf-8")
+    return json.dumps(to_snapshot(state)).encode("utf-8")
 
 
 def refusal(state):
-    """The reason why ``state`` (from :func:`state_from_bytes`) is refused, or None for a state to restore."""
-    return state.get("refused")
+    """The reason why ``state`` (from ``_fmu_state_from_bytes``) is refused, or None for a state to restore."""
+    return state.get("refused") if isinstance(state, dict) else None

@@ -1,6 +1,7 @@
-"""Direct access to the FMU through FMPy's FMU2Slave, shared by the tests."""
+"""Direct access to the FMUs through FMPy's FMU2Slave and FMU3Slave, shared by the tests."""
 
 from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi3 import FMU3Slave
 
 
 def instantiate(unzipped, name, start):
@@ -14,6 +15,22 @@ def instantiate(unzipped, name, start):
     for key, value in start.items():
         variable = variables[key]
         setter = fmu.setInteger if variable.type in ("Integer", "Enumeration") else fmu.setReal
+        setter([variable.valueReference], [value])
+    fmu.exitInitializationMode()
+    return fmu
+
+
+def instantiate3(unzipped3, name, start, cls=FMU3Slave, start_time=0.0):
+    """An initialized instance of the extracted FMI 3 FMU ``unzipped3`` (``cls``: ``FMU3Slave`` for co-simulation or
+    ``FMU3Model``) with the given start values, started at ``start_time`` (s)."""
+    folder, description, variables = unzipped3
+    fmu = cls(guid=description.guid, unzipDirectory=folder, instanceName=name,
+              modelIdentifier=description.coSimulation.modelIdentifier)
+    fmu.instantiate(loggingOn=True)
+    fmu.enterInitializationMode(startTime=start_time)
+    for key, value in start.items():
+        variable = variables[key]
+        setter = {"Int32": fmu.setInt32, "Enumeration": fmu.setInt64}.get(variable.type, fmu.setFloat64)
         setter([variable.valueReference], [value])
     fmu.exitInitializationMode()
     return fmu

@@ -18,6 +18,7 @@ from stickslip.bench.c_hosts_report import markdown, write
 from stickslip.bench.matched_error import OUR_RTOLS, loosest_rtol
 from stickslip.bench.process_timing import ChildFailed, Timings, slope, startup, timed_child
 from stickslip.bench.scenes import SCENES
+from stickslip.bench.state_costs import CALLS as STATE_CALLS
 from stickslip.cli.bench import add_c_hosts_parser
 from stickslip.hosts.c_host import run_host
 
@@ -146,7 +147,8 @@ def _made_up_results():
                                         "fmpy_ms": {clock: {"ours": 44.0, "without": 40.0, "ratio": 1.1}
                                                     for clock in ("wall", "cpu")},
                                         "c_host_ms": {clock: {"ours": 120.0, "without": 100.0, "first": 500.0,
-                                                              "ratio": 1.2} for clock in ("wall", "cpu")}}}}
+                                                              "ratio": 1.2} for clock in ("wall", "cpu")}}},
+            "states": {"C host": {"FMI 2": dict(zip(STATE_CALLS, (0.5, 1.0, 0.75, 1.25, 20.0, 40.0)))}}}
 
 
 def test_report_states_the_load_and_the_ratios_of_the_same_run(tmp_path):
@@ -156,6 +158,8 @@ def test_report_states_the_load_and_the_ratios_of_the_same_run(tmp_path):
     assert "| fmi2 | cpu | 7.50 / 2.40 | 44.0 / 40.0 | 1.1 | 120.0 / 100.0 | 1.2 | 500 |" in report
     # 4/2, 4/0.5, 4/1.6, 2/0.5; start-up 90/80; own cost 4 - 0.5, 2 - 0.5
     assert "| C host | 2 / 2 | 8 / 8 | 2.5 / 2.5 | 4 / 4 | 1.12 / 1.12 | 3.5, 1.5 |" in report
+    # each FMU-state call over the doStep of 0.5 µs
+    assert "| C host | FMI 2 | 0.5 | 2 (1 µs) | 1.5 (0.75 µs) | 2.5 (1.25 µs) | 40 (20 µs) | 80 (40 µs) |" in report
     paths = write(tmp_path / "out", results)
     assert json.loads(paths[0].read_text()) == results and paths[2].stat().st_size > 0
 
@@ -167,13 +171,15 @@ def test_bench_c_hosts_refuses_a_missing_peer(tmp_path, capsys):
     assert args.handler(args) == 2 and "none.fmu" in capsys.readouterr().err
 
 
-def test_bench_c_hosts_without_its_inputs_measures_ours_and_the_floors(tmp_path, fmu_path, host, monkeypatch):
+def test_bench_c_hosts_without_its_inputs_measures_ours_and_the_floors(tmp_path, fmu_path, fmu3_path, host,
+                                                                       monkeypatch):
     machine_needs.c_compiler("the compiled floor FMU")
     monkeypatch.setattr(fmus, "BUILD_DIR", tmp_path / "build")
     parser = argparse.ArgumentParser()
     add_c_hosts_parser(parser.add_subparsers())
-    args = parser.parse_args(["bench-c-hosts", "--fmu", str(fmu_path), "--out", str(tmp_path / "out"),
-                              "--steps", "20", "--repeats", "1", "--no-carried-python"])
+    args = parser.parse_args(["bench-c-hosts", "--fmu", str(fmu_path), "--fmu3", str(fmu3_path), "--out",
+                              str(tmp_path / "out"), "--steps", "20", "--repeats", "1", "--state-rounds", "5",
+                              "--no-carried-python"])
     assert args.handler(args) == 0
     results = json.loads((tmp_path / "out" / "c-hosts.json").read_text())
     assert set(results["hosts"]) == {"C host"}
@@ -181,3 +187,8 @@ def test_bench_c_hosts_without_its_inputs_measures_ours_and_the_floors(tmp_path,
     assert results["matched"]["our_error"]["C host"] <= 2e-8 and "fmpy" not in results
     assert all(row["our_error"] <= row["peer_error"] for row in results["dense_grid"])
     assert "## One-step `simulate_fmu` of the .fmu file" in (tmp_path / "out" / "c-hosts.md").read_text()
+    states = results["states"]  # every FMU-state call measured in both hosts, for both FMI versions
+    assert {(host, version) for host in states for version in states[host]} == {
+        (host, version) for host in ("C host", "FMPy") for version in ("FMI 2", "FMI 3")}
+    assert all(set(costs) == set(STATE_CALLS) and min(costs.values()) > 0
+               for versions in states.values() for costs in versions.values())

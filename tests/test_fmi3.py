@@ -12,7 +12,7 @@ import fmpy
 import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi3 import FMU3Model, FMU3Slave
+from fmpy.fmi3 import FMU3Model
 from fmpy.validation import validate_fmu
 
 from stickslip.cli import main
@@ -27,6 +27,7 @@ from stickslip.suite.runner import OUTPUTS, simulate
 from stickslip.suite.scenario import load_scenario
 
 import machine_needs
+from fmu_instances import instantiate3
 
 SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 SCENARIOS = sorted(SCENARIO_DIR.glob("*.toml"))
@@ -35,22 +36,6 @@ ELMER = {"M": 40.0, "kappa": 1.0, "kinetic.law": 4, "kinetic.gamma1": 3.0, "kine
 # the FMI 3 FMU's variables beyond the FMI 2 FMU's (which has der(x) and der(v) too; its event indicators are no
 # variables in FMI 2, and it takes der(F_ext) through fmi2SetRealInputDerivatives)
 FMI3_ONLY = {"indicator.stick", "indicator.breakaway", "indicator.graze", "time", "der(F_ext)"}
-
-
-def instance(unzipped3, cls, start, name, start_time=0.0):
-    """An instance of the FMI 3 FMU (``FMU3Slave`` or ``FMU3Model``) with ``start`` set, out of initialization,
-    started at ``start_time`` (s)."""
-    folder, description, variables = unzipped3
-    fmu = cls(guid=description.guid, unzipDirectory=folder, instanceName=name,
-              modelIdentifier=description.coSimulation.modelIdentifier)
-    fmu.instantiate(loggingOn=True)
-    fmu.enterInitializationMode(startTime=start_time)
-    for key, value in start.items():
-        variable = variables[key]
-        setter = {"Int32": fmu.setInt32, "Enumeration": fmu.setInt64}.get(variable.type, fmu.setFloat64)
-        setter([variable.valueReference], [value])
-    fmu.exitInitializationMode()
-    return fmu
 
 
 def reals(fmu, unzipped3, names):
@@ -131,7 +116,7 @@ def test_co_simulation_equals_the_fmi2_fmu_bit_for_bit(path, fmu_path, fmu3_path
 def test_co_simulation_starts_at_the_start_time_and_refuses_a_first_step_elsewhere(unzipped3):
     """pythonfmu3 passes no start time; the loader hands fmi3EnterInitializationMode's to the slave: the trajectory
     starts there, and a first fmi3DoStep at another time is refused naming both times (as in FMI 2)."""
-    fmu = instance(unzipped3, FMU3Slave, {**ELMER, "v_start": 0.1}, "cs-start", start_time=5.0)
+    fmu = instantiate3(unzipped3, "cs-start", {**ELMER, "v_start": 0.1}, start_time=5.0)
     try:
         rows = []
         for k in range(40):
@@ -145,7 +130,7 @@ def test_co_simulation_starts_at_the_start_time_and_refuses_a_first_step_elsewhe
     assert [row[:2] for row in rows] == [list(pair) for pair in zip(x, v)]
     assert rows[-1][2] == traj.t_last_event > 15.0  # the breakaway 10 s after the start
 
-    late = instance(unzipped3, FMU3Slave, {**ELMER, "v_start": 0.1}, "cs-late", start_time=0.0)
+    late = instantiate3(unzipped3, "cs-late", {**ELMER, "v_start": 0.1})
     try:
         with pytest.raises(FMICallException):
             late.doStep(5.0, 1.0)
@@ -154,7 +139,7 @@ def test_co_simulation_starts_at_the_start_time_and_refuses_a_first_step_elsewhe
 
 
 def test_co_simulation_state_restore_and_serialization_continue_bit_for_bit(unzipped3):
-    fmu = instance(unzipped3, FMU3Slave, {**ELMER, "v_start": 0.1}, "cs-state")
+    fmu = instantiate3(unzipped3, "cs-state", {**ELMER, "v_start": 0.1})
     try:
         fmu.doStep(0.0, 15.0)
         state = fmu.getFMUState()
@@ -263,7 +248,7 @@ def test_model_exchange_nan_input_names_the_input(fmu3_path):
 
 
 def test_model_exchange_state_restore_and_serialization(unzipped3):
-    fmu = instance(unzipped3, FMU3Model, {**ELMER, "v_start": 0.1}, "me-state")
+    fmu = instantiate3(unzipped3, "me-state", {**ELMER, "v_start": 0.1}, FMU3Model)
     try:
         fmu.updateDiscreteStates()
         fmu.enterContinuousTimeMode()

@@ -16,7 +16,7 @@ from stickslip.fmu import sources
 from stickslip.fmu.sources import sources_tag
 from stickslip.hosts.fmpy_host import FMUError, run_fmu
 
-from fmu_instances import instantiate
+from fmu_instances import instantiate, instantiate3
 
 STICK_SLIP = {"M": 1.0, "kappa": 1.0, "kinetic.F0": 0.5, "static.F0": 1.0}  # coulomb, stick time 10 s
 STRIBECK = {"kinetic.law": 3, "kinetic.F0": 0.4, "kinetic.F_stribeck": 0.3, "kinetic.v_stribeck": 0.05,
@@ -263,28 +263,63 @@ def test_stuck_block_follows_a_new_drive_velocity_before_the_next_step(unzipped)
 # ---------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("start", [STICK_SLIP, STRIBECK], ids=["coulomb", "stribeck"])
-def test_restored_state_continues_bit_for_bit(unzipped, start):
-    fmu = instantiate(unzipped, "saved", start)
-    step_through(fmu, unzipped, 0.0, 11.5, 0.25)  # mid-slip, after a stick
-    state = fmu.getFMUstate()
-    serialized = fmu.serializeFMUstate(state)
-    reference = step_through(fmu, unzipped, 11.5, 40.0, 0.25)
+@pytest.mark.parametrize("fmi, t_save, start", [(2, 18.0, STRIBECK), (2, 11.5, STICK_SLIP), (3, 18.0, STICK_SLIP),
+                                                 (3, 11.5, STRIBECK)],
+                         ids=["fmi2-stick-stribeck", "fmi2-slip-coulomb", "fmi3-stick-coulomb", "fmi3-slip-stribeck"])
+def test_restored_state_is_the_saved_one(unzipped, unzipped3, fmi, t_save, start):
+    """A state saved mid stick or mid slip, with inputs set and (FMI 2) a force rate set that the next step has yet to
+    take: restored into its instance (twice), deserialized there and by an instance of other parameters, each
+    continues with every output bit for bit as the original did, through events and an input changed after it."""
+    extracted = unzipped if fmi == 2 else unzipped3
+    variables = extracted[2]
+    outputs = [v for v in variables.values() if v.causality == "output"]
+    mode = outputs.index(variables["mode"])
 
-    fmu.setFMUstate(state)
-    assert step_through(fmu, unzipped, 11.5, 40.0, 0.25) == reference
-    fmu.setFMUstate(state)  # the same state twice
-    assert step_through(fmu, unzipped, 11.5, 40.0, 0.25) == reference
+    def run(fmu, steps=60, h=0.25):  # from t_save, F_ext set again halfway; every output after each step
+        api, rows = _StateApi(fmu, fmi), []
+        for k in range(steps):
+            if k == steps // 2:
+                api.set_real([variables["F_ext"].valueReference], [-0.03])
+            fmu.doStep(t_save + k * h, h)
+            rows.append([api.get[v.type]([v.valueReference])[0] for v in outputs])
+        return rows
 
-    other = instantiate(unzipped, "restored", {})  # default parameters: the state brings its own
-    restored = other.deSerializeFMUstate(serialized)
-    other.setFMUstate(restored)
-    assert step_through(other, unzipped, 11.5, 40.0, 0.25) == reference
-
-    for instance, saved in ((fmu, state), (other, restored)):
-        instance.freeFMUstate(saved)
+    made = instantiate if fmi == 2 else instantiate3
+    fmu, other = made(extracted, "saved", start), made(extracted, "other", {})  # other: default parameters
+    saved_api, other_api = _StateApi(fmu, fmi), _StateApi(other, fmi)
+    for k in range(round(t_save / 0.25)):
+        fmu.doStep(k * 0.25, 0.25)
+    assert (saved_api.get["integer"]([variables["mode"].valueReference])[0] == 0) == (t_save == 18.0)
+    saved_api.set_real([variables["v_drive"].valueReference, variables["F_ext"].valueReference], [0.12, 0.05])
+    if fmi == 2:
+        fmu.setRealInputDerivatives([variables["F_ext"].valueReference], [1], [0.002])
+    state = fmu.getFMUState()
+    serialized = saved_api.serialize(state)
+    original = run(fmu)
+    assert len({row[mode] for row in original}) >= 2  # an event in the continuation
+    for restored in (state, state, saved_api.deserialize(serialized)):
+        fmu.setFMUState(restored)
+        assert run(fmu) == original
+    other.setFMUState(other_api.deserialize(serialized))
+    assert run(other) == original
+    for instance in (fmu, other):
         instance.terminate()
         instance.freeInstance()
+
+
+class _StateApi:
+    """FMPy's calls of an FMI 2 or FMI 3 instance under one set of names: getters by variable type (and "integer"),
+    set_real, serialize, deserialize."""
+
+    def __init__(self, fmu, fmi):
+        if fmi == 2:
+            self.get = {"Real": fmu.getReal, "Integer": fmu.getInteger, "integer": fmu.getInteger}
+            self.set_real, self.serialize = fmu.setReal, fmu.serializeFMUstate
+            self.deserialize = fmu.deSerializeFMUstate
+        else:
+            self.get = {"Float64": fmu.getFloat64, "Int32": fmu.getInt32, "integer": fmu.getInt32}
+            self.set_real, self.serialize = fmu.setFloat64, fmu.serializeFMUState
+            self.deserialize = fmu.deserializeFMUState
 
 
 def test_two_instances_in_one_process_stay_independent(unzipped):

@@ -22,6 +22,7 @@ from stickslip.core import (
     Stribeck,
     Trajectory,
     Viscous,
+    state_snapshot,
 )
 from stickslip.core import poly
 from stickslip.core.integrators import dopri5_step
@@ -251,6 +252,34 @@ def test_snapshot_restores_the_continuation_bit_for_bit():
     restored = Trajectory.from_snapshot(p, saved)
     restored.advance_to(300.0)
     assert (restored.x, restored.v, restored.mode, restored.n_events) == (traj.x, traj.v, traj.mode, traj.n_events)
+
+
+def test_state_restored_in_place_or_resumed_continues_bit_for_bit_mid_stick_and_mid_slip():
+    """Trajectory.state: restored into the same trajectory (its step record replayed), resumed in a new one, and
+    through its snapshot's JSON, each continues exactly as the original did, inputs and a force rate changed after
+    it included; the event record loses the events after the state."""
+    p = Parameters(40.0, 1.0, Lubricated(), Constant(F0=1.0))
+    traj = Trajectory(p, 0.0, 0.1, v_drive=0.1, record_events=True)
+    for t_save, mode in ((47.0, STUCK), (160.0, FORWARD)):  # a numeric slip: its steps in the memo
+        traj.advance_to(t_save)
+        state, events = traj.state(), list(traj.events)
+        assert traj.mode == mode
+
+        def continuation(run):
+            out = [run.communicate(t_save, 0.37)]
+            run.set_inputs(0.12, 0.05, 0.001)
+            return out + [run.communicate(run.t, 0.37) for _ in range(150)] + [run.outputs()]
+
+        original = continuation(traj)
+        traj.restore(state)
+        assert traj.events == events and traj.t == t_save
+        assert continuation(traj) == original
+        traj.restore(state)
+        assert continuation(Trajectory.resumed(state)) == original
+        snapshot = json.loads(json.dumps(state_snapshot(state)))
+        assert continuation(Trajectory.from_snapshot(p, snapshot)) == original
+    with pytest.raises(ValueError, match="Trajectory.resumed"):
+        Trajectory(p, 0.0, 0.1, v_drive=0.1).restore(state)
 
 
 def test_stiff_overdamped_slip_switches_method_and_stays_accurate():

@@ -4,6 +4,8 @@ host)."""
 
 import json
 
+from . import state_costs
+
 
 def write(out_dir, results):
     """Write the three files into ``out_dir`` (a Path, created if missing); return their paths."""
@@ -43,6 +45,8 @@ def markdown(results):
               f"{one['ratio_wall']:.3g} (wall), {one['ratio_cpu']:.3g} (CPU)."]
     if "carried_python" in results:
         lines += ["", *_carried_lines(results["carried_python"])]
+    if "states" in results:
+        lines += ["", *state_costs.markdown_lines(results["states"])]
     return "\n".join(lines) + "\n"
 
 

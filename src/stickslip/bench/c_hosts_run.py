@@ -1,7 +1,9 @@
 """``stickslip bench-c-hosts``: every measurement of the C-host benchmarks in one run (see
 benchmarks/README.md): the C-host family (:mod:`.c_hosts`) with ours at the peer's error, the FMPy family
 against the peer (:mod:`.matched_error`), the ``.fmu`` file against DOP853 and against the floor
-(:mod:`.fmu_file_runs`), and each block FMU against the same FMU without its carried CPython (:mod:`.carried_cost`). The result is one JSON-ready dict; :mod:`.c_hosts_report` writes it out.
+(:mod:`.fmu_file_runs`), each block FMU against the same FMU without its carried CPython (:mod:`.carried_cost`), the
+FMU states beside a step in the C hosts and FMPy, both FMI versions (:mod:`.state_costs`). The result is one
+JSON-ready dict; :mod:`.c_hosts_report` writes it out.
 """
 
 import datetime
@@ -11,9 +13,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..fmu.build import FILE_NAMES
-from ..hosts.c_host import compile_host
-from . import c_hosts, carried_cost, dymola_peer
+from . import c_hosts, carried_cost, dymola_peer, state_costs
 from .c_floor import ensure_c_floor_fmu
 from .fmu_file_runs import dense_grid, one_step
 from .matched_error import fmpy_family, loosest_rtol
@@ -26,20 +26,23 @@ REFERENCE_FLOORS = (("Feedthrough.fmu", "Float64_continuous_output"), ("Dahlquis
 
 @dataclass
 class Inputs:
-    """What a run measures: FMU files (``peer`` and ``fmusim`` may be None), the C host, the build folder;
-    ``carried_python``: also each block FMU against the same FMU built without its carried CPython."""
+    """What a run measures: FMU files (``peer`` and ``fmusim`` may be None), the C hosts (FMI 2, FMI 3), the build
+    folder; ``carried_python``: also each block FMU against the same FMU built without its carried CPython."""
 
     fmu: Path
+    fmu3: Path
     python_floor: Path
     host: Path
+    host3: Path
     build_dir: Path
     peer: Path | None = None
     fmusim: Path | None = None
     carried_python: bool = True
 
 
-def run_all(inputs, steps, repeats, progress=print):
-    """Every measurement (``steps`` per long host run, ``repeats`` timed runs of each); a dict for JSON."""
+def run_all(inputs, steps, repeats, progress=print, state_rounds=state_costs.ROUNDS):
+    """Every measurement (``steps`` per long host run, ``repeats`` timed runs of each, ``state_rounds`` calls per
+    block of the FMU-state costs); a dict for JSON."""
     scene = SCENES["msl-pendulum"]
     meta = {"date": datetime.datetime.now().isoformat(timespec="seconds"),
             "machine": f"{platform.platform()}, {os.cpu_count()} CPUs", "load_start": _load(),
@@ -64,17 +67,14 @@ def run_all(inputs, steps, repeats, progress=print):
     out["one_step"] = one_step(inputs.fmu, inputs.python_floor, 3 * repeats, progress)
     if inputs.carried_python:
         out["carried_python"] = carried_cost.measure(*_block_fmus(inputs), inputs.build_dir, 3 * repeats, progress)
+    out["states"] = state_costs.measure(*_block_fmus(inputs), state_rounds, progress)
     meta["load_end"] = _load()
     return out
 
 
 def _block_fmus(inputs):
-    """``({FMI version: FMU}, {FMI version: C host})``: the FMI 2 FMU and, where it lies beside it, the FMI 3 one."""
-    fmus = {2: Path(inputs.fmu)}
-    fmi3 = Path(inputs.fmu).with_name(FILE_NAMES[3])
-    if fmi3.is_file():
-        fmus[3] = fmi3
-    return fmus, {2: inputs.host, **({3: compile_host(inputs.build_dir, 3)} if 3 in fmus else {})}
+    """``({FMI version: FMU}, {FMI version: C host})`` of both block FMUs."""
+    return {2: inputs.fmu, 3: inputs.fmu3}, {2: inputs.host, 3: inputs.host3}
 
 
 def _load():

@@ -69,8 +69,8 @@ def run_bench(args):
 
 
 def add_c_hosts_parser(subparsers):
-    p = subparsers.add_parser("bench-c-hosts", help="C hosts per step and start-up, the "
-                                                    "compiled peer at matched error, the .fmu file against DOP853")
+    p = subparsers.add_parser("bench-c-hosts", help="C hosts per step and start-up, the compiled peer at matched "
+                                                    "error, the .fmu file against DOP853, FMU states beside a doStep")
     p.add_argument("--peer", help="the compiled peer, SpringFrictionPendulum1D.fmu of FMIZoo.jl (Dymola 2023x); "
                                   "without it the peer's columns are left out")
     p.add_argument("--fmusim", help="fmusim of Reference-FMUs (scripts/build_fmusim.sh); Feedthrough.fmu and "
@@ -78,11 +78,15 @@ def add_c_hosts_parser(subparsers):
     p.add_argument("--out", default="bench-c-hosts", help="output directory (default: bench-c-hosts)")
     p.add_argument("--fmu", help="our FMI 2 FMU (default: SpringBlockFriction.fmu of the FMU folder, built if missing "
                                  "or stale; the folder: stickslip build --help)")
+    p.add_argument("--fmu3", help="our FMI 3 FMU, for the FMU states' costs (default: SpringBlockFriction-fmi3.fmu of "
+                                  "the FMU folder, built if missing or stale)")
     p.add_argument("--steps", type=int, default=50_000, help="steps of 0.01 s in a long host run (default: 50000)")
     p.add_argument("--repeats", type=int, default=5, help="timed runs of each measurement (default: 5)")
     p.add_argument("--no-carried-python", dest="carried_python", action="store_false",
                    help="leave out the FMUs against the same FMUs built without their carried CPython (which this "
                         "builds, about 20 s)")
+    p.add_argument("--state-rounds", type=int, default=1000,
+                   help="calls per block of the FMU-state costs beside a doStep (default: 1000)")
     p.set_defaults(handler=run_c_hosts)
 
 
@@ -96,20 +100,23 @@ def run_c_hosts(args):
     from ..fmu import ensure_fmu
     from ..hosts.c_host import HostBuildError, compile_host
 
-    missing = [path for path in (args.peer, args.fmusim, args.fmu) if path and not Path(path).is_file()]
-    if missing or args.steps < 2 or args.repeats < 1:
+    missing = [path for path in (args.peer, args.fmusim, args.fmu, args.fmu3) if path and not Path(path).is_file()]
+    if missing or args.steps < 2 or args.repeats < 1 or args.state_rounds < 1:
         print(f"stickslip bench-c-hosts: no such file {missing}" if missing else
-              "stickslip bench-c-hosts: --steps must be at least 2 and --repeats at least 1", file=sys.stderr)
+              "stickslip bench-c-hosts: --steps must be at least 2, --repeats and --state-rounds at least 1",
+              file=sys.stderr)
         return 2
     try:
-        host = compile_host(BUILD_DIR)
+        host, host3 = compile_host(BUILD_DIR), compile_host(BUILD_DIR, 3)
     except HostBuildError as exc:
         print(f"stickslip bench-c-hosts: {exc}", file=sys.stderr)
         return 1
-    inputs = Inputs(Path(args.fmu) if args.fmu else ensure_fmu(), ensure_floor_fmu(), host, BUILD_DIR,
-                    args.peer and Path(args.peer).resolve(), args.fmusim and Path(args.fmusim).resolve(),
+    inputs = Inputs(Path(args.fmu) if args.fmu else ensure_fmu(),
+                    Path(args.fmu3) if args.fmu3 else ensure_fmu(fmi_version=3), ensure_floor_fmu(), host, host3,
+                    BUILD_DIR, args.peer and Path(args.peer).resolve(), args.fmusim and Path(args.fmusim).resolve(),
                     args.carried_python)
-    results = run_all(inputs, args.steps, args.repeats, lambda text: print(text, file=sys.stderr, flush=True))
+    results = run_all(inputs, args.steps, args.repeats, lambda text: print(text, file=sys.stderr, flush=True),
+                      args.state_rounds)
     paths = write(Path(args.out), results)
     print("wrote " + ", ".join(str(p) for p in paths))
     return 0

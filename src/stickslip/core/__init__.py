@@ -34,7 +34,7 @@ from .laws import (
 )
 from .model import BACKWARD, FORWARD, STUCK, Parameters, check_input, check_rate_scale
 from .ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, check
-from .trajectory import OUTPUT_NAMES, RTOL_RANGE, Trajectory
+from .trajectory import OUTPUT_NAMES, RTOL_RANGE, Trajectory, state_snapshot
 
 __all__ = [
     "ANY_FINITE", "BACKWARD", "FORWARD", "IMPLEMENTATION", "INDICATORS", "ExchangeBlock", "NON_NEGATIVE", "POSITIVE", "STUCK", "KINETIC_LAWS",
@@ -42,5 +42,5 @@ __all__ = [
     "CallableKinetic", "CallableStatic", "CarlsonLanger", "Constant", "Coulomb", "Logarithmic", "Lubricated",
     "Parameters", "ParameterError", "RTOL_RANGE", "Saturating", "Sigmoid", "SolverError", "StateError",
     "StickSlipError", "Stribeck", "Trajectory", "Viscous", "check", "check_input", "check_rate_scale", "kinetic_law",
-    "saved_state", "static_law",
+    "saved_state", "state_snapshot", "static_law",
 ]

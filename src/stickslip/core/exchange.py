@@ -282,13 +282,30 @@ class ExchangeBlock:
     _SAVED = ("t", "v_drive", "F_ext", "mode", "_x", "_v", "t_stuck", "n_stick_events", "n_slip_events",
               "n_overshoots", "t_last_event", "_inputs")
 
-    def snapshot(self):
-        """The discrete and continuous state as JSON-serializable values."""
-        return {name: getattr(self, name) for name in self._SAVED}
+    def state(self):
+        """Every field, parameters included, as a dict that nothing changes (:meth:`restore`, :meth:`resumed`):
+        taken and restored without checking anything."""
+        return dict(self.__dict__)
+
+    def restore(self, state):
+        """Go back to a :meth:`state` (of this block or another)."""
+        self.__dict__.update(state)
+
+    @classmethod
+    def resumed(cls, state):
+        """A new block at a :meth:`state` (of any block)."""
+        block = cls.__new__(cls)
+        block.restore(state)
+        return block
+
+    @classmethod
+    def state_snapshot(cls, state):
+        """The discrete and continuous state of a :meth:`state` as JSON-serializable values (:meth:`from_snapshot`)."""
+        return {name: state[name] for name in cls._SAVED}
 
     @classmethod
     def from_snapshot(cls, params, snap):
-        """Rebuild a block saved by :meth:`snapshot` (with the same parameters). StateError or ParameterError
+        """Rebuild a block saved by :meth:`state_snapshot` (with the same parameters). StateError or ParameterError
         names a field that is missing, ill-typed, non-finite, beyond the force scales, or inconsistent (a
         stick start with a slipping mode, times after ``t``)."""
         fields = saved_state.record("", snap, _SAVED_KINDS)
@@ -310,7 +327,7 @@ class ExchangeBlock:
         return block
 
 
-# The kinds of the fields of ExchangeBlock.snapshot (:mod:`.saved_state`)
+# The kinds of the fields of ExchangeBlock.state_snapshot (:mod:`.saved_state`)
 _SAVED_KINDS = {"t": saved_state.REAL, "v_drive": saved_state.REAL, "F_ext": saved_state.REAL,
                 "mode": saved_state.MODE, "_x": saved_state.REAL, "_v": saved_state.REAL,
                 "t_stuck": saved_state.OPTIONAL_REAL, "n_stick_events": saved_state.COUNT,

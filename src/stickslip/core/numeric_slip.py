@@ -70,8 +70,18 @@ class SlipStepper:
         self._record = None
         self._cursor = -1
 
-    def snapshot(self):
-        return [self.h, self.stiff, self.votes, self.n_steps, self.n_rejected]
+    def state(self) -> tuple:
+        """Everything a step depends on, as an immutable tuple (:meth:`restore`): the step size, the method, the
+        counters (these five are what :meth:`from_snapshot` takes), and where the current slip is in its record of
+        steps (shared: a record only grows, by the steps that follow from the same start, so the steps replayed
+        from it are the same)."""
+        return self.h, self.stiff, self.votes, self.n_steps, self.n_rejected, self._record, self._cursor
+
+    def restore(self, state: tuple, own: bool) -> None:
+        """Go back to a :meth:`state`; ``own``: it is a state of this stepper (its record is one of this memo's),
+        else the current slip is recorded anew (a record of another stepper may be of other parameters)."""
+        self.h, self.stiff, self.votes, self.n_steps, self.n_rejected, record, cursor = state
+        self._record, self._cursor = (record, cursor) if own else (None, -1)
 
     @classmethod
     def from_snapshot(cls, rtol, values):

@@ -14,6 +14,8 @@ Usage (the whole contract the FMU slave and the Python API rely on)::
     a, jerk = traj.acceleration()     # dv/dt and d2v/dt2 at traj.t (the FMI output derivatives)
     snap = traj.snapshot()            # JSON-serializable dict, exact floats
     traj = Trajectory.from_snapshot(params, snap)   # continues bit for bit (without the event record)
+    state = traj.state()              # immutable tuple, nothing copied: cheap to take and to go back to
+    traj.restore(state)               # back to it, bit for bit (another trajectory: Trajectory.resumed(state))
 
 Internally the trajectory is a chain of segments (:mod:`.segments`): a stuck
 phase or an affine slip (closed form, up to the next event), or one step of a
@@ -417,19 +419,41 @@ class Trajectory:
 
     def snapshot(self):
         """Everything needed to continue bit for bit, as JSON-serializable values."""
-        return {
-            "t": self.t,
-            "v_drive": self.v_drive,
-            "F_ext": self.F_ext,
-            "F_ext_rate": self.F_ext_rate,
-            "frame_t": self._frame_t,
-            "rtol": self.rtol,
-            "counts": [self.n_stick_events, self.n_slip_events, self.n_overshoots, self._chain],
-            "burst": [self._burst_start, self._burst],
-            "t_last_event": self.t_last_event,
-            "stepper": self._stepper.snapshot(),
-            "segment": self._segment.to_list(),
-        }
+        return state_snapshot(self.state())
+
+    def state(self) -> tuple:
+        """Everything needed to continue bit for bit, as an immutable tuple that shares what never changes (the
+        parameters, the current segment, the stepper's record of steps): taken and restored (:meth:`restore`)
+        without copying or checking anything. :func:`state_snapshot` turns it into :meth:`snapshot`'s values."""
+        events = -1 if self.events is None else len(self.events)
+        return (self, self.params, self.rtol, self.t, self.v_drive, self.F_ext, self.F_ext_rate, self._frame_t,
+                self._drift, self._v_frame, self.n_stick_events, self.n_slip_events, self.n_overshoots, self._chain,
+                self._burst_start, self._burst, self.t_last_event, self._segment, self._x, self._v,
+                self._stepper.state(), events)
+
+    def restore(self, state: tuple) -> None:
+        """Go back to a :meth:`state` of this trajectory (ValueError for one of another: :meth:`resumed`); the
+        event record, if kept, loses the events after it."""
+        if state[0] is not self:
+            raise ValueError("Trajectory.restore takes a state of this trajectory; Trajectory.resumed(state) makes "
+                             "a trajectory from another's")
+        self._take(state, True)
+
+    @classmethod
+    def resumed(cls, state: tuple) -> Trajectory:
+        """A new trajectory (no event record) that goes on from ``state``, a :meth:`state` of any trajectory."""
+        traj = cls(state[1], 0.0, 0.0, rtol=state[2])  # at rest: every field is replaced below
+        traj._take(state, False)
+        return traj
+
+    def _take(self, state: tuple, own: bool) -> None:
+        """Every field from ``state`` (``own``: one of this trajectory, whose stepper's record it may share)."""
+        (_, self.params, self.rtol, self.t, self.v_drive, self.F_ext, self.F_ext_rate, self._frame_t, self._drift,
+         self._v_frame, self.n_stick_events, self.n_slip_events, self.n_overshoots, self._chain, self._burst_start,
+         self._burst, self.t_last_event, self._segment, self._x, self._v, stepper, events) = state
+        self._stepper.restore(stepper, own)
+        if self.events is not None and events >= 0:
+            del self.events[events:]
 
     @classmethod
     def from_snapshot(cls, params, snap):
@@ -560,6 +584,25 @@ class Trajectory:
             f"F_S(0)/sqrt(kappa M) = {speed:.3g} m/s, so each one sticks again within a few steps; the kinetic law "
             f"is too steep for this tolerance ({p.kinetic.named_values()}): lower solver.rtol"
         )
+
+
+def state_snapshot(state: tuple):
+    """:meth:`Trajectory.snapshot`'s JSON-serializable values of a :meth:`Trajectory.state`."""
+    (_, _, rtol, t, v_drive, F_ext, F_ext_rate, frame_t, _, _, n_stick, n_slip, n_over, chain, burst_start, burst,
+     t_last_event, segment, _, _, stepper, _) = state
+    return {
+        "t": t,
+        "v_drive": v_drive,
+        "F_ext": F_ext,
+        "F_ext_rate": F_ext_rate,
+        "frame_t": frame_t,
+        "rtol": rtol,
+        "counts": [n_stick, n_slip, n_over, chain],
+        "burst": [burst_start, burst],
+        "t_last_event": t_last_event,
+        "stepper": list(stepper[:5]),
+        "segment": segment.to_list(),
+    }
 
 
 def check_step(current_time: float, step_size: float, t: float) -> None:

@@ -31,6 +31,11 @@ static struct {
     void (*PyErr_Clear)(void);
     PyObject *(*PyObject_Repr)(PyObject *);
     const char *(*PyUnicode_AsUTF8)(PyObject *);
+    int (*PyObject_IsTrue)(PyObject *);
+    PyObject *(*PyObject_GetAttrString)(PyObject *, const char *);
+    PyObject *(*PyBytes_FromStringAndSize)(const char *, ptrdiff_t);
+    ptrdiff_t (*PyBytes_Size)(PyObject *);
+    char *(*PyBytes_AsString)(PyObject *);
 } py;
 static PyObject *py_none; /* Py_None */
 static int available;     /* every function above was found: slaves can bind */
@@ -47,7 +52,9 @@ void sbf_fast_resolve(void *lib)
                 RESOLVE(PyLong_AsLong) && RESOLVE(PyTuple_Size) && RESOLVE(PyTuple_GetItem) && RESOLVE(Py_IncRef) &&
                 RESOLVE(Py_DecRef) && RESOLVE(PyErr_Occurred) && RESOLVE(PyErr_Fetch) &&
                 RESOLVE(PyErr_NormalizeException) && RESOLVE(PyErr_Clear) && RESOLVE(PyObject_Repr) &&
-                RESOLVE(PyUnicode_AsUTF8) && (py_none = sbf_symbol(lib, "_Py_NoneStruct")) != NULL;
+                RESOLVE(PyUnicode_AsUTF8) && RESOLVE(PyObject_IsTrue) && RESOLVE(PyObject_GetAttrString) &&
+                RESOLVE(PyBytes_FromStringAndSize) && RESOLVE(PyBytes_Size) && RESOLVE(PyBytes_AsString) &&
+                (py_none = sbf_symbol(lib, "_Py_NoneStruct")) != NULL;
 #undef RESOLVE
 }
 
@@ -57,6 +64,22 @@ static SBF_THREAD_LOCAL sbf_fast_path *binding;
 void sbf_fast_binding(sbf_fast_path *fast) { binding = fast; }
 
 SBF_EXPORT const char *sbf_bound_folder(void) { return binding ? binding->folder : NULL; }
+
+/* Forget the bytes of the state serialized last (under the GIL) */
+static void drop_serialized(sbf_fast_path *fast)
+{
+    if (fast->serialized) py.Py_DecRef(fast->serialized);
+    if (fast->serialized_state) py.Py_DecRef(fast->serialized_state);
+    fast->serialized = fast->serialized_state = NULL;
+}
+
+/* Forget the slave's state calls (under the GIL) */
+static void drop_state_calls(sbf_fast_path *fast)
+{
+    if (fast->save) py.Py_DecRef(fast->save);
+    if (fast->restore) py.Py_DecRef(fast->restore);
+    fast->save = fast->restore = NULL;
+}
 
 /* Forget the step and outputs calls (under the GIL) */
 static void drop_step_call(sbf_fast_path *fast)
@@ -76,10 +99,16 @@ SBF_EXPORT int sbf_bind_slave(PyObject *slave, unsigned first, const char *kinds
     size_t n = kinds ? strlen(kinds) : 0;
     if (!fast || !available || !slave || n == 0 || n > SBF_MAX_OUTPUTS || strspn(kinds, "ri") != n) return 0;
     drop_step_call(fast);
+    drop_serialized(fast);
     if (fast->slave) py.Py_DecRef(fast->slave);
+    drop_state_calls(fast);
     py.Py_IncRef(slave);
     *fast = (sbf_fast_path){.slave = slave, .first = first, .n = n, .folder = fast->folder};
     memcpy(fast->kinds, kinds, n);
+    fast->save = py.PyObject_GetAttrString(slave, "save_state"); /* none: the states go the inner library's way */
+    fast->restore = fast->save ? py.PyObject_GetAttrString(slave, "restore_state") : NULL;
+    if (!fast->restore) drop_state_calls(fast);
+    py.PyErr_Clear();
     return 1;
 }
 
@@ -184,6 +213,8 @@ void sbf_fast_unbind(sbf_fast_path *fast)
     if (fast->slave) {
         int gil = py.PyGILState_Ensure();
         drop_step_call(fast);
+        drop_serialized(fast);
+        drop_state_calls(fast);
         py.Py_DecRef(fast->slave);
         py.PyGILState_Release(gil);
     }
@@ -391,4 +422,117 @@ int sbf_slave_exchange(sbf_fast_path *fast, const char *function, const double *
         if (held[i]) py.Py_DecRef(held[i]);
     py.PyGILState_Release(gil);
     return outcome;
+}
+
+/* ---- FMU states ---- */
+
+/* 1 if the bound slave answers the FMU-state calls (else they go the inner library's way) */
+static int states_taken(const sbf_fast_path *fast) { return fast->restore && stepping; }
+
+int sbf_state_get(sbf_fast_path *fast, void **state, char *why, size_t why_size)
+{
+    if (!states_taken(fast) || !state) return -1;
+    int gil = py.PyGILState_Ensure();
+    PyObject *saved = py.PyObject_CallFunctionObjArgs(fast->save, NULL);
+    if (saved)
+        *state = saved; /* the reference the host holds until it frees the state */
+    else
+        exception_text("GetFMUstate", why, why_size);
+    py.PyGILState_Release(gil);
+    return saved == NULL;
+}
+
+int sbf_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size)
+{
+    if (!states_taken(fast)) return -1;
+    int gil = py.PyGILState_Ensure();
+    PyObject *kept = py.PyObject_CallFunctionObjArgs(fast->restore, (PyObject *)state, NULL);
+    fast->fresh = 0;
+    fast->moved = 0; /* the restore told the slave's caches */
+    if (!kept || py.PyObject_IsTrue(kept) != 1) drop_step_call(fast);
+    if (!kept) exception_text("SetFMUstate", why, why_size);
+    else py.Py_DecRef(kept);
+    py.PyErr_Clear();
+    py.PyGILState_Release(gil);
+    return kept == NULL;
+}
+
+int sbf_state_free(sbf_fast_path *fast, void **state)
+{
+    if (!states_taken(fast) || !state || !*state) return -1;
+    int gil = py.PyGILState_Ensure();
+    py.Py_DecRef(*state);
+    py.PyGILState_Release(gil);
+    *state = NULL;
+    return 0;
+}
+
+/* The bytes of `state` (a new reference, or NULL with `why` saying why), kept for the next call on the same state
+ * (the size is asked for before the bytes). Under the GIL. */
+static PyObject *state_bytes(sbf_fast_path *fast, void *state, const char *function, char *why, size_t why_size)
+{
+    if (fast->serialized_state != state) {
+        PyObject *data = py.PyObject_CallMethod(fast->slave, "_fmu_state_to_bytes", "(O)", state);
+        if (!data || py.PyBytes_Size(data) < 0) {
+            exception_text(function, why, why_size);
+            if (data) py.Py_DecRef(data);
+            return NULL;
+        }
+        drop_serialized(fast);
+        py.Py_IncRef(state);
+        fast->serialized_state = state;
+        fast->serialized = data;
+    }
+    py.Py_IncRef(fast->serialized);
+    return fast->serialized;
+}
+
+int sbf_state_size(sbf_fast_path *fast, void *state, size_t *size, char *why, size_t why_size)
+{
+    if (!states_taken(fast) || !size) return -1;
+    int gil = py.PyGILState_Ensure();
+    PyObject *data = state_bytes(fast, state, "SerializedFMUstateSize", why, why_size);
+    if (data) {
+        *size = (size_t)py.PyBytes_Size(data);
+        py.Py_DecRef(data);
+    }
+    py.PyGILState_Release(gil);
+    return data == NULL;
+}
+
+int sbf_state_serialize(sbf_fast_path *fast, void *state, void *bytes, size_t size, char *why, size_t why_size)
+{
+    if (!states_taken(fast) || !bytes) return -1;
+    int gil = py.PyGILState_Ensure();
+    PyObject *data = state_bytes(fast, state, "SerializeFMUstate", why, why_size);
+    int outcome = data == NULL;
+    if (data) {
+        size_t n = (size_t)py.PyBytes_Size(data);
+        if (n > size) {
+            snprintf(why, why_size, "SerializeFMUstate: size = %zu bytes, but the state takes %zu (the size "
+                     "SerializedFMUstateSize gives)", size, n);
+            outcome = 1;
+        } else {
+            memcpy(bytes, py.PyBytes_AsString(data), n);
+        }
+        py.Py_DecRef(data);
+    }
+    py.PyGILState_Release(gil);
+    return outcome;
+}
+
+int sbf_state_deserialize(sbf_fast_path *fast, const void *bytes, size_t size, void **state, char *why,
+                          size_t why_size)
+{
+    if (!states_taken(fast) || !state || (size && !bytes)) return -1;
+    int gil = py.PyGILState_Ensure();
+    PyObject *data = py.PyBytes_FromStringAndSize(size ? bytes : "", (ptrdiff_t)size);
+    PyObject *restored = data ? py.PyObject_CallMethod(fast->slave, "state_from_bytes", "(O)", data) : NULL;
+    if (restored)
+        *state = restored;
+    else
+        exception_text("DeserializeFMUstate", why, why_size);
+    if (data) py.Py_DecRef(data);
+    py.PyGILState_Release(gil);
+    return restored == NULL;
 }

@@ -42,6 +42,9 @@ typedef struct {
                    * state is the one the last fast step left (then the other outputs can be asked for) */
     int moved; /* a fast step moved the state since the slave last heard of it */
     const char *folder; /* the instance's resources folder (owned by the instance; kept when the slave is dropped) */
+    void *save, *restore;   /* the slave's save_state and restore_state (references held), NULL if it has none */
+    void *serialized_state; /* the FMU state serialized last (a reference held), NULL if none */
+    void *serialized;       /* its bytes (a reference held) */
 } sbf_fast_path;
 
 /* Resolve the CPython functions the fast path calls from `libpython` (sbf_open_library's or sbf_process_python's
@@ -102,6 +105,21 @@ int sbf_slave_apply_events(sbf_fast_path *fast, char *why, size_t why_size);
  * last step or of the part of a failed step it went, whichever path took it, or a restored state's time. 1 with it
  * in *t; 0 if there is no bound slave or its answer is no number (no Python exception is left pending). */
 int sbf_slave_time(sbf_fast_path *fast, double *t);
+
+/* FMU states answered by the bound slave, without the inner library (unless SBF_FAST_PATH=0): a state is the slave's
+ * save_state() (fmu_src/block_interface.py), a Python object that nothing changes, the very object the inner library
+ * makes a state of (its _get_fmu_state), so that states of either way mix. Each gives -1 if the slave does not answer
+ * (forward the call), 0 if done, 1 if refused, with the slave's exception as "[<function>] <repr>" in `why`.
+ *   get: the state into *state; set: restore_state(state), after which the step call is kept only if the slave says
+ *   it still holds; free: the reference dropped, *state = NULL; size and serialize: the bytes of
+ *   _fmu_state_to_bytes(state), made once for both calls; deserialize: state_from_bytes(bytes) into *state. */
+int sbf_state_get(sbf_fast_path *fast, void **state, char *why, size_t why_size);
+int sbf_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size);
+int sbf_state_free(sbf_fast_path *fast, void **state);
+int sbf_state_size(sbf_fast_path *fast, void *state, size_t *size, char *why, size_t why_size);
+int sbf_state_serialize(sbf_fast_path *fast, void *state, void *bytes, size_t size, char *why, size_t why_size);
+int sbf_state_deserialize(sbf_fast_path *fast, const void *bytes, size_t size, void **state, char *why,
+                          size_t why_size);
 
 /* Drop the slave and its step call (freeing the instance). */
 void sbf_fast_unbind(sbf_fast_path *fast);

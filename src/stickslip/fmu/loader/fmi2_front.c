@@ -62,7 +62,6 @@ typedef struct {
     X(fmi2SetInteger, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *x), (v, n, x)) \
     X(fmi2SetBoolean, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Boolean *x), (v, n, x)) \
     X(fmi2SetString, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2String *x), (v, n, x)) \
-    X(fmi2GetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate *s), (s))                                       \
     X(fmi2GetDirectionalDerivative, KEPT,                                                                          \
       (fmi2Component c, const fmi2ValueReference *u, size_t nu, const fmi2ValueReference *k, size_t nk,            \
        const fmi2Real *dk, fmi2Real *du),                                                                          \
@@ -94,12 +93,16 @@ typedef struct {
     X(fmi2DeSerializeFMUstate, KEPT, (fmi2Component c, const fmi2Byte *b, size_t n, fmi2FMUstate *s), (b, n, s))    \
     X(fmi2GetRealStatus, KEPT, (fmi2Component c, const fmi2StatusKind k, fmi2Real *x), (k, x))
 
+/* The getter of FMU states: the slave's (SBF_STATE_GOT), else forwarded by forward_<name>, exported below. */
+#define STATE_GOT(X) X(fmi2GetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate *s), (s))
+
 /* The functions forwarded that take an FMU state, refused for a NULL one (SBF_STATE_USED): forwarded by
  * forward_<name>, exported below. */
 #define STATE_USED(X)                                                                                              \
-    X(fmi2SetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate s), (s))                                        \
-    X(fmi2SerializedFMUstateSize, KEPT, (fmi2Component c, fmi2FMUstate s, size_t *n), (s, n))                      \
-    X(fmi2SerializeFMUstate, KEPT, (fmi2Component c, fmi2FMUstate s, fmi2Byte *b, size_t n), (s, b, n))
+    X(fmi2SetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate s), (s), sbf_state_set)                         \
+    X(fmi2SerializedFMUstateSize, KEPT, (fmi2Component c, fmi2FMUstate s, size_t *n), (s, n), sbf_state_size)      \
+    X(fmi2SerializeFMUstate, KEPT, (fmi2Component c, fmi2FMUstate s, fmi2Byte *b, size_t n), (s, b, n),             \
+      sbf_state_serialize)
 
 /* PythonFMU's entry points */
 static struct {
@@ -108,6 +111,7 @@ static struct {
     FORWARDED(POINTER)
     TRACKED(POINTER)
     STATE_USED(POINTER)
+    STATE_GOT(POINTER)
 #undef POINTER
     fmi2Component (*fmi2Instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
                                      fmi2Boolean, fmi2Boolean);
@@ -163,7 +167,8 @@ static void relay_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Status 
 static int resolve_inner(void *lib, const char *path)
 {
 #define LOAD(name, failure, params, args, ...) && (*(void **)&inner.name = sbf_symbol(lib, #name)) != NULL
-    if (1 READERS(LOAD) FORWARDED(LOAD) TRACKED(LOAD) STATE_USED(LOAD) LOAD(fmi2Instantiate, , , ) LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , )
+    if (1 READERS(LOAD) FORWARDED(LOAD) TRACKED(LOAD) STATE_USED(LOAD) STATE_GOT(LOAD) LOAD(fmi2Instantiate, , , )
+            LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , )
             LOAD(fmi2FreeFMUstate, , , ))
         return 1;
 #undef LOAD
@@ -352,13 +357,19 @@ READERS(READER)
 #undef READER
 
 SBF_FREE_STATE(fmi2Status, fmi2Error, fmi2Fatal, fmi2FreeFMUstate, fmi2FMUstate)
-#define FORWARD(name, failure, params, args) \
+#define FORWARD(name, failure, params, args, ...) \
     SBF_FORWARD_AS(static, forward_##name, fmi2Status, fmi2Error, fmi2Fatal, name, failure, params, args)
 TRACKED(FORWARD)
 STATE_USED(FORWARD)
 #undef FORWARD
-#define FORWARD(name, failure, params, args) SBF_STATE_USED(fmi2Status, fmi2Error, name, forward_##name, params, args)
+#define FORWARD(name, failure, params, args, fast) \
+    SBF_STATE_USED(fmi2Status, fmi2Error, name, forward_##name, params, args, fast)
 STATE_USED(FORWARD)
+#undef FORWARD
+#define FORWARD(name, failure, params, args, ...) \
+    SBF_FORWARD_AS(static, forward_##name, fmi2Status, fmi2Error, fmi2Fatal, name, failure, params, args) \
+    SBF_STATE_GOT(fmi2Status, fmi2Error, name, forward_##name, params, args)
+STATE_GOT(FORWARD)
 #undef FORWARD
 
 /* `status` of a call that moves the instance `c` to `mode` when it succeeds */

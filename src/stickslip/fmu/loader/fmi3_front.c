@@ -72,7 +72,6 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
     GET_AND_SET(X, UInt64, fmi3UInt64)                                                                            \
     GET_AND_SET(X, Boolean, fmi3Boolean)                                                                          \
     GET_AND_SET(X, String, fmi3String)                                                                            \
-    X(fmi3GetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState *s), (s))                                       \
     X(fmi3GetDirectionalDerivative, KEPT,                                                                         \
       (fmi3Instance c, const fmi3ValueReference *unknowns, size_t nUnknowns, const fmi3ValueReference *knowns,    \
        size_t nKnowns, const fmi3Float64 *seed, size_t nSeed, fmi3Float64 *sensitivity, size_t nSensitivity),    \
@@ -132,12 +131,16 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
     X(fmi3DeserializeFMUState, KEPT, (fmi3Instance c, const fmi3Byte *bytes, size_t size, fmi3FMUState *s),       \
       (bytes, size, s))
 
+/* The getter of FMU states: the slave's (SBF_STATE_GOT), else forwarded by forward_<name>, exported below. */
+#define STATE_GOT(X) X(fmi3GetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState *s), (s))
+
 /* The functions forwarded that take an FMU state, refused for a NULL one (SBF_STATE_USED): forwarded by
  * forward_<name>, exported below. */
 #define STATE_USED(X)                                                                                              \
-    X(fmi3SetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState s), (s))                                        \
-    X(fmi3SerializedFMUStateSize, KEPT, (fmi3Instance c, fmi3FMUState s, size_t *size), (s, size))                \
-    X(fmi3SerializeFMUState, KEPT, (fmi3Instance c, fmi3FMUState s, fmi3Byte *bytes, size_t size), (s, bytes, size))
+    X(fmi3SetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState s), (s), sbf_state_set)                          \
+    X(fmi3SerializedFMUStateSize, KEPT, (fmi3Instance c, fmi3FMUState s, size_t *size), (s, size), sbf_state_size) \
+    X(fmi3SerializeFMUState, KEPT, (fmi3Instance c, fmi3FMUState s, fmi3Byte *bytes, size_t size), (s, bytes, size), \
+      sbf_state_serialize)
 
 /* ---- the functions pythonfmu3 does not implement, and the mode changes this FMU never allows (pythonfmu3
  * answers them with fmi3OK): configuration mode (the model has no structural parameter). X(name, parameters) */
@@ -187,6 +190,7 @@ static struct {
     EXCHANGE_ONLY(POINTER)
     TRACKED(POINTER)
     STATE_USED(POINTER)
+    STATE_GOT(POINTER)
 #undef POINTER
     fmi3Instance (*fmi3InstantiateCoSimulation)(fmi3String, fmi3String, fmi3String, fmi3Boolean, fmi3Boolean,
                                                 fmi3Boolean, fmi3Boolean, const fmi3ValueReference *, size_t,
@@ -241,7 +245,7 @@ static void relay_log(fmi3InstanceEnvironment env, fmi3Status status, fmi3String
 static int resolve_inner(void *lib, const char *path)
 {
 #define LOAD(name, failure, params, args, ...) && (*(void **)&inner.name = sbf_symbol(lib, #name)) != NULL
-    if (1 READERS(LOAD) FORWARDED(LOAD) EXCHANGE_ONLY(LOAD) TRACKED(LOAD) STATE_USED(LOAD)
+    if (1 READERS(LOAD) FORWARDED(LOAD) EXCHANGE_ONLY(LOAD) TRACKED(LOAD) STATE_USED(LOAD) STATE_GOT(LOAD)
             LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
             LOAD(fmi3FreeInstance, , , ) LOAD(fmi3GetContinuousStateDerivatives, , , )
             LOAD(fmi3FreeFMUState, , , ))
@@ -429,8 +433,14 @@ EXCHANGE_ONLY(FORWARD)
 TRACKED(FORWARD)
 STATE_USED(FORWARD)
 #undef FORWARD
-#define FORWARD(name, failure, params, args) SBF_STATE_USED(fmi3Status, fmi3Error, name, forward_##name, params, args)
+#define FORWARD(name, failure, params, args, fast) \
+    SBF_STATE_USED(fmi3Status, fmi3Error, name, forward_##name, params, args, fast)
 STATE_USED(FORWARD)
+#undef FORWARD
+#define FORWARD(name, failure, params, args) \
+    SBF_FORWARD_AS(static, forward_##name, fmi3Status, fmi3Error, fmi3Fatal, name, failure, params, args) \
+    SBF_STATE_GOT(fmi3Status, fmi3Error, name, forward_##name, params, args)
+STATE_GOT(FORWARD)
 #undef FORWARD
 
 /* `status` of a call that moves the instance `c` to `mode` when it succeeds */

@@ -140,6 +140,7 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
     SBF_EXPORT Status name(void *c, State *s)                                     \
     {                                                                                                          \
         if (!s || !*s) return c ? 0 : error;                                                                   \
+        if (c && sbf_state_free(&((Instance *)c)->fast, s) == 0) return 0;                                     \
         Status status = forward_free_state(c, s);                                                              \
         if (status <= 1) *s = NULL;                                                                            \
         return status;                                                                                         \
@@ -164,14 +165,35 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
 /* The exported FMU-state function `name` (its FMU state parameter named `s`), forwarded by `forward` (an
  * SBF_FORWARD_AS function) unless the state is NULL (none was got into it, or it was freed): that is refused with
  * `error` and a message naming `name` (PythonFMU crashed the host, pythonfmu3 failed fatally). */
-#define SBF_STATE_USED(Status, error, name, forward, params, args)                                                 \
+#define SBF_STATE_USED(Status, error, name, forward, params, args, answer)                                         \
     SBF_EXPORT Status name params                                                    \
     {                                                                                                             \
         if (c && !s) {                                                                                            \
             host_log(c, error, #name ": the FMU state is NULL (no state was got into it, or it was freed)");     \
             return error;                                                                                         \
         }                                                                                                         \
+        SBF_STATE_FAST(error, answer, args)                                                                       \
         return forward(c SBF_FORWARD_ARGS args);                                                                  \
+    }
+/* The exported fmi2GetFMUstate / fmi3GetFMUState `name`: the slave's state (sbf_state_get), else forwarded by
+ * `forward`. */
+#define SBF_STATE_GOT(Status, error, name, forward, params, args)                                                 \
+    SBF_EXPORT Status name params                                                    \
+    {                                                                                                             \
+        SBF_STATE_FAST(error, sbf_state_get, args)                                                                \
+        return forward(c SBF_FORWARD_ARGS args);                                                                  \
+    }
+/* In an FMU-state function: return what the bound slave answers (`answer`, a sbf_state_* function of fast_path.h,
+ * with the call's arguments `args` after the instance), a refusal logged as `error`; go on if it does not answer. */
+#define SBF_STATE_FAST(error, answer, args)                                                                         \
+    if (c) {                                                                                                      \
+        char why_[2048];                                                                                          \
+        sbf_keep_thread_state();                                                                                  \
+        sbf_call_begin();                                                                                         \
+        int outcome_ = answer(&((Instance *)c)->fast SBF_FORWARD_ARGS args, why_, sizeof why_);                  \
+        sbf_call_end();                                                                                           \
+        if (outcome_ == 1) host_log(c, error, why_);                                                              \
+        if (outcome_ >= 0) return outcome_ ? error : 0;                                                           \
     }
 
 /* ---- for the fronts: the exported deserialization of FMU states ----
@@ -185,6 +207,7 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
 #define SBF_DESERIALIZE(Status, error, warning, Byte, name, forward, size_of, serialize, free_state)              \
     SBF_EXPORT Status name(void *c, const Byte *bytes, size_t size, void **state)    \
     {                                                                                                             \
+        SBF_STATE_FAST(error, sbf_state_deserialize, (bytes, size, state))                                        \
         sbf_call_begin();                                                                                         \
         Status status = forward(c, bytes, size, state);                                                           \
         Instance *inst = c;                                                                                       \

@@ -22,6 +22,8 @@
  *        ("rss_kb_warm K", "rss_kb_end K")
  * bench  one run; prints "cpu_us_per_step U": process CPU time of fmi2DoStep + one
  *        fmi2GetReal per step, averaged over the steps
+ * state_costs  runs to STOP, then prints "cost_us CALL U": the CPU time per call of fmi2DoStep (of STEP s) and of
+ *        the FMU-state calls, in blocks of $HOST_ROUNDS calls (see state_costs in host_common.h)
  * thread_steps  one instance, each fmi2DoStep from a new thread: prints the resident memory
  *        after 100 steps and at the end ("rss_kb_warm K", "rss_kb_end K"), then "x T X" at the end
  * unload two threads each run an instance ("a"/"b" lines like "x") and then wait; the FMU is
@@ -306,6 +308,27 @@ static void mode_bench(void)
     finish(c);
 }
 
+static int step_for_costs(void *c, double t, double h) { return fmi.do_step(c, t, h, 1); }
+static int serialize_for_costs(void *c, void *s, void *bytes, size_t n) { return fmi.serialize(c, s, bytes, n); }
+static int deserialize_for_costs(void *c, const void *bytes, size_t n, void **s)
+{
+    return fmi.deserialize(c, bytes, n, s);
+}
+
+static void mode_state_costs(void)
+{
+    Component c = instantiate("costs");
+    check("fmi2ExitInitializationMode", initialize(c, n_settings));
+    double t = 0.0;
+    run_to(c, &t, 0, stop_time, NULL, NULL);
+    StateCalls calls = {{"fmi2DoStep", "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SerializedFMUstateSize",
+                         "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate"},
+                        step_for_costs, fmi.get_state, fmi.set_state, fmi.free_state, fmi.state_size,
+                        serialize_for_costs, deserialize_for_costs};
+    state_costs(c, t, &calls);
+    finish(c);
+}
+
 static void *step_call(void *call)
 {
     StepCall *s = call;
@@ -487,6 +510,7 @@ int main(int argc, char **argv)
     else if (!strcmp(mode, "state")) mode_state();
     else if (!strcmp(mode, "cycles")) mode_cycles();
     else if (!strcmp(mode, "bench")) mode_bench();
+    else if (!strcmp(mode, "state_costs")) mode_state_costs();
     else if (!strcmp(mode, "thread_steps")) mode_thread_steps();
     else if (!strcmp(mode, "unload")) unload_after_runs(thread_main);
     else if (!strcmp(mode, "pair")) mode_pair();

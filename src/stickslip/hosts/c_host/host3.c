@@ -26,6 +26,8 @@
  * state   one co-simulation instance: runs to STOP/2, saves the FMU state (fmi3GetFMUState and serialized bytes),
  *         runs on to STOP ("x" lines), restores the state and runs on again ("r" lines), then restores the
  *         deserialized state and runs on again ("d" lines)
+ * state_costs  one co-simulation instance run to STOP, then "cost_us CALL U": the CPU time per call of fmi3DoStep
+ *         (of STEP s) and of the FMU-state calls, in blocks of $HOST_ROUNDS calls (state_costs in host_common.h)
  * thread_steps  one co-simulation instance, each fmi3DoStep from a new thread: prints the resident memory
  *         after 100 steps and at the end ("rss_kb_warm K", "rss_kb_end K"), then "x T X" at the end
  * unload  two threads each run a co-simulation instance ("x" lines) and then wait; the FMU is unloaded
@@ -427,6 +429,34 @@ static void mode_state(void)
     fmi.free_instance(c);
 }
 
+static int step_for_costs(void *c, double t, double h)
+{
+    bool event = false, terminate = false, early = false;
+    double reached = 0.0;
+    return fmi.do_step(c, t, h, true, &event, &terminate, &early, &reached);
+}
+static int serialize_for_costs(void *c, void *s, void *bytes, size_t n) { return fmi.serialize(c, s, bytes, n); }
+static int deserialize_for_costs(void *c, const void *bytes, size_t n, void **s)
+{
+    return fmi.deserialize(c, bytes, n, s);
+}
+
+/* Mode "state_costs": the run to STOP, then the costs of the FMU-state calls (state_costs in host_common.h) */
+static void mode_state_costs(void)
+{
+    Instance c = instantiate("costs");
+    check("fmi3ExitInitializationMode", initialize(c, n_settings));
+    double t = 0.0;
+    steps_to(c, &t, 0, stop_time, NULL);
+    StateCalls calls = {{"fmi3DoStep", "fmi3GetFMUState", "fmi3SetFMUState", "fmi3SerializedFMUStateSize",
+                         "fmi3SerializeFMUState", "fmi3DeserializeFMUState"},
+                        step_for_costs, fmi.get_state, fmi.set_state, fmi.free_state, fmi.state_size,
+                        serialize_for_costs, deserialize_for_costs};
+    state_costs(c, t, &calls);
+    check("fmi3Terminate", fmi.terminate(c));
+    fmi.free_instance(c);
+}
+
 static void run_one(const char *name)
 {
     Instance c = instantiate(name);
@@ -494,6 +524,7 @@ int main(int argc, char **argv)
     if (!strcmp(what, "run") || early_return) run_one("run");
     else if (!strcmp(what, "bad")) mode_bad();
     else if (!strcmp(mode, "state")) mode_state();
+    else if (!strcmp(mode, "state_costs")) mode_state_costs();
     else if (!strcmp(mode, "thread_steps")) mode_thread_steps();
     else if (!strcmp(mode, "unload")) unload_after_runs(run_on_thread);
     else {

@@ -100,6 +100,103 @@ static double next_point(long n, double stop)
     return next > stop && !close_to(next, stop) ? stop : next;
 }
 
+/* The FMU-state calls of one FMI version, for mode "state_costs" (each returns the call's status) */
+typedef struct {
+    const char *names[6]; /* doStep, GetFMUstate, SetFMUstate, SerializedFMUstateSize, SerializeFMUstate,
+                           * DeSerializeFMUstate, as the FMI version names them */
+    int (*step)(void *instance, double t, double h);
+    int (*get)(void *instance, void **state);
+    int (*set)(void *instance, void *state);
+    int (*free_state)(void *instance, void **state);
+    int (*size)(void *instance, void *state, size_t *size);
+    int (*serialize)(void *instance, void *state, void *bytes, size_t size);
+    int (*deserialize)(void *instance, const void *bytes, size_t size, void **state);
+} StateCalls;
+
+/* Process CPU time in s */
+static double cpu_now(void)
+{
+    struct timespec now;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &now);
+    return now.tv_sec + 1e-9 * now.tv_nsec;
+}
+
+/* Mode "state_costs" from time `t` (s) of an initialized instance: CPU time per call, in blocks of $HOST_ROUNDS calls
+ * (default 1000), the blocks taken in turn 5 times and the median of each printed as "cost_us CALL U" (microseconds):
+ * doStep of STEP s; GetFMUstate + FreeFMUstate; SetFMUstate of one state; SetFMUstate + doStep (back to the state,
+ * one step on); SerializedFMUstateSize + SerializeFMUstate, each of a state of its own (a loader may keep the bytes of
+ * the state serialized last); DeSerializeFMUstate + FreeFMUstate of those bytes. */
+enum { COST_STEP, COST_GET, COST_SET, COST_SET_STEP, COST_SERIALIZE, COST_DESERIALIZE, N_COSTS, COST_REPEATS = 5 };
+
+static int compare_doubles(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* CPU seconds per call of block `kind` of `rounds` calls, the instance at *t (s) and *t moved by its steps */
+static double state_cost_block(void *c, double *t, int kind, int rounds, const StateCalls *f)
+{
+    void **states = calloc((size_t)rounds, sizeof *states);
+    size_t size = 0;
+    char *bytes = NULL;
+    if (kind == COST_SET || kind == COST_SET_STEP) check(f->names[1], f->get(c, &states[0]));
+    if (kind == COST_SERIALIZE)
+        for (int i = 0; i < rounds; ++i) check(f->names[1], f->get(c, &states[i]));
+    if (kind == COST_DESERIALIZE) {
+        check(f->names[1], f->get(c, &states[0]));
+        check(f->names[3], f->size(c, states[0], &size));
+        bytes = malloc(size);
+        check(f->names[4], f->serialize(c, states[0], bytes, size));
+    }
+    double start = cpu_now(), saved = *t;
+    for (int i = 0; i < rounds; ++i) {
+        void *copy = NULL;
+        switch (kind) {
+        case COST_STEP: check(f->names[0], f->step(c, *t, step)); *t += step; break;
+        case COST_GET: check(f->names[1], f->get(c, &copy)); check("FreeFMUstate", f->free_state(c, &copy)); break;
+        case COST_SET: check(f->names[2], f->set(c, states[0])); break;
+        case COST_SET_STEP:
+            check(f->names[2], f->set(c, states[0]));
+            check(f->names[0], f->step(c, saved, step));
+            break;
+        case COST_SERIALIZE:
+            check(f->names[3], f->size(c, states[i], &size));
+            char *out = malloc(size);
+            check(f->names[4], f->serialize(c, states[i], out, size));
+            free(out);
+            break;
+        default:
+            check(f->names[5], f->deserialize(c, bytes, size, &copy));
+            check("FreeFMUstate", f->free_state(c, &copy));
+        }
+    }
+    double cost = (cpu_now() - start) / rounds;
+    if (kind == COST_SET_STEP) *t = saved + step;
+    for (int i = 0; i < rounds; ++i)
+        if (states[i]) check("FreeFMUstate", f->free_state(c, &states[i]));
+    free(states);
+    free(bytes);
+    return cost;
+}
+
+static void state_costs(void *instance, double t, const StateCalls *f)
+{
+    const char *count = getenv("HOST_ROUNDS");
+    int rounds = count ? atoi(count) : 1000;
+    static const char *labels[N_COSTS] = {"doStep", "GetFMUstate+FreeFMUstate", "SetFMUstate", "SetFMUstate+doStep",
+                                          "SerializedFMUstateSize+SerializeFMUstate",
+                                          "DeSerializeFMUstate+FreeFMUstate"};
+    double costs[N_COSTS][COST_REPEATS];
+    for (int repeat = 0; repeat < COST_REPEATS; ++repeat)
+        for (int kind = 0; kind < N_COSTS; ++kind)
+            costs[kind][repeat] = state_cost_block(instance, &t, kind, rounds, f);
+    for (int kind = 0; kind < N_COSTS; ++kind) {
+        qsort(costs[kind], COST_REPEATS, sizeof costs[kind][0], compare_doubles);
+        say("cost_us %s %.6g\n", labels[kind], 1e6 * costs[kind][COST_REPEATS / 2]);
+    }
+}
+
 #ifndef _WIN32
 /* The process's resident memory in kB (Linux /proc/self/statm), or -1 */
 static long resident_kb(void)
