@@ -5,9 +5,8 @@ rate (an input of its own), a saved state keeps it, and a rate that is not finit
 import math
 
 import pytest
-from fmpy.fmi3 import FMU3Slave
-
-from test_fmi3 import instance, reals
+from fmu_instances import instantiate3
+from test_fmi3 import reals
 from test_input_rate import RATE, ramp_motion
 
 COULOMB_AT_REST = {"M": 1.0, "kappa": 1.0, "kinetic.law": 1, "kinetic.F0": 0.5, "static.law": 1, "static.F0": 1.0,
@@ -28,7 +27,7 @@ def test_a_ramp_set_through_der_F_ext_is_followed_to_the_closed_form(unzipped3, 
     """A Coulomb block at rest on a still surface loaded by F_ext = RATE t: stuck until RATE t = F_S (4 s), then the
     forced oscillator of the closed form; F_ext set to its ramp value at 5 s keeps the rate; a state saved at 5 s
     goes on the same; der(F_ext) = NaN is refused, the log naming it."""
-    fmu = instance(unzipped3, FMU3Slave, COULOMB_AT_REST, "ramp")
+    fmu = instantiate3(unzipped3, "ramp", COULOMB_AT_REST)
     refs = unzipped3[2]
     try:
         for t, x, v in steps(fmu, unzipped3, 0.0, 5.0):
