@@ -40,8 +40,11 @@ if [ "${STICKSLIP_OTHER_PYTHONS:-0}" = 1 ]; then
         || echo "setup: compiling for the other CPython versions failed; the FMUs carry the runtime compiled for this one"
 fi
 # the chain engine's kernels compiled once into numba's cache (about a minute), so that no first chain run, and no
-# test process, waits for them
-echo "setup: compiling the chain engine's kernels (numba, cached on disk)"
-.venv/bin/python -c "from stickslip.chain.engine import warm_up; print(f'setup: chain engine compiled in {warm_up():.0f} s')"
+# test process, waits for them (the test processes would each compile them at once); on one core while the FMUs
+# are built on the other
+echo "setup: compiling the chain engine's kernels (numba, cached on disk), beside the FMUs' build"
+.venv/bin/python -c "from stickslip.chain.engine import warm_up; print(f'setup: chain engine compiled in {warm_up():.0f} s')" &
+KERNELS=$!
 echo "setup: building the FMUs (FMI 2, FMI 3) into dist/"
 .venv/bin/python build_fmu.py | sed 's/^/setup: FMU built at /'  # one line per FMU (FMI 2, FMI 3)
+wait "$KERNELS"
