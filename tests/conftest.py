@@ -17,6 +17,11 @@ from stickslip.hosts.c_host import HostBuildError, compile_host
 
 import machine_needs
 
+#: the test files that take longest (minutes on 2 cores: wheels, FMU builds that compile, Wine, long runs), run
+#: first, so that pytest-xdist's workers (``scripts/test.sh``) end together, not one of them running these at the end
+SLOW_FILES = ("test_package.py", "test_stress.py", "test_windows_compiled_runtime.py", "test_chain_ensemble.py",
+              "test_fmu_front.py", "test_other_python.py", "test_systems.py", "test_windows_loader.py")
+
 #: the main job's FMUs (``scripts/setup.sh`` builds them there), which no test may replace
 MAIN_DIST = Path(__file__).resolve().parents[1] / "dist"
 
@@ -25,6 +30,11 @@ def _files(folder):
     """``{path: (size in bytes, modification time in ns)}`` of the files below ``folder`` (none if it is missing)."""
     return {path: (path.stat().st_size, path.stat().st_mtime_ns) for path in sorted(folder.rglob("*"))
             if path.is_file()}
+
+
+def pytest_collection_modifyitems(items):
+    """The tests of :data:`SLOW_FILES` first, in that order, then the others as collected."""
+    items.sort(key=lambda item: SLOW_FILES.index(item.path.name) if item.path.name in SLOW_FILES else len(SLOW_FILES))
 
 
 @pytest.fixture(scope="session", autouse=True)

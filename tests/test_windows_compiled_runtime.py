@@ -3,9 +3,10 @@
 imports it under Wine in the project's C host built for Windows (not the runtime's sources), and it gives the numbers
 of the runtime's sources there and of the Linux host, bit for bit. Compiled as ``scripts/other_pythons.py compile``
 does, in a venv of pyenv's CPython 3.13 with the build's mypy (``.venv-pythons/3.13-compile``, made once, about 1
-minute), into a folder of the checkout's own, ``.venv-pythons/other-pythons`` (kept: compiled once per runtime), not
-the user's cache, where every FMU built after it would carry it: the other tests' FMUs, built before or after this
-test or beside it in another process, stay the same bytes. Skipped, with the reason, where pyenv has
+minute), into a folder of the tests' own in the user's cache (kept there, like the build's: compiled once per
+runtime), not the one ``scripts/other_pythons.py compile`` fills, whose runtimes every FMU built after it carries:
+the other tests' FMUs, built before or after this test or beside it in another process, stay the same bytes.
+Skipped, with the reason, where pyenv has
 no CPython 3.13 or Wine, MinGW-w64 or the embeddable Python are missing (scripts/test.sh installs them). Also: without
 the cross-compiler the Windows runtime is not compiled, saying why."""
 
@@ -32,8 +33,8 @@ _spec.loader.exec_module(other_pythons)
 WINDOWS_PYTHON = ".".join(map(str, windows_runtime.WINDOWS_PYTHON))
 #: the FMU's compiled files for Windows CPython 3.13: the suffix of their names
 SUFFIX = f".cp{WINDOWS_PYTHON.replace('.', '')}-win_amd64.pyd"
-#: the runtimes compiled here, in place of the user's cache (staging.OTHER_PYTHONS) for this module's build only
-OTHER_PYTHONS = REPO / ".venv-pythons" / "other-pythons"
+#: the runtimes compiled here, in place of staging.OTHER_PYTHONS for this module's build only
+OTHER_PYTHONS = staging.CACHE / "tests-other-pythons"
 
 
 @pytest.fixture(scope="module")
