@@ -3,7 +3,7 @@
 # compiles the runtime's hot modules) from PyPI, then build the FMUs into dist/. An argument names more extras to
 # install (scripts/test.sh passes "test"). Needs python3 >= 3.11 with venv. Safe to run again.
 # Takes about 6 minutes on 2 busy cores, most of it mypyc compiling the runtime twice at once (for the package and
-# for the FMUs), about one numba compiling the chain engine's kernels; with STICKSLIP_OTHER_PYTHONS=1, about 3 minutes more for each CPython newer than the build's that
+# for the FMUs), about one numba compiling the chain engine's kernels (beside the FMUs' build); with STICKSLIP_OTHER_PYTHONS=1, about 3 minutes more for each CPython newer than the build's that
 # pyenv has (the FMUs' runtime compiled for it too, once per runtime; for FMUs to hand out), and about 1 minute for
 # Windows's CPython 3.13 where mingw-w64 is installed. It says what it does as it goes: pip's steps in short (scripts/pip_progress.py; pip's whole log is
 # .venv/pip-install.log), each C extension as it is compiled, and each FMU.
@@ -40,8 +40,11 @@ if [ "${STICKSLIP_OTHER_PYTHONS:-0}" = 1 ]; then
         || echo "setup: compiling for the other CPython versions failed; the FMUs carry the runtime compiled for this one"
 fi
 # the chain engine's kernels compiled once into numba's cache (about a minute), so that no first chain run, and no
-# test process, waits for them
-echo "setup: compiling the chain engine's kernels (numba, cached on disk)"
-.venv/bin/python -c "from stickslip.chain.engine import warm_up; print(f'setup: chain engine compiled in {warm_up():.0f} s')"
+# test process, waits for them (the test processes would each compile them at once); on one core while the FMUs
+# are built on the other
+echo "setup: compiling the chain engine's kernels (numba, cached on disk), beside the FMUs' build"
+.venv/bin/python -c "from stickslip.chain.engine import warm_up; print(f'setup: chain engine compiled in {warm_up():.0f} s')" &
+KERNELS=$!
 echo "setup: building the FMUs (FMI 2, FMI 3) into dist/"
 .venv/bin/python build_fmu.py | sed 's/^/setup: FMU built at /'  # one line per FMU (FMI 2, FMI 3)
+wait "$KERNELS"

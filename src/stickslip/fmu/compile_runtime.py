@@ -92,8 +92,12 @@ def remove_compiled(root, package_dir):
 
 
 def write_stamp(package_dir):
-    """Record the digest of the sources the compiled modules are built from."""
-    (Path(package_dir) / implementation.STAMP).write_text(implementation.sources_digest(package_dir) + "\n")
+    """Record the digest of the sources the compiled modules are built from (replaced atomically: a process that
+    imports the runtime meanwhile, e.g. a test while another builds a wheel, reads the old stamp or the new)."""
+    stamp = Path(package_dir) / implementation.STAMP
+    partial = stamp.with_name(f".{stamp.name}.{os.getpid()}")
+    partial.write_text(implementation.sources_digest(package_dir) + "\n")
+    os.replace(partial, stamp)
 
 
 def toolchain_tag():
