@@ -251,3 +251,18 @@ def test_ctrl_c_that_a_compiled_modules_initialisation_swallows_still_ends_the_c
         code, stderr = _interrupted_while_loading(args, 0.001, after="lxml")
         assert code == 130, stderr
         assert one_line(stderr, "system") == "stickslip system: interrupted"
+
+
+def test_a_command_that_ends_after_a_swallowed_interrupt_exits_130():
+    """A Ctrl-C swallowed where it was raised, in a command that makes no FMI call or progress step after it, still
+    ends the command with one line and exit code 130, not 0."""
+    code = ("import signal, sys; import stickslip.cli.commands as c\n"
+            "def dispatch(argv):\n"
+            "    try:\n        signal.raise_signal(signal.SIGINT)\n"
+            "    except KeyboardInterrupt:\n        pass\n"
+            "    return 0\n"
+            "c.dispatch = dispatch\n"
+            "from stickslip.cli import main; sys.exit(main(['bifurcation']))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 130, done.stderr
+    assert one_line(done.stderr, "bifurcation") == "stickslip bifurcation: interrupted"

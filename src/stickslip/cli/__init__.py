@@ -21,7 +21,9 @@ def main(argv=None):
         with interrupts.counting():
             from .commands import dispatch
 
-            return dispatch(argv)
+            code = dispatch(argv)
+            interrupts.check()  # a Ctrl-C that a library swallowed and nothing checked for since
+            return code
     except KeyboardInterrupt as exc:  # Ctrl-C: one line, the shell's status for SIGINT
         print(f"{_command(argv)}: interrupted" + (f" ({exc})" if str(exc) else ""), file=sys.stderr)
         return INTERRUPTED
