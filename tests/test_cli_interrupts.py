@@ -174,19 +174,27 @@ def test_the_entry_point_imports_nothing_else():
     assert done.stdout.strip() == repr(sorted(ENTRY_MODULES)), done.stdout
 
 
+def _main_with_dispatch(dispatch_body, argv):
+    """``(exit code, stderr)`` of the command line's ``main(argv)`` in a child Python whose command dispatch is the
+    function body ``dispatch_body`` (source lines, indented by four spaces)."""
+    code = ("import signal, sys; import stickslip.cli.commands as c\n"
+            f"def dispatch(argv):\n{dispatch_body}\n"
+            "c.dispatch = dispatch\n"
+            f"from stickslip.cli import main; sys.exit(main({argv!r}))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    return done.returncode, done.stderr
+
+
 def test_ctrl_c_that_breaks_a_compiled_modules_loading_is_an_interrupt():
     """Ctrl-C inside a compiled module's initialisation reaches the command as that module's ImportError, caused by
     the KeyboardInterrupt (Matplotlib's ft2font did so): the one line and exit code 130, and no crash in Python's
     finalization, which such a half-made module can cause."""
-    code = ("import sys; import stickslip.cli.commands as c\n"
-            "def dispatch(argv):\n"
-            "    try:\n        raise KeyboardInterrupt\n"
-            "    except KeyboardInterrupt as exc:\n        raise ImportError('initialization failed') from exc\n"
-            "c.dispatch = dispatch\n"
-            "from stickslip.cli import main; sys.exit(main(['system', 'run', 'x']))")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert done.returncode == 130, done.stderr
-    assert one_line(done.stderr, "system") == "stickslip system: interrupted"
+    code, stderr = _main_with_dispatch("    try:\n        raise KeyboardInterrupt\n"
+                                       "    except KeyboardInterrupt as exc:\n"
+                                       "        raise ImportError('initialization failed') from exc",
+                                       ["system", "run", "x"])
+    assert code == 130, stderr
+    assert one_line(stderr, "system") == "stickslip system: interrupted"
 
 
 def _module_loads(proc, lines):
@@ -256,13 +264,7 @@ def test_ctrl_c_that_a_compiled_modules_initialisation_swallows_still_ends_the_c
 def test_a_command_that_ends_after_a_swallowed_interrupt_exits_130():
     """A Ctrl-C swallowed where it was raised, in a command that makes no FMI call or progress step after it, still
     ends the command with one line and exit code 130, not 0."""
-    code = ("import signal, sys; import stickslip.cli.commands as c\n"
-            "def dispatch(argv):\n"
-            "    try:\n        signal.raise_signal(signal.SIGINT)\n"
-            "    except KeyboardInterrupt:\n        pass\n"
-            "    return 0\n"
-            "c.dispatch = dispatch\n"
-            "from stickslip.cli import main; sys.exit(main(['bifurcation']))")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert done.returncode == 130, done.stderr
-    assert one_line(done.stderr, "bifurcation") == "stickslip bifurcation: interrupted"
+    code, stderr = _main_with_dispatch("    try:\n        signal.raise_signal(signal.SIGINT)\n"
+                                       "    except KeyboardInterrupt:\n        pass\n    return 0", ["bifurcation"])
+    assert code == 130, stderr
+    assert one_line(stderr, "bifurcation") == "stickslip bifurcation: interrupted"
