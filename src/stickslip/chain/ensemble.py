@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..hosts.interrupts import check as check_interrupts
 from .statistics import STATISTICS_JSON
 
 #: a worker's exit status after Ctrl-C (128 + SIGINT)
@@ -196,6 +197,7 @@ def run_member(n, member, stop_time, rtol, output_interval, folder):
     from .template import chain_system
 
     _quiet_interrupts_in_workers()
+    check_interrupts()  # run in this process: a Ctrl-C swallowed during the member before ends the run here
     system = chain_system(n, seed=member.seed, name=member.label, stop_time=stop_time, output_interval=stop_time,
                           **member.values)
     run = run_into_folder(system, folder, stop_time=stop_time, output_interval=output_interval, rtol=rtol)

@@ -11,7 +11,9 @@ a compiled module whose failed initialisation is taken for a missing module) sti
 """
 
 import contextlib
+import functools
 import signal
+import sys
 import threading
 
 _count = 0  # SIGINTs received within counting()
@@ -46,10 +48,19 @@ def counting():
     global _count
     _count = 0
     signal.signal(signal.SIGINT, _count_and_raise)
+    hook, sys.unraisablehook = sys.unraisablehook, functools.partial(_unless_interrupt, sys.unraisablehook)
     try:
         yield
     finally:
+        sys.unraisablehook = hook
         signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def _unless_interrupt(hook, unraisable):
+    """``hook(unraisable)`` unless it is a KeyboardInterrupt (raised where Python cannot pass it on, as in a weak
+    reference's callback, and counted: :func:`check` acts on it), which Python would print as a traceback."""
+    if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+        hook(unraisable)
 
 
 @contextlib.contextmanager

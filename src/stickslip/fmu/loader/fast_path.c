@@ -30,6 +30,7 @@ static struct {
     void (*PyErr_NormalizeException)(PyObject **, PyObject **, PyObject **);
     void (*PyErr_Clear)(void);
     PyObject *(*PyObject_Repr)(PyObject *);
+    PyObject *(*PyObject_Str)(PyObject *);
     const char *(*PyUnicode_AsUTF8)(PyObject *);
     int (*PyObject_IsTrue)(PyObject *);
     PyObject *(*PyObject_GetAttrString)(PyObject *, const char *);
@@ -51,7 +52,7 @@ void sbf_fast_resolve(void *lib)
                 RESOLVE(PyLong_FromLong) && RESOLVE(PyTuple_New) && RESOLVE(PyTuple_SetItem) &&
                 RESOLVE(PyLong_AsLong) && RESOLVE(PyTuple_Size) && RESOLVE(PyTuple_GetItem) && RESOLVE(Py_IncRef) &&
                 RESOLVE(Py_DecRef) && RESOLVE(PyErr_Occurred) && RESOLVE(PyErr_Fetch) &&
-                RESOLVE(PyErr_NormalizeException) && RESOLVE(PyErr_Clear) && RESOLVE(PyObject_Repr) &&
+                RESOLVE(PyErr_NormalizeException) && RESOLVE(PyErr_Clear) && RESOLVE(PyObject_Repr) && RESOLVE(PyObject_Str) &&
                 RESOLVE(PyUnicode_AsUTF8) && RESOLVE(PyObject_IsTrue) && RESOLVE(PyObject_GetAttrString) &&
                 RESOLVE(PyBytes_FromStringAndSize) && RESOLVE(PyBytes_Size) && RESOLVE(PyBytes_AsString) &&
                 (py_none = sbf_symbol(lib, "_Py_NoneStruct")) != NULL;
@@ -114,15 +115,19 @@ SBF_EXPORT int sbf_bind_slave(PyObject *slave, unsigned first, const char *kinds
 
 /* ---- the step ---- */
 
-/* The pending Python exception as "[<call>] <repr>" in `why`, cleared. */
+/* The pending Python exception in `why`, cleared: "[<call>] <repr>" as the inner libraries word a failed call, or
+ * its message alone where `call` is NULL (a refusal whose message says it all). */
 static void exception_text(const char *call, char *why, size_t size)
 {
     PyObject *type = NULL, *value = NULL, *traceback = NULL;
     py.PyErr_Fetch(&type, &value, &traceback);
     py.PyErr_NormalizeException(&type, &value, &traceback);
-    PyObject *repr = value ? py.PyObject_Repr(value) : NULL;
+    PyObject *repr = value ? (call ? py.PyObject_Repr(value) : py.PyObject_Str(value)) : NULL;
     const char *text = repr ? py.PyUnicode_AsUTF8(repr) : NULL;
-    snprintf(why, size, "[%s] %s", call, text ? text : "unknown error");
+    if (call)
+        snprintf(why, size, "[%s] %s", call, text ? text : "unknown error");
+    else
+        snprintf(why, size, "%s", text ? text : "unknown error");
     py.PyErr_Clear();
     PyObject *held[] = {repr, type, value, traceback};
     for (size_t i = 0; i < sizeof held / sizeof *held; ++i)
@@ -531,7 +536,7 @@ int sbf_state_deserialize(sbf_fast_path *fast, const void *bytes, size_t size, v
     if (restored)
         *state = restored;
     else
-        exception_text("DeserializeFMUstate", why, why_size);
+        exception_text(NULL, why, why_size); /* "the N bytes are not a serialized FMU state of this FMU: ..." */
     if (data) py.Py_DecRef(data);
     py.PyGILState_Release(gil);
     return restored == NULL;
