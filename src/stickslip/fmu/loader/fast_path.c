@@ -52,8 +52,9 @@ void sbf_fast_resolve(void *lib)
                 RESOLVE(PyLong_FromLong) && RESOLVE(PyTuple_New) && RESOLVE(PyTuple_SetItem) &&
                 RESOLVE(PyLong_AsLong) && RESOLVE(PyTuple_Size) && RESOLVE(PyTuple_GetItem) && RESOLVE(Py_IncRef) &&
                 RESOLVE(Py_DecRef) && RESOLVE(PyErr_Occurred) && RESOLVE(PyErr_Fetch) &&
-                RESOLVE(PyErr_NormalizeException) && RESOLVE(PyErr_Clear) && RESOLVE(PyObject_Repr) && RESOLVE(PyObject_Str) &&
-                RESOLVE(PyUnicode_AsUTF8) && RESOLVE(PyObject_IsTrue) && RESOLVE(PyObject_GetAttrString) &&
+                RESOLVE(PyErr_NormalizeException) && RESOLVE(PyErr_Clear) && RESOLVE(PyObject_Repr) &&
+                RESOLVE(PyObject_Str) && RESOLVE(PyUnicode_AsUTF8) && RESOLVE(PyObject_IsTrue) &&
+                RESOLVE(PyObject_GetAttrString) &&
                 RESOLVE(PyBytes_FromStringAndSize) && RESOLVE(PyBytes_Size) && RESOLVE(PyBytes_AsString) &&
                 (py_none = sbf_symbol(lib, "_Py_NoneStruct")) != NULL;
 #undef RESOLVE
@@ -122,14 +123,14 @@ static void exception_text(const char *call, char *why, size_t size)
     PyObject *type = NULL, *value = NULL, *traceback = NULL;
     py.PyErr_Fetch(&type, &value, &traceback);
     py.PyErr_NormalizeException(&type, &value, &traceback);
-    PyObject *repr = value ? (call ? py.PyObject_Repr(value) : py.PyObject_Str(value)) : NULL;
-    const char *text = repr ? py.PyUnicode_AsUTF8(repr) : NULL;
+    PyObject *shown = value ? (call ? py.PyObject_Repr(value) : py.PyObject_Str(value)) : NULL;
+    const char *text = shown ? py.PyUnicode_AsUTF8(shown) : NULL;
     if (call)
         snprintf(why, size, "[%s] %s", call, text ? text : "unknown error");
     else
         snprintf(why, size, "%s", text ? text : "unknown error");
     py.PyErr_Clear();
-    PyObject *held[] = {repr, type, value, traceback};
+    PyObject *held[] = {shown, type, value, traceback};
     for (size_t i = 0; i < sizeof held / sizeof *held; ++i)
         if (held[i]) py.Py_DecRef(held[i]);
 }
@@ -420,7 +421,8 @@ int sbf_slave_exchange(sbf_fast_path *fast, const char *function, const double *
 #define VALUE(i) py.PyFloat_FromDouble(in[i])
     NEW_TUPLE(given, n_in, VALUE);
 #undef VALUE
-    if (given) result = py.PyObject_CallMethod(fast->slave, "model_exchange", "(sOn)", function, given, (ptrdiff_t)count);
+    if (given)
+        result = py.PyObject_CallMethod(fast->slave, "model_exchange", "(sOn)", function, given, (ptrdiff_t)count);
     int outcome = derivatives_answer(result, function, n_out, out, 0, why, why_size);
     PyObject *held[] = {given, result};
     for (size_t i = 0; i < sizeof held / sizeof *held; ++i)
