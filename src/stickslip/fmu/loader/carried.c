@@ -35,6 +35,11 @@
 #ifndef SBF_CARRIED_TAR_SIZE
 #define SBF_CARRIED_TAR_SIZE 0
 #endif
+/* the branch filter the build ran over the tar archive before compressing it (packing.py), undone after decoding:
+ * 0 none, 1 x86 (x86_64 Linux and Windows), 2 ARM64 (aarch64 Linux) */
+#ifndef SBF_CARRIED_FILTER
+#define SBF_CARRIED_FILTER 0
+#endif
 /* {path in the archive, size in bytes}, ... of every file the archive holds */
 #ifndef SBF_CARRIED_FILES
 #define SBF_CARRIED_FILES
@@ -233,6 +238,80 @@ static int lzma_decode(const unsigned char *in, size_t n, unsigned char *out, si
     return ok;
 }
 
+/* ---- the branch filters (xz's x86 and ARM64 BCJ filters, decoding) ----
+ * Machine code's calls and jumps hold addresses relative to the instruction, which the build's filter made absolute
+ * (the same callee then has the same bytes everywhere, which LZMA compresses better); these make them relative
+ * again, in place, counting positions from the start of the tar archive. */
+
+static uint32_t le32(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static void put_le32(unsigned char *p, uint32_t value)
+{
+    for (int i = 0; i < 4; ++i) p[i] = (unsigned char)(value >> (8 * i));
+}
+
+/* x86: the 32-bit operand of a call (E8) or jump (E9) whose top byte is 00 or FF (a displacement within 16 MB),
+ * then skipped. An E8/E9 within the 3 bytes after one that was left as it is may be an operand byte, not an opcode:
+ * `recent` holds a bit per byte back where one was left (bits 1-3), and where that one's top operand byte was
+ * 00/FF (bits 5-7). Only the patterns the encoder converts after are converted, and where the value's byte that
+ * the earlier opcode's operand would cover is 00/FF the encoder had flipped the bits below it: undone here. */
+static void unfilter_x86(unsigned char *buf, size_t size)
+{
+    static const unsigned char allowed[8] = {1, 1, 1, 0, 1, 0, 0, 0}, byte_of[8] = {0, 1, 2, 2, 3, 3, 3, 3};
+    uint32_t recent = 0;
+    size_t last = 0;
+    for (size_t i = 0; i + 5 <= size; ++i) {
+        if (buf[i] != 0xE8 && buf[i] != 0xE9) continue;
+        if (i - last > 5)
+            recent = 0;
+        else
+            for (size_t k = i - last; k; --k) recent = (recent & 0x77) << 1;
+        last = i;
+        unsigned char top = buf[i + 4];
+        int small = top == 0x00 || top == 0xFF;
+        if (!small || !allowed[(recent >> 1) & 7] || (recent >> 1) >= 0x10) {
+            recent |= 1u | (small ? 0x10u : 0u);
+            continue;
+        }
+        uint32_t value = le32(buf + i + 1), relative;
+        for (;;) {
+            relative = value - (uint32_t)(i + 5);
+            if (!recent) break;
+            unsigned shift = 24 - 8 * byte_of[recent >> 1];
+            unsigned char read = (unsigned char)(relative >> shift);
+            if (read != 0x00 && read != 0xFF) break;
+            value = relative ^ ((1u << shift << 8) - 1);
+        }
+        relative = (relative & 0x01FFFFFFu) | (relative & 0x01000000u ? 0xFE000000u : 0);
+        put_le32(buf + i + 1, relative);
+        recent = 0;
+        i += 4;
+    }
+}
+
+/* ARM64: the 26-bit word offset of BL, and the 21-bit page offset of ADRP where it is within +-2^17 pages (kept
+ * as 18 bits, sign-extended), each made relative to the instruction's position again (a multiple of 4 in the tar,
+ * whose files start at multiples of 512) */
+static void unfilter_arm64(unsigned char *buf, size_t size)
+{
+    for (size_t at = 0; at + 4 <= size; at += 4) {
+        uint32_t word = le32(buf + at), pc = (uint32_t)at;
+        if ((word >> 26) == 0x25) { /* BL */
+            put_le32(buf + at, 0x94000000u | ((word - (pc >> 2)) & 0x03FFFFFFu));
+        } else if ((word & 0x9F000000u) == 0x90000000u) { /* ADRP */
+            uint32_t pages = ((word >> 29) & 3) | ((word >> 3) & 0x001FFFFCu);
+            if ((pages + 0x00020000u) & 0x001C0000u) continue;
+            pages -= pc >> 12;
+            word = (word & 0x9000001Fu) | (pages & 3) << 29 | (pages & 0x0003FFFCu) << 3 |
+                   ((0u - (pages & 0x00020000u)) & 0x00E00000u);
+            put_le32(buf + at, word);
+        }
+    }
+}
+
 /* ---- the cache folder ---- */
 
 static char carried_folder[4096]; /* where this loader found or unpacked the archive ("" not yet) */
@@ -365,6 +444,8 @@ static int unpack(const char *folder, char *why, size_t why_size)
     snprintf(aside, sizeof aside, "%s.%s.old", folder, sbf_unique_name(counter));
     int ok = pack && tar && lzma_decode(pack, n, tar, size, cause, sizeof cause);
     if (pack && !ok) snprintf(why, why_size, "its archive cannot be decoded: %s", tar ? cause : "out of memory");
+    if (ok && SBF_CARRIED_FILTER == 1) unfilter_x86(tar, size);
+    if (ok && SBF_CARRIED_FILTER == 2) unfilter_arm64(tar, size);
     free(pack);
     if (ok && !(ok = make_folders(part, cause, sizeof cause) && write_tar(tar, size, part, cause, sizeof cause)))
         snprintf(why, why_size, "%s", cause);

@@ -168,7 +168,8 @@ def _packed_defines(packed):
         return []
     files = "".join(f"{{{_c_string(name)}, {size}}}," for name, size in packed.files)
     return [f"-DSBF_CARRIED_PACK={_c_string(packed.name)}", f"-DSBF_CARRIED_KEY={_c_string(packed.key)}",
-            f"-DSBF_CARRIED_TAR_SIZE={packed.tar_size}", f"-DSBF_CARRIED_FILES={files}"]
+            f"-DSBF_CARRIED_TAR_SIZE={packed.tar_size}", f"-DSBF_CARRIED_FILES={files}",
+            f"-DSBF_CARRIED_FILTER={packing.FILTER_NUMBERS[packed.branch_filter]}"]
 
 
 def _loader_sources(fmi_version, platform):
