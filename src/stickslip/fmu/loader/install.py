@@ -36,7 +36,7 @@ from ..archive import read_entries, write_entries
 from ..documentation import with_carried_licenses
 from ..bundle.floors import PYTHON_FLOORS
 from ..bundle.linux_python import linux_bundle
-from ..bundle import aarch64_binaries
+from ..bundle import aarch64_binaries, pythonfmu3_binary
 
 HERE = Path(__file__).resolve().parent
 #: FMI version: (the front's source, the FMU's folder of Linux binaries, the library that built the FMU)
@@ -47,6 +47,9 @@ WINDOWS_FOLDERS = {2: "binaries/win64", 3: "binaries/x86_64-windows"}
 RUNTIME = (HERE / "runtime.c", HERE / "runtime.h", HERE / "fast_path.c", HERE / "fast_path.h", HERE / "platform.h",
            HERE / "carried.c", HERE / "carried.h")
 PLATFORMS = {"linux": HERE / "platform_posix.c", "windows": HERE / "platform_windows.c"}
+#: the variable naming the C++ compiler of pythonfmu3's x86_64 binary that the FMI 3 FMU's CPython carries, and its
+#: default
+CXX_VARIABLE, CXX = "CXX", "c++"
 #: the variable naming the cross-compiler of the Windows binaries, and its default
 WINDOWS_CC_VARIABLE, WINDOWS_CC = "SBF_WINDOWS_CC", "x86_64-w64-mingw32-gcc"
 START_GUARD = HERE / "start_guard.c"
@@ -158,6 +161,7 @@ def _bundle_defines(bundle, packed):
     return [f"-DSBF_BUNDLED_LIBPYTHON={_c_string(bundle.libpython)}",
             f"-DSBF_BUNDLED_PYTHON_NEEDS={''.join(_c_string(path) + ',' for path in bundle.python_needs)}",
             f"-DSBF_BUNDLED_INNER_NEEDS={''.join(_c_string(path) + ',' for path in bundle.inner_needs)}",
+            f"-DSBF_BUNDLED_INNER={_c_string(bundle.inner)}",
             *_packed_defines(packed)]
 
 
@@ -236,7 +240,8 @@ def _install_linux(entries, tmp, model_identifier, arguments, carry_python):
     binary = f"{folder}/{model_identifier}.so"
     inner_name = f"{model_identifier}_pythonfmu.so"
     loader = tmp / binary.rsplit("/", 1)[1]
-    bundle = linux_bundle(entries, entries[binary]) if carry_python else None
+    bundle = linux_bundle(entries, entries[binary], _carried_inner(model_identifier, arguments[1])) if carry_python \
+        else None
     if isinstance(bundle, str):
         print(f"note: the {model_identifier} FMU carries no CPython for Linux hosts without one: {bundle}",
               file=sys.stderr)
@@ -253,7 +258,25 @@ def _install_linux(entries, tmp, model_identifier, arguments, carry_python):
         entries[packed.name] = packed.data
         with_carried_licenses(entries, bundle.licenses, f"the CPython for hosts without one, with the libraries it "
                               f"and the FMI library's binary need that are not glibc's ({packed.name})")
+    if bundle and bundle.inner:
+        with_carried_licenses(entries, pythonfmu3_binary.runtime_licenses(os.environ.get(CXX_VARIABLE) or CXX),
+                              f"the C++ runtime linked into pythonfmu3's binary that {packed.name} holds, under the "
+                              f"GCC Runtime Library Exception")
     return True, bundle
+
+
+def _carried_inner(model_identifier, fmi_version):
+    """The path of pythonfmu3's binary built to need glibc alone, which the FMI 3 FMU's CPython carries for hosts on
+    which the wheel's does not load, in place of a C++ runtime (:mod:`~stickslip.fmu.bundle.pythonfmu3_binary`);
+    None for FMI 2 (PythonFMU publishes no sources), and, after a note on stderr, where it cannot be built (the
+    CPython then carries the C++ runtime)."""
+    if fmi_version != 3:
+        return None
+    path, why_not = pythonfmu3_binary.static_binary(os.environ.get(CXX_VARIABLE) or CXX)
+    if path is None:
+        print(f"note: the {model_identifier} FMU's CPython for Linux hosts without one carries libstdc++ rather than "
+              f"pythonfmu3's binary built with it: {why_not}", file=sys.stderr)
+    return path
 
 
 def _install_windows(entries, tmp, model_identifier, arguments, carry_python):
