@@ -1,6 +1,6 @@
 """The branch filters of the packed CPythons (``stickslip.fmu.bundle.branch_filters``, ``packing.py``): ARM64's
 on instructions worked out by hand, and xz-utils (an implementation of its own) reads every pack of the session's FMI
-3 FMU as the tar archive of the files the build packed."""
+3 FMU, and the archive its Linux platforms share, as the tar archive of the files the build packed."""
 
 import shutil
 import struct
@@ -50,3 +50,8 @@ def test_xz_reads_the_packs_of_the_fmi3_fmu(fmu3_path):
         command = [xz, "-dc", "--format=raw", f"--{branch_filter}", f"--lzma1=lc={lc},lp={lp},pb={pb},dict=8MiB"]
         tar = subprocess.run(command, input=data[packing.HEADER_SIZE:], capture_output=True, check=True).stdout
         assert tar == packing.tar_archive(packing.unpack(data, platform)), name
+    shared = zipfile.ZipFile(fmu3_path).read(packing.SHARED_PACK)  # plain LZMA
+    tar = subprocess.run([xz, "-dc", "--format=lzma"], input=shared, capture_output=True, check=True).stdout
+    linux = {packing.carried_python_platform(name) for name in packs} - {"x86_64-windows"}
+    assert tar == packing.tar_archive({f"{packing.shared_prefix(platform)}{name}": data for platform in linux
+                                       for name, data in packing.unpack_shared(shared, platform).items()})

@@ -51,15 +51,20 @@ def compilers():
 def install(entries, model_identifier, arguments, linux_bundle, compile_loader):
     """Add the aarch64 binaries to the FMI 3 FMU's ``entries`` (``arguments``: those of the loader's
     ``compile_loader``, the FMI version second; ``linux_bundle``: the x86_64 CPython bundle, whose modules the aarch64
-    one carries; ``compile_loader``: the loader's compile function); a note on stderr where it cannot."""
+    one carries; ``compile_loader``: the loader's compile function): the
+    :class:`~stickslip.fmu.bundle.packing.Packed` CPython they carry, whose standard-library zip goes to the pack the
+    Linux platforms share; None, after a note on stderr where it cannot be had."""
     if arguments[1] != 3:
-        return
-    why = _install(entries, model_identifier, arguments, linux_bundle, compile_loader)
-    if why:
-        print(f"note: the {model_identifier} FMU has no aarch64 Linux binaries: {why}", file=sys.stderr)
+        return None
+    packed = _install(entries, model_identifier, arguments, linux_bundle, compile_loader)
+    if isinstance(packed, str):
+        print(f"note: the {model_identifier} FMU has no aarch64 Linux binaries: {packed}", file=sys.stderr)
+        return None
+    return packed
 
 
 def _install(entries, model_identifier, arguments, linux_bundle, compile_loader):
+    """What :func:`install` does: the Packed CPython, or a string saying why the platform is left out."""
     (cc, cxx), why = compilers()
     if why:
         return why
@@ -72,7 +77,7 @@ def _install(entries, model_identifier, arguments, linux_bundle, compile_loader)
     if inner is None:
         return why
     inner_name = f"{model_identifier}_pythonfmu.so"
-    packed = pack_folder(FOLDER.split("/")[1], bundle.entries)
+    packed = pack_folder(FOLDER.split("/")[1], bundle.entries, share=True)
     loader, why = _loader(compile_loader, (f"{model_identifier}.so", inner_name, *arguments), bundle, packed, cc)
     if why:
         return why
@@ -83,7 +88,7 @@ def _install(entries, model_identifier, arguments, linux_bundle, compile_loader)
                           f"needs that are not glibc's ({packed.name})")
     with_carried_licenses(entries, runtime_licenses(cxx), f"the C++ runtime linked into pythonfmu3's aarch64 binary "
                           f"({FOLDER}/{inner_name}), under the GCC Runtime Library Exception")
-    return None
+    return packed
 
 
 def _loader(compile_loader, arguments, bundle, packed, cc):
@@ -92,7 +97,7 @@ def _loader(compile_loader, arguments, bundle, packed, cc):
     that function's) unless :data:`CACHE` has them from the same sources and arguments, or ``(None, why not)``."""
     version = subprocess.run([cc, "--version"], capture_output=True, text=True).stdout.split("\n", 1)[0]
     digest = hashlib.sha256(repr((arguments, bundle.libpython, bundle.python_needs, bundle.inner_needs, packed.name,
-                                  packed.key, packed.tar_size, packed.files, version)).encode())
+                                  packed.key, packed.tar_size, packed.files, sorted(packed.shared), version)).encode())
     for source in sorted(LOADER_SOURCES.glob("*.[ch]")):
         digest.update(source.read_bytes())
     folder = CACHE / f"loader-{digest.hexdigest()[:16]}"

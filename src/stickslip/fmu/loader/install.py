@@ -173,7 +173,10 @@ def _packed_defines(packed):
     files = "".join(f"{{{_c_string(name)}, {size}}}," for name, size in packed.files)
     return [f"-DSBF_CARRIED_PACK={_c_string(packed.name)}", f"-DSBF_CARRIED_KEY={_c_string(packed.key)}",
             f"-DSBF_CARRIED_TAR_SIZE={packed.tar_size}", f"-DSBF_CARRIED_FILES={files}",
-            f"-DSBF_CARRIED_FILTER={packing.FILTER_NUMBERS[packed.branch_filter]}"]
+            f"-DSBF_CARRIED_FILTER={packing.FILTER_NUMBERS[packed.branch_filter]}"] + ([
+        f"-DSBF_CARRIED_SHARED_PACK={_c_string(packing.SHARED_PACK)}",
+        f"-DSBF_CARRIED_SHARED_PREFIX={_c_string(packing.shared_prefix(packing.carried_python_platform(packed.name)))}"]
+        if packed.shared else [])
 
 
 def _loader_sources(fmi_version, platform):
@@ -216,8 +219,11 @@ def install(fmu_path, model_identifier, slave_survives_release=False, fmi_versio
     token = model_token(entries["modelDescription.xml"], fmi_version)
     arguments = (slave_survives_release, fmi_version, token, offers_model_exchange(entries["modelDescription.xml"]))
     with tempfile.TemporaryDirectory(prefix="sbf_loader_") as tmp:
-        installed, bundle = _install_linux(entries, Path(tmp), model_identifier, arguments, carry_python)
-        aarch64_binaries.install(entries, model_identifier, arguments, bundle, compile_loader)
+        installed, bundle, packed = _install_linux(entries, Path(tmp), model_identifier, arguments, carry_python)
+        packed_aarch64 = aarch64_binaries.install(entries, model_identifier, arguments, bundle, compile_loader)
+        shared = packing.shared_pack([packed, packed_aarch64])
+        if shared:
+            entries[packing.SHARED_PACK] = shared
         _install_windows(entries, Path(tmp), model_identifier, arguments, carry_python)
         _declare_execution_tool(entries)
         write_entries(fmu_path, entries)
@@ -235,7 +241,8 @@ def _declare_execution_tool(entries):
 
 
 def _install_linux(entries, tmp, model_identifier, arguments, carry_python):
-    """The Linux loader in ``entries``: ``(whether it was installed, the CPython bundle it carries or None)``."""
+    """The Linux loader in ``entries``: ``(whether it was installed, the CPython bundle it carries or None, that
+    bundle's :class:`~stickslip.fmu.bundle.packing.Packed` or None)``."""
     _, folder, library = FRONTS[arguments[1]]
     binary = f"{folder}/{model_identifier}.so"
     inner_name = f"{model_identifier}_pythonfmu.so"
@@ -246,12 +253,12 @@ def _install_linux(entries, tmp, model_identifier, arguments, carry_python):
         print(f"note: the {model_identifier} FMU carries no CPython for Linux hosts without one: {bundle}",
               file=sys.stderr)
         bundle = None
-    packed = bundle and packing.pack_folder(folder.split("/")[1], bundle.entries)
+    packed = bundle and packing.pack_folder(folder.split("/")[1], bundle.entries, share=True)
     why_not = compile_loader(loader, inner_name, *arguments, bundle=bundle, packed=packed)
     if why_not is not None:
         print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads "
               f"only inside a Python process: {why_not}", file=sys.stderr)
-        return False, None
+        return False, None, None
     _front(entries, binary, inner_name, loader)
     entries[f"{folder}/{START_GUARD_NAME}"] = loader.with_name(START_GUARD_NAME).read_bytes()
     if bundle:
@@ -262,7 +269,7 @@ def _install_linux(entries, tmp, model_identifier, arguments, carry_python):
         with_carried_licenses(entries, pythonfmu3_binary.runtime_licenses(os.environ.get(CXX_VARIABLE) or CXX),
                               f"the C++ runtime linked into pythonfmu3's binary that {packed.name} holds, under the "
                               f"GCC Runtime Library Exception")
-    return True, bundle
+    return True, bundle, packed
 
 
 def _carried_inner(model_identifier, fmi_version):
