@@ -481,7 +481,7 @@ static int unpack_archive(const char *name, int filter, size_t size, const char 
     if (!pack) return 0;
     int ok = lzma_decode(pack, n, &tar, &size, cause, sizeof cause);
     free(pack);
-    if (!ok) return snprintf(why, why_size, "its archive cannot be decoded: %s", cause), 0;
+    if (!ok) return snprintf(why, why_size, "its archive %s cannot be decoded: %s", name, cause), 0;
     if (filter == 1) unfilter_x86(tar, size);
     if (filter == 2) unfilter_arm64(tar, size);
     if (!(ok = write_tar(tar, size, prefix, folder, cause, sizeof cause))) snprintf(why, why_size, "%s", cause);
