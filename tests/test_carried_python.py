@@ -2,8 +2,10 @@
 (``loader/carried.c``) only where a host without Python starts it: into ``$SBF_PYTHON_CACHE`` here, each test with a
 folder of its own. Two processes and two threads that unpack at once leave one complete folder; a folder that cannot
 be made or written, a disk that fills up and an archive that was not extracted are messages naming the folder, the
-reason and what to set; a folder that lost files is unpacked again; the runs equal FMPy's bit for bit; and a Python
-host (FMPy) unpacks nothing."""
+reason and what to set; a folder that lost files is unpacked again; the runs equal FMPy's bit for bit; the files
+unpacked equal liblzma's decoding of the archives (its own, its x86 branch filter undone, and its standard library's
+in the archive the Linux platforms share); and a Python host (FMPy) unpacks
+nothing."""
 
 import shutil
 import subprocess
@@ -57,6 +59,10 @@ def test_two_processes_unpacking_at_once_leave_one_folder_and_run_as_fmpy(host, 
         assert each.series("x") == fmpy_x
     folder = only_unpacked(tmp_path)
     assert (folder / f"libpython{sys.version_info[0]}.{sys.version_info[1]}.so.1.0").is_file()
+    extracted = Path(unzipped[0])
+    files = {**packing.unpack((extracted / packing.packed_name("linux64")).read_bytes(), "linux64"),
+             **packing.unpack_shared((extracted / packing.SHARED_PACK).read_bytes(), "linux64")}
+    assert "python311.zip" in files and {name: (folder / name).read_bytes() for name in files} == files
 
 
 def test_two_threads_starting_at_once_unpack_once(host, unzipped, fmpy_x, tmp_path):

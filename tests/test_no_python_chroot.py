@@ -197,6 +197,22 @@ def test_in_the_chroot_the_fmus_cpp_runtime_and_libraries_are_used(jail, fmpy_ru
     assert run.series("x") == fmpy_runs("fmu2", 1.0)
 
 
+def test_the_fmi3_fmus_cpython_carries_pythonfmu3s_binary_for_the_chroot_alone(jail, fmpy_runs, host3, unzipped3):
+    """pythonfmu3's binary built with its C++ runtime linked in, which the FMI 3 FMU's CPython carries in place of
+    libstdc++: loaded in the chroot, with no C++ runtime; on the full machine the FMU's own binary is."""
+    run = completed(run_in(jail, host3, "fmu3", "run", 1.0, env={"LD_DEBUG": "files"}))
+    loaded = loaded_libraries(run.stderr)
+    assert f"/fmu3/binaries/x86_64-linux/python/lib/{linux_python.CARRIED_INNER}" in loaded, sorted(loaded)
+    # asked for by the FMU's own binary, which then does not load, and found nowhere
+    assert not [path for path in loaded if re.search(r"/lib(stdc\+\+|gcc_s)", path)], sorted(loaded)
+    assert run.series("x") == fmpy_runs("fmu3", 1.0)
+    outside = completed(run_host(host3, unzipped3[0], "run", 1.0, SCENE.output_interval, START,
+                                 env={"LD_DEBUG": "files"}))
+    loaded = loaded_libraries(outside.stderr)
+    assert not [path for path in loaded if "/python/lib/" in path]
+    assert str(Path(unzipped3[0]).resolve() / "binaries/x86_64-linux/SpringBlockFriction_pythonfmu.so") in loaded
+
+
 def test_sbf_libpython_keeps_precedence_over_the_carried_python(unzipped, host):
     libpython = build_libpython()[0]
     if not libpython:

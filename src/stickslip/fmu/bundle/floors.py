@@ -16,6 +16,7 @@ import struct
 from dataclasses import dataclass
 
 from ..archive import SHARED_LIBRARY
+from .linux_python import CARRIED_INNER
 from .packing import carried_entries, carried_python_platform, packed_name
 from .windows_needs import windows_needs, windows_text
 
@@ -29,6 +30,8 @@ DEPENDENCIES_FILE = "documentation/externalDependencies.txt"
 FAMILIES = {"GLIBC": "glibc (libc.so.6, libm.so.6, ld-linux)", "GLIBCXX": "libstdc++ (libstdc++.so.6)",
             "CXXABI": "libstdc++'s C++ ABI (libstdc++.so.6)", "GCC": "libgcc_s (libgcc_s.so.1)",
             "ZLIB": "zlib (libz.so.1)", "UUID": "libuuid (libuuid.so.1)", "LIBFFI": "libffi (libffi.so.8)"}
+#: the symbol version prefixes of the C++ runtime
+CPP_RUNTIME = ("GLIBCXX", "CXXABI", "GCC")
 #: an ELF shared library's file name: ``x.so`` or ``libx.so.1.0``
 ELF_NAME = SHARED_LIBRARY
 #: a numbered symbol version, e.g. GLIBC_2.34 or CXXABI_1.3.9 (GLIBC_PRIVATE and the like carry no floor)
@@ -217,6 +220,7 @@ def dependencies_text(model_name, floors, platform="Linux x86_64"):
              "needs of the FMU's binaries when it was built (the oldest versions that have every symbol they use):",
              ""]
     measured = floors.floors()
+    inner = floors.carried.get(CARRIED_INNER)
     for prefix in sorted(measured, key=lambda p: (list(FAMILIES) + [p]).index(p)):
         name = measured[prefix][0]
         carrier = floors.provider(name)
@@ -224,6 +228,9 @@ def dependencies_text(model_name, floors, platform="Linux x86_64"):
                      + (f"; the FMU carries it ({carrier}): the loader uses that where the system lacks it (the C++ "
                         f"runtime also where the system's is older), unless the host process has loaded its own"
                         if carrier else ""))
+        if inner and prefix in CPP_RUNTIME:
+            lines[-1] += (f"; where the system lacks it or has an older one, the loader loads the FMU's build of that "
+                          f"binary with it linked in ({inner}) instead")
     lines.append(f"- a CPython 3 shared library with its standard library: {_python_need(floors)}")
     lines += ["", "Each binary: the libraries it names, then the newest version it needs of each.", ""]
     for name, needs in floors.binaries.items():
@@ -235,7 +242,7 @@ def dependencies_text(model_name, floors, platform="Linux x86_64"):
 
 def _python_need(floors):
     """The sentence on the CPython the FMU needs."""
-    carried = next((name for file, name in floors.carried.items() if file.startswith("libpython")), None)
+    carried = next((name for file, name in floors.carried.items() if file.startswith("libpython3")), None)
     text = (f"the host process's own CPython ({floors.python_floor} or newer) if it runs one, else the one named by "
             f"the environment variable SBF_LIBPYTHON if set, else the one the FMU carries ({carried}, with the part of its standard "
             f"library the FMU imports; nothing else needed; packed in {packed_name(carried.split('/')[1])}, unpacked into "

@@ -7,7 +7,9 @@ The bundle lies in ``python/`` beside the Linux loader (``binaries/<linux folder
 - ``python3X.zip``: the standard-library modules as byte code (stored, so that zipimport needs no zlib);
 - ``lib-dynload/``: the standard library's extension modules among them;
 - ``lib/``: the libraries those extension modules and the FMI library's binary need that are not glibc's
-  (``ldd``: zlib, libffi, libuuid, libstdc++, libgcc_s);
+  (``ldd``: zlib, libffi, libuuid; for PythonFMU's binary libstdc++ and libgcc_s), or, for pythonfmu3, instead of
+  its C++ runtime a build of its binary with that runtime linked in (:data:`CARRIED_INNER`,
+  :mod:`stickslip.fmu.bundle.pythonfmu3_binary`);
 - ``python3.X._pth``: sys.path, exactly the zip and ``lib-dynload/``. The loader starts a CPython with the program
   name ``<library's folder>/python3.X`` (``sbf_python_program_name`` in ``platform_posix.c``), and CPython's path
   calculation takes the ``._pth`` beside that name as the whole of sys.path, ignoring PYTHONHOME and PYTHONPATH.
@@ -17,8 +19,8 @@ module as the FMI library does, and the Python code of the project's other FMUs 
 standard-library module it then holds goes in, with the codecs Python itself may import when it starts
 (:data:`CODECS`). The loader starts this CPython only where the host process has no
 Python of its own and ``$SBF_LIBPYTHON`` is not set (``runtime.c``, ``find_libpython``), and loads the libraries of
-``lib/`` only where the system has none by their names (the FMI library's C++ runtime: only where its binary does not
-load without them), so that a host keeps its own.
+``lib/`` only where the system has none by their names (the FMI library's C++ runtime, or the binary carried in its
+place: only where the FMU's binary does not load), so that a host keeps its own.
 """
 
 import importlib.util
@@ -38,6 +40,8 @@ from pathlib import Path
 from ..archive import ZIP_EPOCH
 from .packing import PYTHON_FOLDER
 
+#: the name in ``lib/`` of the FMI library's binary carried for hosts on which the FMU's does not load
+CARRIED_INNER = "libpythonfmu3-export.so"
 #: libraries every Linux system has (glibc's), never bundled
 GLIBC_LIBRARIES = re.compile(r"(libc|libm|libdl|libpthread|librt|libutil|libresolv|ld-linux-x86-64)\.so")
 #: the FMI libraries whose Python parts the project's FMUs carry
@@ -69,19 +73,22 @@ class Bundle:
     path there), ``python_needs`` (the libraries of ``lib/`` that its extension modules need) and ``inner_needs``
     (those the FMI library's binary needs), paths below the loader's folder in the order they are to be loaded;
     ``licenses``: {name: licence text (bytes)} of what it holds (CPython's, and the Debian copyright file of each
-    library's package where the system has one)."""
+    library's package where the system has one); ``inner``: the path of the FMI library's binary it carries in place
+    of ``inner_needs`` ("" if none)."""
 
     entries: dict
     libpython: str
     python_needs: tuple
     inner_needs: tuple
     licenses: dict
+    inner: str = ""
 
 
-def linux_bundle(entries, inner_binary):
+def linux_bundle(entries, inner_binary, carried_inner=None):
     """The :class:`Bundle` for the FMU whose ``entries`` ({archive name: bytes}) hold its ``resources/`` and whose FMI
-    library's Linux binary is ``inner_binary`` (bytes); a string saying why not where this Python has no shared
-    library."""
+    library's Linux binary is ``inner_binary`` (bytes), carrying ``carried_inner`` (the path of a build of that binary
+    that needs glibc alone, or None: the libraries ``inner_binary`` needs instead); a string saying why not where
+    this Python has no shared library."""
     stdlib, dynload = Path(sysconfig.get_paths()["stdlib"]), Path(sysconfig.get_config_var("DESTSHARED") or "")
     libpython = _shared_library()
     if libpython is None:
@@ -97,16 +104,19 @@ def linux_bundle(entries, inner_binary):
         inner = tmp / "inner.so"
         inner.write_bytes(inner_binary)
         python_needs = _needed_libraries(files.values())
-        inner_needs = _needed_libraries([inner])
+        inner_needs = _needed_libraries([inner]) if carried_inner is None else {}
         for path in {**python_needs, **inner_needs}.values():
             files[f"{PYTHON_FOLDER}/lib/{path.name}"] = path
+        if carried_inner is not None:
+            files[f"{PYTHON_FOLDER}/lib/{CARRIED_INNER}"] = Path(carried_inner)
         out = {name: _stripped(path, tmp) for name, path in files.items()}
         licenses = _licenses(stdlib, {**python_needs, **inner_needs}.values())
     out[f"{PYTHON_FOLDER}/{zip_name}"] = _module_zip(modules, stdlib)
     out[f"{PYTHON_FOLDER}/python{version}._pth"] = f"{zip_name}\nlib-dynload\n".encode()
     return Bundle(out, f"{PYTHON_FOLDER}/{libpython.name}",
                   tuple(f"{PYTHON_FOLDER}/lib/{name}" for name in python_needs),
-                  tuple(f"{PYTHON_FOLDER}/lib/{name}" for name in inner_needs), licenses)
+                  tuple(f"{PYTHON_FOLDER}/lib/{name}" for name in inner_needs), licenses,
+                  f"{PYTHON_FOLDER}/lib/{CARRIED_INNER}" if carried_inner is not None else "")
 
 
 def _shared_library():

@@ -36,7 +36,7 @@ from ..archive import read_entries, write_entries
 from ..documentation import with_carried_licenses
 from ..bundle.floors import PYTHON_FLOORS
 from ..bundle.linux_python import linux_bundle
-from ..bundle import aarch64_binaries
+from ..bundle import aarch64_binaries, pythonfmu3_binary
 
 HERE = Path(__file__).resolve().parent
 #: FMI version: (the front's source, the FMU's folder of Linux binaries, the library that built the FMU)
@@ -47,6 +47,9 @@ WINDOWS_FOLDERS = {2: "binaries/win64", 3: "binaries/x86_64-windows"}
 RUNTIME = (HERE / "runtime.c", HERE / "runtime.h", HERE / "fast_path.c", HERE / "fast_path.h", HERE / "platform.h",
            HERE / "carried.c", HERE / "carried.h")
 PLATFORMS = {"linux": HERE / "platform_posix.c", "windows": HERE / "platform_windows.c"}
+#: the variable naming the C++ compiler of pythonfmu3's x86_64 binary that the FMI 3 FMU's CPython carries, and its
+#: default
+CXX_VARIABLE, CXX = "CXX", "c++"
 #: the variable naming the cross-compiler of the Windows binaries, and its default
 WINDOWS_CC_VARIABLE, WINDOWS_CC = "SBF_WINDOWS_CC", "x86_64-w64-mingw32-gcc"
 START_GUARD = HERE / "start_guard.c"
@@ -158,6 +161,7 @@ def _bundle_defines(bundle, packed):
     return [f"-DSBF_BUNDLED_LIBPYTHON={_c_string(bundle.libpython)}",
             f"-DSBF_BUNDLED_PYTHON_NEEDS={''.join(_c_string(path) + ',' for path in bundle.python_needs)}",
             f"-DSBF_BUNDLED_INNER_NEEDS={''.join(_c_string(path) + ',' for path in bundle.inner_needs)}",
+            f"-DSBF_BUNDLED_INNER={_c_string(bundle.inner)}",
             *_packed_defines(packed)]
 
 
@@ -168,7 +172,11 @@ def _packed_defines(packed):
         return []
     files = "".join(f"{{{_c_string(name)}, {size}}}," for name, size in packed.files)
     return [f"-DSBF_CARRIED_PACK={_c_string(packed.name)}", f"-DSBF_CARRIED_KEY={_c_string(packed.key)}",
-            f"-DSBF_CARRIED_TAR_SIZE={packed.tar_size}", f"-DSBF_CARRIED_FILES={files}"]
+            f"-DSBF_CARRIED_TAR_SIZE={packed.tar_size}", f"-DSBF_CARRIED_FILES={files}",
+            f"-DSBF_CARRIED_FILTER={packing.FILTER_NUMBERS[packed.branch_filter]}"] + ([
+        f"-DSBF_CARRIED_SHARED_PACK={_c_string(packing.SHARED_PACK)}",
+        f"-DSBF_CARRIED_SHARED_PREFIX={_c_string(packing.shared_prefix(packing.carried_python_platform(packed.name)))}"]
+        if packed.shared else [])
 
 
 def _loader_sources(fmi_version, platform):
@@ -211,8 +219,11 @@ def install(fmu_path, model_identifier, slave_survives_release=False, fmi_versio
     token = model_token(entries["modelDescription.xml"], fmi_version)
     arguments = (slave_survives_release, fmi_version, token, offers_model_exchange(entries["modelDescription.xml"]))
     with tempfile.TemporaryDirectory(prefix="sbf_loader_") as tmp:
-        installed, bundle = _install_linux(entries, Path(tmp), model_identifier, arguments, carry_python)
-        aarch64_binaries.install(entries, model_identifier, arguments, bundle, compile_loader)
+        installed, bundle, packed = _install_linux(entries, Path(tmp), model_identifier, arguments, carry_python)
+        packed_aarch64 = aarch64_binaries.install(entries, model_identifier, arguments, bundle, compile_loader)
+        shared = packing.shared_pack([packed, packed_aarch64])
+        if shared:
+            entries[packing.SHARED_PACK] = shared
         _install_windows(entries, Path(tmp), model_identifier, arguments, carry_python)
         _declare_execution_tool(entries)
         write_entries(fmu_path, entries)
@@ -230,29 +241,49 @@ def _declare_execution_tool(entries):
 
 
 def _install_linux(entries, tmp, model_identifier, arguments, carry_python):
-    """The Linux loader in ``entries``: ``(whether it was installed, the CPython bundle it carries or None)``."""
+    """The Linux loader in ``entries``: ``(whether it was installed, the CPython bundle it carries or None, that
+    bundle's :class:`~stickslip.fmu.bundle.packing.Packed` or None)``."""
     _, folder, library = FRONTS[arguments[1]]
     binary = f"{folder}/{model_identifier}.so"
     inner_name = f"{model_identifier}_pythonfmu.so"
     loader = tmp / binary.rsplit("/", 1)[1]
-    bundle = linux_bundle(entries, entries[binary]) if carry_python else None
+    bundle = linux_bundle(entries, entries[binary], _carried_inner(model_identifier, arguments[1])) if carry_python \
+        else None
     if isinstance(bundle, str):
         print(f"note: the {model_identifier} FMU carries no CPython for Linux hosts without one: {bundle}",
               file=sys.stderr)
         bundle = None
-    packed = bundle and packing.pack_folder(folder.split("/")[1], bundle.entries)
+    packed = bundle and packing.pack_folder(folder.split("/")[1], bundle.entries, share=True)
     why_not = compile_loader(loader, inner_name, *arguments, bundle=bundle, packed=packed)
     if why_not is not None:
         print(f"note: the {model_identifier} FMU keeps {library}'s {folder.split('/')[1]} binary, which loads "
               f"only inside a Python process: {why_not}", file=sys.stderr)
-        return False, None
+        return False, None, None
     _front(entries, binary, inner_name, loader)
     entries[f"{folder}/{START_GUARD_NAME}"] = loader.with_name(START_GUARD_NAME).read_bytes()
     if bundle:
         entries[packed.name] = packed.data
         with_carried_licenses(entries, bundle.licenses, f"the CPython for hosts without one, with the libraries it "
                               f"and the FMI library's binary need that are not glibc's ({packed.name})")
-    return True, bundle
+    if bundle and bundle.inner:
+        with_carried_licenses(entries, pythonfmu3_binary.runtime_licenses(os.environ.get(CXX_VARIABLE) or CXX),
+                              f"the C++ runtime linked into pythonfmu3's binary that {packed.name} holds, under the "
+                              f"GCC Runtime Library Exception")
+    return True, bundle, packed
+
+
+def _carried_inner(model_identifier, fmi_version):
+    """The path of pythonfmu3's binary built to need glibc alone, which the FMI 3 FMU's CPython carries for hosts on
+    which the wheel's does not load, in place of a C++ runtime (:mod:`~stickslip.fmu.bundle.pythonfmu3_binary`);
+    None for FMI 2 (PythonFMU publishes no sources), and, after a note on stderr, where it cannot be built (the
+    CPython then carries the C++ runtime)."""
+    if fmi_version != 3:
+        return None
+    path, why_not = pythonfmu3_binary.static_binary(os.environ.get(CXX_VARIABLE) or CXX)
+    if path is None:
+        print(f"note: the {model_identifier} FMU's CPython for Linux hosts without one carries libstdc++ rather than "
+              f"pythonfmu3's binary built with it: {why_not}", file=sys.stderr)
+    return path
 
 
 def _install_windows(entries, tmp, model_identifier, arguments, carry_python):

@@ -14,8 +14,9 @@
  *      the host; it reads no environment variable (initialize_python); the host's handlers of SIGINT, SIGPIPE and
  *      SIGXFSZ are kept; then Python must import ctypes (imports_ctypes);
  *   3. loads the inner library (PythonFMU's or pythonfmu3's binary, SBF_INNER_LIBRARY beside this one; where it
- *      does not load, again after the C++ runtime the FMU carries, SBF_BUNDLED_INNER_NEEDS, so that a host with
- *      a C++ runtime of its own keeps it) and lets the front resolve its entry points.
+ *      does not load, again after the C++ runtime the FMU carries, SBF_BUNDLED_INNER_NEEDS, or the carried build
+ *      of it with that runtime linked in, SBF_BUNDLED_INNER, so that a host with a C++ runtime of its own keeps
+ *      it) and lets the front resolve its entry points.
  * Steps 1 and 2 run under a process-wide lock that every copy of the loader in the process shares (see
  * process_start_lock), and sbf_start first pins this library in memory (see pin_library).
  * Each host thread gets one Python thread state, kept for the thread's life (sbf_keep_thread_state).
@@ -63,6 +64,11 @@
 #endif
 #ifndef SBF_BUNDLED_INNER_NEEDS
 #define SBF_BUNDLED_INNER_NEEDS
+#endif
+/* the carried CPython's build of the inner library that needs glibc alone, loaded where the FMU's does not load
+ * (instead of SBF_BUNDLED_INNER_NEEDS; "" if none) */
+#ifndef SBF_BUNDLED_INNER
+#define SBF_BUNDLED_INNER ""
 #endif
 static const char *const bundled_python_needs[] = {SBF_BUNDLED_PYTHON_NEEDS NULL};
 static const char *const bundled_inner_needs[] = {SBF_BUNDLED_INNER_NEEDS NULL};
@@ -337,9 +343,20 @@ static void load_inner(sbf_resolve_inner resolve, void *python)
         load_bundled(bundled_inner_needs, 0);
         lib = sbf_open_library(path, 0);
     }
+    const char *carried = "";
+    if (!lib && *SBF_BUNDLED_INNER) { /* the same: the carried build with its C++ runtime linked in */
+        char first[1024];
+        snprintf(first, sizeof first, "%s", sbf_library_error());
+        if (!sbf_carried_path(SBF_BUNDLED_INNER, path, sizeof path, why, sizeof why)) {
+            sbf_fail("cannot load the FMU's inner binary (%s), and %s", first, why);
+            return;
+        }
+        lib = sbf_open_library(path, 0);
+        carried = " (the build the FMU carries for systems on which its own does not load)";
+    }
     if (!lib) {
         sbf_fail("cannot load the FMU's inner binary %s%s: %s", path,
-                 *bundled_inner_needs ? " (also with the C++ runtime the FMU carries)" : "", sbf_library_error());
+                 *bundled_inner_needs ? " (also with the C++ runtime the FMU carries)" : carried, sbf_library_error());
         return;
     }
     if (resolve(lib, path)) sbf_reset_inner_at_exit(lib, path, "finalizePythonInterpreter");
