@@ -119,7 +119,8 @@ def test_runtime_is_bundled_under_a_private_name(fmu_path):
             slave = packed.read(f"sbf_slave_{tag}/fmu_slave.py").decode()
             interface = packed.read(f"sbf_slave_{tag}/block_interface.py").decode()
         assert fmu.read("resources/slavemodule.txt").decode() == f"springblockfriction_{tag}"
-    assert f"resources/sbf_runtime_{runtime_tag}/trajectory.py" in names
+    assert f"resources/sbf_runtime_{runtime_tag}/sources.zip" in names  # its sources, packed
+    assert not [name for name in names if "__pycache__" in name]  # no folder of byte code to extract
     assert not [name for name in names if name.startswith(f"resources/sbf_slave_{tag}/")]  # one file, no folder
     assert f"sbf_slave_{tag}/block_interface.pyc" in slave_names  # its byte code beside it, as zipimport reads it
     assert f"'sbf_slave_{tag}.zip'" in loader and f"from sbf_slave_{tag}.fmu_slave import SpringBlockFriction" in loader

@@ -41,8 +41,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .compile_runtime import (COMPILED_ARTIFACTS, COMPILED_MODULES, COMPLETE, MYPY_LICENSE, PREBUILT, RUNTIME_PREFIX,
-                              USER_CACHE, WINDOWS_PLATFORM, CompileError, compile_in_place, prebuilt_key, store,
-                              toolchain_tag)
+                              USER_CACHE, WINDOWS_PLATFORM, CompileError, compile_in_place, implementation, prebuilt_key,
+                              store, toolchain_tag)
 from .sources import LOADER_BINDING
 
 #: the packages of an FMU's ``resources/``: the runtime (the same in every FMU built from the same runtime, so that
@@ -91,7 +91,8 @@ FMI3_LOADER = LoaderModule("springblockfriction3_", _PACKAGES_ON_PATH + (
     "from pythonfmu3 import Fmi3SlaveBase\n\nfrom {package} import fmu_slave\n\n\n"
     "class {model_name}(fmu_slave.{model_name}, Fmi3SlaveBase):\n"
     '    """The slave (fmu_slave), named where pythonfmu3 looks for it."""\n'))
-#: the slave package's ``__init__.py`` (``{runtime}``: the runtime's package). A process may have imported the
+#: the slave package's ``__init__.py`` (``{runtime}``: the runtime's package; ``{packed}``: the archive of its sources
+#: in its folder, :data:`~stickslip.core._implementation.PACKED`). A process may have imported the
 #: runtime's package from another FMU of the same runtime, whose files a host may have removed since: a module it
 #: imports later (one the other FMU's slave never imported) is then found in this FMU's copy, in ``resources/``
 #: beside the package's archive (or its folder, where the builder imports it).
@@ -100,8 +101,8 @@ SLAVE_PACKAGE_INIT = (
     "import os\n\nimport {runtime}\n\n"
     "_beside = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # resources/, or the archive in it\n"
     "_copy = os.path.join(os.path.dirname(_beside) if os.path.isfile(_beside) else _beside, {runtime!r})\n"
-    "if _copy not in {runtime}.__path__:\n"
-    "    {runtime}.__path__.insert(0, _copy)\n")
+    "if _copy not in {runtime}.__path__:  # its compiled modules, then its packed sources\n"
+    "    {runtime}.__path__[:0] = [_copy, os.path.join(_copy, {packed!r})]\n")
 #: FMI version: its loader module
 LOADERS = {2: FMI2_LOADER, 3: FMI3_LOADER}
 
@@ -146,7 +147,8 @@ def stage_runtime(folder, tags, runtime, slave, interface, model_name, compiled=
     package_dir, slave_dir = Path(folder) / package, Path(folder) / slave_package
     shutil.copytree(runtime, package_dir, ignore=shutil.ignore_patterns(*COMPILED_ARTIFACTS))
     slave_dir.mkdir()
-    (slave_dir / "__init__.py").write_text(SLAVE_PACKAGE_INIT.format(runtime=package))
+    (slave_dir / "__init__.py").write_text(SLAVE_PACKAGE_INIT.format(runtime=package,
+                                                                     packed=implementation.PACKED))
     interface_code = rewrite_once(interface, r"\bstickslip\.core\b", package,
                                   "the runtime as 'from stickslip.core import ...'")
     (slave_dir / "block_interface.py").write_text(

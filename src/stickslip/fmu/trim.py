@@ -13,9 +13,12 @@ module at the first instantiation).
   byte-compiled file for the building Python beside it (zipimport's layout; another Python compiles the source in
   memory), which the loader module puts on ``sys.path``: a host extracts one file for each, and creates and
   removes no folder for them (each folder a host removes cost 1-4 ms on this machine's disk).
-- The byte-compiled files of the modules that ship compiled (mypyc): the building Python loads the compiled
-  modules, and another Python cannot use those ``.pyc`` files. The sources stay: another Python or platform
-  runs them, and ``compiled_sources.crc32`` is checked against them.
+- The runtime's modules but its ``__init__.py`` go into one zip archive in the runtime's folder
+  (:data:`~stickslip.core._implementation.PACKED`, zipimport's layout, the package's ``__init__.py`` puts it on the
+  package's path after the folder), where the compiled modules (mypyc) and ``compiled_sources.crc32`` stay, and
+  no ``__pycache__`` folder does. The archive holds no byte code of the modules that ship compiled: the building
+  Python loads the compiled modules, and another Python cannot use those ``.pyc`` files. Their sources are
+  there: another Python or platform runs them, and ``compiled_sources.crc32`` is checked against them.
 """
 
 import io
@@ -50,14 +53,8 @@ def trim(entries, fmi_version, slave, package=None):
     _trim_library(entries, f"resources/{library}")
     _pack(entries, library)
     _pack(entries, slave)
-    runtime = f"resources/{package}"
-    # compiled, else pure: its .pyc are what a host loads
-    compiled = package is not None and f"{runtime}/{implementation.STAMP}" in entries
-    for name in list(entries):
-        folder, _, file = name.rpartition("/")
-        module = file.split(".")[0]
-        if compiled and folder == f"{runtime}/__pycache__" and module in COMPILED_MODULES:
-            del entries[name]
+    if package is not None:
+        _pack_runtime(entries, package)
 
 
 def _trim_library(entries, library):
@@ -76,15 +73,37 @@ def _pack(entries, package):
     """Replace the entries of ``package`` in ``resources/`` by its archive :data:`PACKAGE_ARCHIVE` there: its
     sources, each with its byte code beside it (any ``__pycache__`` of the package left out)."""
     prefix = f"resources/{package}/"
-    modules = {name[len("resources/"):]: entries.pop(name) for name in sorted(entries) if name.startswith(prefix)}
-    modules = {name: data for name, data in modules.items() if "/__pycache__/" not in name}
+    sources = {name[len(prefix):]: entries.pop(name) for name in sorted(entries) if name.startswith(prefix)}
+    entries[f"resources/{PACKAGE_ARCHIVE.format(package=package)}"] = _archive(package, sources, f"{package}/")
+
+
+def _pack_runtime(entries, package):
+    """Move the modules of the runtime's ``package`` but its ``__init__.py`` into its archive
+    :data:`~stickslip.core._implementation.PACKED` in its folder (the byte code of the compiled modules, if the
+    folder has them, left out), and drop its ``__pycache__``."""
+    prefix = f"resources/{package}/"
+    compiled = f"{prefix}{implementation.STAMP}" in entries  # else pure: their byte code is what a host loads
+    for name in [name for name in entries if name.startswith(f"{prefix}__pycache__/")]:
+        del entries[name]
+    sources = {name[len(prefix):]: entries.pop(name) for name in sorted(entries)
+               if name.startswith(prefix) and name.endswith(".py") and name.count("/") == 2
+               and name != f"{prefix}__init__.py"}
+    entries[f"{prefix}{implementation.PACKED}"] = _archive(
+        package, sources, "", lambda module: not (compiled and module in COMPILED_MODULES))
+
+
+def _archive(package, sources, root, with_byte_code=lambda module: True):
+    """The bytes of a zip archive of the modules ``sources`` ({file name in ``package``: bytes}) under ``root``, each
+    for which ``with_byte_code(module name)`` holds with its byte code beside it (zipimport's layout)."""
+    modules = {f"{root}{name}": data for name, data in sources.items() if "/__pycache__/" not in f"/{name}"}
     with tempfile.TemporaryDirectory(prefix="sbf_package_") as tmp:
-        for name, data in modules.items():
-            (Path(tmp) / name).parent.mkdir(parents=True, exist_ok=True)
-            (Path(tmp) / name).write_bytes(data)
-        for name, path in byte_compile(Path(tmp) / package).items():
+        for name, data in sources.items():
+            (Path(tmp) / package / name).parent.mkdir(parents=True, exist_ok=True)
+            (Path(tmp) / package / name).write_bytes(data)
+        for path in byte_compile(Path(tmp) / package).values():
             module = path.name.split(".")[0]
-            modules[f"{package}/{module}.pyc"] = path.read_bytes()
+            if with_byte_code(module):
+                modules[f"{root}{module}.pyc"] = path.read_bytes()
     packed = io.BytesIO()
     write_entries(packed, modules)
-    entries[f"resources/{PACKAGE_ARCHIVE.format(package=package)}"] = packed.getvalue()
+    return packed.getvalue()
