@@ -3,15 +3,15 @@ how fast.
 
 In the FMU's ``resources/``:
 
-- ``sbf_runtime_<runtime tag>/``: the runtime ``stickslip/core``, the same in the FMI 2 and FMI 3 FMUs;
+- ``sbf_runtime_<runtime tag>/``: the runtime ``stickslip/core``, the same in the FMI 2 and FMI 3 FMUs: its
+  ``__init__.py``, its compiled modules (below) and the rest of its modules in ``sources.zip``;
 - ``sbf_slave_<tag>.zip``: the package ``sbf_slave_<tag>``, the slave (``fmu_slave.py``, from
   ``fmu_src/SpringBlockFriction.py`` or ``fmu_src/SpringBlockFriction_fmi3.py``), the variable table the two slaves
   share (``block_interface.py``, from ``fmu_src/``) and the loader binding, their imports renamed to the two
-  packages, packed into one file with their byte code (:mod:`stickslip.fmu.trim`: a host extracts one file, not
-  a folder of them, and removes no folder);
-- with the runtime, byte-compiled files
-  for the building Python in ``__pycache__`` (unchecked-hash ``.pyc``: valid whatever times the
-  extraction gives the files, so a host with that Python never compiles them);
+  packages;
+- in both archives (:mod:`stickslip.fmu.trim` packs them: a host extracts one file, not a folder of them), the
+  modules' byte code for the building Python (unchecked-hash ``.pyc``: valid whatever times the extraction gives the
+  files, so a host with that Python compiles none of them, only the runtime's few lines of ``__init__.py``);
 - the hot modules of the runtime compiled by mypyc under that package name, for the building
   Python (:mod:`stickslip.fmu.compile_runtime`; the group library ``<hash>__mypyc`` goes to the top
   of ``resources/``), unless the build is pure or cannot compile (no C compiler: the FMU is then
@@ -165,7 +165,6 @@ def stage_runtime(folder, tags, runtime, slave, interface, model_name, compiled=
                                              archive=PACKAGE_ARCHIVE.format(package=library),
                                              slave_archive=PACKAGE_ARCHIVE.format(package=slave_package)))
     staged = StagedRuntime(script, package_dir, slave_dir, module)
-    staged.extra_files.update(byte_compile(package_dir))
     if compiled:
         staged.extra_files.update(_compiled(Path(folder), package))
     return staged
