@@ -10,8 +10,8 @@ import pytest
 
 from stickslip.bench import fmus
 from stickslip.cli.bench import add_bench_parser
-from stickslip.bench.peers import hybrid_solve_ivp, regularized_solve_ivp
-from stickslip.core import Constant, Coulomb, Parameters
+from stickslip.bench.peers import hybrid_solve_ivp, regularized_solve_ivp, tuned_solve_ivp
+from stickslip.core import Constant, Coulomb, Logarithmic, Parameters
 
 import machine_needs
 
@@ -45,6 +45,24 @@ def test_solve_ivp_peer_event_times_match_the_closed_form(coulomb, method):
     assert [e.kind for e in run.events] == [kind for kind, _ in expected]
     assert max(abs(e.t_lo - t) for e, (_, t) in zip(run.events, expected)) < 1e3 * rtol  # over 8 events, 60 s
     assert run.x.shape == grid.shape and np.all(np.isfinite(run.x))
+
+
+def test_tuned_peer_event_times_match_the_closed_form_and_it_refuses_aging(coulomb):
+    grid = np.linspace(0.0, 60.0, 601)
+    run = tuned_solve_ivp(coulomb, 0.0, V_DRIVE, V_DRIVE, 0.0, grid, 1e-10, 1e-12)
+    expected = coulomb_events(60.0)
+    assert [e.kind for e in run.events] == [kind for kind, _ in expected]
+    assert max(abs(e.t_lo - t) for e, (_, t) in zip(run.events, expected)) < 1e-7  # over 8 events, 60 s
+    stuck = grid <= F_S / V_DRIVE  # the first stick, in closed form: x = v_drive t
+    assert np.array_equal(run.x[stuck], V_DRIVE * grid[stuck]) and np.all(run.v[stuck] == V_DRIVE)
+    slip = (grid > expected[0][1]) & (grid < expected[1][1])  # the first slip: a half-turn about F_K / kappa
+    tau = grid[slip] - expected[0][1]
+    R = math.hypot(F_S - F_K, V_DRIVE)
+    phi = math.atan2(F_S - F_K, V_DRIVE)
+    assert np.abs(run.x[slip] - (F_K + R * np.sin(tau + phi))).max() < 1e-8
+    aging = Parameters(1.0, 1.0, Coulomb(F0=F_K), Logarithmic(F0=F_S, A=0.1, tau=1.0))
+    with pytest.raises(ValueError, match="static.law must be constant"):
+        tuned_solve_ivp(aging, 0.0, V_DRIVE, V_DRIVE, 0.0, grid, 1e-10, 1e-12)
 
 
 def test_regularized_error_grows_with_v_eps(coulomb):

@@ -140,7 +140,7 @@ def _made_up_results():
             "matched": {"peer_error": {"C host": 2e-4}, "our_rtol": 1e-4, "our_error": {"C host": 4e-5}},
             "hosts": {"C host": {"ours": record(4.0, 90.0), "peer (Dymola)": record(2.0, 80.0),
                                  "PythonFMU floor": record(1.6, 70.0), "C floor": record(0.5, 2.0)}},
-            "fmpy": [row], "dense_grid": [row],
+            "fmpy": [row], "dense_grid": [row], "dense_grid_tuned": [{**row, "peer_tolerance": 1e-11}],
             "one_step": {"fmu": {"wall_ms": 6.0, "cpu_ms": 6.0}, "floor": {"wall_ms": 5.0, "cpu_ms": 5.0},
                          "ratio_wall": 1.2, "ratio_cpu": 1.2},
             "carried_python": {"fmi2": {"size_mb": {"ours": 7.5, "without": 2.4},
@@ -156,6 +156,8 @@ def test_report_states_the_load_and_the_ratios_of_the_same_run(tmp_path):
     report = markdown(results)
     assert "at the start [1.5, 1, 1], at the end [2.5, 2, 2]" in report
     assert "| fmi2 | cpu | 7.50 / 2.40 | 44.0 / 40.0 | 1.1 | 120.0 / 100.0 | 1.2 | 500 |" in report
+    tuned = report[report.index("hand-tuned DOP853"):]
+    assert "| 1e-11 | 1e-05 | 2 | 2 | 1e-06 | 1e-06 | 3 | 3 | 1.5 | 1.5 |" in tuned
     # 4/2, 4/0.5, 4/1.6, 2/0.5; start-up 90/80; own cost 4 - 0.5, 2 - 0.5
     assert "| C host | 2 / 2 | 8 / 8 | 2.5 / 2.5 | 4 / 4 | 1.12 / 1.12 | 3.5, 1.5 |" in report
     # each FMU-state call over the doStep of 0.5 µs
@@ -185,7 +187,7 @@ def test_bench_c_hosts_without_its_inputs_measures_ours_and_the_floors(tmp_path,
     assert set(results["hosts"]) == {"C host"}
     assert set(results["hosts"]["C host"]) == {"ours", "PythonFMU floor", "C floor"}
     assert results["matched"]["our_error"]["C host"] <= 2e-8 and "fmpy" not in results
-    assert all(row["our_error"] <= row["peer_error"] for row in results["dense_grid"])
+    assert all(row["our_error"] <= row["peer_error"] for row in results["dense_grid"] + results["dense_grid_tuned"])
     assert "## One-step `simulate_fmu` of the .fmu file" in (tmp_path / "out" / "c-hosts.md").read_text()
     states = results["states"]  # every FMU-state call measured in both hosts, for both FMI versions
     assert {(host, version) for host in states for version in states[host]} == {

@@ -1,5 +1,6 @@
 """The SpringBlockFriction FMU as an importer sees it (FMPy): model description, errors, state, stepping."""
 
+import io
 import math
 import sys
 import zipfile
@@ -113,17 +114,22 @@ def test_runtime_is_bundled_under_a_private_name(fmu_path):
     with zipfile.ZipFile(fmu_path) as fmu:
         names = fmu.namelist()
         loader = fmu.read(f"resources/springblockfriction_{tag}.py").decode()
-        slave = fmu.read(f"resources/sbf_slave_{tag}/fmu_slave.py").decode()
-        interface = fmu.read(f"resources/sbf_slave_{tag}/block_interface.py").decode()
+        with zipfile.ZipFile(io.BytesIO(fmu.read(f"resources/sbf_slave_{tag}.zip"))) as packed:
+            slave_names = packed.namelist()
+            slave = packed.read(f"sbf_slave_{tag}/fmu_slave.py").decode()
+            interface = packed.read(f"sbf_slave_{tag}/block_interface.py").decode()
         assert fmu.read("resources/slavemodule.txt").decode() == f"springblockfriction_{tag}"
-    assert f"resources/sbf_runtime_{runtime_tag}/trajectory.py" in names
-    assert f"resources/sbf_slave_{tag}/__pycache__/block_interface.{sys.implementation.cache_tag}.pyc" in names
-    assert f"from sbf_slave_{tag}.fmu_slave import SpringBlockFriction" in loader
+    assert f"resources/sbf_runtime_{runtime_tag}/sources.zip" in names  # its sources, packed
+    assert not [name for name in names if "__pycache__" in name]  # no folder of byte code to extract
+    assert not [name for name in names if name.startswith(f"resources/sbf_slave_{tag}/")]  # one file, no folder
+    assert f"sbf_slave_{tag}/block_interface.pyc" in slave_names  # its byte code beside it, as zipimport reads it
+    assert f"'sbf_slave_{tag}.zip'" in loader and f"from sbf_slave_{tag}.fmu_slave import SpringBlockFriction" in loader
     assert f"from sbf_runtime_{runtime_tag} import" in interface and "stickslip.core" not in interface + slave
     assert f"from sbf_slave_{tag}.block_interface import" in slave and "from block_interface" not in slave
     run_fmu(fmu_path, {}, 1.0, 1.0)
     runtime = sys.modules[f"sbf_runtime_{runtime_tag}"]  # the FMU's copy, though this host imported stickslip
     assert Path(runtime.__file__).parent != Path(sys.modules["stickslip.core"].__file__).parent
+    assert f"sbf_slave_{tag}.zip" in sys.modules[f"sbf_slave_{tag}.fmu_slave"].__file__  # from its archive
 
 
 def test_default_fmu_path_is_stickslip_dist_else_the_checkout_s_dist_else_the_user_cache(monkeypatch, tmp_path,

@@ -11,46 +11,56 @@ from pathlib import Path
 
 from stickslip.fmu import source_tag, trim
 from stickslip.fmu.sources import runtime_tag
-from stickslip.fmu.compile_runtime import COMPILED_MODULES
+from stickslip.fmu.compile_runtime import COMPILED_MODULES, implementation
 
 from fmu_instances import instantiate
 
 
 def test_runtime_imports_from_the_shipped_bytecode_whatever_the_file_times(unzipped, tmp_path):
+    """Nothing is compiled on the host but the runtime's ``__init__.py`` (a few lines, shipped without byte code so
+    that the runtime's folder holds no ``__pycache__`` folder to extract and remove)."""
     resources = Path(unzipped[0]) / "resources"
     package, runtime = resources / f"sbf_slave_{source_tag()}", resources / f"sbf_runtime_{runtime_tag()}"
-    for source in [*package.glob("*.py"), *runtime.glob("*.py")]:  # an extraction gives the files any time: later than the .pyc here
+    for source in [*resources.glob("*.zip"), *runtime.glob("*")]:  # an extraction gives the files any time
         os.utime(source, (2e9, 2e9))
     probe = textwrap.dedent(f"""
         import sys
         compiled = []
         sys.addaudithook(lambda event, args: event == "compile" and compiled.append(args[1]))
         sys.path.insert(0, {str(resources)!r})
-        import {package.name}.fmu_slave
-        print([name for name in compiled if {str(package)!r} in str(name) or {str(runtime)!r} in str(name)])
+        import springblockfriction_{source_tag()}
+        print([str(name) for name in compiled if {str(package)!r} in str(name) or {str(runtime)!r} in str(name)])
     """)
     result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True, cwd=tmp_path)
-    assert result.stdout.strip() == "[]"
+    assert result.stdout.strip() == repr([str(runtime / "__init__.py")])
+
+
+def _packed(fmu, name):
+    """The zip archive ``name`` inside the open FMU archive ``fmu``."""
+    return zipfile.ZipFile(io.BytesIO(fmu.read(name)))
 
 
 def test_shipped_bytecode_is_unchecked_hash_based(fmu_path):
-    """Every module of the runtime's package ships byte-compiled, except those that ship compiled by mypyc, and
-    every module of the slave's package."""
+    """Every module of the runtime's package ships byte-compiled beside its source in the runtime's archive, except
+    ``__init__.py`` and those that ship compiled by mypyc, and every module of the slave's package in its archive."""
     with zipfile.ZipFile(fmu_path) as fmu:
         names = fmu.namelist()
-        pycs = [name for name in names if name.endswith(".pyc")]
-        package, slave = f"resources/sbf_runtime_{runtime_tag()}", f"resources/sbf_slave_{source_tag()}"
-        compiled = {n.split("/")[-1].split(".")[0] for n in names if n.startswith(package) and n.endswith(".so")}
-        modules = {n.split("/")[-1][:-3] for n in names if n.startswith(f"{package}/") and n.endswith(".py")}
-        slave_modules = {n.split("/")[-1][:-3] for n in names if n.startswith(f"{slave}/") and n.endswith(".py")}
-        assert compiled == set(COMPILED_MODULES) and {"fmu_slave", "block_interface"} <= slave_modules
-        assert sorted(pycs) == sorted([*(f"{package}/__pycache__/{m}.{sys.implementation.cache_tag}.pyc"
-                                         for m in modules - compiled),
-                                       *(f"{slave}/__pycache__/{m}.{sys.implementation.cache_tag}.pyc"
-                                         for m in slave_modules)])
-        for name in pycs:
-            flags = int.from_bytes(fmu.read(name)[4:8], "little")
-            assert flags == 0b01  # hash-based, source not checked (PEP 552)
+        package, slave = f"sbf_runtime_{runtime_tag()}", f"sbf_slave_{source_tag()}"
+        compiled = {n.split("/")[-1].split(".")[0] for n in names if n.startswith(f"resources/{package}/")
+                    and n.endswith(".so")}
+        runtime = _packed(fmu, f"resources/{package}/{implementation.PACKED}")
+        packed = _packed(fmu, f"resources/{slave}.zip")
+        assert not [name for name in names if name.endswith(".pyc")]
+        assert compiled == set(COMPILED_MODULES)
+        for archive, root, ship_compiled in ((runtime, "", compiled), (packed, f"{slave}/", set())):
+            modules = {n[len(root):-3] for n in archive.namelist() if n.endswith(".py")}
+            pycs = [n for n in archive.namelist() if n.endswith(".pyc")]
+            assert sorted(pycs) == sorted(f"{root}{m}.pyc" for m in modules - ship_compiled)
+            for name in pycs:
+                flags = int.from_bytes(archive.read(name)[4:8], "little")
+                assert flags == 0b01  # hash-based, source not checked (PEP 552)
+        assert {"_implementation", "exchange", "trajectory"} <= {n[:-3] for n in runtime.namelist()}
+        assert {"fmu_slave", "block_interface"} <= {n[len(slave) + 1:-3] for n in packed.namelist()}
 
 
 def test_many_instances_keep_the_loader_module_intact(unzipped):
@@ -83,8 +93,7 @@ def test_the_fmus_hold_no_file_a_host_does_not_need(fmu_path, fmu3_path):
             runtimes.append({name: archive.read(name) for name in names
                              if name.startswith(f"resources/sbf_runtime_{runtime_tag()}/")})
         assert not [name for name in names if name.startswith((f"resources/{library}/", "sources/"))]
-        modules = {name.rsplit("/", 1)[1].split(".")[0] for name in names if name.startswith("resources/sbf_")}
-        assert {"trajectory", "exchange", "fmu_slave"} <= modules
+        assert not [name for name in names if "/__pycache__/" in name]
         inside = packed.namelist()
         assert sorted(inside) == sorted([*(n for n in inside if n.endswith(".py")), *(n + "c" for n in inside
                                                                                     if n.endswith(".py"))])

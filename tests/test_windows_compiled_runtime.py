@@ -97,8 +97,9 @@ def test_windows_cpython_imports_the_compiled_runtime_and_gets_the_numbers_of_it
 def imports(stderr, package):
     """{module of ``package``: the end of the file name Python imported it from} of a host's stderr with
     ``SBF_PYTHON_VERBOSE=1``: ``.py`` for a module imported from its source, the suffix of an extension module's file."""
-    sources = {name: ".py"
-               for name in re.findall(rf"^import '{package}\.(\w+)' # <\w+\.SourceFileLoader", stderr, re.M)}
+    sources = {name: ".py"  # from a file, or from the runtime's packed sources (no byte code of these Pythons there)
+               for name in re.findall(rf"^import '{package}\.(\w+)' # <(?:\w+\.SourceFileLoader|zipimporter )",
+                                      stderr, re.M)}
     extensions = {name: SUFFIX if path.endswith(SUFFIX) else Path(path).suffix
                   for name, path in re.findall(rf"^# extension module '{package}\.(\w+)' loaded from '(.*)'$", stderr,
                                                re.M)}

@@ -5,6 +5,7 @@ host)."""
 import json
 
 from . import state_costs
+from .fmu_file_runs import TUNED_ATOL_PER_RTOL
 
 
 def write(out_dir, results):
@@ -38,6 +39,9 @@ def markdown(results):
                   *_matched_table(results["fmpy"], "peer tolerance")]
     lines += ["", "## `simulate_fmu` of the .fmu file, elmer-fig3 v = 0.1, 2000 s, 1 s outputs, against DOP853", "",
               *_matched_table(results["dense_grid"], "DOP853 rtol")]
+    if "dense_grid_tuned" in results:
+        lines += ["", f"## The same against a hand-tuned DOP853 with events (sticks in closed form, atol = "
+                  f"{TUNED_ATOL_PER_RTOL:g} rtol)", "", *_matched_table(results["dense_grid_tuned"], "its rtol")]
     one = results["one_step"]
     lines += ["", "## One-step `simulate_fmu` of the .fmu file", "",
               f"ours {one['fmu']['wall_ms']:.1f} ms wall, {one['fmu']['cpu_ms']:.1f} ms CPU; the PythonFMU floor "

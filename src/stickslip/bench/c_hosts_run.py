@@ -15,7 +15,7 @@ from pathlib import Path
 
 from . import c_hosts, carried_cost, dymola_peer, state_costs
 from .c_floor import ensure_c_floor_fmu
-from .fmu_file_runs import dense_grid, one_step
+from .fmu_file_runs import dense_grid, dense_grid_tuned, one_step
 from .matched_error import fmpy_family, loosest_rtol
 from .scenes import SCENES
 
@@ -64,6 +64,7 @@ def run_all(inputs, steps, repeats, progress=print, state_rounds=state_costs.ROU
     if peer is not None:
         out["fmpy"] = fmpy_family(inputs.peer, peer, inputs.fmu, scene, repeats, progress)
     out["dense_grid"] = dense_grid(inputs.fmu, repeats, progress)
+    out["dense_grid_tuned"] = dense_grid_tuned(inputs.fmu, repeats, progress)
     out["one_step"] = one_step(inputs.fmu, inputs.python_floor, 3 * repeats, progress)
     if inputs.carried_python:
         out["carried_python"] = carried_cost.measure(*_block_fmus(inputs), inputs.build_dir, 3 * repeats, progress)

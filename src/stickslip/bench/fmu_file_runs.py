@@ -3,7 +3,8 @@ call), against what they would write instead and against the do-nothing PythonFM
 
 - :func:`dense_grid`: elmer-fig3 at v = 0.1 m/s over 2000 s, outputs every 1 s: for each tolerance of the
   hybrid ``solve_ivp`` DOP853 with events (:func:`.peers.hybrid_solve_ivp`), ours at matched error
-  (:func:`.matched_error.matched`).
+  (:func:`.matched_error.matched`); :func:`dense_grid_tuned`: the same against the hand-tuned DOP853 with events
+  (:func:`.peers.tuned_solve_ivp`).
 - :func:`one_step`: one 1 s communication step of ours (elmer-fig3 start values) and of the floor FMU.
 """
 
@@ -13,12 +14,15 @@ import fmpy
 
 from ..fmu.python_path import preserved_sys_path
 from .matched_error import matched
-from .peers import hybrid_solve_ivp
+from .peers import hybrid_solve_ivp, tuned_solve_ivp
 from .process_timing import timed_call
 from .scenes import SCENES
 
 DENSE_SCENE = replace(SCENES["elmer-fig3-v0.1"], stop_time=2000.0, grid_step=1.0)
 DOP853_RTOLS = (1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13)
+#: the hand-tuned peer's rtols; its atol (m, m/s) is :data:`TUNED_ATOL_PER_RTOL` times the rtol
+TUNED_RTOLS = (1e-9, 1e-10, 3e-11, 1e-11)
+TUNED_ATOL_PER_RTOL = 1e-2
 
 
 def simulate_file(fmu_path, start_values, stop_time, step, outputs=("x",)):
@@ -30,13 +34,26 @@ def simulate_file(fmu_path, start_values, stop_time, step, outputs=("x",)):
 
 def dense_grid(fmu_path, repeats, progress=print, scene=DENSE_SCENE):
     """:func:`~.matched_error.matched` rows, DOP853 as the peer (wall and CPU, medians of ``repeats``)."""
+    return _against_file(fmu_path, DOP853_RTOLS, lambda p, x0, v0, v_drive, F_ext, grid, rtol: hybrid_solve_ivp(
+        p, x0, v0, v_drive, F_ext, grid, "DOP853", rtol, rtol), repeats, progress, scene, "DOP853")
+
+
+def dense_grid_tuned(fmu_path, repeats, progress=print, scene=DENSE_SCENE):
+    """:func:`~.matched_error.matched` rows, the hand-tuned DOP853 as the peer (its rtol the peer tolerance)."""
+    return _against_file(fmu_path, TUNED_RTOLS, lambda p, x0, v0, v_drive, F_ext, grid, rtol: tuned_solve_ivp(
+        p, x0, v0, v_drive, F_ext, grid, rtol, TUNED_ATOL_PER_RTOL * rtol), repeats, progress, scene,
+                         "hand-tuned DOP853")
+
+
+def _against_file(fmu_path, tolerances, peer, repeats, progress, scene, label):
+    """:func:`~.matched_error.matched` rows of ``peer(p, x0, v0, v_drive, F_ext, grid, tolerance)`` (a
+    :class:`~.peers.Run`) against ``simulate_fmu`` of the file on ``scene``."""
     v_drive, F_ext = scene.inputs
     grid, p, x0, v0 = scene.grid(), scene.params, scene.scenario.x0, scene.scenario.v0
     return matched(
-        scene, DOP853_RTOLS,
-        lambda rtol: hybrid_solve_ivp(p, x0, v0, v_drive, F_ext, grid, "DOP853", rtol, rtol).x,
+        scene, tolerances, lambda tol: peer(p, x0, v0, v_drive, F_ext, grid, tol).x,
         lambda rtol: simulate_file(fmu_path, scene.start_values(rtol), scene.stop_time, scene.grid_step)["x"],
-        repeats, progress, f"elmer-fig3 v = 0.1, {scene.stop_time:g} s: DOP853")
+        repeats, progress, f"elmer-fig3 v = 0.1, {scene.stop_time:g} s: {label}")
 
 
 def one_step(fmu_path, floor_path, repeats, progress=print, scene=DENSE_SCENE):

@@ -9,6 +9,9 @@ Both return a :class:`Run` on the output grid ``t_eval`` (s):
   event) until ``v_rel = 0``; there the block sticks if ``|kappa x - F_ext| <= F_S(0)``,
   else it overshoots into the other mode. A stick integrates ``x' = v_drive``
   until ``|kappa x - F_ext| = F_S(t_stick)``.
+- :func:`tuned_solve_ivp`: the same hybrid model as a user tunes it for a scene with constant static
+  friction: each stick in closed form (``x`` grows at ``v_drive`` until ``|kappa x - F_ext| = F_S``), each
+  slip one DOP853 ``solve_ivp`` call with a terminal event on plain floats, ``atol`` set apart from ``rtol``.
 - :func:`regularized_solve_ivp`: one smooth ODE, no events, with the friction law
   of :func:`regularized_friction`.
 """
@@ -94,6 +97,61 @@ def _slip_phase(p, mode, t0, x0, v0, v_drive, F_ext, t_end, t_eval, method, rtol
 
     v_rel_zero.terminal, v_rel_zero.direction = True, -1
     return solve_ivp(rhs, (t0, t_end), [x0, v0], method=method, t_eval=t_eval, events=v_rel_zero,
+                     rtol=rtol, atol=atol)
+
+
+def tuned_solve_ivp(p, x0, v0, v_drive, F_ext, t_eval, rtol, atol):
+    """:class:`Run` of the hybrid model, sticks in closed form and slips by DOP853 with a terminal event at
+    ``v_rel = 0``; constant inputs (m/s, N). ValueError if the static friction ages (no closed-form stick)."""
+    if not p.static.is_constant():
+        raise ValueError(f"tuned_solve_ivp: static.law must be constant (its sticks are closed forms), got "
+                         f"{p.static.NAME}")
+    F_S, t_eval = p.static.force(0.0), np.asarray(t_eval, float)
+    t, x, t_end = float(t_eval[0]), float(x0), float(t_eval[-1])
+    xs, vs, filled, events = np.empty(len(t_eval)), np.full(len(t_eval), float(v_drive)), 1, []
+    xs[0], vs[0] = x, v0
+    holding = p.kappa * x - F_ext
+    stuck = v0 == v_drive and abs(holding) <= F_S
+    mode = (1 if holding > 0.0 else -1) if v0 == v_drive else (1 if v0 < v_drive else -1)
+    v = float(v0)
+    while t < t_end:
+        if stuck:
+            edge = (F_ext + math.copysign(F_S, v_drive)) / p.kappa  # where the contact lets go
+            t_slip = t + (edge - x) / v_drive if v_drive != 0.0 else math.inf
+            upto = int(np.searchsorted(t_eval, min(t_slip, t_end), side="right"))
+            xs[filled:upto] = x + v_drive * (t_eval[filled:upto] - t)
+            filled = upto
+            if t_slip >= t_end:
+                break
+            t, x, v, stuck, mode = t_slip, edge, v_drive, False, 1 if v_drive > 0.0 else -1
+            events.append(Event("slip", t, t))
+            continue
+        sol = _tuned_slip(p, mode, t, x, v, v_drive, F_ext, t_eval[filled:], rtol, atol)
+        if len(sol.t):  # the output times up to the event (solve_ivp includes one at the event)
+            xs[filled:filled + len(sol.t)], vs[filled:filled + len(sol.t)] = sol.y
+        filled += len(sol.t)
+        if sol.status != 1:  # reached t_end
+            break
+        t, x, v = float(sol.t_events[0][0]), float(sol.y_events[0][0][0]), v_drive
+        stuck = abs(p.kappa * x - F_ext) <= F_S
+        mode = mode if stuck else -mode
+        events.append(Event("stick" if stuck else "overshoot", t, t))
+    return Run(t_eval, xs, vs, events)
+
+
+def _tuned_slip(p, mode, t0, x0, v0, v_drive, F_ext, t_eval, rtol, atol):
+    """One slip of :func:`tuned_solve_ivp` from ``t0`` until ``v_rel = 0`` or the end of ``t_eval`` (its times
+    all after ``t0``)."""
+    kappa, M, F_K = p.kappa, p.M, p.kinetic.force
+
+    def rhs(t, y):
+        return y[1], (F_ext - kappa * y[0] + mode * F_K(mode * (v_drive - y[1]))) / M
+
+    def v_rel_zero(t, y):
+        return mode * (v_drive - y[1])
+
+    v_rel_zero.terminal, v_rel_zero.direction = True, -1
+    return solve_ivp(rhs, (t0, float(t_eval[-1])), (x0, v0), method="DOP853", t_eval=t_eval, events=v_rel_zero,
                      rtol=rtol, atol=atol)
 
 

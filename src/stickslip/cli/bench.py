@@ -70,7 +70,8 @@ def run_bench(args):
 
 def add_c_hosts_parser(subparsers):
     p = subparsers.add_parser("bench-c-hosts", help="C hosts per step and start-up, the compiled peer at matched "
-                                                    "error, the .fmu file against DOP853, FMU states beside a doStep")
+                                                    "error, the .fmu file against DOP853 (plain and hand-tuned), FMU "
+                                                    "states beside a doStep")
     p.add_argument("--peer", help="the compiled peer, SpringFrictionPendulum1D.fmu of FMIZoo.jl (Dymola 2023x); "
                                   "without it the peer's columns are left out")
     p.add_argument("--fmusim", help="fmusim of Reference-FMUs (scripts/build_fmusim.sh); Feedthrough.fmu and "

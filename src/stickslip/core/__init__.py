@@ -8,6 +8,9 @@ FMU uses. The hot modules may also be compiled from these same sources (mypyc);
 
 import os as _os
 
+# an FMU's copy: its modules packed into one file beside this one (see ._implementation), after the compiled ones
+__path__.append(_os.path.join(__path__[0], "sources.zip"))
+
 from ._implementation import select as _select
 
 IMPLEMENTATION = _select(__name__, _os.path.dirname(__file__))

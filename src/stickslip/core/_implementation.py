@@ -13,13 +13,17 @@ when all of these hold, else the sources are (same numbers, slower):
 - they load (an ImportError, e.g. a missing shared library, falls back).
 
 This module is never compiled, and uses only the standard library, so the FMU's
-renamed copy of the package (``sbf_runtime_<tag>``) makes the same choice.
+renamed copy of the package (``sbf_runtime_<tag>``) makes the same choice. In that copy the
+modules' sources (all but ``__init__.py``) are packed with their byte code into one file,
+:data:`PACKED` in the package's folder (``stickslip.fmu.trim``), which ``__init__.py`` puts on
+the package's path after the folder: the compiled modules in the folder come first.
 """
 
 import importlib
 import importlib.util
 import os
 import sys
+import zipimport
 import zlib
 from importlib.machinery import EXTENSION_SUFFIXES
 
@@ -28,15 +32,26 @@ COMPILED_MODULES = (
 )
 STAMP = "compiled_sources.crc32"
 PURE_ENV = "STICKSLIP_PURE_PYTHON"
+#: the zip archive in the package's folder that holds its modules' sources where they are packed (an FMU's copy)
+PACKED = "sources.zip"
 
 
 def sources_digest(folder):
-    """CRC-32 (8 hex digits) of the names and sources of :data:`COMPILED_MODULES` in ``folder``."""
+    """CRC-32 (8 hex digits) of the names and sources of :data:`COMPILED_MODULES` in ``folder`` (or in its
+    :data:`PACKED` archive)."""
     crc = 0
     for name in COMPILED_MODULES:
-        with open(os.path.join(folder, f"{name}.py"), "rb") as source:
-            crc = zlib.crc32(name.encode() + b"\0" + source.read() + b"\0", crc)
+        crc = zlib.crc32(name.encode() + b"\0" + _source(folder, name) + b"\0", crc)
     return f"{crc:08x}"
+
+
+def _source(folder, name):
+    """The bytes of the module ``name``'s source in ``folder``, else in its :data:`PACKED` archive."""
+    path = os.path.join(folder, f"{name}.py")
+    if os.path.isfile(path):
+        with open(path, "rb") as source:
+            return source.read()
+    return zipimport.zipimporter(os.path.join(folder, PACKED)).get_data(f"{name}.py")
 
 
 def select(package, folder):
@@ -102,7 +117,11 @@ class _SourcesFirst:
 
     def find_spec(self, fullname, path=None, target=None):
         package, _, name = fullname.rpartition(".")
-        source = os.path.join(self.folder, f"{name}.py")
-        if package != self.package or name not in COMPILED_MODULES or not os.path.isfile(source):
-            return None  # not ours, or a folder gone since (a build's copy of the package): the usual search
-        return importlib.util.spec_from_file_location(fullname, source)
+        source, packed = os.path.join(self.folder, f"{name}.py"), os.path.join(self.folder, PACKED)
+        if package != self.package or name not in COMPILED_MODULES:
+            return None  # not ours: the usual search
+        if os.path.isfile(source):
+            return importlib.util.spec_from_file_location(fullname, source)
+        if os.path.isfile(packed):
+            return zipimport.zipimporter(packed).find_spec(fullname)
+        return None  # a folder gone since (a build's copy of the package): the usual search

@@ -128,7 +128,7 @@ def build(dest=None, fmi_version=2, pure=False, carry_python=True):
             *archive.identity(MODEL_NAME, fmi_version, tag), dependencies=instance.output_dependencies,
             enumerations=instance.variable_enumerations if fmi_version in ENUMERATION_VERSIONS else None)
         staged.add_to(entries)
-        trim.trim(entries, fmi_version, staged.package_dir.name)
+        trim.trim(entries, fmi_version, staged.slave_dir.name, staged.package_dir.name)
         compiled = any(name.endswith(".so") for name in entries if name.startswith("resources/"))
         entries.update(documentation.entries(entries["modelDescription.xml"], SUMMARY,
                                              ("stickslip", library.module, *(("mypy",) if compiled else ())),

@@ -18,7 +18,7 @@ from . import archive, documentation, model_description, trim
 from .build import announce_build, default_fmu_path, forget_modules, write_with_loader
 from .python_path import preserved_sys_path
 from .sources import BUILDERS, LOADER_BINDING, SLAVE_FOLDER, files_tag
-from .staging import FMI2_TEMPLATE, LIBRARY_ARCHIVE, byte_compile, rewrite_once
+from .staging import FMI2_TEMPLATE, PACKAGE_ARCHIVE, rewrite_once
 
 COUPLING_NAME = "ChainCoupling"
 COUPLING_FILE = f"{COUPLING_NAME}.fmu"
@@ -52,7 +52,8 @@ def _staged_slave(folder, tag):
     shutil.copyfile(LOADER_BINDING, package / LOADER_BINDING.name)
     script = folder / f"chaincoupling_{tag}.py"
     script.write_text(FMI2_TEMPLATE.format(package=package.name, model_name=COUPLING_NAME,
-                                           archive=LIBRARY_ARCHIVE.format(library="pythonfmu")))
+                                           archive=PACKAGE_ARCHIVE.format(package="pythonfmu"),
+                                           slave_archive=PACKAGE_ARCHIVE.format(package=package.name)))
     return script, package
 
 
@@ -89,7 +90,6 @@ def build_coupling(dest=None):
     tag = coupling_tag()
     with tempfile.TemporaryDirectory(prefix="sbf_coupling_") as tmp:
         script, package = _staged_slave(Path(tmp), tag)
-        compiled = byte_compile(package)
         try:
             with preserved_sys_path():  # PythonFMU leaves the source folder on sys.path
                 built = FmuBuilder.build_FMU(script, dest=Path(tmp) / "out", project_files=[package],
@@ -99,8 +99,6 @@ def build_coupling(dest=None):
         entries = archive.read_entries(built)
         entries["modelDescription.xml"] = model_description.complete(
             entries["modelDescription.xml"], UNITS, BOUNDS, 2, *archive.identity(COUPLING_NAME, 2, tag))
-        for name, path in compiled.items():
-            entries.setdefault(name, path.read_bytes())
         trim.trim(entries, 2, package.name)
         entries.update(documentation.entries(entries["modelDescription.xml"], SUMMARY, ("stickslip", "pythonfmu")))
         write_with_loader(dest, entries, COUPLING_NAME)

@@ -3,13 +3,15 @@ how fast.
 
 In the FMU's ``resources/``:
 
-- ``sbf_runtime_<runtime tag>/``: the runtime ``stickslip/core``, the same in the FMI 2 and FMI 3 FMUs;
-- ``sbf_slave_<tag>/``: the slave (``fmu_slave.py``, from ``fmu_src/SpringBlockFriction.py`` or
-  ``fmu_src/SpringBlockFriction_fmi3.py``), the variable table the two slaves share (``block_interface.py``, from
-  ``fmu_src/``) and the loader binding, their imports renamed to the two packages;
-- with both packages, byte-compiled files
-  for the building Python in ``__pycache__`` (unchecked-hash ``.pyc``: valid whatever times the
-  extraction gives the files, so a host with that Python never compiles them);
+- ``sbf_runtime_<runtime tag>/``: the runtime ``stickslip/core``, the same in the FMI 2 and FMI 3 FMUs: its
+  ``__init__.py``, its compiled modules (below) and the rest of its modules in ``sources.zip``;
+- ``sbf_slave_<tag>.zip``: the package ``sbf_slave_<tag>``, the slave (``fmu_slave.py``, from
+  ``fmu_src/SpringBlockFriction.py`` or ``fmu_src/SpringBlockFriction_fmi3.py``), the variable table the two slaves
+  share (``block_interface.py``, from ``fmu_src/``) and the loader binding, their imports renamed to the two
+  packages;
+- in both archives (:mod:`stickslip.fmu.trim` packs them: a host extracts one file, not a folder of them), the
+  modules' byte code for the building Python (unchecked-hash ``.pyc``: valid whatever times the extraction gives the
+  files, so a host with that Python compiles none of them, only the runtime's few lines of ``__init__.py``);
 - the hot modules of the runtime compiled by mypyc under that package name, for the building
   Python (:mod:`stickslip.fmu.compile_runtime`; the group library ``<hash>__mypyc`` goes to the top
   of ``resources/``), unless the build is pure or cannot compile (no C compiler: the FMU is then
@@ -21,8 +23,8 @@ In the FMU's ``resources/``:
   and flags);
 - ``springblockfriction_<tag>.py`` (FMI 3: ``springblockfriction3_<tag>.py``): the module PythonFMU
   (pythonfmu3) loads, a few lines (:data:`FMI2_LOADER`, :data:`FMI3_LOADER`), the first of which put the
-  library's own package, packed into one file (:data:`LIBRARY_ARCHIVE`, :mod:`stickslip.fmu.trim`), on
-  ``sys.path`` beside it. PythonFMU 0.7.0 compiles
+  library's own package and the slave's, each packed into one file (:data:`PACKAGE_ARCHIVE`,
+  :mod:`stickslip.fmu.trim`), on ``sys.path`` beside it. PythonFMU 0.7.0 compiles
   and runs that module's source at every ``fmi2Instantiate`` (to find the slave class by its MRO; with
   the 300-line slave there, that was 2 ms of each instantiation and a leaked copy of the class), so the
   slave's own source, imported once per process, stays out of it.
@@ -39,8 +41,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .compile_runtime import (COMPILED_ARTIFACTS, COMPILED_MODULES, COMPLETE, MYPY_LICENSE, PREBUILT, RUNTIME_PREFIX,
-                              USER_CACHE, WINDOWS_PLATFORM, CompileError, compile_in_place, prebuilt_key, store,
-                              toolchain_tag)
+                              USER_CACHE, WINDOWS_PLATFORM, CompileError, compile_in_place, implementation, prebuilt_key,
+                              store, toolchain_tag)
 from .sources import LOADER_BINDING
 
 #: the packages of an FMU's ``resources/``: the runtime (the same in every FMU built from the same runtime, so that
@@ -56,26 +58,28 @@ OTHER_PYTHONS = CACHE / "other-pythons"
 @dataclass(frozen=True)
 class LoaderModule:
     """The module the FMI library loads: ``prefix`` of its name (the source tag follows) and its source, a
-    ``template`` formatted with the runtime ``package``, the slave class ``model_name`` and the name of the
-    library's ``archive``."""
+    ``template`` formatted with the slave's ``package``, the slave class ``model_name`` and the names of the
+    library's ``archive`` and of the ``slave_archive``."""
 
     prefix: str
     template: str
 
 
-#: the zip archive in ``resources/`` that holds the FMI library's package (``{library}``: its name), byte-compiled
-LIBRARY_ARCHIVE = "{library}.zip"
-#: the loader modules' first lines: the library's archive goes first on ``sys.path`` (where the library's binary
-#: put ``resources/``), once; ``{archive}``: :data:`LIBRARY_ARCHIVE`
-_LIBRARY_ON_PATH = (
+#: the zip archive in ``resources/`` that holds a package (``{package}``: its name) with its byte code: the FMI
+#: library's and the slave's
+PACKAGE_ARCHIVE = "{package}.zip"
+#: the loader modules' first lines: the archives of the library's package (``{archive}``) and of the slave's
+#: (``{slave_archive}``), :data:`PACKAGE_ARCHIVE` each, go first on ``sys.path`` (where the library's binary put
+#: ``resources/``), once
+_PACKAGES_ON_PATH = (
     "import os\nimport sys\n\n"
-    "_library = os.path.join(os.path.dirname(__file__), {archive!r})  # the FMI library, packed\n"
-    "sys.path[:0] = [] if _library in sys.path else [_library]\n\n")
+    "_packed = [os.path.join(os.path.dirname(__file__), name) for name in ({archive!r}, {slave_archive!r})]\n"
+    "sys.path[:0] = [path for path in _packed if path not in sys.path]  # the FMI library and the slave\n\n")
 #: PythonFMU 0.7.0 compiles and runs this module's source at every fmi2Instantiate in the module's globals, which
 #: it releases once per instance: the loader binding holds them (``hold_loader_namespace``). The slave's class is
 #: imported, once per process: a class defined here would be made again at every instantiation, and PythonFMU keeps
 #: each copy (25 kB per instance).
-FMI2_TEMPLATE = _LIBRARY_ON_PATH + (
+FMI2_TEMPLATE = _PACKAGES_ON_PATH + (
     "from {package}.fmu_slave import {model_name}  # noqa: F401\n"
     "from {package}.loader_binding import hold_loader_namespace\n\n"
     "hold_loader_namespace(globals())  # PythonFMU releases this module's globals once per instance\n")
@@ -83,19 +87,22 @@ FMI2_LOADER = LoaderModule("springblockfriction_", FMI2_TEMPLATE)
 #: pythonfmu3 0.3.4 imports this module once and takes the slave class by the name in its first line that reads
 #: ``class <name>(... Fmi3SlaveBase ...):`` (a regular expression over the file, in its builder and its binary):
 #: the class is defined here, a subclass adding nothing.
-FMI3_LOADER = LoaderModule("springblockfriction3_", _LIBRARY_ON_PATH + (
+FMI3_LOADER = LoaderModule("springblockfriction3_", _PACKAGES_ON_PATH + (
     "from pythonfmu3 import Fmi3SlaveBase\n\nfrom {package} import fmu_slave\n\n\n"
     "class {model_name}(fmu_slave.{model_name}, Fmi3SlaveBase):\n"
     '    """The slave (fmu_slave), named where pythonfmu3 looks for it."""\n'))
-#: the slave package's ``__init__.py`` (``{runtime}``: the runtime's package). A process may have imported the
+#: the slave package's ``__init__.py`` (``{runtime}``: the runtime's package; ``{packed}``: the archive of its sources
+#: in its folder, :data:`~stickslip.core._implementation.PACKED`). A process may have imported the
 #: runtime's package from another FMU of the same runtime, whose files a host may have removed since: a module it
-#: imports later (one the other FMU's slave never imported) is then found in this FMU's copy.
+#: imports later (one the other FMU's slave never imported) is then found in this FMU's copy, in ``resources/``
+#: beside the package's archive (or its folder, where the builder imports it).
 SLAVE_PACKAGE_INIT = (
     '"""The FMU\'s slave and the variable table it shares; this FMU\'s copy of the runtime first on its path."""\n\n'
     "import os\n\nimport {runtime}\n\n"
-    "_copy = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), {runtime!r})\n"
-    "if _copy not in {runtime}.__path__:\n"
-    "    {runtime}.__path__.insert(0, _copy)\n")
+    "_beside = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # resources/, or the archive in it\n"
+    "_copy = os.path.join(os.path.dirname(_beside) if os.path.isfile(_beside) else _beside, {runtime!r})\n"
+    "if _copy not in {runtime}.__path__:  # its compiled modules, then its packed sources\n"
+    "    {runtime}.__path__[:0] = [_copy, os.path.join(_copy, {packed!r})]\n")
 #: FMI version: its loader module
 LOADERS = {2: FMI2_LOADER, 3: FMI3_LOADER}
 
@@ -140,7 +147,8 @@ def stage_runtime(folder, tags, runtime, slave, interface, model_name, compiled=
     package_dir, slave_dir = Path(folder) / package, Path(folder) / slave_package
     shutil.copytree(runtime, package_dir, ignore=shutil.ignore_patterns(*COMPILED_ARTIFACTS))
     slave_dir.mkdir()
-    (slave_dir / "__init__.py").write_text(SLAVE_PACKAGE_INIT.format(runtime=package))
+    (slave_dir / "__init__.py").write_text(SLAVE_PACKAGE_INIT.format(runtime=package,
+                                                                     packed=implementation.PACKED))
     interface_code = rewrite_once(interface, r"\bstickslip\.core\b", package,
                                   "the runtime as 'from stickslip.core import ...'")
     (slave_dir / "block_interface.py").write_text(
@@ -154,10 +162,9 @@ def stage_runtime(folder, tags, runtime, slave, interface, model_name, compiled=
     (slave_dir / "fmu_slave.py").write_text(slave_code)
     script = Path(folder) / f"{module}.py"
     script.write_text(loader.template.format(package=slave_package, model_name=model_name,
-                                             archive=LIBRARY_ARCHIVE.format(library=library)))
+                                             archive=PACKAGE_ARCHIVE.format(package=library),
+                                             slave_archive=PACKAGE_ARCHIVE.format(package=slave_package)))
     staged = StagedRuntime(script, package_dir, slave_dir, module)
-    staged.extra_files.update(byte_compile(package_dir))
-    staged.extra_files.update(byte_compile(slave_dir))
     if compiled:
         staged.extra_files.update(_compiled(Path(folder), package))
     return staged
