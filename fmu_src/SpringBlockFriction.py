@@ -27,7 +27,6 @@ here (``balance_release``): an importer that terminates and frees the
 instance after the error, as libcosim does, does not crash.
 """
 
-import functools
 import math
 import operator
 from xml.etree.ElementTree import Element
@@ -35,9 +34,8 @@ from xml.etree.ElementTree import Element
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
 from block_interface import (
-    DERIVATIVES, EXCHANGE_STATE_KINDS, FIRST_OUTPUT, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, PYTHONFMU_ENTRY_POINTS,
-    STATES, VARIABLES, BlockInterface, ExchangeInterface, balance_release, saved_state, serialized_states,
-    state_from_snapshot, state_snapshot,
+    DERIVATIVES, FIRST_OUTPUT, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, PYTHONFMU_ENTRY_POINTS, STATES, VARIABLES,
+    BlockInterface, ExchangeInterface, balance_release, serialize_states,
 )
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input, "output": Fmi2Causality.output}
@@ -50,7 +48,6 @@ FIRST_DERIVATIVE = len(VARIABLES)
 _NAMES = tuple(v.name for v in VARIABLES) + tuple(name for name, _, _ in DERIVATIVES)
 _REFERENCES = {Real: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "real") | frozenset(
     range(FIRST_DERIVATIVE, len(_NAMES))), Integer: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "integer")}
-_FMU_STATE_KINDS = {"block": saved_state.NESTED, **EXCHANGE_STATE_KINDS}  # the fields of a serialized state
 _INPUTS = slice(_REFERENCE_OF["v_drive"], _REFERENCE_OF["F_ext"] + 1)  # the inputs' value references, in a row
 if _REFERENCE_OF["F_ext"] != _REFERENCE_OF["v_drive"] + 1:
     raise ImportError("block_interface.VARIABLES must hold the inputs v_drive and F_ext in a row")
@@ -276,5 +273,4 @@ _EXCHANGE_CALLS = {
 }
 
 balance_release(SpringBlockFriction, PYTHONFMU_ENTRY_POINTS)
-serialized_states(SpringBlockFriction, tuple(_FMU_STATE_KINDS), state_snapshot,
-                  functools.partial(state_from_snapshot, kinds=_FMU_STATE_KINDS))
+serialize_states(SpringBlockFriction, 2)

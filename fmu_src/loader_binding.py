@@ -7,15 +7,17 @@ this module in their runtime package, the coupling FMU in its own.
   lack.
 - :func:`balance_release`: an exception of the slave leaves it usable, so that the loader (built with
   ``slave_survives_release``) reports the call's failure as an error status and the instance goes on.
-- :func:`serialized_states`: bytes that are no FMU state of the slave are refused with the reason, never with an
-  exception; the loader looks for :data:`REFUSED_STATE`.
+- :func:`serialized_states`: FMU states as bytes (a header that says whose state they hold, then the slave's
+  fields); bytes that are no FMU state of the slave are refused with the reason, never with an exception; the loader
+  looks for :data:`REFUSED_STATE`.
 - :func:`hold_loader_namespace`: the module PythonFMU loads the slave from keeps its globals.
 """
 
 import ctypes
 import functools
-import json
 import os
+import struct
+import zlib
 
 #: The methods PythonFMU's C++ wrapper calls on an FMI 2 slave (``PyObject_CallMethod(pInstance_, ...)`` in its
 #: PySlaveInstance.cpp): the entry points :func:`balance_release` wraps.
@@ -141,32 +143,57 @@ def hold_loader_namespace(namespace):
 #: How a refused state (:func:`state_from_bytes`) serializes: this prefix, then the reason as UTF-8. The FMUs' loader
 #: (``fmi2DeSerializeFMUstate``/``fmi3DeserializeFMUState`` in ``src/stickslip/fmu/loader``) looks for it.
 REFUSED_STATE = b"refused FMU state: "
+#: A serialized FMU state starts with this header: :data:`STATE_MAGIC`, the format version (:data:`STATE_FORMAT`) and
+#: the CRC-32 of the identity of the FMU whose state it is (:func:`state_header`), little-endian
+STATE_HEADER = struct.Struct("<8sHI")
+STATE_MAGIC = b"SBFstate"
+STATE_FORMAT = 1  # the version of the format of the FMUs' serialized states: the FMUs read this one only
 
 
-def serialized_states(cls, keys, to_snapshot, from_snapshot):
-    """Give the slave class ``cls``, whose FMU states turn into JSON-serializable dicts with the keys ``keys`` by
-    ``to_snapshot(state)`` and back by ``from_snapshot(dict)`` (which checks every value, raising with the reason), the
-    library's (de)serializers of FMU states: ``_fmu_state_to_bytes`` (:func:`state_to_bytes`) and
-    ``_fmu_state_from_bytes`` (:func:`state_from_bytes`, which never raises), and the C loader's ``state_from_bytes``,
-    which raises for bytes that are no state of the slave."""
-    strict = functools.partial(state_from_bytes, keys=frozenset(keys), from_snapshot=from_snapshot)
+def state_header(identity):
+    """The header of the serialized states of the FMU whose identity is the text ``identity`` (its class, FMI version
+    and the fields of its states: bytes of another FMU, or of another layout, are refused)."""
+    return STATE_HEADER.pack(STATE_MAGIC, STATE_FORMAT, zlib.crc32(identity.encode("utf-8")))
+
+
+def serialized_states(cls, identity, pack, unpack):
+    """Give the slave class ``cls`` the library's (de)serializers of FMU states: ``_fmu_state_to_bytes``
+    (:func:`state_to_bytes`) and ``_fmu_state_from_bytes`` (:func:`state_from_bytes`, which never raises), and the C
+    loader's ``state_from_bytes``, which raises for bytes that are no state of the slave. A state's bytes are the
+    header of ``identity`` (:func:`state_header`) and the parts that ``pack(state)`` gives (a list of bytes);
+    ``unpack(data, offset)`` gives the state back from the bytes after the header, every value checked (raising
+    with the reason)."""
+    header = state_header(identity)
+    strict = functools.partial(state_from_bytes, header=header, unpack=unpack)
     cls.state_from_bytes = staticmethod(strict)
     cls._fmu_state_from_bytes = staticmethod(functools.partial(_refused_instead, strict))
-    cls._fmu_state_to_bytes = staticmethod(functools.partial(state_to_bytes, to_snapshot=to_snapshot))
+    cls._fmu_state_to_bytes = staticmethod(functools.partial(state_to_bytes, header=header, pack=pack))
 
 
-def state_from_bytes(data, keys, from_snapshot):
-    """The FMU state serialized in ``data`` (JSON of a dict with the keys ``keys``, turned into a state by
-    ``from_snapshot``); ValueError, or the exception of ``from_snapshot``, saying why bytes are none."""
-    try:
-        state = json.loads(bytes(data).decode("utf-8"))
-    except ValueError as error:
-        raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: {error!r}") from None
-    if not isinstance(state, dict) or set(state) != keys:
-        found = sorted(state) if isinstance(state, dict) else type(state).__name__
-        raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: they hold {found}, "
-                         f"not a dict with the keys {sorted(keys)}")
-    return from_snapshot(state)
+def state_from_bytes(data, header, unpack):
+    """The FMU state serialized in ``data`` (:func:`serialized_states`); ValueError, or the exception of ``unpack``,
+    saying why bytes are none."""
+    data = bytes(data)
+    if not data.startswith(header):
+        raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: "
+                         f"{_header_mismatch(data, header)}")
+    return unpack(data, len(header))
+
+
+def _header_mismatch(data, header):
+    """What in ``data`` is not the header ``header`` of this FMU's states."""
+    if data.startswith(b"{"):
+        return "they look like the JSON of the states of earlier versions, which this FMU no longer reads"
+    if len(data) < STATE_HEADER.size:
+        return f"a state starts with a header of {STATE_HEADER.size} bytes"
+    magic, version, identity = STATE_HEADER.unpack_from(data)
+    _, own_version, own_identity = STATE_HEADER.unpack(header)
+    if magic != STATE_MAGIC:
+        return f"they do not start with {STATE_MAGIC!r}"
+    if version != own_version:
+        return f"they are of format version {version}, and this FMU reads version {own_version}"
+    return (f"they hold a state of another FMU (identity {identity:08x}, this FMU's is {own_identity:08x}: another "
+            f"model, FMI version or layout of its states)")
 
 
 def _refused_instead(strict, data):
@@ -181,13 +208,14 @@ def _refused_instead(strict, data):
         return {"refused": str(error)}
 
 
-def state_to_bytes(state, to_snapshot):
-    """The bytes of an FMU state (JSON of ``to_snapshot(state)``); for a refused state, :data:`REFUSED_STATE` and the
-    reason."""
-    reason = refusal(state)
-    if reason is not None:
-        return REFUSED_STATE + reason.encode("utf-8")
-    return json.dumps(to_snapshot(state)).encode("utf-8")
+def state_to_bytes(state, header, pack):
+    """The bytes of an FMU state (``header`` and the parts of ``pack(state)``); for a refused state,
+    :data:`REFUSED_STATE` and the reason."""
+    if state.__class__ is dict:
+        return REFUSED_STATE + refusal(state).encode("utf-8")
+    parts = pack(state)
+    parts.insert(0, header)
+    return b"".join(parts)
 
 
 def refusal(state):

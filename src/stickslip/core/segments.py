@@ -221,23 +221,33 @@ class StepSegment(Segment):
                 self.x1, self.v1]
 
 
+#: every kind of segment, in the order of their codes in a state's bytes (:mod:`.state_bytes`)
+SEGMENT_CLASSES = (StuckSegment, HarmonicSegment, StepSegment)
+
+
 def segment_from_list(values, p):
     """Rebuild a segment from :meth:`~Segment.to_list` output (with the parameters ``p`` it was saved with).
 
-    StateError names a field that is missing, of the wrong kind or inconsistent: times out of order, a
-    negative duration or stick time, a slip in mode 0, a closed-form slip under a law that has none.
+    StateError names a field that is missing, of the wrong kind or inconsistent (see :func:`checked_segment`).
     """
-    kinds = {StuckSegment.KIND: StuckSegment, HarmonicSegment.KIND: HarmonicSegment, StepSegment.KIND: StepSegment}
+    kinds = {segment_class.KIND: segment_class for segment_class in SEGMENT_CLASSES}
     kind = values[0] if isinstance(values, list) and values else None
     if not isinstance(kind, str) or kind not in kinds:
         raise StateError(f"saved state segment {values!r:.80} is not a list that starts with one of {sorted(kinds)}")
     segment_class = kinds[kind]
-    fields = dict(zip((name for name, _ in segment_class.FIELDS),
-                      sequence(f"segment ({kind})", values[1:], segment_class.FIELDS)))
-    _check_segment(kind, fields, p)
+    return checked_segment(segment_class, sequence(f"segment ({kind})", values[1:], segment_class.FIELDS), p)
+
+
+def checked_segment(segment_class, values, p):
+    """The segment of ``segment_class`` whose constructor's arguments (without ``p``) are ``values``, each of its kind
+    in ``segment_class.FIELDS``: StateError naming what no segment saved by this runtime under ``p`` holds (times
+    out of order, a negative duration or stick time, a slip in mode 0, a closed-form slip under a law that has
+    none)."""
+    kind = segment_class.KIND
+    _check_segment(kind, dict(zip((name for name, _ in segment_class.FIELDS), values)), p)
     if segment_class is HarmonicSegment:
-        return HarmonicSegment(*fields.values(), p)
-    return segment_class(*fields.values())
+        return HarmonicSegment(*values, p)
+    return segment_class(*values)
 
 
 def _check_segment(kind, fields, p):

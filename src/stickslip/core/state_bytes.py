@@ -1,0 +1,254 @@
+"""A block FMU's state as bytes and back: fixed fields packed with :mod:`struct`, checked as they are unpacked.
+
+The FMU's state is the tuple of ``fmu_src/block_interface.py`` (``ExchangeInterface.fmu_state``): ``(block part,
+model-exchange part, *extras)``, the block part ``(parameter pairs, v_drive, F_ext, der(F_ext), start time,
+trajectory state or None, inputs pending)``, the model-exchange part ``(block state or None, time, interface)``.
+:class:`BlockStateFormat` writes it as these parts, in this order, little-endian, without padding:
+
+1. head: a flag for each of: a trajectory follows, a model-exchange block follows, the host used model exchange,
+   each extra (FMI 3: a step was taken), each input pending; then the start time and the model's time (s);
+2. the inputs ``v_drive``, ``F_ext``, ``der(F_ext)``;
+3. the parameters, one field each, in the FMU's order;
+4. if flagged, the trajectory: :data:`.trajectory.STATE_FIELDS`, its segment's kind (0 stuck, 1 harmonic, 2 step:
+   :data:`.segments.SEGMENT_CLASSES`), then the segment's ``FIELDS`` (a list of reals last, each as a 2-byte count
+   and the reals);
+5. if flagged, the model-exchange block: :data:`.exchange.STATE_FIELDS`.
+
+Each field is of a kind of :mod:`.saved_state`: a finite real or one that may be ``inf`` is an 8-byte float, a count
+an 8-byte signed integer (>= 0), a flag one byte (0 or 1), a mode a signed byte (-1, 0, 1), a real that may be None a flag
+byte (1: given) and an 8-byte float (0 when not given). Unpacking checks every field's kind and then the values
+together, with the same checks and messages as a saved state's JSON (StateError or ParameterError naming the first
+field out of place or range); bytes that end early or go on after the state are refused too. The header that says
+whose state the bytes hold comes before all this (the slaves' ``loader_binding``).
+"""
+
+from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
+
+import math
+import struct
+from typing import Any, Callable
+
+from . import saved_state
+from .errors import StateError
+from .exchange import STATE_FIELDS as EXCHANGE_FIELDS, ExchangeBlock
+from .segments import SEGMENT_CLASSES, checked_segment
+from .trajectory import STATE_FIELDS as TRAJECTORY_FIELDS, checked_state, state_fields
+
+# the kinds of field, as codes, and their struct formats
+_REAL, _TIME_END, _COUNT, _FLAG, _MODE, _OPTIONAL_REAL, _OPTIONAL_STEP = range(7)
+_CODES = {saved_state.REAL: (_REAL, "d"), saved_state.TIME_END: (_TIME_END, "d"), saved_state.COUNT: (_COUNT, "q"),
+          saved_state.FLAG: (_FLAG, "B"), saved_state.MODE: (_MODE, "b"),
+          saved_state.OPTIONAL_REAL: (_OPTIONAL_REAL, "Bd"), saved_state.OPTIONAL_STEP: (_OPTIONAL_STEP, "Bd")}
+_COUNT_OF_REALS = struct.Struct("<H")  # how many reals a list holds
+_SEGMENT_CODES = {segment_class.KIND: code for code, segment_class in enumerate(SEGMENT_CLASSES)}
+
+
+class Fields:
+    """A row of fields ``(name, kind)`` of :mod:`.saved_state`'s kinds (no lists), packed as one struct."""
+
+    names: tuple
+    kinds: tuple
+    codes: list[int]
+    layout: struct.Struct
+    size: int
+    plain: bool
+
+    def __init__(self, fields: tuple, prefix: str = "") -> None:
+        self.names = tuple(prefix + name for name, _ in fields)
+        self.kinds = tuple(kind for _, kind in fields)
+        self.codes = [_CODES[kind][0] for kind in self.kinds]
+        self.layout = struct.Struct("<" + "".join(_CODES[kind][1] for kind in self.kinds))
+        self.size = self.layout.size
+        self.plain = _OPTIONAL_REAL not in self.codes and _OPTIONAL_STEP not in self.codes
+
+    def pack(self, values: Any) -> bytes:
+        """The bytes of ``values``, one for each field, in their order."""
+        if self.plain:
+            return self.layout.pack(*values)
+        flat: list = []
+        for code, value in zip(self.codes, values):
+            if code >= _OPTIONAL_REAL:
+                flat.append(value is not None)
+                flat.append(0.0 if value is None else value)
+            else:
+                flat.append(value)
+        return self.layout.pack(*flat)
+
+    def unpack(self, data: bytes, offset: int) -> list:
+        """The values of the fields packed at ``offset`` of ``data``, each checked and converted to its kind (a flag
+        to a bool, a real not given to None): StateError naming the first that is not of its kind, in the words of
+        :func:`.saved_state.field`."""
+        if offset + self.size > len(data):
+            raise StateError(f"the {len(data)} bytes end within the saved state's fields {self.names[0]} to "
+                             f"{self.names[-1]} (bytes {offset} to {offset + self.size})")
+        raw = self.layout.unpack_from(data, offset)
+        values: list = []
+        j = 0
+        for i, code in enumerate(self.codes):
+            value = raw[j]
+            j += 1
+            if code == _REAL:
+                ok = math.isfinite(value)
+            elif code == _TIME_END:
+                ok = math.isfinite(value) or value == math.inf
+            elif code == _FLAG:
+                ok = value <= 1
+            elif code == _MODE:
+                ok = -1 <= value <= 1
+            elif code >= _OPTIONAL_REAL:
+                given, value = value, raw[j]
+                j += 1
+                if given > 1 or (not given and value != 0.0):
+                    raise StateError(f"saved state {self.names[i]} is {'marked' if given > 1 else 'not given'} "
+                                     f"({given}: allowed is 0, not given, or 1) but holds {value!r}")
+                value = value if given else None
+                ok = value is None or (math.isfinite(value) and (code == _OPTIONAL_REAL or value > 0.0))
+            else:
+                ok = value >= 0  # a count
+            if not ok:
+                raise StateError(f"saved state {self.names[i]} = {value!r} is not {self.kinds[i]}")
+            values.append(value == 1 if code == _FLAG else value)
+        return values
+
+
+class _SegmentFields:
+    """A kind of segment's fields: its fixed fields as :class:`Fields`, each list of reals after them."""
+
+    def __init__(self, segment_class: Any) -> None:
+        self.segment_class = segment_class
+        prefix = f"segment ({segment_class.KIND})."
+        fields = segment_class.FIELDS
+        self.lists = [i for i, (_, kind) in enumerate(fields) if kind == saved_state.REALS]
+        self.list_names = [prefix + fields[i][0] for i in self.lists]
+        self.fixed = Fields(tuple(field for i, field in enumerate(fields) if i not in self.lists), prefix)
+        self.reals: dict[int, struct.Struct] = {}  # count -> the struct of that many reals
+
+    def _struct(self, count: int) -> struct.Struct:
+        layout = self.reals.get(count)
+        if layout is None:
+            layout = self.reals[count] = struct.Struct(f"<{count}d")
+        return layout
+
+    def pack(self, segment: Any) -> list[bytes]:
+        values = segment.to_list()[1:]
+        parts = [self.fixed.pack([value for i, value in enumerate(values) if i not in self.lists])]
+        for i in self.lists:
+            reals = values[i]
+            parts.append(_COUNT_OF_REALS.pack(len(reals)))
+            parts.append(self._struct(len(reals)).pack(*reals))
+        return parts
+
+    def unpack(self, data: bytes, offset: int, params: Any) -> tuple[Any, int]:
+        """``(the segment, the offset after it)``, checked (:func:`.segments.checked_segment`)."""
+        values = self.fixed.unpack(data, offset)
+        offset += self.fixed.size
+        for i, name in zip(self.lists, self.list_names):
+            if offset + 2 > len(data):
+                raise StateError(f"the {len(data)} bytes end before the saved state's {name}")
+            count = _COUNT_OF_REALS.unpack_from(data, offset)[0]
+            layout = self._struct(count)
+            if offset + 2 + layout.size > len(data):
+                raise StateError(f"the {len(data)} bytes end within the saved state's {name} ({count} reals)")
+            reals = list(layout.unpack_from(data, offset + 2))
+            if not reals or not all(math.isfinite(real) for real in reals):
+                saved_state.field(name, reals, saved_state.REALS)
+            values.insert(i, reals)
+            offset += 2 + layout.size
+        return checked_segment(self.segment_class, values, params), offset
+
+
+class BlockStateFormat:
+    """The bytes of a block FMU's states (module docstring): :meth:`pack` and :meth:`unpack`.
+
+    ``parameters``: the parameters' ``(name, kind)`` in the order of the states' parameter pairs; ``inputs``: the
+    names of ``v_drive``, ``F_ext`` and ``der(F_ext)`` as the states' pending inputs name them; ``extras``: the names of
+    the flags a state holds after its model-exchange part; ``parameters_of``: the runtime's Parameters of the values
+    by name (parameters and inputs), each checked (ParameterError naming one out of range).
+    """
+
+    def __init__(self, parameters: tuple, inputs: tuple, extras: tuple, parameters_of: Callable[[dict], Any]) -> None:
+        flags = ("trajectory", "exchange", "interface", *extras, *(f"pending.{name}" for name in inputs))
+        self.head = Fields(tuple((name, saved_state.FLAG) for name in flags)
+                           + (("start_time", saved_state.REAL), ("time", saved_state.REAL)))
+        self.inputs = Fields(tuple((name, saved_state.REAL) for name in inputs))
+        self.parameters = Fields(parameters)
+        self.trajectory = Fields(TRAJECTORY_FIELDS + (("segment", saved_state.COUNT),))
+        self.segments = [_SegmentFields(segment_class) for segment_class in SEGMENT_CLASSES]
+        self.exchange = Fields(EXCHANGE_FIELDS)
+        self.input_names = inputs
+        self.extras = len(extras)
+        self.parameters_of = parameters_of
+        self._pending: dict[tuple, frozenset] = {}  # pending flags -> the frozenset of their names
+        self._packed: tuple = (None, b"")  # the parameter pairs packed last, and their bytes
+        self._unpacked: tuple = (b"", None)  # the parameters' bytes unpacked last, and (pairs, Parameters)
+
+    def field_names(self) -> list[str]:
+        """The names of every field a state may hold, in their order."""
+        names = [*self.head.names, *self.inputs.names, *self.parameters.names, *self.trajectory.names]
+        for segment in self.segments:
+            names += [*segment.fixed.names, *segment.list_names]
+        return names + list(self.exchange.names)
+
+    def pack(self, state: tuple) -> list[bytes]:
+        """The bytes of ``state``, in parts."""
+        (pairs, v_drive, F_ext, rate, start_time, trajectory, pending), (block, time, interface) = state[:2]
+        flags = [trajectory is not None, block is not None, interface, *state[2:]]
+        flags += [name in pending for name in self.input_names]
+        parts = [self.head.pack(flags + [start_time, time]), self.inputs.pack((v_drive, F_ext, rate))]
+        if self._packed[0] is not pairs:  # a state's pairs are shared while the parameters stay as they are
+            self._packed = (pairs, self.parameters.pack([value for _, value in pairs]))
+        parts.append(self._packed[1])
+        if trajectory is not None:
+            segment = trajectory[17]
+            parts.append(self.trajectory.pack(state_fields(trajectory) + (_SEGMENT_CODES[segment.KIND],)))
+            parts += self.segments[_SEGMENT_CODES[segment.KIND]].pack(segment)
+        if block is not None:
+            parts.append(self.exchange.pack(ExchangeBlock.state_fields(block)))
+        return parts
+
+    def unpack(self, data: bytes, offset: int) -> tuple:
+        """The state packed at ``offset`` of ``data``, up to its end, every field checked (StateError or
+        ParameterError naming the first out of place or range)."""
+        head = self.head.unpack(data, offset)
+        offset += self.head.size
+        inputs = self.inputs.unpack(data, offset)
+        offset += self.inputs.size
+        pairs, params = self._parameters(data, offset, inputs)
+        offset += self.parameters.size
+        trajectory = block = None
+        if head[0]:
+            values = self.trajectory.unpack(data, offset)
+            offset += self.trajectory.size
+            code = values.pop()
+            if code >= len(self.segments):
+                raise StateError(f"saved state segment = {code} is not a kind of segment: allowed is 0 to "
+                                 f"{len(self.segments) - 1} ({', '.join(c.KIND for c in SEGMENT_CLASSES)})")
+            segment, offset = self.segments[code].unpack(data, offset, params)
+            trajectory = checked_state(params, values, segment)
+        if head[1]:
+            block = ExchangeBlock.checked_state(params, self.exchange.unpack(data, offset))
+            offset += self.exchange.size
+        if offset != len(data):
+            raise StateError(f"the {len(data)} bytes go on after the saved state, which ends at byte {offset}")
+        extras = 3 + self.extras
+        block_part = (pairs, inputs[0], inputs[1], inputs[2], head[-2], trajectory,
+                      self._pending_set(tuple(head[extras:extras + len(self.input_names)])))
+        return (block_part, (block, head[-1], head[2])) + tuple(head[3:extras])
+
+    def _parameters(self, data: bytes, offset: int, inputs: list) -> tuple:
+        """``(parameter pairs, Parameters)`` of the parameters packed at ``offset``: the same objects for the same
+        bytes as the last time (their values, checked then, are the same)."""
+        packed = data[offset:offset + self.parameters.size]
+        if packed == self._unpacked[0]:
+            return self._unpacked[1]
+        values = self.parameters.unpack(data, offset)
+        pairs = tuple(zip(self.parameters.names, values))
+        params = self.parameters_of({**dict(pairs), **dict(zip(self.input_names, inputs))})
+        self._unpacked = (packed, (pairs, params))
+        return pairs, params
+
+    def _pending_set(self, flags: tuple) -> frozenset:
+        pending = self._pending.get(flags)
+        if pending is None:
+            pending = self._pending[flags] = frozenset(name for name, flag in zip(self.input_names, flags) if flag)
+        return pending
