@@ -29,7 +29,9 @@ import struct
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 
-from loader_binding import PYTHONFMU_ENTRY_POINTS, balance_release, offer_to_loader, refusal, serialized_states
+from loader_binding import (
+    PYTHONFMU_ENTRY_POINTS, StateBytes, balance_release, offer_to_loader, refusal, serialized_states,
+)
 
 POSITIONS = {"x_left": "position of the left neighbour (m)", "x": "position of the block (m)",
              "x_right": "position of the right neighbour (m)"}
@@ -236,5 +238,6 @@ def checked_springs(order, kc_left, kc_right, left, middle, right):
 
 
 balance_release(ChainCoupling, PYTHONFMU_ENTRY_POINTS)
-serialized_states(ChainCoupling, f"ChainCoupling FMI 2: {' '.join(ALLOWED)} der({', '.join(POSITIONS)})", pack_state,
-                  unpack_state)
+_STATE_BYTES = StateBytes(f"ChainCoupling FMI 2: {' '.join(ALLOWED)} der({', '.join(POSITIONS)})", pack_state,
+                          unpack_state)
+serialized_states(ChainCoupling, _STATE_BYTES.to_bytes, _STATE_BYTES.from_bytes)

@@ -15,7 +15,8 @@ import math
 from collections import namedtuple
 
 from stickslip.fmu_src.loader_binding import (  # the slaves take these from here (one import of this module)
-    PYTHONFMU_ENTRY_POINTS, balance_release, offer_to_loader, refusal, serialized_states,
+    PYTHONFMU_ENTRY_POINTS, REFUSED_STATE, balance_release, header_mismatch, offer_to_loader, refusal, serialized_states,
+    state_header,
 )
 
 from stickslip.core import (
@@ -556,13 +557,14 @@ def check_state(state):
 
 
 def serialize_states(cls, fmi_version, extras=()):
-    """Give the slave class ``cls`` of FMI version ``fmi_version`` its FMU states as bytes: the states of
-    :meth:`ExchangeInterface.fmu_state` with the flags named ``extras`` after them, in the runtime's
-    :class:`BlockStateFormat`, after the header of :func:`loader_binding.serialized_states` (whose identity names the
-    class, the FMI version and every field, so that bytes of another FMU or layout are refused)."""
-    layout = BlockStateFormat(_PARAMETER_FIELDS, _INPUT_KEYS_IN_ORDER, extras, parameters_of)
-    identity = f"{cls.__name__} FMI {fmi_version}: {' '.join(layout.field_names())}"
-    serialized_states(cls, identity, layout.pack, layout.unpack)
+    """Give the slave class ``cls`` of FMI version ``fmi_version`` its FMU states as bytes
+    (:func:`loader_binding.serialized_states`): the states of :meth:`ExchangeInterface.fmu_state` with the flags named
+    ``extras`` after them, in the runtime's :class:`BlockStateFormat` after the header of
+    :func:`loader_binding.state_header`, whose identity names the class, the FMI version and every field (bytes of
+    another FMU or layout are refused)."""
+    layout = BlockStateFormat(_PARAMETER_FIELDS, _INPUT_KEYS_IN_ORDER, extras, parameters_of,
+                              f"{cls.__name__} FMI {fmi_version}:", state_header, REFUSED_STATE, header_mismatch)
+    serialized_states(cls, layout.to_bytes, layout.from_bytes)
 
 
 _INPUT_KEYS_IN_ORDER = INPUTS + (F_EXT_RATE,)  # the values an FMU state keeps apart from the parameters

@@ -140,7 +140,7 @@ def hold_loader_namespace(namespace):
 
 # ---- serialized FMU states -----------------------------------------------------------------------------------
 
-#: How a refused state (:func:`state_from_bytes`) serializes: this prefix, then the reason as UTF-8. The FMUs' loader
+#: How a refused state (``_fmu_state_from_bytes``) serializes: this prefix, then the reason as UTF-8. The FMUs' loader
 #: (``fmi2DeSerializeFMUstate``/``fmi3DeserializeFMUState`` in ``src/stickslip/fmu/loader``) looks for it.
 REFUSED_STATE = b"refused FMU state: "
 #: A serialized FMU state starts with this header: :data:`STATE_MAGIC`, the format version (:data:`STATE_FORMAT`) and
@@ -156,31 +156,40 @@ def state_header(identity):
     return STATE_HEADER.pack(STATE_MAGIC, STATE_FORMAT, zlib.crc32(identity.encode("utf-8")))
 
 
-def serialized_states(cls, identity, pack, unpack):
-    """Give the slave class ``cls`` the library's (de)serializers of FMU states: ``_fmu_state_to_bytes``
-    (:func:`state_to_bytes`) and ``_fmu_state_from_bytes`` (:func:`state_from_bytes`, which never raises), and the C
-    loader's ``state_from_bytes``, which raises for bytes that are no state of the slave. A state's bytes are the
-    header of ``identity`` (:func:`state_header`) and the parts that ``pack(state)`` gives (a list of bytes);
-    ``unpack(data, offset)`` gives the state back from the bytes after the header, every value checked (raising
-    with the reason)."""
-    header = state_header(identity)
-    strict = functools.partial(state_from_bytes, header=header, unpack=unpack)
-    cls.state_from_bytes = staticmethod(strict)
-    cls._fmu_state_from_bytes = staticmethod(functools.partial(_refused_instead, strict))
-    cls._fmu_state_to_bytes = staticmethod(functools.partial(state_to_bytes, header=header, pack=pack))
+def serialized_states(cls, to_bytes, from_bytes):
+    """Give the slave class ``cls`` the library's (de)serializers of FMU states: ``_fmu_state_to_bytes`` (``to_bytes``)
+    and ``_fmu_state_from_bytes`` (``from_bytes``, made never to raise), and the C loader's ``state_from_bytes``
+    (``from_bytes``), which raises for bytes that are no state of the slave. ``to_bytes(state)``: the state's bytes,
+    the header of :func:`state_header` first (for a refused state, :data:`REFUSED_STATE` and the reason);
+    ``from_bytes(data)``: the state back, every value checked, raising with the reason (:func:`header_mismatch` for
+    bytes without the header)."""
+    cls.state_from_bytes = staticmethod(from_bytes)
+    cls._fmu_state_from_bytes = staticmethod(functools.partial(_refused_instead, from_bytes))
+    cls._fmu_state_to_bytes = staticmethod(to_bytes)
 
 
-def state_from_bytes(data, header, unpack):
-    """The FMU state serialized in ``data`` (:func:`serialized_states`); ValueError, or the exception of ``unpack``,
-    saying why bytes are none."""
-    data = bytes(data)
-    if not data.startswith(header):
-        raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: "
-                         f"{_header_mismatch(data, header)}")
-    return unpack(data, len(header))
+class StateBytes:
+    """``to_bytes`` and ``from_bytes`` of :func:`serialized_states` for the states of the FMU whose identity is
+    ``identity`` (:func:`state_header`): the header, then the parts ``pack(state)`` gives (a list of bytes);
+    ``unpack(data, offset)`` gives the state back from the bytes after the header."""
+
+    def __init__(self, identity, pack, unpack):
+        self.header, self.pack, self.unpack = state_header(identity), pack, unpack
+
+    def to_bytes(self, state):
+        if refusal(state) is not None:
+            return REFUSED_STATE + refusal(state).encode("utf-8")
+        return b"".join([self.header, *self.pack(state)])
+
+    def from_bytes(self, data):
+        data = bytes(data)
+        if not data.startswith(self.header):
+            raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: "
+                             f"{header_mismatch(data, self.header)}")
+        return self.unpack(data, len(self.header))
 
 
-def _header_mismatch(data, header):
+def header_mismatch(data, header):
     """What in ``data`` is not the header ``header`` of this FMU's states."""
     if data.startswith(b"{"):
         return "they look like the JSON of the states of earlier versions, which this FMU no longer reads"
@@ -206,16 +215,6 @@ def _refused_instead(strict, data):
         return strict(data)
     except Exception as error:  # noqa: BLE001 - any failure is a refusal, see the docstring
         return {"refused": str(error)}
-
-
-def state_to_bytes(state, header, pack):
-    """The bytes of an FMU state (``header`` and the parts of ``pack(state)``); for a refused state,
-    :data:`REFUSED_STATE` and the reason."""
-    if state.__class__ is dict:
-        return REFUSED_STATE + refusal(state).encode("utf-8")
-    parts = pack(state)
-    parts.insert(0, header)
-    return b"".join(parts)
 
 
 def refusal(state):

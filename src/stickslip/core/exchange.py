@@ -48,6 +48,7 @@ discrete state between the host's calls.
 """
 
 import math
+import operator
 
 from . import saved_state
 from .errors import ParameterError, StateError
@@ -303,10 +304,10 @@ class ExchangeBlock:
         """The discrete and continuous state of a :meth:`state` as JSON-serializable values (:meth:`from_snapshot`)."""
         return {name: state[name] for name in cls._SAVED}
 
-    @classmethod
-    def state_fields(cls, state):
+    @staticmethod
+    def state_fields(state):
         """The values of :data:`STATE_FIELDS` of a :meth:`state`, in their order."""
-        return tuple(state[name] for name in cls._SAVED[:-1]) + state["_inputs"]
+        return _pick_saved(state) + state["_inputs"]
 
     @classmethod
     def from_snapshot(cls, params, snap):
@@ -343,6 +344,7 @@ _SAVED_KINDS = {"t": saved_state.REAL, "v_drive": saved_state.REAL, "F_ext": sav
                 "n_slip_events": saved_state.COUNT, "n_overshoots": saved_state.COUNT,
                 "t_last_event": saved_state.REAL, "_inputs": saved_state.NESTED}
 _INPUT_FIELDS = (("v_drive", saved_state.REAL), ("F_ext", saved_state.REAL))  # the inputs at the last update
+_pick_saved = operator.itemgetter(*ExchangeBlock._SAVED[:-1])  # from a state, the saved fields but the inputs
 #: The fields of an :meth:`ExchangeBlock.state` that a saved state holds, in one row (its inputs at the last update
 #: last): the values :meth:`ExchangeBlock.state_fields` gives and :meth:`ExchangeBlock.checked_state` takes, with
 #: their kinds

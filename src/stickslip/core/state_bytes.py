@@ -25,8 +25,9 @@ whose state the bytes hold comes before all this (the slaves' ``loader_binding``
 from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
 
 import math
+import operator
 import struct
-from typing import Any, Callable
+from typing import Any, Callable, Final
 
 from . import saved_state
 from .errors import StateError
@@ -34,8 +35,15 @@ from .exchange import STATE_FIELDS as EXCHANGE_FIELDS, ExchangeBlock
 from .segments import SEGMENT_CLASSES, checked_segment
 from .trajectory import STATE_FIELDS as TRAJECTORY_FIELDS, checked_state, state_fields
 
-# the kinds of field, as codes, and their struct formats
-_REAL, _TIME_END, _COUNT, _FLAG, _MODE, _OPTIONAL_REAL, _OPTIONAL_STEP = range(7)
+# the kinds of field, as codes (Final: compiled code compares them natively), and their struct formats
+_REAL: Final = 0
+_TIME_END: Final = 1
+_COUNT: Final = 2
+_FLAG: Final = 3
+_MODE: Final = 4
+_OPTIONAL_REAL: Final = 5
+_OPTIONAL_STEP: Final = 6
+_INF: Final = math.inf
 _CODES = {saved_state.REAL: (_REAL, "d"), saved_state.TIME_END: (_TIME_END, "d"), saved_state.COUNT: (_COUNT, "q"),
           saved_state.FLAG: (_FLAG, "B"), saved_state.MODE: (_MODE, "b"),
           saved_state.OPTIONAL_REAL: (_OPTIONAL_REAL, "Bd"), saved_state.OPTIONAL_STEP: (_OPTIONAL_STEP, "Bd")}
@@ -49,29 +57,26 @@ class Fields:
     names: tuple
     kinds: tuple
     codes: list[int]
+    optional: list[int]  # the indexes of the fields that may be None, last first
     layout: struct.Struct
     size: int
-    plain: bool
 
     def __init__(self, fields: tuple, prefix: str = "") -> None:
         self.names = tuple(prefix + name for name, _ in fields)
         self.kinds = tuple(kind for _, kind in fields)
         self.codes = [_CODES[kind][0] for kind in self.kinds]
+        self.optional = [i for i, code in enumerate(self.codes) if code >= _OPTIONAL_REAL][::-1]
         self.layout = struct.Struct("<" + "".join(_CODES[kind][1] for kind in self.kinds))
         self.size = self.layout.size
-        self.plain = _OPTIONAL_REAL not in self.codes and _OPTIONAL_STEP not in self.codes
 
     def pack(self, values: Any) -> bytes:
         """The bytes of ``values``, one for each field, in their order."""
-        if self.plain:
+        if not self.optional:
             return self.layout.pack(*values)
-        flat: list = []
-        for code, value in zip(self.codes, values):
-            if code >= _OPTIONAL_REAL:
-                flat.append(value is not None)
-                flat.append(0.0 if value is None else value)
-            else:
-                flat.append(value)
+        flat = list(values)
+        for i in self.optional:
+            value = flat[i]
+            flat[i:i + 1] = (False, 0.0) if value is None else (True, value)
         return self.layout.pack(*flat)
 
     def unpack(self, data: bytes, offset: int) -> list:
@@ -85,30 +90,32 @@ class Fields:
         values: list = []
         j = 0
         for i, code in enumerate(self.codes):
-            value = raw[j]
+            value: object = raw[j]
             j += 1
-            if code == _REAL:
-                ok = math.isfinite(value)
-            elif code == _TIME_END:
-                ok = math.isfinite(value) or value == math.inf
-            elif code == _FLAG:
-                ok = value <= 1
-            elif code == _MODE:
-                ok = -1 <= value <= 1
-            elif code >= _OPTIONAL_REAL:
-                given, value = value, raw[j]
-                j += 1
-                if given > 1 or (not given and value != 0.0):
-                    raise StateError(f"saved state {self.names[i]} is {'marked' if given > 1 else 'not given'} "
-                                     f"({given}: allowed is 0, not given, or 1) but holds {value!r}")
-                value = value if given else None
-                ok = value is None or (math.isfinite(value) and (code == _OPTIONAL_REAL or value > 0.0))
+            if code == _REAL or code == _TIME_END:
+                real: float = raw[j - 1]
+                ok = real - real == 0.0 or (code == _TIME_END and real == _INF)
+            elif code == _COUNT or code == _FLAG or code == _MODE:
+                number: int = raw[j - 1]
+                ok = number >= 0 if code == _COUNT else (0 <= number <= 1 if code == _FLAG else -1 <= number <= 1)
+                if code == _FLAG and ok:
+                    value = number == 1
             else:
-                ok = value >= 0  # a count
+                value = self._optional(i, raw[j - 1], raw[j])
+                j += 1
+                ok = value is None or code == _OPTIONAL_REAL or value > 0.0
             if not ok:
                 raise StateError(f"saved state {self.names[i]} = {value!r} is not {self.kinds[i]}")
-            values.append(value == 1 if code == _FLAG else value)
+            values.append(value)
         return values
+
+    def _optional(self, index: int, given: int, real: float) -> float | None:
+        """A real that may be None, packed as ``given`` and ``real``: None, or the real if finite."""
+        if given > 1 or (not given and real != 0.0) or (given and not real - real == 0.0):
+            what = "a flag" if given > 1 else "not given" if not given else "given"
+            raise StateError(f"saved state {self.names[index]} = {real!r} ({what}: {given}) is not "
+                             f"{self.kinds[index]}")
+        return real if given else None
 
 
 class _SegmentFields:
@@ -120,23 +127,24 @@ class _SegmentFields:
         fields = segment_class.FIELDS
         self.lists = [i for i, (_, kind) in enumerate(fields) if kind == saved_state.REALS]
         self.list_names = [prefix + fields[i][0] for i in self.lists]
-        self.fixed = Fields(tuple(field for i, field in enumerate(fields) if i not in self.lists), prefix)
+        fixed = [i for i in range(len(fields)) if i not in self.lists]
+        self.fixed = Fields(tuple(fields[i] for i in fixed), prefix)
+        self.pick_fixed = operator.itemgetter(*[i + 1 for i in fixed])  # from to_list(), whose kind is first
         self.reals: dict[int, struct.Struct] = {}  # count -> the struct of that many reals
 
     def _struct(self, count: int) -> struct.Struct:
         layout = self.reals.get(count)
         if layout is None:
-            layout = self.reals[count] = struct.Struct(f"<{count}d")
+            layout = self.reals[count] = struct.Struct(f"<H{count}d")
         return layout
 
-    def pack(self, segment: Any) -> list[bytes]:
-        values = segment.to_list()[1:]
-        parts = [self.fixed.pack([value for i, value in enumerate(values) if i not in self.lists])]
+    def pack(self, segment: Any, parts: list[bytes]) -> None:
+        """The bytes of ``segment`` appended to ``parts``."""
+        values = segment.to_list()
+        parts.append(self.fixed.pack(self.pick_fixed(values)))
         for i in self.lists:
-            reals = values[i]
-            parts.append(_COUNT_OF_REALS.pack(len(reals)))
-            parts.append(self._struct(len(reals)).pack(*reals))
-        return parts
+            reals = values[i + 1]
+            parts.append(self._struct(len(reals)).pack(len(reals), *reals))
 
     def unpack(self, data: bytes, offset: int, params: Any) -> tuple[Any, int]:
         """``(the segment, the offset after it)``, checked (:func:`.segments.checked_segment`)."""
@@ -145,28 +153,34 @@ class _SegmentFields:
         for i, name in zip(self.lists, self.list_names):
             if offset + 2 > len(data):
                 raise StateError(f"the {len(data)} bytes end before the saved state's {name}")
-            count = _COUNT_OF_REALS.unpack_from(data, offset)[0]
-            layout = self._struct(count)
-            if offset + 2 + layout.size > len(data):
-                raise StateError(f"the {len(data)} bytes end within the saved state's {name} ({count} reals)")
-            reals = list(layout.unpack_from(data, offset + 2))
-            if not reals or not all(math.isfinite(real) for real in reals):
+            layout = self._struct(_COUNT_OF_REALS.unpack_from(data, offset)[0])
+            if offset + layout.size > len(data):
+                raise StateError(f"the {len(data)} bytes end within the saved state's {name} "
+                                 f"({(layout.size - 2) // 8} reals)")
+            reals = list(layout.unpack_from(data, offset))
+            del reals[0]
+            if not reals or not all(real - real == 0.0 for real in reals):
                 saved_state.field(name, reals, saved_state.REALS)
             values.insert(i, reals)
-            offset += 2 + layout.size
+            offset += layout.size
         return checked_segment(self.segment_class, values, params), offset
 
 
 class BlockStateFormat:
-    """The bytes of a block FMU's states (module docstring): :meth:`pack` and :meth:`unpack`.
+    """The bytes of a block FMU's states (module docstring): :meth:`to_bytes` and :meth:`from_bytes`.
 
     ``parameters``: the parameters' ``(name, kind)`` in the order of the states' parameter pairs; ``inputs``: the
     names of ``v_drive``, ``F_ext`` and ``der(F_ext)`` as the states' pending inputs name them; ``extras``: the names of
     the flags a state holds after its model-exchange part; ``parameters_of``: the runtime's Parameters of the values
-    by name (parameters and inputs), each checked (ParameterError naming one out of range).
+    by name (parameters and inputs), each checked (ParameterError naming one out of range). The bytes start with
+    the header ``header_of(identity)`` (``loader_binding.state_header``), the identity being ``identity`` followed by
+    the names of every field (:meth:`field_names`); bytes that do not are refused with ``mismatch(data, header)``'s
+    reason; a state refused before (a dict, ``{"refused": reason}``) serializes as ``refused`` and its reason.
     """
 
-    def __init__(self, parameters: tuple, inputs: tuple, extras: tuple, parameters_of: Callable[[dict], Any]) -> None:
+    def __init__(self, parameters: tuple, inputs: tuple, extras: tuple, parameters_of: Callable[[dict], Any],
+                 identity: str, header_of: Callable[[str], bytes], refused: bytes,
+                 mismatch: Callable[[bytes, bytes], str]) -> None:
         flags = ("trajectory", "exchange", "interface", *extras, *(f"pending.{name}" for name in inputs))
         self.head = Fields(tuple((name, saved_state.FLAG) for name in flags)
                            + (("start_time", saved_state.REAL), ("time", saved_state.REAL)))
@@ -178,9 +192,27 @@ class BlockStateFormat:
         self.input_names = inputs
         self.extras = len(extras)
         self.parameters_of = parameters_of
+        self.header = header_of(" ".join([identity, *self.field_names()]))
+        self.refused, self.mismatch = refused, mismatch
         self._pending: dict[tuple, frozenset] = {}  # pending flags -> the frozenset of their names
         self._packed: tuple = (None, b"")  # the parameter pairs packed last, and their bytes
         self._unpacked: tuple = (b"", None)  # the parameters' bytes unpacked last, and (pairs, Parameters)
+
+    def to_bytes(self, state: Any) -> bytes:
+        """The bytes of ``state``: the header, then :meth:`pack`'s parts."""
+        if type(state) is dict:
+            return self.refused + str(state["refused"]).encode("utf-8")
+        parts = self.pack(state)
+        parts.insert(0, self.header)
+        return b"".join(parts)
+
+    def from_bytes(self, data: Any) -> tuple:
+        """The state of :meth:`to_bytes`'s bytes ``data``, every field checked: ValueError if they do not start with
+        the header, else StateError or ParameterError naming the first field out of place or range."""
+        data = bytes(data)
+        if not data.startswith(self.header):
+            raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: {self.mismatch(data, self.header)}")
+        return self.unpack(data, len(self.header))
 
     def field_names(self) -> list[str]:
         """The names of every field a state may hold, in their order."""
@@ -201,7 +233,7 @@ class BlockStateFormat:
         if trajectory is not None:
             segment = trajectory[17]
             parts.append(self.trajectory.pack(state_fields(trajectory) + (_SEGMENT_CODES[segment.KIND],)))
-            parts += self.segments[_SEGMENT_CODES[segment.KIND]].pack(segment)
+            self.segments[_SEGMENT_CODES[segment.KIND]].pack(segment, parts)
         if block is not None:
             parts.append(self.exchange.pack(ExchangeBlock.state_fields(block)))
         return parts

@@ -607,15 +607,17 @@ def checked_state(params: Parameters, values: list, segment: Segment) -> tuple:
     of range, inputs or a state whose force scales overflow, a segment that does not hold the saved time)."""
     (t, v_drive, F_ext, F_ext_rate, frame_t, rtol, n_stick, n_slip, n_over, chain, burst_start, burst, t_last_event,
      h, stiff, votes, n_steps, n_rejected) = values
-    check("saved state rtol", rtol, RTOL_RANGE, error=StateError)
+    if not RTOL_RANGE.low <= rtol <= RTOL_RANGE.high:
+        check("saved state rtol", rtol, RTOL_RANGE, error=StateError)
     check_input_scales(v_drive, F_ext, params)
     drift = _checked_drift(F_ext_rate, params, StateError)
     if not (segment.t0 <= t <= segment.t1 and t_last_event <= t and frame_t <= t):
         raise StateError(f"saved state t = {t!r} s lies outside its segment [{segment.t0!r}, {segment.t1!r}] s "
                          f"or before its last event at {t_last_event!r} s or its inputs' time {frame_t!r} s")
     x, v = segment.state(t)
-    saved_state.field("x at t", x, saved_state.REAL)
-    saved_state.field("v at t", v, saved_state.REAL)
+    if not (_finite(x) and _finite(v)):
+        saved_state.field("x at t", x, saved_state.REAL)
+        saved_state.field("v at t", v, saved_state.REAL)
     check_state_scales(x, v, params, ("saved state x", "saved state v"))
     return (None, params, rtol, t, v_drive, F_ext, F_ext_rate, frame_t, drift, v_drive - drift, n_stick, n_slip,
             n_over, chain, burst_start, burst, t_last_event, segment, x, v, (h, stiff, votes, n_steps, n_rejected,
@@ -643,7 +645,8 @@ def check_step(current_time: float, step_size: float, t: float) -> None:
 def _checked_drift(F_ext_rate, p, error=ParameterError):
     """``F_ext_rate / kappa`` (m/s), the frame's speed for a growing ``F_ext`` (see the module's docstring), after
     checking the rate ``der(F_ext)`` (N/s): finite, and within the force scale over the block's time scale."""
-    check("der(F_ext)", F_ext_rate, ANY_FINITE, "N/s", error=error)
+    if not (isinstance(F_ext_rate, float) and _finite(F_ext_rate)):
+        check("der(F_ext)", F_ext_rate, ANY_FINITE, "N/s", error=error)
     check_rate_scale(F_ext_rate, p)
     return float(F_ext_rate) / p.kappa
 

@@ -78,9 +78,11 @@ static void drop_serialized(sbf_fast_path *fast)
 /* Forget the slave's state calls (under the GIL) */
 static void drop_state_calls(sbf_fast_path *fast)
 {
-    if (fast->save) py.Py_DecRef(fast->save);
-    if (fast->restore) py.Py_DecRef(fast->restore);
-    fast->save = fast->restore = NULL;
+    void **calls[] = {&fast->save, &fast->restore, &fast->to_bytes, &fast->from_bytes};
+    for (size_t i = 0; i < sizeof calls / sizeof *calls; ++i) {
+        if (*calls[i]) py.Py_DecRef(*calls[i]);
+        *calls[i] = NULL;
+    }
 }
 
 /* Forget the step and outputs calls (under the GIL) */
@@ -109,7 +111,9 @@ SBF_EXPORT int sbf_bind_slave(PyObject *slave, unsigned first, const char *kinds
     memcpy(fast->kinds, kinds, n);
     fast->save = py.PyObject_GetAttrString(slave, "save_state"); /* none: the states go the inner library's way */
     fast->restore = fast->save ? py.PyObject_GetAttrString(slave, "restore_state") : NULL;
-    if (!fast->restore) drop_state_calls(fast);
+    fast->to_bytes = fast->restore ? py.PyObject_GetAttrString(slave, "_fmu_state_to_bytes") : NULL;
+    fast->from_bytes = fast->to_bytes ? py.PyObject_GetAttrString(slave, "state_from_bytes") : NULL;
+    if (!fast->from_bytes) drop_state_calls(fast);
     py.PyErr_Clear();
     return 1;
 }
@@ -479,7 +483,7 @@ int sbf_state_free(sbf_fast_path *fast, void **state)
 static PyObject *state_bytes(sbf_fast_path *fast, void *state, const char *function, char *why, size_t why_size)
 {
     if (fast->serialized_state != state) {
-        PyObject *data = py.PyObject_CallMethod(fast->slave, "_fmu_state_to_bytes", "(O)", state);
+        PyObject *data = py.PyObject_CallFunctionObjArgs(fast->to_bytes, (PyObject *)state, NULL);
         if (!data || py.PyBytes_Size(data) < 0) {
             exception_text(function, why, why_size);
             if (data) py.Py_DecRef(data);
@@ -534,7 +538,7 @@ int sbf_state_deserialize(sbf_fast_path *fast, const void *bytes, size_t size, v
     if (!states_taken(fast) || !state || (size && !bytes)) return -1;
     int gil = py.PyGILState_Ensure();
     PyObject *data = py.PyBytes_FromStringAndSize(size ? bytes : "", (ptrdiff_t)size);
-    PyObject *restored = data ? py.PyObject_CallMethod(fast->slave, "state_from_bytes", "(O)", data) : NULL;
+    PyObject *restored = data ? py.PyObject_CallFunctionObjArgs(fast->from_bytes, data, NULL) : NULL;
     if (restored)
         *state = restored;
     else

@@ -43,6 +43,7 @@ typedef struct {
     int moved; /* a fast step moved the state since the slave last heard of it */
     const char *folder; /* the instance's resources folder (owned by the instance; kept when the slave is dropped) */
     void *save, *restore;   /* the slave's save_state and restore_state (references held), NULL if it has none */
+    void *to_bytes, *from_bytes; /* with them, its _fmu_state_to_bytes and state_from_bytes (references held) */
     void *serialized_state; /* the FMU state serialized last (a reference held), NULL if none */
     void *serialized;       /* its bytes (a reference held) */
 } sbf_fast_path;
