@@ -202,7 +202,8 @@ def unpack_state(data, offset):
             pairs[order] = value
         rates.append(tuple(pairs.items()))
     if offset != len(data):
-        raise ValueError(f"the {len(data)} bytes go on after the saved state, which ends at byte {offset}")
+        raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: they go on after the "
+                         f"state, which ends at byte {offset}")
     return values, tuple(rates)
 
 
@@ -212,8 +213,8 @@ _VALUES, _COUNT, _RATE = struct.Struct(f"<{len(ALLOWED)}d"), struct.Struct("<H")
 def _unpacked(layout, data, offset, what):
     """The values of ``layout`` at ``offset`` of ``data`` (ValueError naming ``what`` if the bytes end before)."""
     if offset + layout.size > len(data):
-        raise ValueError(f"the {len(data)} bytes end within the saved state's {what} (bytes {offset} to "
-                         f"{offset + layout.size})")
+        raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: they end within its "
+                         f"{what} (bytes {offset} to {offset + layout.size})")
     return layout.unpack_from(data, offset)
 
 

@@ -562,9 +562,15 @@ def serialize_states(cls, fmi_version, extras=()):
     ``extras`` after them, in the runtime's :class:`BlockStateFormat` after the header of
     :func:`loader_binding.state_header`, whose identity names the class, the FMI version and every field (bytes of
     another FMU or layout are refused)."""
-    layout = BlockStateFormat(_PARAMETER_FIELDS, _INPUT_KEYS_IN_ORDER, extras, parameters_of,
-                              f"{cls.__name__} FMI {fmi_version}:", state_header, REFUSED_STATE, header_mismatch)
+    layout = state_format(cls.__name__, fmi_version, extras)
     serialized_states(cls, layout.to_bytes, layout.from_bytes)
+
+
+def state_format(class_name, fmi_version, extras=()):
+    """The :class:`BlockStateFormat` of the FMU states of the slave class named ``class_name`` (:func:`serialize_states`;
+    its :meth:`~BlockStateFormat.fields` tells where each field of a state's bytes lies)."""
+    return BlockStateFormat(_PARAMETER_FIELDS, _INPUT_KEYS_IN_ORDER, extras, parameters_of,
+                            f"{class_name} FMI {fmi_version}:", state_header, REFUSED_STATE, header_mismatch)
 
 
 _INPUT_KEYS_IN_ORDER = INPUTS + (F_EXT_RATE,)  # the values an FMU state keeps apart from the parameters

@@ -84,8 +84,8 @@ class Fields:
         to a bool, a real not given to None): StateError naming the first that is not of its kind, in the words of
         :func:`.saved_state.field`."""
         if offset + self.size > len(data):
-            raise StateError(f"the {len(data)} bytes end within the saved state's fields {self.names[0]} to "
-                             f"{self.names[-1]} (bytes {offset} to {offset + self.size})")
+            raise StateError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: they end within "
+                             f"its fields {self.names[0]} to {self.names[-1]} (bytes {offset} to {offset + self.size})")
         raw = self.layout.unpack_from(data, offset)
         values: list = []
         j = 0
@@ -108,6 +108,16 @@ class Fields:
                 raise StateError(f"saved state {self.names[i]} = {value!r} is not {self.kinds[i]}")
             values.append(value)
         return values
+
+    def places(self, prefix: str, offset: int) -> list[tuple[str, int, str]]:
+        """``(prefix + name, offset, struct format)`` of each field packed at ``offset``
+        (:meth:`BlockStateFormat.fields`)."""
+        places = []
+        for name, kind in zip(self.names, self.kinds):
+            code = _CODES[kind][1]
+            places.append((prefix + name, offset, code))
+            offset += struct.calcsize("<" + code)
+        return places
 
     def _optional(self, index: int, given: int, real: float) -> float | None:
         """A real that may be None, packed as ``given`` and ``real``: None, or the real if finite."""
@@ -151,12 +161,10 @@ class _SegmentFields:
         values = self.fixed.unpack(data, offset)
         offset += self.fixed.size
         for i, name in zip(self.lists, self.list_names):
-            if offset + 2 > len(data):
-                raise StateError(f"the {len(data)} bytes end before the saved state's {name}")
-            layout = self._struct(_COUNT_OF_REALS.unpack_from(data, offset)[0])
+            layout = self._struct(_COUNT_OF_REALS.unpack_from(data, offset)[0] if offset + 2 <= len(data) else 0)
             if offset + layout.size > len(data):
-                raise StateError(f"the {len(data)} bytes end within the saved state's {name} "
-                                 f"({(layout.size - 2) // 8} reals)")
+                raise StateError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: they end within "
+                                 f"its {name} (bytes {offset} to {offset + layout.size})")
             reals = list(layout.unpack_from(data, offset))
             del reals[0]
             if not reals or not all(real - real == 0.0 for real in reals):
@@ -261,11 +269,41 @@ class BlockStateFormat:
             block = ExchangeBlock.checked_state(params, self.exchange.unpack(data, offset))
             offset += self.exchange.size
         if offset != len(data):
-            raise StateError(f"the {len(data)} bytes go on after the saved state, which ends at byte {offset}")
+            raise StateError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: they go on after "
+                             f"the state, which ends at byte {offset}")
         extras = 3 + self.extras
         block_part = (pairs, inputs[0], inputs[1], inputs[2], head[-2], trajectory,
                       self._pending_set(tuple(head[extras:extras + len(self.input_names)])))
         return (block_part, (block, head[-1], head[2])) + tuple(head[3:extras])
+
+    def fields(self, data: bytes) -> list[tuple[str, int, str]]:
+        """Where each field of the state in ``data`` (:meth:`to_bytes`'s bytes, header included) lies, as
+        ``(name, offset, struct format)``, each name after its part (``head.``, ``inputs.``, ``parameters.``,
+        ``trajectory.``, ``exchange.``; a segment's fields are named ``segment (<kind>).<field>``; a list of reals
+        gives its count's place with format ``"H"``, then the reals' with ``"<count>d"``): how to read or edit one
+        field of a state by hand. Nothing is checked: bytes that end early give the fields
+        up to their end."""
+        offset = len(self.header)
+        places = self.head.places("head.", offset)
+        flags = data[offset:offset + 2]
+        offset += self.head.size
+        for part, fields in (("inputs.", self.inputs), ("parameters.", self.parameters)):
+            places += fields.places(part, offset)
+            offset += fields.size
+        if flags[:1] == b"\x01":
+            places += self.trajectory.places("trajectory.", offset)
+            offset += self.trajectory.size
+            code = struct.unpack_from("<q", data, offset - 8)[0] if offset <= len(data) else 0
+            segment = self.segments[min(max(code, 0), len(self.segments) - 1)]
+            places += segment.fixed.places("", offset)
+            offset += segment.fixed.size
+            for name in segment.list_names:
+                count = _COUNT_OF_REALS.unpack_from(data, offset)[0] if offset + 2 <= len(data) else 0
+                places += [(name, offset, "H"), (name, offset + 2, f"{count}d")]
+                offset += 2 + 8 * count
+        if flags[1:2] == b"\x01":
+            places += self.exchange.places("exchange.", offset)
+        return [place for place in places if place[1] + struct.calcsize("<" + place[2]) <= len(data)]
 
     def _parameters(self, data: bytes, offset: int, inputs: list) -> tuple:
         """``(parameter pairs, Parameters)`` of the parameters packed at ``offset``: the same objects for the same
