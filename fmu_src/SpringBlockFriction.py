@@ -48,9 +48,6 @@ FIRST_DERIVATIVE = len(VARIABLES)
 _NAMES = tuple(v.name for v in VARIABLES) + tuple(name for name, _, _ in DERIVATIVES)
 _REFERENCES = {Real: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "real") | frozenset(
     range(FIRST_DERIVATIVE, len(_NAMES))), Integer: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "integer")}
-_INPUTS = slice(_REFERENCE_OF["v_drive"], _REFERENCE_OF["F_ext"] + 1)  # the inputs' value references, in a row
-if _REFERENCE_OF["F_ext"] != _REFERENCE_OF["v_drive"] + 1:
-    raise ImportError("block_interface.VARIABLES must hold the inputs v_drive and F_ext in a row")
 _MAX_READ_PLANS = 64  # distinct sets of value references whose checked reader an instance keeps
 
 
@@ -69,6 +66,7 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
         # every value by value reference, the state derivatives last; outputs and derivatives may be stale
         self._by_reference = [v.start for v in VARIABLES] + [0.0] * len(DERIVATIVES)
         self._outputs_stale = True  # the outputs' part needs an evaluation at the current state
+        self._values_stale = False  # the parameters' and inputs' part needs their values (a state was restored)
         self._derivatives_stale = True  # and the state derivatives' part
         self._read_plans = {}  # (type, value references) -> (read, needs), see _read_plan
         self.offer_to_loader(2)
@@ -108,6 +106,9 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
         if plan is None:
             plan = self._read_plan(kind, key[1])
         read, needs = plan
+        if self._values_stale:
+            self._by_reference[:FIRST_OUTPUT] = [self.values[v.name] for v in VARIABLES[:FIRST_OUTPUT]]
+            self._values_stale = False
         if needs >= FIRST_OUTPUT and self._outputs_stale:
             self._by_reference[FIRST_OUTPUT:FIRST_DERIVATIVE] = self.current_state().outputs()
             self._outputs_stale = False
@@ -225,12 +226,11 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
 
     def restore_state(self, state):
         """Go back to a state from :meth:`save_state` (StateError for a refused one); True if the C loader's step
-        call still holds (the same trajectory, restored in place, and no input waits for the next step)."""
+        call still holds (the same trajectory, restored in place, and no input waits for the next step). The values
+        of the parameters and inputs by value reference follow at the next read."""
         trajectory = self.trajectory
-        if self.restore_fmu_state(state):
-            self._by_reference[:FIRST_OUTPUT] = [self.values[v.name] for v in VARIABLES[:FIRST_OUTPUT]]
-        else:  # the inputs only: v_drive and F_ext, the block state's second and third fields
-            self._by_reference[_INPUTS] = state[0][1:3]
+        self.restore_fmu_state(state)
+        self._values_stale = True
         return self.trajectory is trajectory and not self._inputs_set
 
     def _get_fmu_state(self):
