@@ -268,8 +268,9 @@ def test_stuck_block_follows_a_new_drive_velocity_before_the_next_step(unzipped)
                          ids=["fmi2-stick-stribeck", "fmi2-slip-coulomb", "fmi3-stick-coulomb", "fmi3-slip-stribeck"])
 def test_restored_state_is_the_saved_one(unzipped, unzipped3, fmi, t_save, start):
     """A state saved mid stick or mid slip, with inputs set and (FMI 2) a force rate set that the next step has yet to
-    take: restored into its instance (twice), deserialized there and by an instance of other parameters, each
-    continues with every output bit for bit as the original did, through events and an input changed after it."""
+    take: restored into its instance (twice), deserialized there and by an instance of other parameters (whose bytes
+    of it are the same), each continues with every output bit for bit as the original did, through events and an
+    input changed after it."""
     extracted = unzipped if fmi == 2 else unzipped3
     variables = extracted[2]
     outputs = [v for v in variables.values() if v.causality == "output"]
@@ -300,7 +301,9 @@ def test_restored_state_is_the_saved_one(unzipped, unzipped3, fmi, t_save, start
     for restored in (state, state, saved_api.deserialize(serialized)):
         fmu.setFMUState(restored)
         assert run(fmu) == original
-    other.setFMUState(other_api.deserialize(serialized))
+    deserialized = other_api.deserialize(serialized)
+    assert serialized.startswith(b"SBFstate") and other_api.serialize(deserialized) == serialized
+    other.setFMUState(deserialized)
     assert run(other) == original
     for instance in (fmu, other):
         instance.terminate()

@@ -148,13 +148,14 @@ class _SegmentFields:
             layout = self.reals[count] = struct.Struct(f"<H{count}d")
         return layout
 
-    def pack(self, segment: Any, parts: list[bytes]) -> None:
-        """The bytes of ``segment`` appended to ``parts``."""
+    def pack(self, segment: Any) -> list[bytes]:
+        """The bytes of ``segment``, in parts."""
         values = segment.to_list()
-        parts.append(self.fixed.pack(self.pick_fixed(values)))
+        parts = [self.fixed.pack(self.pick_fixed(values))]
         for i in self.lists:
             reals = values[i + 1]
             parts.append(self._struct(len(reals)).pack(len(reals), *reals))
+        return parts
 
     def unpack(self, data: bytes, offset: int, params: Any) -> tuple[Any, int]:
         """``(the segment, the offset after it)``, checked (:func:`.segments.checked_segment`)."""
@@ -167,7 +168,7 @@ class _SegmentFields:
                                  f"its {name} (bytes {offset} to {offset + layout.size})")
             reals = list(layout.unpack_from(data, offset))
             del reals[0]
-            if not reals or not all(real - real == 0.0 for real in reals):
+            if not _all_finite(reals):
                 saved_state.field(name, reals, saved_state.REALS)
             values.insert(i, reals)
             offset += layout.size
@@ -203,8 +204,13 @@ class BlockStateFormat:
         self.header = header_of(" ".join([identity, *self.field_names()]))
         self.refused, self.mismatch = refused, mismatch
         self._pending: dict[tuple, frozenset] = {}  # pending flags -> the frozenset of their names
-        self._packed: tuple = (None, b"")  # the parameter pairs packed last, and their bytes
-        self._unpacked: tuple = (b"", None)  # the parameters' bytes unpacked last, and (pairs, Parameters)
+        # the parts packed last (by the objects they were packed from, which nothing changes) and unpacked last (by
+        # their bytes, and the Parameters they were checked under), which states share while they stay as they are
+        self._packed: tuple = (None, b"")  # parameter pairs, their bytes
+        self._packed_segment: tuple = (None, [])  # segment, its bytes (parts)
+        self._packed_block: tuple = (None, b"")  # model-exchange block's state, its bytes
+        self._unpacked: tuple = (b"", None)  # parameters' bytes, (pairs, Parameters)
+        self._unpacked_block: tuple = (b"", None, None)  # model-exchange block's bytes, Parameters, its state
 
     def to_bytes(self, state: Any) -> bytes:
         """The bytes of ``state``: the header, then :meth:`pack`'s parts."""
@@ -240,10 +246,15 @@ class BlockStateFormat:
         parts.append(self._packed[1])
         if trajectory is not None:
             segment = trajectory[17]
-            parts.append(self.trajectory.pack(state_fields(trajectory) + (_SEGMENT_CODES[segment.KIND],)))
-            self.segments[_SEGMENT_CODES[segment.KIND]].pack(segment, parts)
+            code = _SEGMENT_CODES[segment.KIND]
+            parts.append(self.trajectory.pack(state_fields(trajectory) + (code,)))
+            if self._packed_segment[0] is not segment:  # a segment lasts for one step or many
+                self._packed_segment = (segment, self.segments[code].pack(segment))
+            parts += self._packed_segment[1]
         if block is not None:
-            parts.append(self.exchange.pack(ExchangeBlock.state_fields(block)))
+            if self._packed_block[0] is not block:  # the same while the block stays as it is (co-simulation)
+                self._packed_block = (block, self.exchange.pack(ExchangeBlock.state_fields(block)))
+            parts.append(self._packed_block[1])
         return parts
 
     def unpack(self, data: bytes, offset: int) -> tuple:
@@ -266,7 +277,7 @@ class BlockStateFormat:
             segment, offset = self.segments[code].unpack(data, offset, params)
             trajectory = checked_state(params, values, segment)
         if head[1]:
-            block = ExchangeBlock.checked_state(params, self.exchange.unpack(data, offset))
+            block = self._block(data, offset, params)
             offset += self.exchange.size
         if offset != len(data):
             raise StateError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: they go on after "
@@ -317,8 +328,27 @@ class BlockStateFormat:
         self._unpacked = (packed, (pairs, params))
         return pairs, params
 
+    def _block(self, data: bytes, offset: int, params: Any) -> dict:
+        """The model-exchange block's state packed at ``offset``, checked under ``params``: the same dict (which
+        nothing changes) for the same bytes and Parameters as the last time."""
+        packed = data[offset:offset + self.exchange.size]
+        if packed == self._unpacked_block[0] and params is self._unpacked_block[1]:
+            return self._unpacked_block[2]
+        block = ExchangeBlock.checked_state(params, self.exchange.unpack(data, offset))
+        self._unpacked_block = (packed, params, block)
+        return block
+
     def _pending_set(self, flags: tuple) -> frozenset:
         pending = self._pending.get(flags)
         if pending is None:
             pending = self._pending[flags] = frozenset(name for name, flag in zip(self.input_names, flags) if flag)
         return pending
+
+
+def _all_finite(reals: list) -> bool:
+    """Whether ``reals`` (floats) is not empty and holds no infinity or NaN."""
+    for value in reals:
+        real: float = value
+        if not real - real == 0.0:
+            return False
+    return len(reals) > 0
