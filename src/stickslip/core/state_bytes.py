@@ -210,6 +210,7 @@ class BlockStateFormat:
         self._packed_segment: tuple = (None, [])  # segment, its bytes (parts)
         self._packed_block: tuple = (None, b"")  # model-exchange block's state, its bytes
         self._unpacked: tuple = (b"", None)  # parameters' bytes, (pairs, Parameters)
+        self._unpacked_segment: tuple = (-1, None, b"", None)  # segment's kind, Parameters, its bytes, the segment
         self._unpacked_block: tuple = (b"", None, None)  # model-exchange block's bytes, Parameters, its state
 
     def to_bytes(self, state: Any) -> bytes:
@@ -274,7 +275,7 @@ class BlockStateFormat:
             if code >= len(self.segments):
                 raise StateError(f"saved state segment = {code} is not a kind of segment: allowed is 0 to "
                                  f"{len(self.segments) - 1} ({', '.join(c.KIND for c in SEGMENT_CLASSES)})")
-            segment, offset = self.segments[code].unpack(data, offset, params)
+            segment, offset = self._segment(data, offset, code, params)
             trajectory = checked_state(params, values, segment)
         if head[1]:
             block = self._block(data, offset, params)
@@ -327,6 +328,16 @@ class BlockStateFormat:
         params = self.parameters_of({**dict(pairs), **dict(zip(self.input_names, inputs))})
         self._unpacked = (packed, (pairs, params))
         return pairs, params
+
+    def _segment(self, data: bytes, offset: int, code: int, params: Any) -> tuple[Any, int]:
+        """``(the segment of kind code packed at offset, checked under params, the offset after it)``: the same
+        segment (which nothing changes) for the same bytes, kind and Parameters as the last time."""
+        kind, checked_under, packed, segment = self._unpacked_segment
+        if code == kind and params is checked_under and data.startswith(packed, offset):
+            return segment, offset + len(packed)
+        segment, end = self.segments[code].unpack(data, offset, params)
+        self._unpacked_segment = (code, params, data[offset:end], segment)
+        return segment, end
 
     def _block(self, data: bytes, offset: int, params: Any) -> dict:
         """The model-exchange block's state packed at ``offset``, checked under ``params``: the same dict (which
