@@ -119,7 +119,7 @@ def check_damping(p):
         )
 
 
-def check_state_scales(x, v, p, state_names=("x", "v")):
+def check_state_scales(x, v, p: Parameters, state_names=("x", "v")):
     """Raise ParameterError, naming the state by ``state_names``, if ``kappa |x|`` or ``sqrt(kappa M) |v|``
     exceeds :data:`MAX_FORCE_SCALE`."""
     if p.kappa * abs(x) <= MAX_FORCE_SCALE and _impedance(p) * abs(v) <= MAX_FORCE_SCALE:
@@ -130,20 +130,20 @@ def check_state_scales(x, v, p, state_names=("x", "v")):
                        lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, {v_name} = {v!r} m/s")
 
 
-def check_input_scales(v_drive, F_ext, p):
+def check_input_scales(v_drive, F_ext, p: Parameters):
     """Raise ParameterError if ``|F_ext|`` or ``sqrt(kappa M) |v_drive|`` exceeds :data:`MAX_FORCE_SCALE`."""
     _check_force_input_scale(F_ext, p)
     _check_drive_scale(v_drive, p)
 
 
-def _check_force_input_scale(F_ext, p):
+def _check_force_input_scale(F_ext, p: Parameters):
     """Raise ParameterError if ``|F_ext|`` (N) exceeds :data:`MAX_FORCE_SCALE`."""
     if abs(F_ext) <= MAX_FORCE_SCALE:
         return
     _check_force_scale("|F_ext|", abs(F_ext), lambda: f"F_ext = {F_ext!r} N")
 
 
-def _check_drive_scale(v_drive, p):
+def _check_drive_scale(v_drive, p: Parameters):
     """Raise ParameterError if ``sqrt(kappa M) |v_drive|`` (N; v_drive in m/s) exceeds :data:`MAX_FORCE_SCALE`."""
     if _impedance(p) * abs(v_drive) <= MAX_FORCE_SCALE:
         return
@@ -151,7 +151,7 @@ def _check_drive_scale(v_drive, p):
                        lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, v_drive = {v_drive!r} m/s")
 
 
-def check_rate_scale(F_ext_rate, p):
+def check_rate_scale(F_ext_rate, p: Parameters):
     """Raise ParameterError if ``sqrt(M/kappa) |der(F_ext)|``, the force a growing ``F_ext`` adds over the block's
     time scale, exceeds :data:`MAX_FORCE_SCALE`."""
     force = math.sqrt(p.M) / math.sqrt(p.kappa) * abs(F_ext_rate)
@@ -199,7 +199,7 @@ def check_start_time(name, t, p):
         )
 
 
-def _impedance(p):
+def _impedance(p: Parameters) -> float:
     """``sqrt(kappa M)`` (N s/m), computed so that the product ``kappa M`` cannot overflow."""
     return math.sqrt(p.kappa) * math.sqrt(p.M)
 
