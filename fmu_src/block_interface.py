@@ -15,14 +15,14 @@ import math
 from collections import namedtuple
 
 from stickslip.fmu_src.loader_binding import (  # the slaves take these from here (one import of this module)
-    PYTHONFMU_ENTRY_POINTS, REFUSED_STATE, balance_release, header_mismatch, offer_to_loader, refusal, serialized_states,
-    state_header,
+    PYTHONFMU_ENTRY_POINTS, REFUSED_STATE, balance_release, header_mismatch, offer_to_loader, refusal,
+    serialized_states, state_header,
 )
 
 from stickslip.core import (
-    ANY_FINITE, INDICATORS, KINETIC_LAWS, OUTPUT_NAMES, POSITIVE, RTOL_RANGE, STATIC_LAWS, BlockStateFormat, ExchangeBlock,
-    ParameterError, Parameters, StateError, Trajectory, check, check_input, check_rate_scale, kinetic_law, saved_state,
-    static_law,
+    ANY_FINITE, INDICATORS, KINETIC_LAWS, OUTPUT_NAMES, POSITIVE, RTOL_RANGE, STATIC_LAWS, BlockStateFormat,
+    ExchangeBlock, ParameterError, Parameters, StateError, Trajectory, check, check_input, check_rate_scale, kinetic_law,
+    saved_state, static_law,
 )
 
 #: causality "parameter" (fixed), "input" or "output"; kind "real" or "integer"; variability "fixed",
@@ -567,8 +567,8 @@ def serialize_states(cls, fmi_version, extras=()):
 
 
 def state_format(class_name, fmi_version, extras=()):
-    """The :class:`BlockStateFormat` of the FMU states of the slave class named ``class_name`` (:func:`serialize_states`;
-    its :meth:`~BlockStateFormat.fields` tells where each field of a state's bytes lies)."""
+    """The :class:`BlockStateFormat` of the FMU states of the slave class named ``class_name``
+    (:func:`serialize_states`; its :meth:`~BlockStateFormat.fields` tells where each field of a state's bytes lies)."""
     return BlockStateFormat(_PARAMETER_FIELDS, _INPUT_KEYS_IN_ORDER, extras, parameters_of,
                             f"{class_name} FMI {fmi_version}:", state_header, REFUSED_STATE, header_mismatch)
 

@@ -15,11 +15,15 @@ trajectory state or None, inputs pending)``, the model-exchange part ``(block st
 5. if flagged, the model-exchange block: :data:`.exchange.STATE_FIELDS`.
 
 Each field is of a kind of :mod:`.saved_state`: a finite real or one that may be ``inf`` is an 8-byte float, a count
-an 8-byte signed integer (>= 0), a flag one byte (0 or 1), a mode a signed byte (-1, 0, 1), a real that may be None a flag
-byte (1: given) and an 8-byte float (0 when not given). Unpacking checks every field's kind and then the values
-together, with the same checks and messages as a saved state's JSON (StateError or ParameterError naming the first
-field out of place or range); bytes that end early or go on after the state are refused too. The header that says
-whose state the bytes hold comes before all this (the slaves' ``loader_binding``).
+an 8-byte signed integer (>= 0), a flag one byte (0 or 1), a mode a signed byte (-1, 0, 1), a real that may be None
+a flag byte (1: given) and an 8-byte float (0 when not given). Unpacking checks every field's kind and then the
+values together, with the same checks and messages as a saved state's JSON (StateError or ParameterError naming the
+first field out of place or range); bytes that end early or go on after the state are refused too. The header that
+says whose state the bytes hold comes before all this (the slaves' ``loader_binding``).
+
+The parts that states of a run share (the parameters, the current segment, the model-exchange block) are packed
+once while the states hold the same objects, and unpacked once while the bytes hold the same parts: the same
+objects give the same bytes, the same bytes the same checks and objects.
 """
 
 from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
@@ -226,7 +230,8 @@ class BlockStateFormat:
         the header, else StateError or ParameterError naming the first field out of place or range."""
         data = bytes(data)
         if not data.startswith(self.header):
-            raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: {self.mismatch(data, self.header)}")
+            raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: "
+                             f"{self.mismatch(data, self.header)}")
         return self.unpack(data, len(self.header))
 
     def field_names(self) -> list[str]:
