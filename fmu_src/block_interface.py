@@ -366,10 +366,12 @@ class BlockInterface:
     def fast_step_call(self):
         """The C loader's calls for the next doSteps: the current trajectory's :meth:`Trajectory.communicate` and
         :meth:`Trajectory.outputs` (every output, in :data:`VARIABLES` order), the inputs set so far applied (the
-        loader asks again after any other call that may change them)."""
+        loader asks again after any other call that may change them); and its :meth:`Trajectory.restore`, with which
+        the loader sets again an FMU state got since, while only steps and reads came after it (the state differs
+        from the instance in the trajectory's part alone)."""
         self.outputs_changed()
         trajectory = self.current_trajectory()
-        return trajectory.communicate, trajectory.outputs
+        return trajectory.communicate, trajectory.outputs, trajectory.restore
 
     def fmu_time(self):
         """The time the FMU is at (s), which the C loader answers fmi2LastSuccessfulTime with (and fmi3DoStep's
