@@ -25,10 +25,13 @@ read; bytes or a state that hold no state of this FMU, when they are deserialize
 """
 
 import math
+import struct
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 
-from loader_binding import PYTHONFMU_ENTRY_POINTS, balance_release, offer_to_loader, refusal, serialized_states
+from loader_binding import (
+    PYTHONFMU_ENTRY_POINTS, StateBytes, balance_release, offer_to_loader, refusal, serialized_states,
+)
 
 POSITIONS = {"x_left": "position of the left neighbour (m)", "x": "position of the block (m)",
              "x_right": "position of the right neighbour (m)"}
@@ -166,37 +169,53 @@ def check_value(name, value):
         raise ValueError(f"{name} = {value!r} {unit} is out of range: allowed is a finite value in {text}")
 
 
-def state_snapshot(state):
-    """The JSON-serializable values of a state from :meth:`ChainCoupling.save_state`: ``{"values": {name: value},
-    "rates": {position: [[order, value], ...]}}``."""
+def pack_state(state):
+    """The bytes of a state from :meth:`ChainCoupling.save_state` after its header (loader_binding), as a list of
+    parts, little-endian: the positions and stiffnesses (:data:`ALLOWED` order), 8-byte floats; then for each position
+    the count of its derivatives set (2 bytes) and each one's order (8-byte integer) and value (8-byte float)."""
     values, rates = state
-    return {"values": dict(zip(ALLOWED, values)),
-            "rates": {name: [[order, value] for order, value in sorted(pairs)]
-                      for name, pairs in zip(POSITIONS, rates)}}
+    parts = [_VALUES.pack(*values)]
+    for pairs in rates:
+        parts.append(_COUNT.pack(len(pairs)))
+        parts += [_RATE.pack(order, value) for order, value in sorted(pairs)]
+    return parts
 
 
-def state_from_snapshot(snapshot):
-    """The state (:meth:`ChainCoupling.save_state`) of :func:`state_snapshot`'s values, every field checked
-    (ValueError naming the first out of place or range)."""
-    values, rates = snapshot["values"], snapshot["rates"]
-    if not (isinstance(values, dict) and set(values) == set(ALLOWED)):
-        raise ValueError(f"saved state values = {values!r}: allowed is a dict with the keys {', '.join(ALLOWED)}")
-    for name, value in values.items():
+def unpack_state(data, offset):
+    """The state (:meth:`ChainCoupling.save_state`) that :func:`pack_state` packed at ``offset`` of ``data``, up to
+    its end, every field checked (ValueError naming the first out of place or range)."""
+    values = _unpacked(_VALUES, data, offset, "positions and stiffnesses")
+    offset += _VALUES.size
+    for name, value in zip(ALLOWED, values):
         check_value(name, value)
-    if not (isinstance(rates, dict) and set(rates) == set(POSITIONS)):
-        raise ValueError(f"saved state rates = {rates!r}: allowed is a dict with the keys {', '.join(POSITIONS)}")
-    for name, pairs in rates.items():
-        if not (isinstance(pairs, list) and all(_rate_pair(pair) for pair in pairs)):
-            raise ValueError(f"saved state rates of {name} = {pairs!r}: allowed is a list of [order, value] pairs, "
-                             f"each an order >= 1 and a finite value")
-    return (tuple(float(values[name]) for name in ALLOWED),
-            tuple(tuple({int(order): float(value) for order, value in rates[name]}.items()) for name in POSITIONS))
+    rates = []
+    for name in POSITIONS:
+        (count,) = _unpacked(_COUNT, data, offset, f"count of the derivatives of {name}")
+        offset += _COUNT.size
+        pairs = {}
+        for _ in range(count):
+            order, value = _unpacked(_RATE, data, offset, f"derivatives of {name}")
+            offset += _RATE.size
+            if not (order >= 1 and math.isfinite(value)):
+                raise ValueError(f"saved state der({name}, {order}) = {value!r}: allowed is a finite value, of order "
+                                 f"1 or more")
+            pairs[order] = value
+        rates.append(tuple(pairs.items()))
+    if offset != len(data):
+        raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: they go on after the "
+                         f"state, which ends at byte {offset}")
+    return values, tuple(rates)
 
 
-def _rate_pair(pair):
-    """Whether ``pair`` is ``[order, value]`` of a derivative set: an integer order >= 1, a finite value."""
-    return (isinstance(pair, list) and len(pair) == 2 and isinstance(pair[0], int) and pair[0] >= 1
-            and isinstance(pair[1], (int, float)) and math.isfinite(pair[1]))
+_VALUES, _COUNT, _RATE = struct.Struct(f"<{len(ALLOWED)}d"), struct.Struct("<H"), struct.Struct("<qd")
+
+
+def _unpacked(layout, data, offset, what):
+    """The values of ``layout`` at ``offset`` of ``data`` (ValueError naming ``what`` if the bytes end before)."""
+    if offset + layout.size > len(data):
+        raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: they end within its "
+                         f"{what} (bytes {offset} to {offset + layout.size})")
+    return layout.unpack_from(data, offset)
 
 
 def springs(kc_left, kc_right, left, middle, right):
@@ -220,4 +239,6 @@ def checked_springs(order, kc_left, kc_right, left, middle, right):
 
 
 balance_release(ChainCoupling, PYTHONFMU_ENTRY_POINTS)
-serialized_states(ChainCoupling, ("values", "rates"), state_snapshot, state_from_snapshot)
+_STATE_BYTES = StateBytes(f"ChainCoupling FMI 2: {' '.join(ALLOWED)} der({', '.join(POSITIONS)})", pack_state,
+                          unpack_state)
+serialized_states(ChainCoupling, _STATE_BYTES.to_bytes, _STATE_BYTES.from_bytes)

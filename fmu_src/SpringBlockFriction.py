@@ -27,7 +27,6 @@ here (``balance_release``): an importer that terminates and frees the
 instance after the error, as libcosim does, does not crash.
 """
 
-import functools
 import math
 import operator
 from xml.etree.ElementTree import Element
@@ -35,9 +34,8 @@ from xml.etree.ElementTree import Element
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
 from block_interface import (
-    DERIVATIVES, EXCHANGE_STATE_KINDS, FIRST_OUTPUT, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, PYTHONFMU_ENTRY_POINTS,
-    STATES, VARIABLES, BlockInterface, ExchangeInterface, balance_release, saved_state, serialized_states,
-    state_from_snapshot, state_snapshot,
+    DERIVATIVES, FIRST_OUTPUT, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, PYTHONFMU_ENTRY_POINTS, STATES, VARIABLES,
+    BlockInterface, ExchangeInterface, balance_release, serialize_states,
 )
 
 _CAUSALITY = {"parameter": Fmi2Causality.parameter, "input": Fmi2Causality.input, "output": Fmi2Causality.output}
@@ -50,10 +48,6 @@ FIRST_DERIVATIVE = len(VARIABLES)
 _NAMES = tuple(v.name for v in VARIABLES) + tuple(name for name, _, _ in DERIVATIVES)
 _REFERENCES = {Real: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "real") | frozenset(
     range(FIRST_DERIVATIVE, len(_NAMES))), Integer: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "integer")}
-_FMU_STATE_KINDS = {"block": saved_state.NESTED, **EXCHANGE_STATE_KINDS}  # the fields of a serialized state
-_INPUTS = slice(_REFERENCE_OF["v_drive"], _REFERENCE_OF["F_ext"] + 1)  # the inputs' value references, in a row
-if _REFERENCE_OF["F_ext"] != _REFERENCE_OF["v_drive"] + 1:
-    raise ImportError("block_interface.VARIABLES must hold the inputs v_drive and F_ext in a row")
 _MAX_READ_PLANS = 64  # distinct sets of value references whose checked reader an instance keeps
 
 
@@ -72,6 +66,7 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
         # every value by value reference, the state derivatives last; outputs and derivatives may be stale
         self._by_reference = [v.start for v in VARIABLES] + [0.0] * len(DERIVATIVES)
         self._outputs_stale = True  # the outputs' part needs an evaluation at the current state
+        self._values_stale = False  # the parameters' and inputs' part needs their values (a state was restored)
         self._derivatives_stale = True  # and the state derivatives' part
         self._read_plans = {}  # (type, value references) -> (read, needs), see _read_plan
         self.offer_to_loader(2)
@@ -111,6 +106,9 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
         if plan is None:
             plan = self._read_plan(kind, key[1])
         read, needs = plan
+        if self._values_stale:
+            self._by_reference[:FIRST_OUTPUT] = [self.values[v.name] for v in VARIABLES[:FIRST_OUTPUT]]
+            self._values_stale = False
         if needs >= FIRST_OUTPUT and self._outputs_stale:
             self._by_reference[FIRST_OUTPUT:FIRST_DERIVATIVE] = self.current_state().outputs()
             self._outputs_stale = False
@@ -228,12 +226,11 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
 
     def restore_state(self, state):
         """Go back to a state from :meth:`save_state` (StateError for a refused one); True if the C loader's step
-        call still holds (the same trajectory, restored in place, and no input waits for the next step)."""
+        call still holds (the same trajectory, restored in place, and no input waits for the next step). The values
+        of the parameters and inputs by value reference follow at the next read."""
         trajectory = self.trajectory
-        if self.restore_fmu_state(state):
-            self._by_reference[:FIRST_OUTPUT] = [self.values[v.name] for v in VARIABLES[:FIRST_OUTPUT]]
-        else:  # the inputs only: v_drive and F_ext, the block state's second and third fields
-            self._by_reference[_INPUTS] = state[0][1:3]
+        self.restore_fmu_state(state)
+        self._values_stale = True
         return self.trajectory is trajectory and not self._inputs_set
 
     def _get_fmu_state(self):
@@ -276,5 +273,4 @@ _EXCHANGE_CALLS = {
 }
 
 balance_release(SpringBlockFriction, PYTHONFMU_ENTRY_POINTS)
-serialized_states(SpringBlockFriction, tuple(_FMU_STATE_KINDS), state_snapshot,
-                  functools.partial(state_from_snapshot, kinds=_FMU_STATE_KINDS))
+serialize_states(SpringBlockFriction, 2)

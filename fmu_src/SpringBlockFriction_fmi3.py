@@ -21,15 +21,14 @@ time, model exchange at t = 0, unless the host (or the FMU's loader) calls ``fmi
 (``discreteStatesNeedUpdate``, ``nominalContinuousStatesChanged``), so the update returns its own.
 """
 
-import functools
 import math
 
 from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, Fmi3Variability, Float64, Int32, Int64,
                         ModelExchange)
 
 from block_interface import (
-    DERIVATIVES, EXCHANGE_STATE_KINDS, F_EXT_RATE, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, BlockInterface,
-    ExchangeInterface, balance_release, saved_state, serialized_states, state_from_snapshot, state_snapshot,
+    DERIVATIVES, F_EXT_RATE, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, BlockInterface, ExchangeInterface,
+    balance_release, serialize_states,
 )
 
 _CAUSALITY = {"parameter": Fmi3Causality.parameter, "input": Fmi3Causality.input, "output": Fmi3Causality.output}
@@ -41,9 +40,6 @@ INDICATOR_VARIABLES = {
     "breakaway": ("N", "event indicator: F_S(t_stick) - |kappa x - F_ext| while stuck, 1 while slipping"),
     "graze": ("m/s2", "event indicator: mode * dv_rel/dt while slipping (zero at an extremum of v_rel), 1 while stuck"),
 }
-
-# the fields of a serialized FMU state and their kinds (the runtime's saved_state)
-_FMU_STATE_KINDS = {"block": saved_state.NESTED, **EXCHANGE_STATE_KINDS, "stepped": saved_state.FLAG}
 
 
 class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInterface):
@@ -274,6 +270,4 @@ ENTRY_POINTS = (
     "get_event_indicators", "set_time", "update_discrete_states", "_get_fmu_state", "_set_fmu_state",
 )
 balance_release(SpringBlockFriction, ENTRY_POINTS)
-serialized_states(SpringBlockFriction, tuple(_FMU_STATE_KINDS),
-                  functools.partial(state_snapshot, extra_names=("stepped",)),
-                  functools.partial(state_from_snapshot, kinds=_FMU_STATE_KINDS))
+serialize_states(SpringBlockFriction, 3, extras=("stepped",))

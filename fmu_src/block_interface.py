@@ -15,13 +15,14 @@ import math
 from collections import namedtuple
 
 from stickslip.fmu_src.loader_binding import (  # the slaves take these from here (one import of this module)
-    PYTHONFMU_ENTRY_POINTS, balance_release, offer_to_loader, refusal, serialized_states,
+    PYTHONFMU_ENTRY_POINTS, REFUSED_STATE, balance_release, header_mismatch, offer_to_loader, refusal,
+    serialized_states, state_header,
 )
 
 from stickslip.core import (
-    ANY_FINITE, INDICATORS, KINETIC_LAWS, OUTPUT_NAMES, POSITIVE, RTOL_RANGE, STATIC_LAWS, ExchangeBlock, ParameterError,
-    Parameters, StateError, Trajectory, check, check_input, check_rate_scale, kinetic_law, saved_state, static_law,
-    state_snapshot as trajectory_snapshot,
+    ANY_FINITE, INDICATORS, KINETIC_LAWS, OUTPUT_NAMES, POSITIVE, RTOL_RANGE, STATIC_LAWS, BlockStateFormat,
+    ExchangeBlock, ParameterError, Parameters, StateError, Trajectory, check, check_input, check_rate_scale, kinetic_law,
+    saved_state, static_law,
 )
 
 #: causality "parameter" (fixed), "input" or "output"; kind "real" or "integer"; variability "fixed",
@@ -365,10 +366,12 @@ class BlockInterface:
     def fast_step_call(self):
         """The C loader's calls for the next doSteps: the current trajectory's :meth:`Trajectory.communicate` and
         :meth:`Trajectory.outputs` (every output, in :data:`VARIABLES` order), the inputs set so far applied (the
-        loader asks again after any other call that may change them)."""
+        loader asks again after any other call that may change them); and its :meth:`Trajectory.restore`, with which
+        the loader sets again an FMU state got since, while only steps and reads came after it (the state differs
+        from the instance in the trajectory's part alone)."""
         self.outputs_changed()
         trajectory = self.current_trajectory()
-        return trajectory.communicate, trajectory.outputs
+        return trajectory.communicate, trajectory.outputs, trajectory.restore
 
     def fmu_time(self):
         """The time the FMU is at (s), which the C loader answers fmi2LastSuccessfulTime with (and fmi3DoStep's
@@ -425,8 +428,6 @@ STATES = ("x", "v")
 DiscreteUpdate = namedtuple(
     "DiscreteUpdate", "discreteStatesNeedUpdate terminateSimulation nominalContinuousStatesChanged "
                       "valuesOfContinuousStatesChanged nextEventTimeDefined nextEventTime")
-#: The fields of an FMU state that :meth:`ExchangeInterface.exchange_state` adds, and their kinds
-EXCHANGE_STATE_KINDS = {"exchange": saved_state.NESTED, "time": saved_state.REAL, "interface": saved_state.FLAG}
 
 
 class ExchangeInterface:
@@ -557,55 +558,28 @@ def check_state(state):
         raise StateError(reason)
 
 
-def state_snapshot(state, extra_names=()):
-    """The JSON-serializable values of an FMU state from :meth:`ExchangeInterface.fmu_state` (its slave's fields
-    after, named ``extra_names``): ``{"block": {"values", "start_time", "trajectory", "pending"}, "exchange", "time",
-    "interface", ...}``."""
-    (parameters, v_drive, F_ext, rate, start_time, trajectory, pending), (block, time, interface) = state[:2]
-    values = {**dict(parameters), "v_drive": v_drive, "F_ext": F_ext, F_EXT_RATE: rate}
-    snapshot = {"block": {"values": values, "start_time": start_time,
-                          "trajectory": None if trajectory is None else trajectory_snapshot(trajectory),
-                          "pending": sorted(pending)},
-                "exchange": None if block is None else ExchangeBlock.state_snapshot(block), "time": time,
-                "interface": interface}
-    snapshot.update(zip(extra_names, state[2:]))
-    return snapshot
+def serialize_states(cls, fmi_version, extras=()):
+    """Give the slave class ``cls`` of FMI version ``fmi_version`` its FMU states as bytes
+    (:func:`loader_binding.serialized_states`): the states of :meth:`ExchangeInterface.fmu_state` with the flags named
+    ``extras`` after them, in the runtime's :class:`BlockStateFormat` after the header of
+    :func:`loader_binding.state_header`, whose identity names the class, the FMI version and every field (bytes of
+    another FMU or layout are refused)."""
+    layout = state_format(cls.__name__, fmi_version, extras)
+    serialized_states(cls, layout.to_bytes, layout.from_bytes)
 
 
-def state_from_snapshot(snapshot, kinds):
-    """The FMU state (:meth:`ExchangeInterface.fmu_state`, the slave's fields after, in the order of ``kinds``) of
-    :func:`state_snapshot`'s values ``snapshot``, whose fields have the kinds ``kinds``: every value checked
-    (StateError or ParameterError naming the first out of place or range)."""
-    fields = saved_state.record("", snapshot, kinds)
-    block, parameters = _block_state_from_snapshot(fields["block"])
-    exchange = fields["exchange"]
-    exchange = None if exchange is None else ExchangeBlock.from_snapshot(parameters, exchange).state()
-    return (block, (exchange, fields["time"], fields["interface"])) + tuple(
-        fields[name] for name in kinds if name not in _FMU_STATE_FIELDS)
+def state_format(class_name, fmi_version, extras=()):
+    """The :class:`BlockStateFormat` of the FMU states of the slave class named ``class_name``
+    (:func:`serialize_states`; its :meth:`~BlockStateFormat.fields` tells where each field of a state's bytes lies)."""
+    return BlockStateFormat(_PARAMETER_FIELDS, _INPUT_KEYS_IN_ORDER, extras, parameters_of,
+                            f"{class_name} FMI {fmi_version}:", state_header, REFUSED_STATE, header_mismatch)
 
 
-def _block_state_from_snapshot(snapshot):
-    """``(block state, Parameters)`` of the ``"block"`` values of :func:`state_snapshot`, every value checked: the
-    parameters and inputs (:func:`check_values`), the start time, the trajectory (:meth:`Trajectory.from_snapshot`)
-    and the inputs pending; StateError or ParameterError names a field out of place or range."""
-    fields = saved_state.record("", snapshot, _BLOCK_STATE_KINDS)
-    values = saved_state.record("values", fields["values"], dict.fromkeys(_VALUE_NAMES, saved_state.NESTED))
-    parameters = parameters_of(values)
-    trajectory = fields["trajectory"]
-    trajectory = None if trajectory is None else Trajectory.from_snapshot(parameters, trajectory).state()
-    pending = fields["pending"]
-    if not isinstance(pending, list) or not set(pending) <= _PENDING:
-        raise StateError(f"saved state pending = {pending!r} is not a list of names among {sorted(_PENDING)}")
-    record = tuple((name, value) for name, value in values.items() if name not in _INPUT_KEYS)
-    return (record, values["v_drive"], values["F_ext"], values[F_EXT_RATE], fields["start_time"], trajectory,
-            frozenset(pending)), parameters
-
-_BLOCK_STATE_KINDS = {"values": saved_state.NESTED, "start_time": saved_state.REAL, "trajectory": saved_state.NESTED,
-                      "pending": saved_state.NESTED}
-_PENDING = frozenset(INPUTS + (F_EXT_RATE,))  # the names a state's inputs pending may hold
-_INPUT_KEYS = _PENDING  # the values an FMU state keeps apart from the parameters
-_VALUE_NAMES = tuple(v.name for v in VARIABLES if v.causality != "output") + (F_EXT_RATE,)  # BlockInterface.values
-_FMU_STATE_FIELDS = ("block", *EXCHANGE_STATE_KINDS)  # the fields of ExchangeInterface.fmu_state's snapshot
+_INPUT_KEYS_IN_ORDER = INPUTS + (F_EXT_RATE,)  # the values an FMU state keeps apart from the parameters
+_INPUT_KEYS = frozenset(_INPUT_KEYS_IN_ORDER)
+#: the parameters of an FMU state (:meth:`BlockInterface.block_state`'s pairs, in their order) and their kinds
+_PARAMETER_FIELDS = tuple((v.name, saved_state.COUNT if v.kind == "integer" else saved_state.REAL) for v in VARIABLES
+                          if v.causality == "parameter")
 
 
 def _law(values, kind, build):

@@ -7,15 +7,17 @@ this module in their runtime package, the coupling FMU in its own.
   lack.
 - :func:`balance_release`: an exception of the slave leaves it usable, so that the loader (built with
   ``slave_survives_release``) reports the call's failure as an error status and the instance goes on.
-- :func:`serialized_states`: bytes that are no FMU state of the slave are refused with the reason, never with an
-  exception; the loader looks for :data:`REFUSED_STATE`.
+- :func:`serialized_states`: FMU states as bytes (a header that says whose state they hold, then the slave's
+  fields); bytes that are no FMU state of the slave are refused with the reason, never with an exception; the loader
+  looks for :data:`REFUSED_STATE`.
 - :func:`hold_loader_namespace`: the module PythonFMU loads the slave from keeps its globals.
 """
 
 import ctypes
 import functools
-import json
 import os
+import struct
+import zlib
 
 #: The methods PythonFMU's C++ wrapper calls on an FMI 2 slave (``PyObject_CallMethod(pInstance_, ...)`` in its
 #: PySlaveInstance.cpp): the entry points :func:`balance_release` wraps.
@@ -138,35 +140,69 @@ def hold_loader_namespace(namespace):
 
 # ---- serialized FMU states -----------------------------------------------------------------------------------
 
-#: How a refused state (:func:`state_from_bytes`) serializes: this prefix, then the reason as UTF-8. The FMUs' loader
+#: How a refused state (``_fmu_state_from_bytes``) serializes: this prefix, then the reason as UTF-8. The FMUs' loader
 #: (``fmi2DeSerializeFMUstate``/``fmi3DeserializeFMUState`` in ``src/stickslip/fmu/loader``) looks for it.
 REFUSED_STATE = b"refused FMU state: "
+#: A serialized FMU state starts with this header: :data:`STATE_MAGIC`, the format version (:data:`STATE_FORMAT`) and
+#: the CRC-32 of the identity of the FMU whose state it is (:func:`state_header`), little-endian
+STATE_HEADER = struct.Struct("<8sHI")
+STATE_MAGIC = b"SBFstate"
+STATE_FORMAT = 1  # the version of the format of the FMUs' serialized states: the FMUs read this one only
 
 
-def serialized_states(cls, keys, to_snapshot, from_snapshot):
-    """Give the slave class ``cls``, whose FMU states turn into JSON-serializable dicts with the keys ``keys`` by
-    ``to_snapshot(state)`` and back by ``from_snapshot(dict)`` (which checks every value, raising with the reason), the
-    library's (de)serializers of FMU states: ``_fmu_state_to_bytes`` (:func:`state_to_bytes`) and
-    ``_fmu_state_from_bytes`` (:func:`state_from_bytes`, which never raises), and the C loader's ``state_from_bytes``,
-    which raises for bytes that are no state of the slave."""
-    strict = functools.partial(state_from_bytes, keys=frozenset(keys), from_snapshot=from_snapshot)
-    cls.state_from_bytes = staticmethod(strict)
-    cls._fmu_state_from_bytes = staticmethod(functools.partial(_refused_instead, strict))
-    cls._fmu_state_to_bytes = staticmethod(functools.partial(state_to_bytes, to_snapshot=to_snapshot))
+def state_header(identity):
+    """The header of the serialized states of the FMU whose identity is the text ``identity`` (its class, FMI version
+    and the fields of its states: bytes of another FMU, or of another layout, are refused)."""
+    return STATE_HEADER.pack(STATE_MAGIC, STATE_FORMAT, zlib.crc32(identity.encode("utf-8")))
 
 
-def state_from_bytes(data, keys, from_snapshot):
-    """The FMU state serialized in ``data`` (JSON of a dict with the keys ``keys``, turned into a state by
-    ``from_snapshot``); ValueError, or the exception of ``from_snapshot``, saying why bytes are none."""
-    try:
-        state = json.loads(bytes(data).decode("utf-8"))
-    except ValueError as error:
-        raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: {error!r}") from None
-    if not isinstance(state, dict) or set(state) != keys:
-        found = sorted(state) if isinstance(state, dict) else type(state).__name__
-        raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: they hold {found}, "
-                         f"not a dict with the keys {sorted(keys)}")
-    return from_snapshot(state)
+def serialized_states(cls, to_bytes, from_bytes):
+    """Give the slave class ``cls`` the library's (de)serializers of FMU states: ``_fmu_state_to_bytes`` (``to_bytes``)
+    and ``_fmu_state_from_bytes`` (``from_bytes``, made never to raise), and the C loader's ``state_from_bytes``
+    (``from_bytes``), which raises for bytes that are no state of the slave. ``to_bytes(state)``: the state's bytes,
+    the header of :func:`state_header` first (for a refused state, :data:`REFUSED_STATE` and the reason);
+    ``from_bytes(data)``: the state back, every value checked, raising with the reason (:func:`header_mismatch` for
+    bytes without the header)."""
+    cls.state_from_bytes = staticmethod(from_bytes)
+    cls._fmu_state_from_bytes = staticmethod(functools.partial(_refused_instead, from_bytes))
+    cls._fmu_state_to_bytes = staticmethod(to_bytes)
+
+
+class StateBytes:
+    """``to_bytes`` and ``from_bytes`` of :func:`serialized_states` for the states of the FMU whose identity is
+    ``identity`` (:func:`state_header`): the header, then the parts ``pack(state)`` gives (a list of bytes);
+    ``unpack(data, offset)`` gives the state back from the bytes after the header."""
+
+    def __init__(self, identity, pack, unpack):
+        self.header, self.pack, self.unpack = state_header(identity), pack, unpack
+
+    def to_bytes(self, state):
+        if refusal(state) is not None:
+            return REFUSED_STATE + refusal(state).encode("utf-8")
+        return b"".join([self.header, *self.pack(state)])
+
+    def from_bytes(self, data):
+        data = bytes(data)
+        if not data.startswith(self.header):
+            raise ValueError(f"the {len(data)} bytes are not a serialized FMU state of this FMU: "
+                             f"{header_mismatch(data, self.header)}")
+        return self.unpack(data, len(self.header))
+
+
+def header_mismatch(data, header):
+    """What in ``data`` is not the header ``header`` of this FMU's states."""
+    if data.startswith(b"{"):
+        return "they look like the JSON of the states of earlier versions, which this FMU no longer reads"
+    if len(data) < STATE_HEADER.size:
+        return f"a state starts with a header of {STATE_HEADER.size} bytes"
+    magic, version, identity = STATE_HEADER.unpack_from(data)
+    _, own_version, own_identity = STATE_HEADER.unpack(header)
+    if magic != STATE_MAGIC:
+        return f"they do not start with {STATE_MAGIC!r}"
+    if version != own_version:
+        return f"they are of format version {version}, and this FMU reads version {own_version}"
+    return (f"they hold a state of another FMU (identity {identity:08x}, this FMU's is {own_identity:08x}: another "
+            f"model, FMI version or layout of its states)")
 
 
 def _refused_instead(strict, data):
@@ -179,15 +215,6 @@ def _refused_instead(strict, data):
         return strict(data)
     except Exception as error:  # noqa: BLE001 - any failure is a refusal, see the docstring
         return {"refused": str(error)}
-
-
-def state_to_bytes(state, to_snapshot):
-    """The bytes of an FMU state (JSON of ``to_snapshot(state)``); for a refused state, :data:`REFUSED_STATE` and the
-    reason."""
-    reason = refusal(state)
-    if reason is not None:
-        return REFUSED_STATE + reason.encode("utf-8")
-    return json.dumps(to_snapshot(state)).encode("utf-8")
 
 
 def refusal(state):

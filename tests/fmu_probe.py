@@ -10,8 +10,9 @@ initialization, then run the actions in order, each ``[name, *arguments]``:
 - ``["set", name, value]``: set a variable by name;
 - ``["update"]``: fmi<N>EnterEventMode, fmi2NewDiscreteStates / fmi3UpdateDiscreteStates,
   fmi<N>EnterContinuousTimeMode;
-- ``["forge", path, value]``: serialize the current FMU state, set the field at ``path`` (a list of keys) in its
-  JSON to ``value``, deserialize it and set it (value ``"nan"``, ``"inf"``, ``"-inf"`` for those floats).
+- ``["forge", name, value]``: serialize the current FMU state, set its field ``name`` (a name of the runtime's
+  ``BlockStateFormat.fields``, e.g. ``"trajectory.t"``) to ``value`` in its bytes (:func:`forged_state`), deserialize
+  them and set the state (value ``"nan"``, ``"inf"``, ``"-inf"`` for those floats).
 
 Prints one JSON object: ``{"ok": bool, "failed": the action that failed or null, "messages": [...], "outputs":
 {name: value} after the last action (null if reading fails)}``; the first failing action stops the list.
@@ -19,6 +20,7 @@ Prints one JSON object: ``{"ok": bool, "failed": the action that failed or null,
 
 import json
 import math
+import struct
 import subprocess
 import sys
 
@@ -49,18 +51,28 @@ def _initialize(inst, start):
     inst.call(fmu.exitInitializationMode)
 
 
-def _forge(inst, path, value):
-    fmu = inst.fmu
-    state = inst.call(fmu.getFMUstate if inst.extracted.fmi_version == 2 else fmu.getFMUState)
-    saved = json.loads(bytes(inst.call(fmu.serializeFMUstate if inst.extracted.fmi_version == 2
-                                       else fmu.serializeFMUState, state)).rstrip(b"\0"))
-    target = saved
-    for key in path[:-1]:
-        target = target[key]
-    target[path[-1]] = SPECIAL.get(value, value) if isinstance(value, str) else value
-    forged = inst.call(fmu.deSerializeFMUstate if inst.extracted.fmi_version == 2 else fmu.deserializeFMUState,
-                       json.dumps(saved).encode())
-    inst.call(fmu.setFMUstate if inst.extracted.fmi_version == 2 else fmu.setFMUState, forged)
+def _forge(inst, name, value):
+    fmu, fmi = inst.fmu, inst.extracted.fmi_version
+    state = inst.call(fmu.getFMUstate if fmi == 2 else fmu.getFMUState)
+    data = bytes(inst.call(fmu.serializeFMUstate if fmi == 2 else fmu.serializeFMUState, state))
+    forged = forged_state(data, fmi, name, SPECIAL.get(value, value) if isinstance(value, str) else value)
+    restored = inst.call(fmu.deSerializeFMUstate if fmi == 2 else fmu.deserializeFMUState, forged)
+    inst.call(fmu.setFMUstate if fmi == 2 else fmu.setFMUState, restored)
+
+
+def forged_state(data, fmi_version, name, value):
+    """The serialized state ``data`` of the block's FMU of FMI version ``fmi_version`` with its field ``name`` (a name
+    of ``BlockStateFormat.fields``) set to ``value``: a real that may be None is marked as given, a list of reals
+    gets ``value`` as its first."""
+    from stickslip.fmu_src.block_interface import state_format
+
+    layout = state_format("SpringBlockFriction", fmi_version, () if fmi_version == 2 else ("stepped",))
+    offset, code = next((offset, code) for field, offset, code in layout.fields(data) if field == name and code != "H")
+    edited = bytearray(data)
+    struct.pack_into("<" + code[-1], edited, offset + len(code) - 1 if code == "Bd" else offset, value)
+    if code == "Bd":
+        edited[offset] = 1
+    return bytes(edited)
 
 
 def _act(inst, action):

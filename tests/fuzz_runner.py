@@ -16,6 +16,7 @@ instantiation the rest of the sequence is skipped (there is no instance to call)
 import _ctypes
 import ctypes
 import json
+import struct
 import sys
 import threading
 from ctypes import byref, c_bool, c_char_p, c_double, c_size_t, c_void_p
@@ -119,8 +120,9 @@ def serialize(s, slot, into):
 def deserialize(s, source, edit, slot):
     """Deserialize the bytes of ``source`` (a byte slot, empty if unset) after ``edit`` into the state ``slot``.
 
-    ``edit``: ["none"], ["truncate", n], ["flip", index, mask], ["json", key path, value] (a JSON value set
-    in the decoded state), ["raw", latin-1 text] (those bytes instead)."""
+    ``edit``: ["none"], ["truncate", n], ["flip", index, mask], ["overwrite", index, value] (an 8-byte float
+    written at ``index`` modulo the room for it: a field of the state forged), ["raw", latin-1 text] (those bytes
+    instead)."""
     data = edited(s.blobs.get(source, b""), edit)
     state = s.states.setdefault(slot, c_void_p())
     s.call("DeserializeFMUState", data, len(data), byref(state))
@@ -133,14 +135,9 @@ def edited(data, edit):
     if kind == "flip" and data:
         index = args[0] % len(data)
         return data[:index] + bytes([data[index] ^ args[1]]) + data[index + 1:]
-    if kind == "json" and data:
-        state = json.loads(data)
-        target = state
-        for key in args[0][:-1]:
-            target = target.get(key) if isinstance(target, dict) else None
-        if isinstance(target, dict):
-            target[args[0][-1]] = args[1]
-        return json.dumps(state).encode()
+    if kind == "overwrite" and len(data) >= 8:
+        index = args[0] % (len(data) - 7)
+        return data[:index] + struct.pack("<d", args[1]) + data[index + 8:]
     if kind == "raw":
         return args[0].encode("latin-1")
     return data

@@ -274,8 +274,9 @@ def test_stuck_block_follows_a_new_drive_velocity_before_the_next_step(unzipped)
                          ids=["fmi2-stick-stribeck", "fmi2-slip-coulomb", "fmi3-stick-coulomb", "fmi3-slip-stribeck"])
 def test_restored_state_is_the_saved_one(unzipped, unzipped3, fmi, t_save, start):
     """A state saved mid stick or mid slip, with inputs set and (FMI 2) a force rate set that the next step has yet to
-    take: restored into its instance (twice), deserialized there and by an instance of other parameters, each
-    continues with every output bit for bit as the original did, through events and an input changed after it."""
+    take: restored into its instance (twice), deserialized there and by an instance of other parameters (whose bytes
+    of it are the same), each continues with every output bit for bit as the original did, through events and an
+    input changed after it."""
     extracted = unzipped if fmi == 2 else unzipped3
     variables = extracted[2]
     outputs = [v for v in variables.values() if v.causality == "output"]
@@ -306,11 +307,50 @@ def test_restored_state_is_the_saved_one(unzipped, unzipped3, fmi, t_save, start
     for restored in (state, state, saved_api.deserialize(serialized)):
         fmu.setFMUState(restored)
         assert run(fmu) == original
-    other.setFMUState(other_api.deserialize(serialized))
+    deserialized = other_api.deserialize(serialized)
+    assert serialized.startswith(b"SBFstate") and other_api.serialize(deserialized) == serialized
+    other.setFMUState(deserialized)
     assert run(other) == original
     for instance in (fmu, other):
         instance.terminate()
         instance.freeInstance()
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_a_state_set_again_after_steps_is_the_saved_one(unzipped, unzipped3, fmi):
+    """A state got between steps and set after more steps and reads only (the loader then rewinds the trajectory
+    alone), set after an input was set, and set after another state was got and set: each time every output of the
+    steps after it bit for bit as after the save (mid slip of a Stribeck law, its steps integrated)."""
+    extracted = unzipped if fmi == 2 else unzipped3
+    variables = extracted[2]
+    outputs = [v for v in variables.values() if v.causality == "output"]
+    fmu = (instantiate if fmi == 2 else instantiate3)(extracted, "rewind", STRIBECK)
+    api = _StateApi(fmu, fmi)
+
+    def run(t0, steps=12, h=0.25):
+        rows = []
+        for k in range(steps):
+            fmu.doStep(t0 + k * h, h)
+            rows.append([api.get[v.type]([v.valueReference])[0] for v in outputs])
+        return rows
+
+    run(0.0, steps=46)
+    state = fmu.getFMUState()  # at 11.5 s, only steps before it since the start
+    original = run(11.5)
+    fmu.setFMUState(state)
+    assert run(11.5) == original
+    api.set_real([variables["F_ext"].valueReference], [0.05])
+    fmu.setFMUState(state)
+    assert run(11.5) == original
+    other = fmu.getFMUState()  # at 14.5 s
+    fmu.setFMUState(state)
+    fmu.setFMUState(other)
+    fmu.setFMUState(state)
+    assert run(11.5) == original
+    for held in (state, other):
+        fmu.freeFMUState(held)
+    fmu.terminate()
+    fmu.freeInstance()
 
 
 class _StateApi:

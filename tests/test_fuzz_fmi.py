@@ -244,10 +244,8 @@ def state_call():
     slot = st.integers(0, 2)
     edit = st.one_of(st.just(["none"]), st.tuples(st.just("truncate"), st.integers(0, 400)).map(list),
                      st.tuples(st.just("flip"), st.integers(0, 4000), st.integers(1, 255)).map(list),
-                     st.tuples(st.just("json"), st.sampled_from([["time"], ["block", "start_time"],
-                                                                 ["block", "values", "M"], ["stepped"],
-                                                                 ["values", "kc_left"], ["rates", "x"]]),
-                               st.sampled_from([1e300, -1.0, None, "text", [], 0])).map(list),
+                     st.tuples(st.just("overwrite"), st.integers(0, 4000),
+                               st.sampled_from([1e300, -1.0, math.nan, math.inf, 0.0, 5e-324])).map(list),
                      st.binary(max_size=40).map(lambda raw: ["raw", raw.decode("latin-1")]))
     return st.one_of(slot.map(lambda s: ["get_state", s]), slot.map(lambda s: ["set_state", s]),
                      slot.map(lambda s: ["free_state", s]),

@@ -212,7 +212,8 @@ def test_no_message_reaches_the_host_without_a_category(extracted):
 # ---------------------------------------------------------------------------
 
 BAD_STATES = {"empty": "b''", "random": "bytes(range(7, 250, 3))", "truncated": "serialized(c)[:40]",
-              "json-list": "b'[1, 2]'", "json-without-the-keys": "b'{\"t\": 1e300}'"}
+              "json-list": "b'[1, 2]'", "json-without-the-keys": "b'{\"t\": 1e300}'",
+              "another-fmu": "serialized(c)[:10] + bytes(4) + serialized(c)[14:]"}
 
 
 @pytest.mark.parametrize("data", BAD_STATES.values(), ids=BAD_STATES.keys())

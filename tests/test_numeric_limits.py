@@ -360,26 +360,28 @@ def test_snapshot_through_json_continues_bit_for_bit():
 STEPPED = [["step", 0.0, 11.5]]
 
 
-@pytest.mark.parametrize("interface, fmi, path, value, text", [
-    ("cs", 2, ["block", "trajectory", "t"], 1e300, "saved state t = 1e+300 s"),
-    ("cs", 2, ["block", "trajectory", "segment", 5], "inf", "saved state segment (harmonic).x0 = inf"),
-    ("cs", 2, ["block", "values", "kinetic.gamma"], "nan", "kinetic.gamma = nan N s/m is out of range"),
-    ("cs", 2, ["block", "start_time"], "nan", "saved state start_time = nan"),
-    ("cs", 3, ["block", "trajectory", "v_drive"], "-inf", "saved state v_drive = -inf"),
-    ("cs", 3, ["time"], "inf", "saved state time = inf"),
-    ("me", 3, ["exchange", "_x"], 1e300, "kappa * |saved state x| = 1e+300 N"),
-    ("me", 3, ["exchange", "t_stuck"], "nan", "saved state t_stuck = nan"),
-    ("me", 2, ["exchange", "_x"], 1e300, "kappa * |saved state x| = 1e+300 N"),
-    ("me", 2, ["exchange", "t_stuck"], "nan", "saved state t_stuck = nan"),
-    ("me", 2, ["time"], "inf", "saved state time = inf"),
-], ids=["fmi2-t", "fmi2-segment-x0", "fmi2-unused-law-value", "fmi2-start-time", "fmi3-cs-v_drive", "fmi3-cs-time",
-        "fmi3-me-x", "fmi3-me-t_stuck", "fmi2-me-x", "fmi2-me-t_stuck", "fmi2-me-time"])
-def test_forged_fmu_state_is_refused_by_field_and_the_instance_goes_on(fmu_path, fmu3_path, interface, fmi, path,
+@pytest.mark.parametrize("interface, fmi, name, value, text", [
+    ("cs", 2, "trajectory.t", 1e300, "saved state t = 1e+300 s"),
+    ("cs", 2, "segment (harmonic).x0", "inf", "saved state segment (harmonic).x0 = inf"),
+    ("cs", 2, "parameters.kinetic.gamma", -1.0, "kinetic.gamma = -1.0 N s/m is out of range"),
+    ("cs", 2, "parameters.kinetic.gamma", "nan", "saved state kinetic.gamma = nan is not a finite real"),
+    ("cs", 2, "head.start_time", "nan", "saved state start_time = nan"),
+    ("cs", 3, "trajectory.v_drive", "-inf", "saved state v_drive = -inf"),
+    ("cs", 3, "head.time", "inf", "saved state time = inf"),
+    ("me", 3, "exchange._x", 1e300, "kappa * |saved state x| = 1e+300 N"),
+    ("me", 3, "exchange.t_stuck", "nan", "saved state t_stuck = nan"),
+    ("me", 2, "exchange._x", 1e300, "kappa * |saved state x| = 1e+300 N"),
+    ("me", 2, "exchange.t_stuck", "nan", "saved state t_stuck = nan"),
+    ("me", 2, "head.time", "inf", "saved state time = inf"),
+], ids=["fmi2-t", "fmi2-segment-x0", "fmi2-unused-law-value", "fmi2-law-value-nan", "fmi2-start-time",
+        "fmi3-cs-v_drive", "fmi3-cs-time", "fmi3-me-x", "fmi3-me-t_stuck", "fmi2-me-x", "fmi2-me-t_stuck",
+        "fmi2-me-time"])
+def test_forged_fmu_state_is_refused_by_field_and_the_instance_goes_on(fmu_path, fmu3_path, interface, fmi, name,
                                                                        value, text):
     """A well-formed serialized FMU state holding a non-finite or overflowing value: fmi2Error/fmi3Error from
     fmi2SetFMUstate/fmi3SetFMUState naming the field, and the instance keeps its state (each case in a child
     process). Before the fix the state was taken and the outputs read +-inf with status OK."""
-    actions = (STEPPED if interface == "cs" else [["update"]]) + [["forge", path, value]]
+    actions = (STEPPED if interface == "cs" else [["update"]]) + [["forge", name, value]]
     report = run_probe(fmu_path if fmi == 2 else fmu3_path, interface, {"v_start": V_DRIVE}, actions)
     assert report["failed"] is not None and report["failed"][0] == "forge", report
     assert any(text in message for message in report["messages"]), report["messages"]

@@ -37,10 +37,12 @@ from .laws import (
 )
 from .model import BACKWARD, FORWARD, STUCK, Parameters, check_input, check_rate_scale
 from .ranges import ANY_FINITE, NON_NEGATIVE, POSITIVE, check
+from .state_bytes import BlockStateFormat
 from .trajectory import OUTPUT_NAMES, RTOL_RANGE, Trajectory, state_snapshot
 
 __all__ = [
-    "ANY_FINITE", "BACKWARD", "FORWARD", "IMPLEMENTATION", "INDICATORS", "ExchangeBlock", "NON_NEGATIVE", "POSITIVE", "STUCK", "KINETIC_LAWS",
+    "ANY_FINITE", "BACKWARD", "BlockStateFormat", "FORWARD",
+    "IMPLEMENTATION", "INDICATORS", "ExchangeBlock", "NON_NEGATIVE", "POSITIVE", "STUCK", "KINETIC_LAWS",
     "OUTPUT_NAMES", "STATIC_LAWS",
     "CallableKinetic", "CallableStatic", "CarlsonLanger", "Constant", "Coulomb", "Logarithmic", "Lubricated",
     "Parameters", "ParameterError", "RTOL_RANGE", "Saturating", "Sigmoid", "SolverError", "StateError",

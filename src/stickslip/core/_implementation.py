@@ -29,6 +29,7 @@ from importlib.machinery import EXTENSION_SUFFIXES
 
 COMPILED_MODULES = (
     "laws", "model", "integrators", "poly", "rootfind", "numeric_slip", "linear_slip", "stuck", "segments", "trajectory",
+    "state_bytes",
 )
 STAMP = "compiled_sources.crc32"
 PURE_ENV = "STICKSLIP_PURE_PYTHON"

@@ -48,6 +48,7 @@ discrete state between the host's calls.
 """
 
 import math
+import operator
 
 from . import saved_state
 from .errors import ParameterError, StateError
@@ -303,28 +304,37 @@ class ExchangeBlock:
         """The discrete and continuous state of a :meth:`state` as JSON-serializable values (:meth:`from_snapshot`)."""
         return {name: state[name] for name in cls._SAVED}
 
+    @staticmethod
+    def state_fields(state):
+        """The values of :data:`STATE_FIELDS` of a :meth:`state`, in their order."""
+        return _pick_saved(state) + state["_inputs"]
+
     @classmethod
     def from_snapshot(cls, params, snap):
         """Rebuild a block saved by :meth:`state_snapshot` (with the same parameters). StateError or ParameterError
-        names a field that is missing, ill-typed, non-finite, beyond the force scales, or inconsistent (a
-        stick start with a slipping mode, times after ``t``)."""
+        names a field that is missing, ill-typed, non-finite, beyond the force scales, or inconsistent (see
+        :meth:`checked_state`)."""
         fields = saved_state.record("", snap, _SAVED_KINDS)
-        t, x, v, t_stuck = fields["t"], fields["_x"], fields["_v"], fields["t_stuck"]
-        check_input_scales(fields["v_drive"], fields["F_ext"], params)
-        inputs = saved_state.sequence("_inputs", snap["_inputs"], (("v_drive", saved_state.REAL),
-                                                                   ("F_ext", saved_state.REAL)))
-        check_input_scales(inputs[0], inputs[1], params)
+        values = [fields[name] for name in cls._SAVED[:-1]]
+        values += saved_state.sequence("_inputs", snap["_inputs"], _INPUT_FIELDS)
+        return cls.resumed(cls.checked_state(params, values))
+
+    @classmethod
+    def checked_state(cls, params, values):
+        """A :meth:`state` from the values of :data:`STATE_FIELDS`, each of its kind, saved under ``params``:
+        StateError or ParameterError naming a value that no block under ``params`` holds (inputs or a state beyond
+        the force scales, a stick start with a slipping mode, times after ``t``)."""
+        t, v_drive, F_ext, mode, x, v, t_stuck, _, _, _, t_last_event, input_v_drive, input_F_ext = values
+        check_input_scales(v_drive, F_ext, params)
+        check_input_scales(input_v_drive, input_F_ext, params)
         check_state_scales(x, v, params, ("saved state x", "saved state v"))
         stuck_since = t if t_stuck is None else t_stuck
-        if (t_stuck is None) != (fields["mode"] != STUCK) or max(stuck_since, fields["t_last_event"]) > t:
-            raise StateError(f"saved state t_stuck = {t_stuck!r} s, t_last_event = {fields['t_last_event']!r} s "
-                             f"do not fit mode {fields['mode']} at t = {t!r} s")
-        block = cls.__new__(cls)
-        block.params = params
-        for name in cls._SAVED:
-            setattr(block, name, fields[name])
-        block._inputs = tuple(inputs)
-        return block
+        if (t_stuck is None) != (mode != STUCK) or max(stuck_since, t_last_event) > t:
+            raise StateError(f"saved state t_stuck = {t_stuck!r} s, t_last_event = {t_last_event!r} s "
+                             f"do not fit mode {mode} at t = {t!r} s")
+        state = dict(zip(cls._SAVED[:-1], values))
+        state["params"], state["_inputs"] = params, (input_v_drive, input_F_ext)
+        return state
 
 
 # The kinds of the fields of ExchangeBlock.state_snapshot (:mod:`.saved_state`)
@@ -333,3 +343,10 @@ _SAVED_KINDS = {"t": saved_state.REAL, "v_drive": saved_state.REAL, "F_ext": sav
                 "t_stuck": saved_state.OPTIONAL_REAL, "n_stick_events": saved_state.COUNT,
                 "n_slip_events": saved_state.COUNT, "n_overshoots": saved_state.COUNT,
                 "t_last_event": saved_state.REAL, "_inputs": saved_state.NESTED}
+_INPUT_FIELDS = (("v_drive", saved_state.REAL), ("F_ext", saved_state.REAL))  # the inputs at the last update
+_pick_saved = operator.itemgetter(*ExchangeBlock._SAVED[:-1])  # from a state, the saved fields but the inputs
+#: The fields of an :meth:`ExchangeBlock.state` that a saved state holds, in one row (its inputs at the last update
+#: last): the values :meth:`ExchangeBlock.state_fields` gives and :meth:`ExchangeBlock.checked_state` takes, with
+#: their kinds
+STATE_FIELDS = tuple((name, _SAVED_KINDS[name]) for name in ExchangeBlock._SAVED[:-1]) + tuple(
+    (f"_inputs.{name}", kind) for name, kind in _INPUT_FIELDS)

@@ -119,36 +119,45 @@ def check_damping(p):
         )
 
 
-def check_state_scales(x, v, p, state_names=("x", "v")):
+def check_state_scales(x, v, p: Parameters, state_names=("x", "v")):
     """Raise ParameterError, naming the state by ``state_names``, if ``kappa |x|`` or ``sqrt(kappa M) |v|``
     exceeds :data:`MAX_FORCE_SCALE`."""
+    if p.kappa * abs(x) <= MAX_FORCE_SCALE and _impedance(p) * abs(v) <= MAX_FORCE_SCALE:
+        return  # the usual case, without making the texts below (saved states are checked with this)
     x_name, v_name = state_names
     _check_force_scale(f"kappa * |{x_name}|", p.kappa * abs(x), lambda: f"kappa = {p.kappa!r} N/m, {x_name} = {x!r} m")
     _check_force_scale(f"sqrt(kappa M) * |{v_name}|", _impedance(p) * abs(v),
                        lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, {v_name} = {v!r} m/s")
 
 
-def check_input_scales(v_drive, F_ext, p):
+def check_input_scales(v_drive, F_ext, p: Parameters):
     """Raise ParameterError if ``|F_ext|`` or ``sqrt(kappa M) |v_drive|`` exceeds :data:`MAX_FORCE_SCALE`."""
     _check_force_input_scale(F_ext, p)
     _check_drive_scale(v_drive, p)
 
 
-def _check_force_input_scale(F_ext, p):
+def _check_force_input_scale(F_ext, p: Parameters):
     """Raise ParameterError if ``|F_ext|`` (N) exceeds :data:`MAX_FORCE_SCALE`."""
+    if abs(F_ext) <= MAX_FORCE_SCALE:
+        return
     _check_force_scale("|F_ext|", abs(F_ext), lambda: f"F_ext = {F_ext!r} N")
 
 
-def _check_drive_scale(v_drive, p):
+def _check_drive_scale(v_drive, p: Parameters):
     """Raise ParameterError if ``sqrt(kappa M) |v_drive|`` (N; v_drive in m/s) exceeds :data:`MAX_FORCE_SCALE`."""
+    if _impedance(p) * abs(v_drive) <= MAX_FORCE_SCALE:
+        return
     _check_force_scale("sqrt(kappa M) * |v_drive|", _impedance(p) * abs(v_drive),
                        lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, v_drive = {v_drive!r} m/s")
 
 
-def check_rate_scale(F_ext_rate, p):
+def check_rate_scale(F_ext_rate, p: Parameters):
     """Raise ParameterError if ``sqrt(M/kappa) |der(F_ext)|``, the force a growing ``F_ext`` adds over the block's
     time scale, exceeds :data:`MAX_FORCE_SCALE`."""
-    _check_force_scale("sqrt(M/kappa) * |der(F_ext)|", math.sqrt(p.M) / math.sqrt(p.kappa) * abs(F_ext_rate),
+    force = math.sqrt(p.M) / math.sqrt(p.kappa) * abs(F_ext_rate)
+    if force <= MAX_FORCE_SCALE:
+        return
+    _check_force_scale("sqrt(M/kappa) * |der(F_ext)|", force,
                        lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, der(F_ext) = {F_ext_rate!r} N/s")
 
 
@@ -190,7 +199,7 @@ def check_start_time(name, t, p):
         )
 
 
-def _impedance(p):
+def _impedance(p: Parameters) -> float:
     """``sqrt(kappa M)`` (N s/m), computed so that the product ``kappa M`` cannot overflow."""
     return math.sqrt(p.kappa) * math.sqrt(p.M)
 

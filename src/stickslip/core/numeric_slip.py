@@ -72,7 +72,7 @@ class SlipStepper:
 
     def state(self) -> tuple:
         """Everything a step depends on, as an immutable tuple (:meth:`restore`): the step size, the method, the
-        counters (these five are what :meth:`from_snapshot` takes), and where the current slip is in its record of
+        counters (these five are what a saved state holds), and where the current slip is in its record of
         steps (shared: a record only grows, by the steps that follow from the same start, so the steps replayed
         from it are the same)."""
         return self.h, self.stiff, self.votes, self.n_steps, self.n_rejected, self._record, self._cursor
@@ -82,10 +82,6 @@ class SlipStepper:
         else the current slip is recorded anew (a record of another stepper may be of other parameters)."""
         self.h, self.stiff, self.votes, self.n_steps, self.n_rejected, record, cursor = state
         self._record, self._cursor = (record, cursor) if own else (None, -1)
-
-    @classmethod
-    def from_snapshot(cls, rtol, values):
-        return cls(rtol, *values)
 
     def restart(self):
         """A new slip phase begins (after an event or an input change): forget the step size."""

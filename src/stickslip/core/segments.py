@@ -11,7 +11,7 @@ list of numbers (``kind`` first) so a trajectory can be saved and restored bit f
 from __future__ import annotations  # annotations stay unevaluated: the FMU runs on CPython 3.8+
 
 import math
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from . import poly
 from .errors import StateError
@@ -221,38 +221,48 @@ class StepSegment(Segment):
                 self.x1, self.v1]
 
 
+#: every kind of segment, in the order of their codes in a state's bytes (:mod:`.state_bytes`)
+SEGMENT_CLASSES: tuple[Any, ...] = (StuckSegment, HarmonicSegment, StepSegment)
+
+
 def segment_from_list(values, p):
     """Rebuild a segment from :meth:`~Segment.to_list` output (with the parameters ``p`` it was saved with).
 
-    StateError names a field that is missing, of the wrong kind or inconsistent: times out of order, a
-    negative duration or stick time, a slip in mode 0, a closed-form slip under a law that has none.
+    StateError names a field that is missing, of the wrong kind or inconsistent (see :func:`checked_segment`).
     """
-    kinds = {StuckSegment.KIND: StuckSegment, HarmonicSegment.KIND: HarmonicSegment, StepSegment.KIND: StepSegment}
+    kinds = {segment_class.KIND: segment_class for segment_class in SEGMENT_CLASSES}
     kind = values[0] if isinstance(values, list) and values else None
     if not isinstance(kind, str) or kind not in kinds:
         raise StateError(f"saved state segment {values!r:.80} is not a list that starts with one of {sorted(kinds)}")
     segment_class = kinds[kind]
-    fields = dict(zip((name for name, _ in segment_class.FIELDS),
-                      sequence(f"segment ({kind})", values[1:], segment_class.FIELDS)))
-    _check_segment(kind, fields, p)
+    return checked_segment(segment_class, sequence(f"segment ({kind})", values[1:], segment_class.FIELDS), p)
+
+
+def checked_segment(segment_class, values, p):
+    """The segment of ``segment_class`` whose constructor's arguments (without ``p``) are ``values``, each of its kind
+    in ``segment_class.FIELDS``: StateError naming what no segment saved by this runtime under ``p`` holds (times
+    out of order, a negative duration or stick time, a slip in mode 0, a closed-form slip under a law that has
+    none)."""
+    _check_segment(segment_class, values, p)
     if segment_class is HarmonicSegment:
-        return HarmonicSegment(*fields.values(), p)
-    return segment_class(*fields.values())
+        return HarmonicSegment(*values, p)
+    return segment_class(*values)
 
 
-def _check_segment(kind, fields, p):
-    """StateError for fields that no segment of ``kind`` saved by this runtime under ``p`` holds."""
-    if kind == StuckSegment.KIND:
-        problem = ("duration < 0" if fields["duration"] < 0.0 else "t_stick0 < 0" if fields["t_stick0"] < 0.0
-                   else None)
-    elif fields["t1"] < fields["t0"]:
+def _check_segment(segment_class, values: list, p):
+    """StateError for ``values`` (in the order of ``segment_class.FIELDS``) that no segment of ``segment_class`` saved
+    by this runtime under ``p`` holds. A stuck segment's duration and t_stick0 are its fields 1 and 5; a slip's t0,
+    t1 and mode its fields 0, 1 and 3, a step's h, cx and cv its fields 4 to 6."""
+    if segment_class is StuckSegment:
+        problem = "duration < 0" if values[1] < 0.0 else "t_stick0 < 0" if values[5] < 0.0 else None
+    elif values[1] < values[0]:
         problem = "t1 < t0"
-    elif fields["mode"] == STUCK:
+    elif values[3] == STUCK:
         problem = "a slip in mode 0"
-    elif kind == HarmonicSegment.KIND:
+    elif segment_class is HarmonicSegment:
         problem = "a closed-form slip under a kinetic law that has none" if p.kinetic.affine() is None else None
     else:
-        problem = ("h < 0" if fields["h"] < 0.0 else "cx and cv of different lengths"
-                   if len(fields["cx"]) != len(fields["cv"]) else None)
+        problem = ("h < 0" if values[4] < 0.0 else "cx and cv of different lengths"
+                   if len(values[5]) != len(values[6]) else None)
     if problem:
-        raise StateError(f"saved state segment ({kind}) is inconsistent: {problem}")
+        raise StateError(f"saved state segment ({segment_class.KIND}) is inconsistent: {problem}")

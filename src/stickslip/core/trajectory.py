@@ -459,37 +459,16 @@ class Trajectory:
     def from_snapshot(cls, params, snap):
         """Rebuild a trajectory saved by :meth:`snapshot` (with the same parameters).
 
-        Every field is checked first (:mod:`.saved_state`, :func:`.segments.segment_from_list`): a missing,
-        ill-typed or non-finite one, inputs or a state whose force scales overflow, or a segment that does not
-        hold the saved time raise StateError or ParameterError naming it.
+        Every field is checked first (:mod:`.saved_state`, :func:`.segments.segment_from_list`, :func:`checked_state`):
+        a missing, ill-typed or non-finite one, inputs or a state whose force scales overflow, or a segment that does
+        not hold the saved time raise StateError or ParameterError naming it.
         """
         fields = saved_state.record("", snap, _SNAPSHOT_FIELDS)
-        t = fields["t"]
-        check("saved state rtol", fields["rtol"], RTOL_RANGE, error=StateError)
-        check_input_scales(fields["v_drive"], fields["F_ext"], params)
-        drift = _checked_drift(fields["F_ext_rate"], params, StateError)
-        counts = saved_state.sequence("counts", snap["counts"], _COUNT_FIELDS)
-        burst = saved_state.sequence("burst", snap["burst"], _BURST_FIELDS)
-        stepper = saved_state.sequence("stepper", snap["stepper"], _STEPPER_FIELDS)
-        segment = segment_from_list(snap["segment"], params)
-        if not (segment.t0 <= t <= segment.t1 and fields["t_last_event"] <= t and fields["frame_t"] <= t):
-            raise StateError(f"saved state t = {t!r} s lies outside its segment [{segment.t0!r}, {segment.t1!r}] s "
-                             f"or before its last event at {fields['t_last_event']!r} s or its inputs' time "
-                             f"{fields['frame_t']!r} s")
-        x, v = segment.state(t)
-        saved_state.field("x at t", x, saved_state.REAL)
-        saved_state.field("v at t", v, saved_state.REAL)
-        check_state_scales(x, v, params, ("saved state x", "saved state v"))
-        traj = cls(params, 0.0, 0.0, rtol=fields["rtol"])  # at rest: every field is replaced below
-        traj.t, traj.v_drive, traj.F_ext, traj.F_ext_rate = t, fields["v_drive"], fields["F_ext"], fields["F_ext_rate"]
-        traj._frame_t, traj._drift, traj._v_frame = fields["frame_t"], drift, fields["v_drive"] - drift
-        traj.t_last_event = fields["t_last_event"]
-        traj.n_stick_events, traj.n_slip_events, traj.n_overshoots, traj._chain = counts
-        traj._burst_start, traj._burst = burst
-        traj._stepper = SlipStepper.from_snapshot(traj.rtol, stepper)
-        traj._segment = segment
-        traj._x, traj._v = x, v
-        return traj
+        values = [fields[name] for name in ("t", "v_drive", "F_ext", "F_ext_rate", "frame_t", "rtol")]
+        values += saved_state.sequence("counts", snap["counts"], _COUNT_FIELDS)
+        values += saved_state.sequence("burst", snap["burst"], _BURST_FIELDS) + [fields["t_last_event"]]
+        values += saved_state.sequence("stepper", snap["stepper"], _STEPPER_FIELDS)
+        return cls.resumed(checked_state(params, values, segment_from_list(snap["segment"], params)))
 
     # ------------------------------------------------------------------
     # segments and transitions
@@ -605,6 +584,46 @@ def state_snapshot(state: tuple):
     }
 
 
+#: The fields of a :meth:`Trajectory.state` that a saved state holds besides its segment, in one row: the values
+#: :func:`state_fields` gives and :func:`checked_state` takes, with their kinds (:mod:`.saved_state`); the names are
+#: those of :meth:`Trajectory.snapshot`'s (``counts.chain`` is the event chain's guard, ``burst`` the burst guard's)
+STATE_FIELDS = (("t", saved_state.REAL), ("v_drive", saved_state.REAL), ("F_ext", saved_state.REAL),
+                ("F_ext_rate", saved_state.REAL), ("frame_t", saved_state.REAL), ("rtol", saved_state.REAL),
+                *((f"counts.{name}", kind) for name, kind in _COUNT_FIELDS),
+                *((f"burst.{name}", kind) for name, kind in _BURST_FIELDS), ("t_last_event", saved_state.REAL),
+                *((f"stepper.{name}", kind) for name, kind in _STEPPER_FIELDS))
+
+
+def state_fields(state: tuple) -> tuple:
+    """The values of :data:`STATE_FIELDS` of a :meth:`Trajectory.state`, in their order (its segment is
+    ``state[17]``)."""
+    return state[3:8] + (state[2],) + state[10:17] + state[20][:5]
+
+
+def checked_state(params: Parameters, values: list, segment: Segment) -> tuple:
+    """A :meth:`Trajectory.state` (of no trajectory: :meth:`Trajectory.resumed` goes on from it) from the values of
+    :data:`STATE_FIELDS`, each of its kind, and a checked segment (:func:`.segments.checked_segment`), saved under
+    ``params``: StateError or ParameterError naming a value that no trajectory under ``params`` holds (a tolerance out
+    of range, inputs or a state whose force scales overflow, a segment that does not hold the saved time)."""
+    (t, v_drive, F_ext, F_ext_rate, frame_t, rtol, n_stick, n_slip, n_over, chain, burst_start, burst, t_last_event,
+     h, stiff, votes, n_steps, n_rejected) = values
+    if not RTOL_RANGE.low <= rtol <= RTOL_RANGE.high:
+        check("saved state rtol", rtol, RTOL_RANGE, error=StateError)
+    check_input_scales(v_drive, F_ext, params)
+    drift = _checked_drift(F_ext_rate, params, StateError)
+    if not (segment.t0 <= t <= segment.t1 and t_last_event <= t and frame_t <= t):
+        raise StateError(f"saved state t = {t!r} s lies outside its segment [{segment.t0!r}, {segment.t1!r}] s "
+                         f"or before its last event at {t_last_event!r} s or its inputs' time {frame_t!r} s")
+    x, v = segment.state(t)
+    if not (_finite(x) and _finite(v)):
+        saved_state.field("x at t", x, saved_state.REAL)
+        saved_state.field("v at t", v, saved_state.REAL)
+    check_state_scales(x, v, params, ("saved state x", "saved state v"))
+    return (None, params, rtol, t, v_drive, F_ext, F_ext_rate, frame_t, drift, v_drive - drift, n_stick, n_slip,
+            n_over, chain, burst_start, burst, t_last_event, segment, x, v, (h, stiff, votes, n_steps, n_rejected,
+                                                                              None, -1), -1)
+
+
 def check_step(current_time: float, step_size: float, t: float) -> None:
     """Raise ParameterError unless ``currentCommunicationPoint`` and ``communicationStepSize`` (s) are finite, the
     step size is >= 0, and the step starts at the FMU's time ``t`` (s), the start time or the end of the last step,
@@ -626,7 +645,8 @@ def check_step(current_time: float, step_size: float, t: float) -> None:
 def _checked_drift(F_ext_rate, p, error=ParameterError):
     """``F_ext_rate / kappa`` (m/s), the frame's speed for a growing ``F_ext`` (see the module's docstring), after
     checking the rate ``der(F_ext)`` (N/s): finite, and within the force scale over the block's time scale."""
-    check("der(F_ext)", F_ext_rate, ANY_FINITE, "N/s", error=error)
+    if not (isinstance(F_ext_rate, float) and _finite(F_ext_rate)):
+        check("der(F_ext)", F_ext_rate, ANY_FINITE, "N/s", error=error)
     check_rate_scale(F_ext_rate, p)
     return float(F_ext_rate) / p.kappa
 

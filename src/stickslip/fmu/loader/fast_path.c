@@ -78,17 +78,29 @@ static void drop_serialized(sbf_fast_path *fast)
 /* Forget the slave's state calls (under the GIL) */
 static void drop_state_calls(sbf_fast_path *fast)
 {
-    if (fast->save) py.Py_DecRef(fast->save);
-    if (fast->restore) py.Py_DecRef(fast->restore);
-    fast->save = fast->restore = NULL;
+    void **calls[] = {&fast->save, &fast->restore, &fast->to_bytes, &fast->from_bytes};
+    for (size_t i = 0; i < sizeof calls / sizeof *calls; ++i) {
+        if (*calls[i]) py.Py_DecRef(*calls[i]);
+        *calls[i] = NULL;
+    }
 }
 
-/* Forget the step and outputs calls (under the GIL) */
+/* Forget the state got last while the step call was kept (under the GIL) */
+static void drop_clean_state(sbf_fast_path *fast)
+{
+    if (fast->clean_state) py.Py_DecRef(fast->clean_state);
+    fast->clean_state = NULL;
+}
+
+/* Forget the step, outputs and rewind calls, and with them the clean state (under the GIL) */
 static void drop_step_call(sbf_fast_path *fast)
 {
-    if (fast->step) py.Py_DecRef(fast->step);
-    if (fast->outputs) py.Py_DecRef(fast->outputs);
-    fast->step = fast->outputs = NULL;
+    void **calls[] = {&fast->step, &fast->outputs, &fast->rewind};
+    for (size_t i = 0; i < sizeof calls / sizeof *calls; ++i) {
+        if (*calls[i]) py.Py_DecRef(*calls[i]);
+        *calls[i] = NULL;
+    }
+    drop_clean_state(fast);
 }
 
 /* Called by the slave (through ctypes.PyDLL, the GIL held) while the inner library constructs it on this thread:
@@ -109,7 +121,9 @@ SBF_EXPORT int sbf_bind_slave(PyObject *slave, unsigned first, const char *kinds
     memcpy(fast->kinds, kinds, n);
     fast->save = py.PyObject_GetAttrString(slave, "save_state"); /* none: the states go the inner library's way */
     fast->restore = fast->save ? py.PyObject_GetAttrString(slave, "restore_state") : NULL;
-    if (!fast->restore) drop_state_calls(fast);
+    fast->to_bytes = fast->restore ? py.PyObject_GetAttrString(slave, "_fmu_state_to_bytes") : NULL;
+    fast->from_bytes = fast->to_bytes ? py.PyObject_GetAttrString(slave, "state_from_bytes") : NULL;
+    if (!fast->from_bytes) drop_state_calls(fast);
     py.PyErr_Clear();
     return 1;
 }
@@ -155,22 +169,25 @@ static int keep_outputs(sbf_fast_path *fast, PyObject *result)
     return 1;
 }
 
-/* The slave's step call and outputs call, asked for (the pair fast_step_call() gives) if none is kept: 1 if there
- * are, 0 if the slave has none now (its next step goes the inner library's way), -1 on an exception (set, or
- * none for a malformed answer). Under the GIL. */
+/* The slave's step call and outputs call (and rewind call, if it gives one), asked for (the calls fast_step_call()
+ * gives) if none is kept: 1 if there are, 0 if the slave has none now (its next step goes the inner library's way),
+ * -1 on an exception (set, or none for a malformed answer). Under the GIL. */
 static int have_step_call(sbf_fast_path *fast)
 {
     if (fast->step) return 1;
-    PyObject *pair = py.PyObject_CallMethod(fast->slave, "fast_step_call", NULL);
-    if (!pair) return -1;
-    int found = pair == py_none ? 0 : py.PyTuple_Size(pair) == 2 ? 1 : -1;
+    PyObject *calls = py.PyObject_CallMethod(fast->slave, "fast_step_call", NULL);
+    if (!calls) return -1;
+    ptrdiff_t n = calls == py_none ? 0 : py.PyTuple_Size(calls);
+    int found = calls == py_none ? 0 : n == 2 || n == 3 ? 1 : -1;
     if (found == 1) {
-        fast->step = py.PyTuple_GetItem(pair, 0);
-        fast->outputs = py.PyTuple_GetItem(pair, 1);
+        fast->step = py.PyTuple_GetItem(calls, 0);
+        fast->outputs = py.PyTuple_GetItem(calls, 1);
+        fast->rewind = n == 3 ? py.PyTuple_GetItem(calls, 2) : NULL;
         py.Py_IncRef(fast->step);
         py.Py_IncRef(fast->outputs);
+        if (fast->rewind) py.Py_IncRef(fast->rewind);
     }
-    py.Py_DecRef(pair);
+    py.Py_DecRef(calls);
     return found;
 }
 
@@ -335,6 +352,7 @@ int sbf_slave_apply_events(sbf_fast_path *fast, char *why, size_t why_size)
     if (unbound(fast, "[updateDiscreteStates]", why, why_size)) return 1;
     int gil = py.PyGILState_Ensure();
     PyObject *result = py.PyObject_CallMethod(fast->slave, "apply_step_events", NULL);
+    drop_clean_state(fast);
     fast->moved = 1;
     fast->fresh = 0;
     if (!result) exception_text("updateDiscreteStates", why, why_size);
@@ -441,18 +459,49 @@ int sbf_state_get(sbf_fast_path *fast, void **state, char *why, size_t why_size)
     if (!states_taken(fast) || !state) return -1;
     int gil = py.PyGILState_Ensure();
     PyObject *saved = py.PyObject_CallFunctionObjArgs(fast->save, NULL);
-    if (saved)
+    drop_clean_state(fast);
+    if (saved) {
         *state = saved; /* the reference the host holds until it frees the state */
-    else
+        if (fast->rewind) {
+            py.Py_IncRef(saved);
+            fast->clean_state = saved;
+        }
+    } else {
         exception_text("GetFMUstate", why, why_size);
+    }
     py.PyGILState_Release(gil);
     return saved == NULL;
+}
+
+/* 1 if the clean state `state` was set by rewinding the trajectory alone (the FMU state's first item, the block's
+ * part, holds the trajectory's part at BLOCK_TRAJECTORY: fmu_src/block_interface.py, block_state); else 0, no
+ * exception left pending. Under the GIL. */
+enum { BLOCK_TRAJECTORY = 5 };
+static int rewound(sbf_fast_path *fast, PyObject *state)
+{
+    if (state != fast->clean_state || !fast->rewind) return 0;
+    PyObject *block = py.PyTuple_GetItem(state, 0);
+    PyObject *trajectory = block ? py.PyTuple_GetItem(block, BLOCK_TRAJECTORY) : NULL;
+    PyObject *done = trajectory ? py.PyObject_CallFunctionObjArgs(fast->rewind, trajectory, NULL) : NULL;
+    if (!done) {
+        py.PyErr_Clear();
+        return 0; /* the slave's restore_state sets it instead */
+    }
+    py.Py_DecRef(done);
+    fast->fresh = 0;
+    fast->moved = 1; /* the slave hears it as after a step */
+    return 1;
 }
 
 int sbf_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size)
 {
     if (!states_taken(fast)) return -1;
     int gil = py.PyGILState_Ensure();
+    if (rewound(fast, (PyObject *)state)) {
+        py.PyGILState_Release(gil);
+        return 0;
+    }
+    drop_clean_state(fast); /* the instance may now differ from it in more than its trajectory */
     PyObject *kept = py.PyObject_CallFunctionObjArgs(fast->restore, (PyObject *)state, NULL);
     fast->fresh = 0;
     fast->moved = 0; /* the restore told the slave's caches */
@@ -479,7 +528,7 @@ int sbf_state_free(sbf_fast_path *fast, void **state)
 static PyObject *state_bytes(sbf_fast_path *fast, void *state, const char *function, char *why, size_t why_size)
 {
     if (fast->serialized_state != state) {
-        PyObject *data = py.PyObject_CallMethod(fast->slave, "_fmu_state_to_bytes", "(O)", state);
+        PyObject *data = py.PyObject_CallFunctionObjArgs(fast->to_bytes, (PyObject *)state, NULL);
         if (!data || py.PyBytes_Size(data) < 0) {
             exception_text(function, why, why_size);
             if (data) py.Py_DecRef(data);
@@ -534,7 +583,7 @@ int sbf_state_deserialize(sbf_fast_path *fast, const void *bytes, size_t size, v
     if (!states_taken(fast) || !state || (size && !bytes)) return -1;
     int gil = py.PyGILState_Ensure();
     PyObject *data = py.PyBytes_FromStringAndSize(size ? bytes : "", (ptrdiff_t)size);
-    PyObject *restored = data ? py.PyObject_CallMethod(fast->slave, "state_from_bytes", "(O)", data) : NULL;
+    PyObject *restored = data ? py.PyObject_CallFunctionObjArgs(fast->from_bytes, data, NULL) : NULL;
     if (restored)
         *state = restored;
     else

@@ -5,11 +5,11 @@
  * The slave therefore offers itself to the loader while the inner library constructs it (sbf_bind_slave, called
  * from fmu_src/block_interface.py, offer_to_loader), with the value reference of its first output and the
  * outputs' kinds. The loader then
- *   - takes a communication step by one call of the slave's step call (the first of the pair fast_step_call()
+ *   - takes a communication step by one call of the slave's step call (the first of the calls fast_step_call()
  *     gives: the runtime's compiled Trajectory.communicate, which checks the step, advances and returns the
  *     first outputs, x and v), and keeps them in a buffer of its own;
  *   - answers reads of outputs from that buffer, without entering Python; a read of another output asks the
- *     pair's second call (Trajectory.outputs: every output at the current state) once per step;
+ *     second call (Trajectory.outputs: every output at the current state) once per step;
  *   - before forwarding any other call to the inner library, tells the slave that the state moved (its own
  *     caches of the outputs are stale: outputs_changed()) and, unless the call only reads, forgets the step
  *     call and the buffer: inputs, parameters, a restored state or a reset change what the next step starts
@@ -42,7 +42,10 @@ typedef struct {
                    * state is the one the last fast step left (then the other outputs can be asked for) */
     int moved; /* a fast step moved the state since the slave last heard of it */
     const char *folder; /* the instance's resources folder (owned by the instance; kept when the slave is dropped) */
+    void *rewind;    /* with them, the trajectory's restore (a reference held), NULL if the slave gave none */
+    void *clean_state; /* the FMU state got last while the step call was kept (a reference held), or NULL */
     void *save, *restore;   /* the slave's save_state and restore_state (references held), NULL if it has none */
+    void *to_bytes, *from_bytes; /* with them, its _fmu_state_to_bytes and state_from_bytes (references held) */
     void *serialized_state; /* the FMU state serialized last (a reference held), NULL if none */
     void *serialized;       /* its bytes (a reference held) */
 } sbf_fast_path;
@@ -112,7 +115,11 @@ int sbf_slave_time(sbf_fast_path *fast, double *t);
  * (forward the call), 0 if done, 1 if refused, with the slave's exception as "[<function>] <repr>" in `why`.
  *   get: the state into *state; set: restore_state(state), after which the step call is kept only if the slave says
  *   it still holds; free: the reference dropped, *state = NULL; size and serialize: the bytes of
- *   _fmu_state_to_bytes(state), made once for both calls; deserialize: state_from_bytes(bytes) into *state. */
+ *   _fmu_state_to_bytes(state), made once for both calls; deserialize: state_from_bytes(bytes) into *state.
+ * A state got while the step call was kept, set again while it still is (only steps and reads in between), differs
+ * from the instance in its trajectory alone: set restores that (the third call of fast_step_call(), the trajectory's
+ * compiled restore, of the state's trajectory part) without the slave's restore_state; the slave hears that the
+ * state moved as after a step. */
 int sbf_state_get(sbf_fast_path *fast, void **state, char *why, size_t why_size);
 int sbf_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size);
 int sbf_state_free(sbf_fast_path *fast, void **state);
