@@ -107,10 +107,13 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
         else:
             super().check_setting(name, value)
 
-    def set_variable(self, name, value):
-        """:meth:`ExchangeInterface.set_variable`; setting ``F_ext`` keeps ``der(F_ext)``, an input of its own."""
+    def take_value(self, name, value):
+        """:meth:`ExchangeInterface.take_value`; setting ``F_ext`` keeps ``der(F_ext)``, an input of its own."""
+        if name == F_EXT_RATE:
+            self.take_rate(value)
+            return
         rate = self.values[F_EXT_RATE]
-        super().set_variable(name, value)
+        super().take_value(name, value)
         self.values[F_EXT_RATE] = rate
 
     def _local(self, name, unit, description, getter, derivative=None):
@@ -125,7 +128,8 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
     def set_float64(self, vrs, values):
         """Set Float64 parameters (before initialization ends) or inputs, all or nothing (:meth:`_check_setting_all`)."""
         self._check_setting_all(Float64, vrs, values)
-        super().set_float64(vrs, values)
+        for reference, value in zip(vrs, values):  # scalars, each checked: taken as pythonfmu3's setters would
+            self.take_value(self.vars[reference].name, value)
 
     def set_int32(self, vrs, values):
         """Set Int32 parameters (before initialization ends), all or nothing (:meth:`_check_setting_all`). The law
