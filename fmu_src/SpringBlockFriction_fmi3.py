@@ -42,6 +42,8 @@ INDICATOR_VARIABLES = {
     "graze": ("m/s2", "event indicator: mode * dv_rel/dt while slipping (zero at an extremum of v_rel), 1 while stuck"),
 }
 
+_MAX_SETTABLE = 64  # sets of value references remembered as settable (_check_setting_all)
+
 # the fields of a serialized FMU state and their kinds (the runtime's saved_state)
 _FMU_STATE_KINDS = {"block": saved_state.NESTED, **EXCHANGE_STATE_KINDS, "stepped": saved_state.FLAG}
 
@@ -55,6 +57,7 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
         self.description = "Spring-block dry friction (Elmer 1997) with exact stick-slip events"
         self.init_exchange()
         self._stepped = False  # a co-simulation step was taken, or the host gave the start time
+        self._settable = set()  # (type, value references) of the calls whose variables can be set (_check_setting_all)
         self.init_block()
         # the law selectors as Int64, the type of an Enumeration's values (pythonfmu3 0.3.4's Enumeration cannot be
         # read or set); the builder declares them Enumerations
@@ -155,7 +158,16 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
         """Check a set of ``values`` of the variables ``references`` of type ``kind`` before any is taken: TypeError
         unless each is a parameter or an input of that type (pythonfmu3 would call an output's missing setter,
         "'NoneType' object is not callable", and set ``time`` through the slave's attribute); then each value
-        (:meth:`BlockInterface.check_setting`: ParameterError naming it and its range)."""
+        (:meth:`BlockInterface.check_setting`: ParameterError naming it and its range). The references of a call
+        that passed are remembered (an importer sets a few fixed sets, each checked once; the variables never
+        change)."""
+        if (kind, tuple(references)) not in self._settable:
+            self._check_settable(kind, references)
+        for reference, value in zip(references, values):
+            self.check_setting(self.vars[reference].name, value)
+
+    def _check_settable(self, kind, references):
+        """TypeError unless each of ``references`` is a parameter or an input of type ``kind``; remember them."""
         for reference in references:
             variable = self.vars.get(reference)
             if variable is None:
@@ -165,8 +177,9 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
                                 f"{variable.causality.name}: only parameters and inputs can be set")
             if not isinstance(variable, kind):
                 raise TypeError(f"Variable with valueReference={reference} is not of type {kind.__name__}!")
-        for reference, value in zip(references, values):
-            self.check_setting(self.vars[reference].name, value)
+        if len(self._settable) >= _MAX_SETTABLE:  # bound what an importer that sets ever new sets leaves
+            self._settable.clear()
+        self._settable.add((kind, tuple(references)))
 
     # ---- FMI: both interfaces ------------------------------------------------------
 
