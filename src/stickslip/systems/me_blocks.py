@@ -47,7 +47,8 @@ class ExchangeBlocks:
         self._dy, self._z = np.zeros((self.n, 2)), np.zeros((self.n, self.nz))
         self._blocks = [_Block(instance, self._y[i], self._f[i:i + 1], self._dy[i], self._z[i])
                         for i, instance in enumerate(instances)]
-        self._loaded = None
+        self._loaded = None  # the (t, y) loaded in every instance, None if unknown
+        self._indicators_at = None  # the (t, y) where _z holds every block's indicators
         self.evaluations = 0
 
     def _load_block(self, block, t, first):
@@ -107,11 +108,13 @@ class ExchangeBlocks:
             raise block.instance.failure("fmi3GetEventIndicators", status, first)
 
     def indicators(self, t, y):
-        """Every block's event indicators at ``(t, y)``: shape ``(N, nz)``."""
+        """Every block's event indicators at ``(t, y)``: shape ``(N, nz)`` (read again only where the load moved)."""
         self.load(t, y)
-        first = log_mark()
-        for block in self._blocks:
-            self._read_indicators(block, first)
+        if self._indicators_at != self._loaded:
+            first = log_mark()
+            for block in self._blocks:
+                self._read_indicators(block, first)
+            self._indicators_at = self._loaded
         return self._z.copy()
 
     def block_indicators(self, t, y, i):
@@ -120,7 +123,7 @@ class ExchangeBlocks:
         block = self._blocks[i]
         t, first = self._stage(t, y)
         self._load_block(block, t, first)
-        self._loaded = None  # the others are where they were
+        self._loaded = self._indicators_at = None  # the others are where they were
         self._read_indicators(block, first)
         check_interrupts()
         return self._z[i].copy()
@@ -155,7 +158,7 @@ class ExchangeBlocks:
         no more, continuous-time mode."""
         self.load(t, y)
         self._update(t, enter=True)
-        self._loaded = None  # the update may have moved the states
+        self._loaded = self._indicators_at = None  # the update may have moved the states and indicators
 
     def _update(self, t, enter):
         for number, instance in enumerate(self.instances, 1):
