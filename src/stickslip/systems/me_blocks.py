@@ -3,8 +3,10 @@
 :class:`ExchangeBlocks` loads a time and a state vector ``y = [x_1..x_N, v_1..v_N]`` (m, m/s) into every
 instance (``fmi3SetTime``, ``F_ext_i`` from the positions by SPEC section 5, ``fmi3SetContinuousStates``) and
 reads the derivatives and the event indicators there; it runs the event update of every block. A load is
-skipped when the same ``(t, y)`` is already loaded. The calls of a derivative evaluation go to the FMU's C
-functions on arrays made once (each block's views into one NumPy array per quantity), one status check each.
+skipped when the same ``(t, y)`` is already loaded, and a block's ``F_ext`` is not set again where its bits did not
+change (an input keeps its value: about half the loads on the Burridge-Knopoff chain, stuck blocks between stuck
+neighbours). The calls of a derivative evaluation go to the FMU's C functions on arrays made once (each block's views
+into one NumPy array per quantity), one status check each.
 """
 
 from ctypes import c_double, c_uint
@@ -31,6 +33,7 @@ class _Block:
          self.get_indicators) = (instance.function(name) for name in self.FUNCTIONS)
         self.state, self.force, self.derivatives, self.indicators = (
             np.ctypeslib.as_ctypes(a) for a in (state, force, derivatives, indicators))
+        self.force_bits = None  # the bits of the F_ext last set (None: none set here)
 
 
 class ExchangeBlocks:
@@ -45,22 +48,25 @@ class ExchangeBlocks:
         # per block (rows): its (x, v), F_ext, derivatives and indicators, which the calls read and write
         self._y, self._f = np.zeros((self.n, 2)), np.zeros(self.n)
         self._dy, self._z = np.zeros((self.n, 2)), np.zeros((self.n, self.nz))
+        self._f_bits = [None] * self.n  # the bits of each F_ext in _f (an int64 each)
         self._blocks = [_Block(instance, self._y[i], self._f[i:i + 1], self._dy[i], self._z[i])
                         for i, instance in enumerate(instances)]
         self._loaded = None  # the (t, y) loaded in every instance, None if unknown
         self._indicators_at = None  # the (t, y) where _z holds every block's indicators
         self.evaluations = 0
 
-    def _load_block(self, block, t, first):
-        """Time ``t`` (s), the block's ``F_ext`` and ``(x, v)`` from its arrays into its instance (log mark
-        ``first``)."""
+    def _load_block(self, block, t, force_bits, first):
+        """Time ``t`` (s), the block's ``F_ext`` (whose bits are ``force_bits``: not set again if it holds them, as an
+        input keeps its value) and ``(x, v)`` from its arrays into its instance (log mark ``first``)."""
         c = block.component
         status = block.set_time(c, t)
         if status > WARNING:
             raise block.instance.failure("fmi3SetTime", status, first)
-        status = block.set_float64(c, self._force_ref, 1, block.force, 1)
-        if status > WARNING:
-            raise block.instance.failure("fmi3SetFloat64", status, first)
+        if force_bits != block.force_bits:
+            status = block.set_float64(c, self._force_ref, 1, block.force, 1)
+            if status > WARNING:
+                raise block.instance.failure("fmi3SetFloat64", status, first)
+            block.force_bits = force_bits
         status = block.set_states(c, block.state, 2)
         if status > WARNING:
             raise block.instance.failure("fmi3SetContinuousStates", status, first)
@@ -70,6 +76,7 @@ class ExchangeBlocks:
         n = self.n
         self._y[:, 0], self._y[:, 1] = y[:n], y[n:]
         self._f[:] = self.system.force_array(self._y[:, 0])
+        self._f_bits = self._f.view(np.int64).tolist()
         check_interrupts()
         return float(t), log_mark()
 
@@ -83,9 +90,9 @@ class ExchangeBlocks:
         key = (t, y.tobytes())
         load = key != self._loaded
         t, first = self._stage(t, y) if load else (float(t), log_mark())
-        for block in self._blocks:
+        for block, force_bits in zip(self._blocks, self._f_bits):
             if load:
-                self._load_block(block, t, first)
+                self._load_block(block, t, force_bits, first)
             if read_derivatives:
                 status = block.get_derivatives(block.component, block.derivatives, 2)
                 if status > WARNING:
@@ -122,7 +129,7 @@ class ExchangeBlocks:
         what locating one block's event needs, at the cost of one block, not ``N``."""
         block = self._blocks[i]
         t, first = self._stage(t, y)
-        self._load_block(block, t, first)
+        self._load_block(block, t, self._f_bits[i], first)
         self._loaded = self._indicators_at = None  # the others are where they were
         self._read_indicators(block, first)
         check_interrupts()
