@@ -41,6 +41,8 @@ INDICATOR_VARIABLES = {
     "graze": ("m/s2", "event indicator: mode * dv_rel/dt while slipping (zero at an extremum of v_rel), 1 while stuck"),
 }
 
+_MAX_SETTABLE = 64  # sets of value references remembered as settable (_check_setting_all)
+
 
 class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSimulation, BlockInterface):
     """Block of mass M on a moving surface, tied to a wall by a spring; dry friction with stick, slip and aging."""
@@ -51,6 +53,7 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
         self.description = "Spring-block dry friction (Elmer 1997) with exact stick-slip events"
         self.init_exchange()
         self._stepped = False  # a co-simulation step was taken, or the host gave the start time
+        self._settable = set()  # (type, value references) of the calls whose variables can be set (_check_setting_all)
         self.init_block()
         # the law selectors as Int64, the type of an Enumeration's values (pythonfmu3 0.3.4's Enumeration cannot be
         # read or set); the builder declares them Enumerations
@@ -103,10 +106,13 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
         else:
             super().check_setting(name, value)
 
-    def set_variable(self, name, value):
-        """:meth:`ExchangeInterface.set_variable`; setting ``F_ext`` keeps ``der(F_ext)``, an input of its own."""
+    def take_value(self, name, value):
+        """:meth:`ExchangeInterface.take_value`; setting ``F_ext`` keeps ``der(F_ext)``, an input of its own."""
+        if name == F_EXT_RATE:
+            self.take_rate(value)
+            return
         rate = self.values[F_EXT_RATE]
-        super().set_variable(name, value)
+        super().take_value(name, value)
         self.values[F_EXT_RATE] = rate
 
     def _local(self, name, unit, description, getter, derivative=None):
@@ -121,7 +127,8 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
     def set_float64(self, vrs, values):
         """Set Float64 parameters (before initialization ends) or inputs, all or nothing (:meth:`_check_setting_all`)."""
         self._check_setting_all(Float64, vrs, values)
-        super().set_float64(vrs, values)
+        for reference, value in zip(vrs, values):  # scalars, each checked: taken as pythonfmu3's setters would
+            self.take_value(self.vars[reference].name, value)
 
     def set_int32(self, vrs, values):
         """Set Int32 parameters (before initialization ends), all or nothing (:meth:`_check_setting_all`). The law
@@ -147,7 +154,16 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
         """Check a set of ``values`` of the variables ``references`` of type ``kind`` before any is taken: TypeError
         unless each is a parameter or an input of that type (pythonfmu3 would call an output's missing setter,
         "'NoneType' object is not callable", and set ``time`` through the slave's attribute); then each value
-        (:meth:`BlockInterface.check_setting`: ParameterError naming it and its range)."""
+        (:meth:`BlockInterface.check_setting`: ParameterError naming it and its range). The references of a call
+        that passed are remembered (an importer sets a few fixed sets, each checked once; the variables never
+        change)."""
+        if (kind, tuple(references)) not in self._settable:
+            self._check_settable(kind, references)
+        for reference, value in zip(references, values):
+            self.check_setting(self.vars[reference].name, value)
+
+    def _check_settable(self, kind, references):
+        """TypeError unless each of ``references`` is a parameter or an input of type ``kind``; remember them."""
         for reference in references:
             variable = self.vars.get(reference)
             if variable is None:
@@ -157,8 +173,9 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
                                 f"{variable.causality.name}: only parameters and inputs can be set")
             if not isinstance(variable, kind):
                 raise TypeError(f"Variable with valueReference={reference} is not of type {kind.__name__}!")
-        for reference, value in zip(references, values):
-            self.check_setting(self.vars[reference].name, value)
+        if len(self._settable) >= _MAX_SETTABLE:  # bound what an importer that sets ever new sets leaves
+            self._settable.clear()
+        self._settable.add((kind, tuple(references)))
 
     # ---- FMI: both interfaces ------------------------------------------------------
 

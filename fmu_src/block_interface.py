@@ -227,6 +227,11 @@ class BlockInterface:
     def set_variable(self, name, value):
         """Set a parameter (only before initialization ends) or an input, checked first (:meth:`check_setting`)."""
         self.check_setting(name, value)
+        self.take_value(name, value)
+
+    def take_value(self, name, value):
+        """Take the value of a parameter or input that :meth:`check_setting` allowed (a slave extends this, not
+        :meth:`set_variable`, so that a value is checked once)."""
         self.values[name] = value
         if name not in INPUTS:
             self._saved_parameters = None  # the next state saved has parameters of its own
@@ -243,7 +248,7 @@ class BlockInterface:
         for name, value in pairs:
             self.check_setting(name, value)
         for name, value in pairs:
-            self.set_variable(name, value)
+            self.take_value(name, value)
 
     def check_setting(self, name, value):
         """Raise ParameterError naming ``name`` and its allowed range unless it can be set to ``value`` now: a
@@ -308,9 +313,7 @@ class BlockInterface:
         ignored = []
         for name, order, value in entries:
             if name == "F_ext" and order == 1:
-                self.values[F_EXT_RATE] = float(value)
-                self._inputs_set.add(F_EXT_RATE)
-                self._output_cache.clear()
+                self.take_rate(value)
             elif value != 0.0 and (name, order) not in self._ignored_derivatives:
                 self._ignored_derivatives.add((name, order))
                 ignored.append(f"der({name}, {order}) = {value!r}")
@@ -319,6 +322,12 @@ class BlockInterface:
         return (f"fmi2SetRealInputDerivatives: ignored {', '.join(ignored)}: the block follows F_ext to first order "
                 f"(F_ext and der(F_ext) from where they were set) and holds v_drive over a step (said once for each "
                 f"derivative)")
+
+    def take_rate(self, value):
+        """Take ``der(F_ext)`` (N/s) that :meth:`_check_input_derivative` allowed, from the current time on."""
+        self.values[F_EXT_RATE] = float(value)
+        self._inputs_set.add(F_EXT_RATE)
+        self._output_cache.clear()
 
     def _check_input_derivative(self, name, order, value):
         """Raise ValueError or ParameterError naming the derivative of order ``order`` of ``name`` unless it is one
@@ -449,11 +458,10 @@ class ExchangeInterface:
         """Initialization ends: the ExchangeBlock of the current values (ParameterError for a bad parameter)."""
         self.block, self._block_saved = self._new_block(), None
 
-    def set_variable(self, name, value):
-        """A parameter or an input (:meth:`BlockInterface.set_variable`: checked first, ParameterError naming it and
-        its range, the value kept); after initialization an input is also held by the model-exchange block, both
-        interfaces alike."""
-        super().set_variable(name, value)
+    def take_value(self, name, value):
+        """A parameter or an input, checked (:meth:`BlockInterface.take_value`); after initialization an input is also
+        held by the model-exchange block, both interfaces alike."""
+        super().take_value(name, value)
         if name in INPUTS and self.block is not None:
             self._block_saved = None
             self.block.set_inputs(self.values["v_drive"], self.values["F_ext"])

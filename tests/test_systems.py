@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 
 from stickslip.cli import main
-from stickslip.hosts.fmpy_host import FMUError
+from stickslip.hosts.fmpy_host import FmuCallError, FMUError
 from stickslip.reference import simulate_chain
 from stickslip.systems import MASTERS, SystemFileError, load_system, make_master
 from stickslip.systems.compare import compare
-from stickslip.systems.master import SystemResult
+from stickslip.systems.master import SystemResult, block_instances
+from stickslip.systems.me_blocks import ExchangeBlocks
 from stickslip.systems.names import MASTER_NAMES
 
 SYSTEMS = Path(__file__).resolve().parents[1] / "systems"
@@ -342,6 +343,23 @@ def test_me_finds_a_graze_through_the_graze_indicator(tmp_path, fmu3_path):
     assert (theirs[0].kind, theirs[0].mode_before, theirs[0].t) == ("stick", 1, pytest.approx(4.712, abs=0.01))
     assert [(e.kind, e.t) for e in mine] == [(e.kind, pytest.approx(e.t, abs=1e-6)) for e in theirs]
     assert compare(result, reference, 1e-6).ok
+
+
+def test_me_reports_a_refused_value_with_the_call_and_the_fmus_message(fmu3_path):
+    """The me master calls the FMU's C functions itself: a value the FMU refuses is the FmuCallError that FMPy's
+    wrappers would raise, naming the call and carrying the FMU's message."""
+    system = load_system(CHAIN2)
+    with block_instances(make_master("me"), system, fmu3_path, interface="me") as (fmu, instances):
+        blocks = ExchangeBlocks(system, fmu, instances)
+        blocks.initial_update()
+        y = blocks.states()
+        assert blocks.derivatives(0.0, y).tolist() == [0.1, 0.1, 0.0, 0.0]  # both stuck, v_drive = 0.1 m/s
+        y[2] = math.inf  # b1's v
+        with pytest.raises(FmuCallError, match=r"(?s)fmi3SetContinuousStates failed with status 3.*\bv = inf"):
+            blocks.derivatives(0.1, y)
+        y[2], y[0] = 0.1, math.nan  # b1's x: the forces on both blocks are NaN
+        with pytest.raises(FmuCallError, match=r"(?s)fmi3SetFloat64 failed with status 3.*F_ext = nan"):
+            blocks.derivatives(0.2, y)
 
 
 def test_a_master_refuses_the_other_fmi_versions_fmu(fmu_path, fmu3_path):

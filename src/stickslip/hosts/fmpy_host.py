@@ -46,6 +46,8 @@ INTERFACES = {"cs": ("CoSimulation", "coSimulation", FMU2Slave, FMU3Slave),
               "me": ("ModelExchange", "modelExchange", FMU2Model, FMU3Model)}
 #: FMI version: the status ``Fatal``
 FATAL = {2: fmi2Fatal, 3: fmi3Fatal}
+#: the status Warning (FMI 2 and 3): a call that returns more failed
+WARNING = 1
 #: FMI status code: its name
 STATUS_NAMES = ("ok", "warning", "discard", "error", "fatal", "pending")
 
@@ -131,15 +133,30 @@ class Instance:
         try:
             result = method(*args, **kwargs)
         except Exception as error:
-            if isinstance(error, FMICallException) and error.status == FATAL[self.extracted.fmi_version]:
-                self.fatal = True  # the library released the slave
+            if isinstance(error, FMICallException):
+                raise self.failure(error.function, error.status, first) from None
             if interrupted():  # Ctrl-C, which the FMU's library reported as its own error
                 raise KeyboardInterrupt from None
-            if not isinstance(error, FMICallException):
-                raise
-            raise FmuCallError(error.function, error.status, self.messages(first)) from None
+            raise
         check_interrupts()  # Ctrl-C that a callback swallowed (FMPy's solver calls Python)
         return result
+
+    def failure(self, function, status, first):
+        """The exception for the FMI call ``function`` (its name) that returned ``status`` (Discard or worse), made
+        after the log mark ``first``: KeyboardInterrupt if a SIGINT arrived (the FMU's library reported Ctrl-C as
+        its own error), else :class:`FmuCallError` with this instance's new log messages. A host that calls the
+        FMU's C functions itself (:meth:`function`) raises it, as :meth:`call` does."""
+        if status == FATAL[self.extracted.fmi_version]:
+            self.fatal = True  # the library released the slave
+        if interrupted():
+            return KeyboardInterrupt()
+        return FmuCallError(function, status, self.messages(first))
+
+    def function(self, name):
+        """The FMU's C function ``name`` (e.g. "fmi3SetTime") with FMPy's argument types, for a host that calls it
+        on arrays made once, without FMPy's wrapper: it returns the FMI status; raise :meth:`failure` for one above
+        Warning, check :func:`~.interrupts.check` around the calls and take :func:`log_mark` before them."""
+        return getattr(self.fmu.dll, name)
 
     def messages(self, first=0):
         """Log messages (status >= warning) of this instance since ``first`` (a :func:`log_mark`)."""

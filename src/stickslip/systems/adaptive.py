@@ -41,12 +41,13 @@ attempt, which is redone to end on that event. The rest of the scheme is the sam
 import dataclasses
 import math
 import time
-from ctypes import c_double, c_int, c_uint
+from ctypes import byref, c_bool, c_double, c_int, c_uint
 
 import numpy as np
 
 from ..fmu.variables import RATE_INPUT
-from ..hosts.fmpy_host import FmuCallError, FMUError
+from ..hosts.fmpy_host import WARNING, FmuCallError, FMUError, log_mark
+from ..hosts.interrupts import check as check_interrupts
 from .master import ACCESSORS, SystemResult, block_instances, checked_rtol, read_values, references, step_events
 
 DEFAULT_RTOL = 3e-10  # keeps the 2- and 3-block chains' event times within 1e-8 s (1e-9: 4e-8 s)
@@ -125,6 +126,25 @@ def coupling_matrix(system):
     return K
 
 
+class _CellCalls:
+    """One instance's C functions of a cell (FMI 2 or, ``fmi3``, 3), called without FMPy's wrappers:
+    ``set_reals``, ``set_rates`` (FMI 2's input derivatives), ``do_step``, ``get_reals``, ``get_ints``."""
+
+    NAMES = {False: ("fmi2SetReal", "fmi2SetRealInputDerivatives", "fmi2DoStep", "fmi2GetReal", "fmi2GetInteger"),
+             True: ("fmi3SetFloat64", None, "fmi3DoStep", "fmi3GetFloat64", "fmi3GetInt32")}
+
+    def __init__(self, instance, fmi3):
+        self.instance, self.component = instance, instance.fmu.component
+        self.set_reals, self.set_rates, self.do_step, self.get_reals, self.get_ints = (
+            name and instance.function(name) for name in self.NAMES[fmi3])
+
+    def check(self, status, function, first):
+        """Raise the instance's :meth:`~stickslip.hosts.fmpy_host.Instance.failure` if the call ``function`` (its
+        name), made after the log mark ``first``, returned ``status`` above Warning."""
+        if status > WARNING:
+            raise self.instance.failure(function, status, first)
+
+
 class _Blocks:
     """The instances: their saved states, inputs, steps and outputs. A block is restored only if it was stepped
     since its state was saved or last restored. ``early_return``: FMI 3 instances made with ``earlyReturnAllowed``
@@ -146,6 +166,9 @@ class _Blocks:
         reals = self.cell_refs + self.end_refs
         self._real_refs, self._reals = (c_uint * len(reals))(*reals), (c_double * len(reals))()
         self._int_refs, self._ints = (c_uint * 2)(*self.int_refs), (c_int * 2)()
+        self._early, self._last_time = c_bool(), c_double()  # fmi3DoStep's earlyReturn, lastSuccessfulTime
+        self._step_answers = (byref(c_bool()), byref(c_bool()), byref(self._early), byref(self._last_time))
+        self._calls = [_CellCalls(instance, self.fmi3) for instance in instances]
         self.v_ref = references(fmu, ("v",))
         self.ends = [None] * len(instances)  # each block's end outputs (see end()) where its last step ended
         self.states = [None] * len(instances)
@@ -180,39 +203,43 @@ class _Blocks:
         force goes on as it was set): None, or the time (s) of the event inside the step where it returned early
         (its state there the event's left limit; the next step starts there). :attr:`stepped` is then
         ``(x, v, F_friction, F_spring)`` where the step ended."""
-        b = self.instances[i]
-        answer = b.call(self._set_step_read, b.fmu, t, h, force, rate)
+        check_interrupts()
+        early = self._set_step_read(self._calls[i], float(t), float(h), force, rate, log_mark())
+        check_interrupts()
         self.moved[i] = True
         self.do_steps += 1
         reals, ints = self._reals[:], self._ints[:]
         self.stepped, self.ends[i] = tuple(reals[:len(_READ_CELL)]), (*reals[len(_READ_CELL):], *ints)
-        if self.early_return and answer[2]:  # (eventHandlingNeeded, terminateSimulation, earlyReturn, lastSuccessfulTime)
+        if early:
             self.early_returns += 1
-            return float(answer[3])
+            return self._last_time.value
         return None
 
-    def _set_step_read(self, fmu, t, h, force, rate):
-        """The FMI calls of :meth:`step`, on arrays made once: the force and its rate set (FMI 2: setting ``F_ext``
-        sets its rate to 0; FMI 3: the input ``der(F_ext)``), ``doStep``, the outputs of the cell's end and of
-        :meth:`end` read."""
+    def _set_step_read(self, calls, t, h, force, rate, first):
+        """The FMI calls of :meth:`step` on the FMU's C functions (``calls``, a :class:`_CellCalls`) and arrays made
+        once, log mark ``first``: the force and its rate set (FMI 2: setting ``F_ext`` sets its rate to 0; FMI 3:
+        the input ``der(F_ext)``), ``doStep``, the outputs of the cell's end and of :meth:`end` read. True if the
+        step returned early (FMI 3 with early return)."""
+        c, n = calls.component, len(self._reals)
         if force is not None:
             self._forces[0], self._forces[1] = force, rate
             if self.fmi3:
-                fmu.fmi3SetFloat64(fmu.component, self._force_refs, 2, self._forces, 2)
+                calls.check(calls.set_reals(c, self._force_refs, 2, self._forces, 2), "fmi3SetFloat64", first)
             else:
-                fmu.fmi2SetReal(fmu.component, self._force_refs, 1, self._forces)
+                calls.check(calls.set_reals(c, self._force_refs, 1, self._forces), "fmi2SetReal", first)
                 if rate != 0.0:
                     self._rate[0] = rate
-                    fmu.fmi2SetRealInputDerivatives(fmu.component, self._force_refs, 1, self._order, self._rate)
-        answer = fmu.doStep(t, h)
-        n = len(self._reals)
+                    calls.check(calls.set_rates(c, self._force_refs, 1, self._order, self._rate),
+                                "fmi2SetRealInputDerivatives", first)
         if self.fmi3:
-            fmu.fmi3GetFloat64(fmu.component, self._real_refs, n, self._reals, n)
-            fmu.fmi3GetInt32(fmu.component, self._int_refs, 2, self._ints, 2)
-        else:
-            fmu.fmi2GetReal(fmu.component, self._real_refs, n, self._reals)
-            fmu.fmi2GetInteger(fmu.component, self._int_refs, 2, self._ints)
-        return answer
+            calls.check(calls.do_step(c, t, h, False, *self._step_answers), "fmi3DoStep", first)
+            calls.check(calls.get_reals(c, self._real_refs, n, self._reals, n), "fmi3GetFloat64", first)
+            calls.check(calls.get_ints(c, self._int_refs, 2, self._ints, 2), "fmi3GetInt32", first)
+            return self.early_return and self._early.value
+        calls.check(calls.do_step(c, t, h, False), "fmi2DoStep", first)
+        calls.check(calls.get_reals(c, self._real_refs, n, self._reals), "fmi2GetReal", first)
+        calls.check(calls.get_ints(c, self._int_refs, 2, self._ints), "fmi2GetInteger", first)
+        return False
 
     def cell(self, i):
         """``(x, v, F_friction, F_spring)`` of block ``i``."""

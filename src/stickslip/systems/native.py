@@ -9,9 +9,6 @@ grid; every block event is known with its time (``events_complete``), and writte
 
 import numpy as np
 
-from ..chain.engine import run_chain
-from ..chain.output import EVENT_KINDS, MemorySink, write_block_events
-from ..chain.spec import ChainSpec
 from ..hosts.fmpy_host import FMUError
 from .master import SystemResult, checked_rtol, new_event
 
@@ -29,6 +26,11 @@ class NativeMaster:
 
     def run(self, system, fmu_path=None, progress=lambda t: None):
         """Simulate ``system`` (``fmu_path`` is not used); a :class:`~.master.SystemResult` on its grid."""
+        # here: the chain package loads numba, which the other masters' commands do not need
+        from ..chain.engine import run_chain
+        from ..chain.output import MemorySink, write_block_events
+        from ..chain.spec import ChainSpec
+
         sink = MemorySink()
         summary = run_chain(ChainSpec.from_system(system), system.stop_time, rtol=self.rtol,
                             output_interval=system.output_interval, sink=sink, progress=progress)
@@ -49,6 +51,8 @@ class NativeMaster:
 def _events(system, sink):
     """The sink's events as :class:`~stickslip.reference.ChainEvent`: the mode before each from the block's previous
     event, or its start (stuck if it starts at ``v_drive``, else the sign of ``v_rel``)."""
+    from ..chain.output import EVENT_KINDS
+
     modes = [0 if b["v_start"] == system.v_drive else (1 if system.v_drive > b["v_start"] else -1)
              for b in system.blocks]
     events = []

@@ -13,6 +13,7 @@ that would not finish is refused too (:mod:`stickslip.hosts.run_limits`). A malf
 (1-based) is ``b<i>`` in messages and in the result's columns.
 """
 
+import functools
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -87,13 +88,21 @@ class System:
         return min(free_period(b["M"], b["kappa"] + 2.0 * (side[i] + side[i + 1])) for i, b in enumerate(self.blocks))
 
     def forces(self, x):
-        """The coupling forces ``F_ext_i`` (N) at the positions ``x`` (m), SPEC section 5."""
-        f = [0.0] * len(x)
-        for i, kc in enumerate(self.coupling):
-            pull = kc * (x[i + 1] - x[i])
-            f[i] += pull
-            f[i + 1] -= pull
+        """The coupling forces ``F_ext_i`` (N) at the positions ``x`` (m), SPEC section 5, as a list."""
+        return self.force_array(np.asarray(x, dtype=float)).tolist()
+
+    def force_array(self, x):
+        """:meth:`forces` at the positions ``x`` (m, an array) as an array: each spring's pull taken from its left
+        block's force after it was added to its right block's (the order of :meth:`forces`, bit for bit)."""
+        f = np.zeros(x.size)
+        pull = self._coupling_array * (x[1:] - x[:-1])
+        f[1:] -= pull
+        f[:-1] += pull
         return f
+
+    @functools.cached_property
+    def _coupling_array(self):
+        return np.array(self.coupling, dtype=float)
 
 
 class _File:

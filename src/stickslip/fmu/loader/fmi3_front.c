@@ -216,6 +216,8 @@ typedef struct {
     char folder[4096]; /* the resources folder, as the host named it (fast.folder) */
     int early_return;  /* co-simulation, earlyReturnAllowed: fmi3DoStep stops at the first event inside a step */
     int event_mode;    /* co-simulation, eventModeUsed: that event is handled in Event Mode */
+    size_t counts[2];  /* the numbers of continuous states [0] and event indicators [1], once asked (counted) */
+    int counted[2];
 } Instance;
 
 static void host_log(const Instance *inst, fmi3Status status, const char *text)
@@ -598,7 +600,10 @@ EXPORT fmi3Status fmi3Terminate(fmi3Instance c) { return moved(c, forward_fmi3Te
 /* pythonfmu3 makes a new slave, which offers itself to the fast path again */
 EXPORT fmi3Status fmi3Reset(fmi3Instance c)
 {
-    if (c) sbf_fast_rebinding(&((Instance *)c)->fast);
+    if (c) {
+        sbf_fast_rebinding(&((Instance *)c)->fast);
+        ((Instance *)c)->counted[0] = ((Instance *)c)->counted[1] = 0; /* asked of the new slave */
+    }
     fmi3Status status = forward_fmi3Reset(c);
     sbf_fast_binding(NULL);
     return moved(c, status, SBF_INSTANTIATED);
@@ -677,9 +682,21 @@ static int refused_array(fmi3Instance c, const char *function, size_t n, int ind
     char why[256];
     size_t count = 0;
     if (refused_in_co_simulation(c, function, EXCHANGE_FUNCTION)) return 1;
-    fmi3Status status = indicators ? forward_fmi3GetNumberOfEventIndicators(c, &count)
-                                   : forward_fmi3GetNumberOfContinuousStates(c, &count);
-    if (!c || status > fmi3Warning || n == count) return 0;
+    if (!c) return 0;
+    Instance *inst = c;
+    /* asked of the slave once: only structural parameters change these numbers, and the FMU has none; the slave's
+     * answer, a call into Python, cost about as much as the call it guards */
+    fmi3Status status = fmi3OK;
+    if (!inst->counted[indicators]) {
+        status = indicators ? forward_fmi3GetNumberOfEventIndicators(c, &count)
+                            : forward_fmi3GetNumberOfContinuousStates(c, &count);
+        if (status <= fmi3Warning) {
+            inst->counts[indicators] = count;
+            inst->counted[indicators] = 1;
+        }
+    }
+    count = inst->counts[indicators];
+    if (status > fmi3Warning || n == count) return 0;
     snprintf(why, sizeof why, "%s: %s = %zu, but this FMU has %zu %s", function,
              indicators ? "nEventIndicators" : "nContinuousStates", n, count,
              indicators ? "event indicators" : "continuous states");
