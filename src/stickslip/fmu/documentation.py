@@ -27,8 +27,9 @@ CARRIED = {
                          "loader forwards to (binaries/linux64/*_pythonfmu.so, binaries/win64/*_pythonfmu.dll)"),
     "pythonfmu3": ("MIT", "pythonfmu3: its Python package (resources/pythonfmu3.zip) and its binaries, which the "
                           "loader forwards to (binaries/x86_64-linux/*_pythonfmu.so, "
-                          "binaries/x86_64-windows/*_pythonfmu.dll; binaries/aarch64-linux/*_pythonfmu.so built from "
-                          "its C++ sources when the FMU is built)"),
+                          "binaries/x86_64-windows/*_pythonfmu.dll; for aarch64 Linux, and x86_64 Linux hosts on "
+                          "which the first does not load, python/lib/libpythonfmu3-export.so in the packed CPythons "
+                          "of extra/stickslip/, built from its C++ sources when the FMU is built)"),
     "mypy": ("MIT, with parts of mypyc's C runtime under the PSF License 2 (CPython's)",
              "mypyc's C runtime, compiled into the runtime's compiled modules (resources/*__mypyc*.so)"),
     "python": ("the PSF License Agreement (CPython's), with the licences of what its Windows build includes",
@@ -45,8 +46,8 @@ BINARY_SOURCES = (
     "It loads the CPython shared library and forwards what it does not answer itself to the FMI library's own "
     "binary ({model}_pythonfmu.so, {model}_pythonfmu.dll), which is {library}'s, built from its C++ sources. The "
     "aarch64 Linux binaries (FMI 3 only), the loader and pythonfmu3's, are cross-compiled with Debian's GCC for "
-    "arm64 when the FMU is built, the second from the sources of pythonfmu3's source distribution "
-    "(stickslip.fmu.bundle.aarch64_binaries).")
+    "arm64 when the FMU is built, the second from the sources of pythonfmu3's source distribution and packed with "
+    "the aarch64 CPython in extra/stickslip/ (stickslip.fmu.bundle.aarch64_binaries).")
 
 
 def split_description(description):

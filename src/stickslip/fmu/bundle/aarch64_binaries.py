@@ -2,18 +2,23 @@
 Debian's GCC for arm64 (``aarch64-linux-gnu-gcc`` and ``-g++``, Debian's packages gcc-aarch64-linux-gnu and
 g++-aarch64-linux-gnu; ``$SBF_AARCH64_CC`` and ``$SBF_AARCH64_CXX`` name others):
 
-- the loader (``stickslip.fmu.loader``'s sources) as ``<model identifier>.so``, with the start guard;
-- pythonfmu3's binary built from its source distribution (:mod:`stickslip.fmu.bundle.pythonfmu3_binary`) as
-  ``<model identifier>_pythonfmu.so``, with libstdc++ and libgcc linked in and hidden, so that it needs glibc alone;
+- the loader (``stickslip.fmu.loader``'s sources) as ``<model identifier>.so``, with the start guard: the only
+  files of the folder;
 - the CPython of :mod:`stickslip.fmu.bundle.aarch64_python`, packed as the x86_64 one
   (:mod:`stickslip.fmu.bundle.packing`: ``extra/stickslip/python-aarch64-linux.tar.lzma``), which the loader unpacks
-  into the user's cache where it starts it.
+  into the user's cache where it starts it;
+- in that pack, pythonfmu3's binary built from its source distribution (:mod:`stickslip.fmu.bundle.pythonfmu3_binary`)
+  as ``python/lib/libpythonfmu3-export.so``, with libstdc++ and libgcc linked in and hidden, so that it needs glibc
+  alone. The loader has no binary beside it to forward to and loads this one, unpacking the pack for it also where
+  the host process has a Python of its own; hosts on other machines (FMPy extracts ``binaries/`` and
+  ``resources/``) then write only the small loader for aarch64.
 
 The FMI 2 FMUs get none: PythonFMU publishes neither an aarch64 binary nor its C++ sources on PyPI (its
 distributions carry the x86_64 Linux and Windows binaries only), and the loader forwards every FMI 2 call it does not
 answer itself to that binary. Where a part cannot be had, the FMU has no aarch64 binaries and the build says why.
 """
 
+import dataclasses
 import hashlib
 import os
 import shutil
@@ -25,7 +30,8 @@ from ..compile_runtime import USER_CACHE
 from ..documentation import with_carried_licenses
 from .aarch64_python import aarch64_bundle
 from .debian_packages import replace_folder
-from .packing import pack_folder
+from .linux_python import CARRIED_INNER
+from .packing import PYTHON_FOLDER, pack_folder
 from .pythonfmu3_binary import runtime_licenses, static_binary
 
 #: the FMU's folder of aarch64 Linux binaries (FMI 3's platform tuple)
@@ -76,18 +82,18 @@ def _install(entries, model_identifier, arguments, linux_bundle, compile_loader)
     inner, why = static_binary(cxx)
     if inner is None:
         return why
-    inner_name = f"{model_identifier}_pythonfmu.so"
+    inner_name = f"{PYTHON_FOLDER}/lib/{CARRIED_INNER}"
+    bundle = dataclasses.replace(bundle, entries={**bundle.entries, inner_name: inner.read_bytes()}, inner=inner_name)
     packed = pack_folder(FOLDER.split("/")[1], bundle.entries, share=True)
-    loader, why = _loader(compile_loader, (f"{model_identifier}.so", inner_name, *arguments), bundle, packed, cc)
+    loader, why = _loader(compile_loader, (f"{model_identifier}.so", "", *arguments), bundle, packed, cc)
     if why:
         return why
     entries.update({f"{FOLDER}/{path.name}": path.read_bytes() for path in sorted(loader.iterdir())})
-    entries[f"{FOLDER}/{inner_name}"] = inner.read_bytes()
     entries[packed.name] = packed.data
     with_carried_licenses(entries, bundle.licenses, f"the CPython for aarch64 hosts without one, with the libraries it "
                           f"needs that are not glibc's ({packed.name})")
-    with_carried_licenses(entries, runtime_licenses(cxx), f"the C++ runtime linked into pythonfmu3's aarch64 binary "
-                          f"({FOLDER}/{inner_name}), under the GCC Runtime Library Exception")
+    with_carried_licenses(entries, runtime_licenses(cxx), f"the C++ runtime linked into pythonfmu3's aarch64 binary, "
+                          f"{inner_name} in {packed.name}, under the GCC Runtime Library Exception")
     return packed
 
 
@@ -96,8 +102,9 @@ def _loader(compile_loader, arguments, bundle, packed, cc):
     ``compile_loader`` for the CPython ``bundle`` packed as ``packed`` (``arguments``: the loader's file name, then
     that function's) unless :data:`CACHE` has them from the same sources and arguments, or ``(None, why not)``."""
     version = subprocess.run([cc, "--version"], capture_output=True, text=True).stdout.split("\n", 1)[0]
-    digest = hashlib.sha256(repr((arguments, bundle.libpython, bundle.python_needs, bundle.inner_needs, packed.name,
-                                  packed.key, packed.tar_size, packed.files, sorted(packed.shared), version)).encode())
+    digest = hashlib.sha256(repr((arguments, bundle.libpython, bundle.python_needs, bundle.inner_needs, bundle.inner,
+                                  packed.name, packed.key, packed.tar_size, packed.files, sorted(packed.shared),
+                                  version)).encode())
     for source in sorted(LOADER_SOURCES.glob("*.[ch]")):
         digest.update(source.read_bytes())
     folder = CACHE / f"loader-{digest.hexdigest()[:16]}"

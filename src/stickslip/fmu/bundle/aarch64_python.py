@@ -15,9 +15,9 @@ aarch64 loader where it starts it), and holds the same modules, measured there:
   from their ELF dynamic sections;
 - ``python3.11._pth``: sys.path, the zip and ``lib-dynload/``.
 
-The FMI library's binary (:mod:`stickslip.fmu.bundle.aarch64_binaries`) needs no library beside glibc, so
-``inner_needs`` is empty. A build whose CPython is not 3.11 cannot compile byte code for Debian 12's, and leaves the
-platform out.
+The FMI library's binary, which :mod:`stickslip.fmu.bundle.aarch64_binaries` adds to ``lib/`` (``inner``), needs no
+library beside glibc, so ``inner_needs`` is empty. A build whose CPython is not 3.11 cannot compile byte code for
+Debian 12's, and leaves the platform out.
 """
 
 import functools

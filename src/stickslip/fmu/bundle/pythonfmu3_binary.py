@@ -1,5 +1,5 @@
 """pythonfmu3's binary built from the C++ sources of its source distribution on PyPI, with libstdc++ and libgcc
-linked in and hidden, so that it needs glibc alone: the FMI 3 FMU's aarch64 binary
+linked in and hidden, so that it needs glibc alone: the FMI 3 FMU's aarch64 binary, packed with its aarch64 CPython
 (:mod:`stickslip.fmu.bundle.aarch64_binaries`), and the x86_64 one its carried CPython holds for hosts on which
 the wheel's binary does not load (no C++ runtime, or one older than it needs), in place of a carried libstdc++.
 

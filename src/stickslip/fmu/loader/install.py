@@ -18,8 +18,9 @@ the platform layer of the target (``platform_posix.c`` or ``platform_windows.c``
   ``$SBF_WINDOWS_CC`` (default ``x86_64-w64-mingw32-gcc``, Debian's ``gcc-mingw-w64-x86-64``); without it the FMU
   has no Windows binaries (the library's own would not do what the model description declares), and the build
   says so on stderr.
-- aarch64 Linux (FMI 3 only): ``binaries/aarch64-linux/``, the loader cross-compiled beside pythonfmu3's binary
-  built for aarch64 and a CPython for aarch64 (:mod:`stickslip.fmu.bundle.aarch64_binaries`).
+- aarch64 Linux (FMI 3 only): ``binaries/aarch64-linux/``, the loader cross-compiled, alone: pythonfmu3's binary
+  built for aarch64 is packed with a CPython for aarch64 (:mod:`stickslip.fmu.bundle.aarch64_binaries`), and the
+  loader loads it from there.
 """
 
 import os

@@ -16,7 +16,8 @@
  *   3. loads the inner library (PythonFMU's or pythonfmu3's binary, SBF_INNER_LIBRARY beside this one; where it
  *      does not load, again after the C++ runtime the FMU carries, SBF_BUNDLED_INNER_NEEDS, or the carried build
  *      of it with that runtime linked in, SBF_BUNDLED_INNER, so that a host with a C++ runtime of its own keeps
- *      it) and lets the front resolve its entry points.
+ *      it; a loader with no SBF_INNER_LIBRARY, "", loads SBF_BUNDLED_INNER only, unpacking the carried CPython for
+ *      it even where the host process has a Python of its own) and lets the front resolve its entry points.
  * Steps 1 and 2 run under a process-wide lock that every copy of the loader in the process shares (see
  * process_start_lock), and sbf_start first pins this library in memory (see pin_library).
  * Each host thread gets one Python thread state, kept for the thread's life (sbf_keep_thread_state).
@@ -41,6 +42,7 @@
 #include "carried.h"
 #include "platform.h"
 
+/* the file name of the inner library beside this one; "": none there, SBF_BUNDLED_INNER only */
 #ifndef SBF_INNER_LIBRARY
 #error "define SBF_INNER_LIBRARY: the file name of the inner FMU binary beside this library"
 #endif
@@ -330,33 +332,44 @@ static int pin_library(void)
     return 0;
 }
 
-static void load_inner(sbf_resolve_inner resolve, void *python)
+/* The carried CPython's build of the inner library (SBF_BUNDLED_INNER), unpacked if it is not yet, opened; its path
+ * in `path`. `first`: why the FMU's own did not load ("" where the FMU has none beside this library). NULL after
+ * sbf_fail(). */
+static void *open_carried_inner(char *path, size_t size, const char *first)
 {
-    char path[4096], why[4096 + 256];
-    if (!beside_this_library(SBF_INNER_LIBRARY, path, sizeof path)) return;
-    if (!sbf_bind_inner_to_python(python, why, sizeof why)) {
-        sbf_fail("cannot load the FMU's inner binary %s: %s", path, why);
-        return;
+    char why[4096 + 256];
+    if (!sbf_carried_path(SBF_BUNDLED_INNER, path, size, why, sizeof why)) {
+        sbf_fail("cannot load the FMU's inner binary%s%s%s, and %s", *first ? " (" : "", first, *first ? ")" : "",
+                 why);
+        return NULL;
     }
     void *lib = sbf_open_library(path, 0);
-    if (!lib && *bundled_inner_needs) { /* the system lacks its C++ runtime, or has an older one: the FMU's */
+    if (!lib)
+        sbf_fail("cannot load the FMU's inner binary %s (%s): %s", path, *first ? "the build the FMU carries for "
+                 "systems on which its own does not load" : "the one its packed CPython holds", sbf_library_error());
+    return lib;
+}
+
+static void load_inner(sbf_resolve_inner resolve, void *python)
+{
+    char path[4096] = "", why[4096 + 256];
+    if (*SBF_INNER_LIBRARY && !beside_this_library(SBF_INNER_LIBRARY, path, sizeof path)) return;
+    if (!sbf_bind_inner_to_python(python, why, sizeof why)) {
+        sbf_fail("cannot load the FMU's inner binary %s: %s", *path ? path : SBF_BUNDLED_INNER, why);
+        return;
+    }
+    void *lib = *path ? sbf_open_library(path, 0) : NULL;
+    if (!lib && *path && *bundled_inner_needs) { /* the system lacks its C++ runtime, or has an older one: the FMU's */
         load_bundled(bundled_inner_needs, 0);
         lib = sbf_open_library(path, 0);
     }
-    const char *carried = "";
-    if (!lib && *SBF_BUNDLED_INNER) { /* the same: the carried build with its C++ runtime linked in */
-        char first[1024];
-        snprintf(first, sizeof first, "%s", sbf_library_error());
-        if (!sbf_carried_path(SBF_BUNDLED_INNER, path, sizeof path, why, sizeof why)) {
-            sbf_fail("cannot load the FMU's inner binary (%s), and %s", first, why);
-            return;
-        }
-        lib = sbf_open_library(path, 0);
-        carried = " (the build the FMU carries for systems on which its own does not load)";
-    }
-    if (!lib) {
+    if (!lib && *SBF_BUNDLED_INNER) { /* the same, or none beside this library: the carried build */
+        char first[1024] = "";
+        if (*path) snprintf(first, sizeof first, "%s", sbf_library_error());
+        if (!(lib = open_carried_inner(path, sizeof path, first))) return;
+    } else if (!lib) {
         sbf_fail("cannot load the FMU's inner binary %s%s: %s", path,
-                 *bundled_inner_needs ? " (also with the C++ runtime the FMU carries)" : carried, sbf_library_error());
+                 *bundled_inner_needs ? " (also with the C++ runtime the FMU carries)" : "", sbf_library_error());
         return;
     }
     if (resolve(lib, path)) sbf_reset_inner_at_exit(lib, path, "finalizePythonInterpreter");
