@@ -136,6 +136,10 @@ def test_the_fmu_says_what_an_aarch64_host_needs(fmu3_path):
     section = needs.split("on Linux aarch64", 1)[1]
     assert "GLIBC_2.3" in section and f"{FOLDER}/python/libpython3.11.so.1.0" in section
     assert "libstdc++" not in section  # pythonfmu3's binary has its C++ runtime linked in
+    inner = (f"- the FMI library's binary: the FMU's build of it ({FOLDER}/python/lib/libpythonfmu3-export.so), which "
+             f"the loader loads on every host: it unpacks {packing.packed_name(FOLDER.split('/')[1])} for it also "
+             f"where the host process runs a CPython of its own")
+    assert inner in section and "the FMI library's binary:" not in needs.split("on Linux aarch64", 1)[0]
 
 
 def test_a_build_without_the_cross_compiler_or_the_packages_leaves_the_platform_out_and_says_so(

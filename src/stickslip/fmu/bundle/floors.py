@@ -32,6 +32,8 @@ FAMILIES = {"GLIBC": "glibc (libc.so.6, libm.so.6, ld-linux)", "GLIBCXX": "libst
             "ZLIB": "zlib (libz.so.1)", "UUID": "libuuid (libuuid.so.1)", "LIBFFI": "libffi (libffi.so.8)"}
 #: the symbol version prefixes of the C++ runtime
 CPP_RUNTIME = ("GLIBCXX", "CXXABI", "GCC")
+#: how the FMI library's own Linux binary beside the loader is named (``<model identifier>_pythonfmu.so``)
+INNER_SUFFIX = "_pythonfmu.so"
 #: an ELF shared library's file name: ``x.so`` or ``libx.so.1.0``
 ELF_NAME = SHARED_LIBRARY
 #: a numbered symbol version, e.g. GLIBC_2.34 or CXXABI_1.3.9 (GLIBC_PRIVATE and the like carry no floor)
@@ -232,6 +234,10 @@ def dependencies_text(model_name, floors, platform="Linux x86_64"):
             lines[-1] += (f"; where the system lacks it or has an older one, the loader loads the FMU's build of that "
                           f"binary with it linked in ({inner}) instead")
     lines.append(f"- a CPython 3 shared library with its standard library: {_python_need(floors)}")
+    if inner and not any(name.endswith(INNER_SUFFIX) for name in floors.binaries):
+        lines.append(f"- the FMI library's binary: the FMU's build of it ({inner}), which the loader loads on every "
+                     f"host: it unpacks {packed_name(inner.split('/')[1])} for it also where the host process runs a "
+                     f"CPython of its own")
     lines += ["", "Each binary: the libraries it names, then the newest version it needs of each.", ""]
     for name, needs in floors.binaries.items():
         newest_names = ", ".join(found for found, _ in sorted(needs.floors().values())) or "no versioned symbols"
