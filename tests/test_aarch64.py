@@ -4,8 +4,8 @@ toolchain's, Debian 12's 2.36) and QEMU's static emulator, with the FMU extracte
 standard library and libraries besides glibc there are the ones the FMU carries. A bad parameter is an error naming
 it, then the default scene's x equals the x86_64 host's run of the same FMU to 1e-13 m; FMU states replay; two
 instances on two threads run side by side; the CPython, packed in the FMU, was unpacked by the aarch64 loader; where
-the host names a CPython of its own, the loader still unpacks the pack for the pythonfmu3 binary it holds. Four
-emulated processes in all, the first three as many at once as there are cores. Skipped, saying why, where QEMU, the
+the host names a CPython of its own, the loader still unpacks the pack for the pythonfmu3 binary it holds, and says so
+where it cannot. Five emulated processes in all, the first three as many at once as there are cores. Skipped, saying why, where QEMU, the
 cross-compiler or chroot are missing, or the build could not give the FMU its aarch64 binaries. Also: a build
 without the cross-compiler or Debian's packages leaves the platform out and says why."""
 
@@ -112,15 +112,24 @@ def test_the_aarch64_loader_unpacked_the_cpython_it_started(jail, runs):
 def test_a_host_with_a_python_of_its_own_has_the_pack_unpacked_for_pythonfmu3s_binary(jail, runs, host3, unzipped3):
     """The aarch64 folder holds no pythonfmu3 binary: with ``SBF_LIBPYTHON`` naming a CPython (a copy of the carried
     one outside the FMU, standing for the host's own), the loader unpacks the pack into the empty cache folder set
-    and loads that binary from there; the run equals the x86_64 host's."""
+    and loads that binary from there; the run equals the x86_64 host's. Where the pack cannot be unpacked (the cache
+    folder below a file), the instantiation fails saying so, without pointing at ``SBF_LIBPYTHON``."""
     root, wrapper, host = jail
     assert sorted(path.name for path in (root / "fmu3" / FOLDER).glob("*.so")) == ["SpringBlockFriction.so",
                                                                                   "sbf_start_guard.so"]
     shutil.copytree(root / "fmu3" / FOLDER / "python", root / "own_python")
-    env = {"SBF_LIBPYTHON": "/own_python/libpython3.11.so.1.0", "LD_LIBRARY_PATH": "/own_python/lib",
-           "SBF_PYTHON_CACHE": "/cache"}
-    emulated = run_host(host, root / "fmu3", "run", SHORT, SCENE.output_interval, START, env=env, wrapper=wrapper,
-                        root=root)
+    env = {"SBF_LIBPYTHON": "/own_python/libpython3.11.so.1.0", "LD_LIBRARY_PATH": "/own_python/lib"}
+
+    def emulated_run(cache):
+        return run_host(host, root / "fmu3", "run", SHORT, SCENE.output_interval, START,
+                        env={**env, "SBF_PYTHON_CACHE": cache}, wrapper=wrapper, root=root)
+
+    refused = emulated_run(f"/{host.name}/cache")
+    message = " ".join(text for _, _, text in refused.logs)
+    assert not refused.completed and "cannot load the FMU's inner binary, and the CPython the FMU carries cannot be " \
+        f"unpacked into /{host.name}/cache/cpython-" in message, (refused.lines[-3:], message)
+    assert "Set SBF_PYTHON_CACHE to a folder where it can be" in message and "SBF_LIBPYTHON" not in message
+    emulated = emulated_run("/cache")
     native = run_host(host3, unzipped3[0], "run", SHORT, SCENE.output_interval, START)
     assert_close(completed(emulated).series("x"), completed(native).series("x"))
     assert list((root / "cache").glob("*/lib/libpythonfmu3-export.so"))

@@ -523,12 +523,13 @@ int sbf_carried_path(const char *relative, char *path, size_t size, char *why, s
             return snprintf(why, why_size, "the CPython the FMU carries has no folder to be unpacked into (set %s)",
                             CACHE_VARIABLE), 0;
         if (!complete(folder)) {
-            int made = make_folders(root, cause, sizeof cause);
+            int made = make_folders(root, cause, sizeof cause), python = strcmp(relative, SBF_BUNDLED_INNER) != 0;
             if (!made || !unpack(folder, cause, sizeof cause))
                 return snprintf(why, why_size, "the CPython the FMU carries cannot be unpacked into %s: %s%s. Set %s "
-                                "to a folder where it can be (it takes %.0f MB), or %s to a CPython 3 shared library",
-                                folder, made ? "" : "cannot make the folder: ", cause, CACHE_VARIABLE,
-                                sbf_carried_bytes() / 1e6, LIBPYTHON_VARIABLE), 0;
+                                "to a folder where it can be (it takes %.0f MB)%s%s", folder,
+                                made ? "" : "cannot make the folder: ", cause, CACHE_VARIABLE,
+                                sbf_carried_bytes() / 1e6, python ? ", or " LIBPYTHON_VARIABLE : "",
+                                python ? " to a CPython 3 shared library" : ""), 0;
         }
         snprintf(carried_folder, sizeof carried_folder, "%s", folder);
     }

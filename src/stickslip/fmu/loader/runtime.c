@@ -67,11 +67,6 @@
 #ifndef SBF_BUNDLED_INNER_NEEDS
 #define SBF_BUNDLED_INNER_NEEDS
 #endif
-/* the carried CPython's build of the inner library that needs glibc alone, loaded where the FMU's does not load
- * (instead of SBF_BUNDLED_INNER_NEEDS; "" if none) */
-#ifndef SBF_BUNDLED_INNER
-#define SBF_BUNDLED_INNER ""
-#endif
 static const char *const bundled_python_needs[] = {SBF_BUNDLED_PYTHON_NEEDS NULL};
 static const char *const bundled_inner_needs[] = {SBF_BUNDLED_INNER_NEEDS NULL};
 #define LIBPYTHON_VARIABLE "SBF_LIBPYTHON"
