@@ -5,9 +5,9 @@ standard library and libraries besides glibc there are the ones the FMU carries.
 it, then the default scene's x equals the x86_64 host's run of the same FMU to 1e-13 m; FMU states replay; two
 instances on two threads run side by side; the CPython, packed in the FMU, was unpacked by the aarch64 loader; where
 the host names a CPython of its own, the loader still unpacks the pack for the pythonfmu3 binary it holds, and says so
-where it cannot. Five emulated processes in all, the first three as many at once as there are cores. Skipped, saying why, where QEMU, the
-cross-compiler or chroot are missing, or the build could not give the FMU its aarch64 binaries. Also: a build
-without the cross-compiler or Debian's packages leaves the platform out and says why."""
+where it cannot. Five emulated processes in all, the first three as many at once as there are cores. Skipped, saying
+why, where QEMU, the cross-compiler or chroot are missing, or the build could not give the FMU its aarch64 binaries.
+Also: a build without the cross-compiler or Debian's packages leaves the platform out and says why."""
 
 import os
 import shutil
