@@ -41,7 +41,7 @@ attempt, which is redone to end on that event. The rest of the scheme is the sam
 import dataclasses
 import math
 import time
-from ctypes import byref, c_bool, c_double, c_int, c_uint
+from ctypes import byref, c_bool, c_double, c_int, c_uint, c_void_p
 
 import numpy as np
 
@@ -128,15 +128,36 @@ def coupling_matrix(system):
 
 class _CellCalls:
     """One instance's C functions of a cell (FMI 2 or, ``fmi3``, 3), called without FMPy's wrappers:
-    ``set_reals``, ``set_rates`` (FMI 2's input derivatives), ``do_step``, ``get_reals``, ``get_ints``."""
+    ``set_reals``, ``set_rates`` (FMI 2's input derivatives), ``do_step``, ``get_reals``, ``get_ints``; and of its
+    saved state: :meth:`get_state`, :meth:`set_state`, :meth:`free_state`."""
 
     NAMES = {False: ("fmi2SetReal", "fmi2SetRealInputDerivatives", "fmi2DoStep", "fmi2GetReal", "fmi2GetInteger"),
              True: ("fmi3SetFloat64", None, "fmi3DoStep", "fmi3GetFloat64", "fmi3GetInt32")}
+    STATE_NAMES = {False: ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate"),
+                   True: ("fmi3GetFMUState", "fmi3SetFMUState", "fmi3FreeFMUState")}
 
     def __init__(self, instance, fmi3):
         self.instance, self.component = instance, instance.fmu.component
         self.set_reals, self.set_rates, self.do_step, self.get_reals, self.get_ints = (
             name and instance.function(name) for name in self.NAMES[fmi3])
+        self.state_names = self.STATE_NAMES[fmi3]
+        self._get_state, self._set_state, self._free_state = (instance.function(n) for n in self.state_names)
+
+    def get_state(self):
+        """The FMU's state now (a new FMU state: free it with :meth:`free_state`)."""
+        state, first = c_void_p(), log_mark()
+        self.check(self._get_state(self.component, byref(state)), self.state_names[0], first)
+        return state
+
+    def set_state(self, state):
+        """The FMU back to ``state`` (from :meth:`get_state`)."""
+        first = log_mark()
+        self.check(self._set_state(self.component, state), self.state_names[1], first)
+
+    def free_state(self, state):
+        """Free ``state`` (from :meth:`get_state`)."""
+        first = log_mark()
+        self.check(self._free_state(self.component, byref(state)), self.state_names[2], first)
 
     def check(self, status, function, first):
         """Raise the instance's :meth:`~stickslip.hosts.fmpy_host.Instance.failure` if the call ``function`` (its
@@ -178,24 +199,27 @@ class _Blocks:
 
     def save(self):
         """Save every block's FMU state (the previous one freed)."""
-        for i, b in enumerate(self.instances):
+        check_interrupts()
+        for i, calls in enumerate(self._calls):
             if self.states[i] is not None:
-                b.call(b.fmu.freeFMUState, self.states[i])
-            self.states[i] = b.call(b.fmu.getFMUState)
+                calls.free_state(self.states[i])
+            self.states[i] = calls.get_state()
+        check_interrupts()
         self.moved = [False] * len(self.instances)
 
     def restore(self, i):
         """Block ``i`` back to its saved state (no call if it is there)."""
         if self.moved[i]:
-            b = self.instances[i]
-            b.call(b.fmu.setFMUState, self.states[i])
+            check_interrupts()
+            self._calls[i].set_state(self.states[i])
+            check_interrupts()
             self.moved[i] = False
             self.restores += 1
 
     def free(self):
-        for b, state in zip(self.instances, self.states):
+        for calls, state in zip(self._calls, self.states):
             if state is not None:
-                b.call(b.fmu.freeFMUState, state)
+                calls.free_state(state)
         self.states = [None] * len(self.instances)
 
     def step(self, i, t, h, force=None, rate=0.0):
@@ -271,6 +295,10 @@ class _Attempt:
 
     def __init__(self, times, X, V, cuttable):
         self.times, self.X, self.V = times, X, V
+        self.T = float(times[-1])
+        self.cell_times = times.tolist()  # s, as floats for the calls
+        self.widths = np.diff(times)  # s: each cell's length
+        self.hold_share = (times[1:] - times[0]) / (self.T - times[0])  # each cell end's share of the step
         self.cuttable = cuttable  # an early return more than EVENT_TOL before T (after the first sweep) stops it
         self.friction = np.zeros_like(X)
         self.spring = np.zeros(X.shape[0])
@@ -279,11 +307,8 @@ class _Attempt:
         self.error, self.sweeps, self.converged = 0.0, 0, False
         self.end = None
         self.cut = None  # (t_e, block): the first event a block's early return showed inside the step
-        self.forces = {}  # block: the forces (N) it was last stepped with in this attempt
-
-    @property
-    def T(self):
-        return float(self.times[-1])
+        # N: the forces each block was last stepped with in this attempt (NaN: not stepped)
+        self.forces = np.full((X.shape[0], 2 * (times.size - 1)), np.nan)
 
 
 class _Run:
@@ -397,17 +422,22 @@ class _Run:
         Jacobi: every block's forces from the waveforms before the sweep. A block whose forces did not change is not
         stepped again (:meth:`_unchanged`)."""
         start, rate, f_start, residual = self._forces(attempt)
-        for i in np.flatnonzero(~settled):
-            if slipping[i] or attempt.sweeps > 0:  # a stuck block: the force at each cell's start, held
-                line = (start[i], rate[i]) if slipping[i] else (f_start[i], np.zeros_like(rate[i]))
-                used = np.concatenate([line[0], line[0] + line[1] * np.diff(attempt.times)])
-                if not self._unchanged(i, attempt, used, floor):
+        # a stuck block: the force at each cell's start, held
+        start, rate = np.where(slipping[:, None], start, f_start), np.where(slipping[:, None], rate, 0.0)
+        used = np.concatenate([start, start + rate * attempt.widths], axis=1)
+        swept = ~settled & (slipping | (attempt.sweeps > 0))
+        unchanged = self._unchanged(attempt, used, floor)
+        self.stats["sweeps of a block skipped"] += int(np.count_nonzero(unchanged & swept))
+        starts, rates, holds = start.tolist(), rate.tolist(), f_start[:, 0].tolist()
+        for i in np.flatnonzero(~settled).tolist():
+            if swept[i]:
+                if not unchanged[i]:
                     self.blocks.restore(i)
-                    self._sweep_block(i, attempt, *line)
-                    attempt.forces[i] = used
+                    self._sweep_block(i, attempt, starts[i], rates[i])
+                    attempt.forces[i] = used[i]
             else:  # its motion does not depend on the force: stepped again only after an event
                 self.blocks.restore(i)
-                settled[i] = self._hold_block(i, attempt, f_start[i, 0])
+                settled[i] = self._hold_block(i, attempt, holds[i])
         return residual
 
     def _predicted_acceleration(self):
@@ -422,8 +452,8 @@ class _Run:
         the surface)."""
         self._step(i, self.t, attempt.T, force, 0.0, attempt, may_cut=False)
         x, v, friction, spring = self.blocks.stepped
-        u = (attempt.times[1:] - self.t) / (attempt.T - self.t)
-        attempt.X[i, 1:], attempt.V[i, 1:] = self.x[i] + u * (x - self.x[i]), v
+        x0 = self.x[i]
+        attempt.X[i, 1:], attempt.V[i, 1:] = x0 + attempt.hold_share * (x - x0), v
         attempt.friction[i, 1:], attempt.spring[i], attempt.held[i] = friction, spring, force
         attempt.held_rate[i] = 0.0
         return self.blocks.n_events(i) == self.end[4][i]
@@ -431,9 +461,9 @@ class _Run:
     def _sweep_block(self, i, attempt, start, rate):
         """Step block ``i`` over every cell ``k`` of ``attempt`` in one ``doStep`` with ``F_ext`` from ``start[k]``
         (N) at the cell's start, growing at ``rate[k]`` (N/s); read the cell ends."""
-        times, may_cut = attempt.times, attempt.sweeps > 0 and attempt.cuttable
-        for k in range(times.size - 1):
-            t0, t1 = float(times[k]), float(times[k + 1])
+        times, may_cut = attempt.cell_times, attempt.sweeps > 0 and attempt.cuttable
+        for k in range(len(times) - 1):
+            t0, t1 = times[k], times[k + 1]
             if self._step(i, t0, t1, start[k], rate[k], attempt, may_cut):
                 return
             x, v, friction, spring = self.blocks.stepped
@@ -454,17 +484,13 @@ class _Run:
             t_e = self.blocks.step(i, t_e, t1 - t_e)
         return False
 
-    def _unchanged(self, i, attempt, forces, floor):
-        """True if block ``i`` need not be stepped again: when the ``forces`` (N) it would
-        be stepped with differ from those it was last stepped with in ``attempt`` by so little that its cell ends
-        could move by at most a tenth of the convergence ``floor`` (m): ``|dF| (T - t)^2 / M``."""
-        last = attempt.forces.get(i)
-        if last is None:
-            return False
-        change = float(np.max(np.abs(forces - last)))
-        unchanged = change * (attempt.T - self.t) ** 2 / self.M[i] <= 0.1 * floor
-        self.stats["sweeps of a block skipped"] += int(unchanged)
-        return unchanged
+    def _unchanged(self, attempt, forces, floor):
+        """Per block, True if it need not be stepped again: when the ``forces`` (N, one row per block) it would be
+        stepped with differ from those it was last stepped with in ``attempt`` by so little that its cell ends
+        could move by at most a tenth of the convergence ``floor`` (m): ``|dF| (T - t)^2 / M``; False for a block
+        not stepped in ``attempt`` yet."""
+        change = np.max(np.abs(forces - attempt.forces), axis=1)
+        return change * (attempt.T - self.t) ** 2 / self.M <= 0.1 * floor
 
     def _forces(self, attempt):
         """Per block and cell (arrays ``(N, cells)``): the line ``F_ext = start + rate (s - t_cell)`` (N, N/s) that
