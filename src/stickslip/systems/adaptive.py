@@ -58,6 +58,7 @@ MAX_SWEEPS = 12
 MAX_REDOS = 60
 BLOCK_RTOL_FACTOR = 1e-4  # each block's solver.rtol: at most this times the master's rtol (and >= 1e-14)
 _GAUSS_U, _GAUSS_W = (np.array([0.5 - math.sqrt(0.15), 0.5, 0.5 + math.sqrt(0.15)]), np.array([5, 8, 5]) / 18.0)
+_GAUSS_W1, _GAUSS_W2 = _GAUSS_W * (1.0 - _GAUSS_U), _GAUSS_W * (1.0 - _GAUSS_U) ** 2  # of the moments about the end
 _READ_CELL = ("x", "v", "F_friction", "F_spring")
 _READ_END = ("z_slip", "z_stick", "t_last_event")
 _READ_INT = ("mode", "n_events")
@@ -107,11 +108,20 @@ def block_tolerances(system, rtol):
     return dataclasses.replace(system, blocks=blocks)
 
 
-def hermite(u, x0, v0, x1, v1, delta):
-    """Cubic Hermite interpolant at ``u`` in [0, 1] of a cell of length ``delta`` (s), ends ``(x, v)``."""
+def hermite_basis(u):
+    """The cubic Hermite basis at ``u`` in [0, 1]: the weights of ``x0``, ``delta v0``, ``x1`` and ``delta v1``."""
     u2, u3 = u * u, u * u * u
-    return ((2 * u3 - 3 * u2 + 1) * x0 + (u3 - 2 * u2 + u) * delta * v0 + (3 * u2 - 2 * u3) * x1
-            + (u3 - u2) * delta * v1)
+    return 2 * u3 - 3 * u2 + 1, u3 - 2 * u2 + u, 3 * u2 - 2 * u3, u3 - u2
+
+
+def hermite(basis, x0, v0, x1, v1, delta):
+    """Cubic Hermite interpolant, with the ``basis`` (:func:`hermite_basis`) at its points, of a cell of length
+    ``delta`` (s), ends ``(x, v)``."""
+    h00, h10, h01, h11 = basis
+    return h00 * x0 + h10 * delta * v0 + h01 * x1 + h11 * delta * v1
+
+
+_GAUSS_HERMITE = hermite_basis(_GAUSS_U)  # at the Gauss points of a cell
 
 
 def coupling_matrix(system):
@@ -496,25 +506,25 @@ class _Run:
         """Per block and cell (arrays ``(N, cells)``): the line ``F_ext = start + rate (s - t_cell)`` (N, N/s) that
         carries the interpolated coupling force's impulse and first moment about the cell's end, the force at the
         cell's start (N, a stuck block's) and the residual ``int (F - line) (T_cell - s)^2 ds`` (N s^3)."""
-        X, V, delta = attempt.X, attempt.V, attempt.times[1] - attempt.times[0]
-        u = _GAUSS_U[None, None, :]
-        x_nodes = hermite(u, X[:, :-1, None], V[:, :-1, None], X[:, 1:, None], V[:, 1:, None], delta)
+        X, V, delta = attempt.X, attempt.V, float(attempt.widths[0])
+        x_nodes = hermite(_GAUSS_HERMITE, X[:, :-1, None], V[:, :-1, None], X[:, 1:, None], V[:, 1:, None], delta)
         F = np.einsum("ij,jkq->ikq", self.K, x_nodes)  # (N, cells, 3)
+        delta3 = delta ** 3
         impulse = delta * F @ _GAUSS_W
-        moment = delta ** 2 * F @ (_GAUSS_W * (1.0 - _GAUSS_U))
-        rate = (6.0 * impulse * delta - 12.0 * moment) / delta ** 3
+        moment = delta ** 2 * F @ _GAUSS_W1
+        rate = (6.0 * impulse * delta - 12.0 * moment) / delta3
         start = impulse / delta - 0.5 * rate * delta
-        second = delta ** 3 * F @ (_GAUSS_W * (1.0 - _GAUSS_U) ** 2)
-        residual = second - (start * delta ** 3 / 3.0 + rate * delta ** 4 / 12.0)
+        second = delta3 * F @ _GAUSS_W2
+        residual = second - (start * delta3 / 3.0 + rate * delta ** 4 / 12.0)
         return start, rate, self.K @ X[:, :-1], residual
 
     def _estimate(self, attempt, residual, slipping):
         """The step's error estimate (m): per slipping block, the velocity error of its cells' force residuals
         (``lambda^2 / 2M`` times the residual, ``lambda^2 = omega^2 + (dF_friction/dv / M)^2``) over ``lambda``,
         summed over the cells; the largest of any block."""
-        dv = np.diff(attempt.V, axis=1)
+        dv = np.abs(np.diff(attempt.V, axis=1))
         dF = np.diff(attempt.friction, axis=1)
-        gamma = np.where(np.abs(dv) > 1e-12, np.abs(dF) / np.maximum(np.abs(dv), 1e-12), 0.0)
+        gamma = np.where(dv > 1e-12, np.abs(dF) / np.maximum(dv, 1e-12), 0.0)
         lam2 = self.omega2[:, None] + (gamma / self.M[:, None]) ** 2
         per_cell = np.sqrt(lam2) / (2.0 * self.M[:, None]) * np.abs(residual)
         return float(np.max(np.where(slipping, per_cell.sum(axis=1), 0.0)))
