@@ -438,16 +438,14 @@ class _Run:
         swept = ~settled & (slipping | (attempt.sweeps > 0))
         unchanged = self._unchanged(attempt, used, floor)
         self.stats["sweeps of a block skipped"] += int(np.count_nonzero(unchanged & swept))
-        starts, rates, holds = start.tolist(), rate.tolist(), f_start[:, 0].tolist()
-        for i in np.flatnonzero(~settled).tolist():
-            if swept[i]:
-                if not unchanged[i]:
-                    self.blocks.restore(i)
-                    self._sweep_block(i, attempt, starts[i], rates[i])
-                    attempt.forces[i] = used[i]
-            else:  # its motion does not depend on the force: stepped again only after an event
-                self.blocks.restore(i)
-                settled[i] = self._hold_block(i, attempt, holds[i])
+        # a block stuck at t in the first sweep: its motion does not depend on the force (stepped again only after
+        # an event)
+        self._hold_blocks(np.flatnonzero(~settled & ~swept), attempt, f_start[:, 0], settled)
+        starts, rates = start.tolist(), rate.tolist()
+        for i in np.flatnonzero(swept & ~unchanged).tolist():
+            self.blocks.restore(i)
+            self._sweep_block(i, attempt, starts[i], rates[i])
+            attempt.forces[i] = used[i]
         return residual
 
     def _predicted_acceleration(self):
@@ -456,17 +454,24 @@ class _Run:
         sweep and it is not stepped again)."""
         return np.where(self.end[3] == 0, 0.0, self.a)
 
-    def _hold_block(self, i, attempt, force):
-        """Step block ``i``, stuck at ``t``, over the whole of ``attempt`` in one ``doStep`` with ``F_ext = force``
-        (N); True if it stayed stuck: its cell ends are then on the line from its start to its end (it moves with
-        the surface)."""
-        self._step(i, self.t, attempt.T, force, 0.0, attempt, may_cut=False)
-        x, v, friction, spring = self.blocks.stepped
-        x0 = self.x[i]
-        attempt.X[i, 1:], attempt.V[i, 1:] = x0 + attempt.hold_share * (x - x0), v
-        attempt.friction[i, 1:], attempt.spring[i], attempt.held[i] = friction, spring, force
-        attempt.held_rate[i] = 0.0
-        return self.blocks.n_events(i) == self.end[4][i]
+    def _hold_blocks(self, blocks, attempt, forces, settled):
+        """Step each of ``blocks`` (an index array of blocks stuck at ``t``) over the whole of ``attempt`` in one
+        ``doStep`` with ``F_ext`` its entry of ``forces`` (N, per block); ``settled`` (updated) True for those that
+        stayed stuck without an event: their cell ends are then on the line from their start to their end (they move
+        with the surface)."""
+        if blocks.size == 0:
+            return
+        ends = []
+        for i in blocks.tolist():
+            self.blocks.restore(i)
+            self._step(i, self.t, attempt.T, forces[i], 0.0, attempt, may_cut=False)
+            ends.append((*self.blocks.stepped, self.blocks.n_events(i)))
+        x, v, friction, spring, n_events = (np.array(column) for column in zip(*ends))
+        x0 = self.x[blocks]
+        attempt.X[blocks, 1:] = x0[:, None] + attempt.hold_share * (x - x0)[:, None]
+        attempt.V[blocks, 1:], attempt.friction[blocks, 1:] = v[:, None], friction[:, None]
+        attempt.spring[blocks], attempt.held[blocks], attempt.held_rate[blocks] = spring, forces[blocks], 0.0
+        settled[blocks] = n_events == self.end[4][blocks]
 
     def _sweep_block(self, i, attempt, start, rate):
         """Step block ``i`` over every cell ``k`` of ``attempt`` in one ``doStep`` with ``F_ext`` from ``start[k]``
