@@ -232,29 +232,31 @@ class _Blocks:
                 calls.free_state(state)
         self.states = [None] * len(self.instances)
 
-    def step(self, i, t, h, force=None, rate=0.0):
+    def step(self, i, t, h, force=None, rate=0.0, last=True):
         """Block ``i`` from ``t`` over ``h`` s with ``F_ext = force + rate (s - t)`` (N, N/s; ``force`` None: the
         force goes on as it was set): None, or the time (s) of the event inside the step where it returned early
         (its state there the event's left limit; the next step starts there). :attr:`stepped` is then
-        ``(x, v, F_friction, F_spring)`` where the step ended."""
+        ``(x, v, F_friction, F_spring)`` where the step ended; the outputs of :meth:`end` are read only if ``last``
+        (the block's last step in the attempt, as planned)."""
         check_interrupts()
-        early = self._set_step_read(self._calls[i], float(t), float(h), force, rate, log_mark())
+        early = self._set_step_read(self._calls[i], float(t), float(h), force, rate, log_mark(), last)
         check_interrupts()
         self.moved[i] = True
         self.do_steps += 1
-        reals, ints = self._reals[:], self._ints[:]
-        self.stepped, self.ends[i] = tuple(reals[:len(_READ_CELL)]), (*reals[len(_READ_CELL):], *ints)
+        reals = self._reals[:]
+        self.stepped = tuple(reals[:len(_READ_CELL)])
+        self.ends[i] = (*reals[len(_READ_CELL):], *self._ints[:]) if last else None
         if early:
             self.early_returns += 1
             return self._last_time.value
         return None
 
-    def _set_step_read(self, calls, t, h, force, rate, first):
+    def _set_step_read(self, calls, t, h, force, rate, first, last):
         """The FMI calls of :meth:`step` on the FMU's C functions (``calls``, a :class:`_CellCalls`) and arrays made
         once, log mark ``first``: the force and its rate set (FMI 2: setting ``F_ext`` sets its rate to 0; FMI 3:
-        the input ``der(F_ext)``), ``doStep``, the outputs of the cell's end and of :meth:`end` read. True if the
-        step returned early (FMI 3 with early return)."""
-        c, n = calls.component, len(self._reals)
+        the input ``der(F_ext)``), ``doStep``, the outputs of the cell's end and, if ``last``, of :meth:`end` read.
+        True if the step returned early (FMI 3 with early return)."""
+        c, n = calls.component, len(self._reals) if last else len(_READ_CELL)
         if force is not None:
             self._forces[0], self._forces[1] = force, rate
             if self.fmi3:
@@ -268,11 +270,13 @@ class _Blocks:
         if self.fmi3:
             calls.check(calls.do_step(c, t, h, False, *self._step_answers), "fmi3DoStep", first)
             calls.check(calls.get_reals(c, self._real_refs, n, self._reals, n), "fmi3GetFloat64", first)
-            calls.check(calls.get_ints(c, self._int_refs, 2, self._ints, 2), "fmi3GetInt32", first)
+            if last:
+                calls.check(calls.get_ints(c, self._int_refs, 2, self._ints, 2), "fmi3GetInt32", first)
             return self.early_return and self._early.value
         calls.check(calls.do_step(c, t, h, False), "fmi2DoStep", first)
         calls.check(calls.get_reals(c, self._real_refs, n, self._reals), "fmi2GetReal", first)
-        calls.check(calls.get_ints(c, self._int_refs, 2, self._ints), "fmi2GetInteger", first)
+        if last:
+            calls.check(calls.get_ints(c, self._int_refs, 2, self._ints), "fmi2GetInteger", first)
         return False
 
     def cell(self, i):
@@ -293,7 +297,8 @@ class _Blocks:
 
     def end(self):
         """``(z_slip, z_stick, t_last_event, mode, n_events)`` of every block, each an array over blocks: read where
-        each block's last step ended (a block is restored only to be stepped again), or now before any step."""
+        each block's last step ended (a block is restored only to be stepped again), or now before any step or where
+        a block's last step was not planned as its last (an attempt stopped at an event)."""
         if any(end is None for end in self.ends):
             return [np.array(column) for column in read_values(self.instances, self.end_refs, self.int_refs)]
         return [np.array(column) for column in zip(*self.ends)]
@@ -477,26 +482,28 @@ class _Run:
         """Step block ``i`` over every cell ``k`` of ``attempt`` in one ``doStep`` with ``F_ext`` from ``start[k]``
         (N) at the cell's start, growing at ``rate[k]`` (N/s); read the cell ends."""
         times, may_cut = attempt.cell_times, attempt.sweeps > 0 and attempt.cuttable
-        for k in range(len(times) - 1):
+        cells = len(times) - 1
+        for k in range(cells):
             t0, t1 = times[k], times[k + 1]
-            if self._step(i, t0, t1, start[k], rate[k], attempt, may_cut):
+            if self._step(i, t0, t1, start[k], rate[k], attempt, may_cut, last=k == cells - 1):
                 return
             x, v, friction, spring = self.blocks.stepped
             attempt.X[i, k + 1], attempt.V[i, k + 1], attempt.friction[i, k + 1] = x, v, friction
             attempt.spring[i], attempt.held[i] = spring, start[k] + rate[k] * (t1 - t0)
             attempt.held_rate[i] = rate[k]
 
-    def _step(self, i, t0, t1, force, rate, attempt, may_cut):
+    def _step(self, i, t0, t1, force, rate, attempt, may_cut, last=True):
         """Block ``i`` from ``t0`` to ``t1`` (s) with ``F_ext = force + rate (s - t0)`` (N); True if it returned early
         at an event more than ``EVENT_TOL`` before the attempt's end and ``may_cut``: the event is then
         ``attempt.cut`` (the earliest of such) and the block stays there. Any other early return is stepped on from
-        (the event applied, the force going on along its line)."""
-        t_e = self.blocks.step(i, t0, t1 - t0, force, rate)
+        (the event applied, the force going on along its line). ``last``: the block's last step in the attempt
+        (:meth:`_Blocks.step`)."""
+        t_e = self.blocks.step(i, t0, t1 - t0, force, rate, last)
         while t_e is not None:
             if may_cut and attempt.T - t_e > EVENT_TOL:
                 attempt.cut = min(attempt.cut or (math.inf, -1), (t_e, int(i)))
                 return True
-            t_e = self.blocks.step(i, t_e, t1 - t_e)
+            t_e = self.blocks.step(i, t_e, t1 - t_e, last=last)
         return False
 
     def _unchanged(self, attempt, forces, floor):
