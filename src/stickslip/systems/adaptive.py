@@ -138,17 +138,20 @@ def coupling_matrix(system):
 
 class _CellCalls:
     """One instance's C functions of a cell (FMI 2 or, ``fmi3``, 3), called without FMPy's wrappers:
-    ``set_reals``, ``set_rates`` (FMI 2's input derivatives), ``do_step``, ``get_reals``, ``get_ints``; and of its
-    saved state: :meth:`get_state`, :meth:`set_state`, :meth:`free_state`."""
+    ``set_reals``, ``set_rates`` (FMI 2's input derivatives), ``do_step``, ``get_reals``, ``get_ints``,
+    ``get_derivatives`` (of outputs); and of its saved state: :meth:`get_state`, :meth:`set_state`,
+    :meth:`free_state`."""
 
-    NAMES = {False: ("fmi2SetReal", "fmi2SetRealInputDerivatives", "fmi2DoStep", "fmi2GetReal", "fmi2GetInteger"),
-             True: ("fmi3SetFloat64", None, "fmi3DoStep", "fmi3GetFloat64", "fmi3GetInt32")}
+    NAMES = {False: ("fmi2SetReal", "fmi2SetRealInputDerivatives", "fmi2DoStep", "fmi2GetReal", "fmi2GetInteger",
+                     "fmi2GetRealOutputDerivatives"),
+             True: ("fmi3SetFloat64", None, "fmi3DoStep", "fmi3GetFloat64", "fmi3GetInt32",
+                    "fmi3GetOutputDerivatives")}
     STATE_NAMES = {False: ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate"),
                    True: ("fmi3GetFMUState", "fmi3SetFMUState", "fmi3FreeFMUState")}
 
     def __init__(self, instance, fmi3):
         self.instance, self.component = instance, instance.fmu.component
-        self.set_reals, self.set_rates, self.do_step, self.get_reals, self.get_ints = (
+        self.set_reals, self.set_rates, self.do_step, self.get_reals, self.get_ints, self.get_derivatives = (
             name and instance.function(name) for name in self.NAMES[fmi3])
         self.state_names = self.STATE_NAMES[fmi3]
         self._get_state, self._set_state, self._free_state = (instance.function(n) for n in self.state_names)
@@ -200,7 +203,8 @@ class _Blocks:
         self._early, self._last_time = c_bool(), c_double()  # fmi3DoStep's earlyReturn, lastSuccessfulTime
         self._step_answers = (byref(c_bool()), byref(c_bool()), byref(self._early), byref(self._last_time))
         self._calls = [_CellCalls(instance, self.fmi3) for instance in instances]
-        self.v_ref = references(fmu, ("v",))
+        self._v_ref = (c_uint * 1)(*references(fmu, ("v",)))
+        self._order2, self._jerk = (c_int * 1)(2), (c_double * 1)()  # jerk(): v's second derivative
         self.ends = [None] * len(instances)  # each block's end outputs (see end()) where its last step ended
         self.states = [None] * len(instances)
         self.moved = [False] * len(instances)  # stepped since the save or the last restore
@@ -287,9 +291,15 @@ class _Blocks:
     def jerk(self, i):
         """Block ``i``'s ``d2v/dt2`` (m/s^3) now, with its force going on as set (``fmi2GetRealOutputDerivatives``,
         ``fmi3GetOutputDerivatives``)."""
-        b = self.instances[i]
-        get = b.fmu.getOutputDerivatives if self.fmi3 else b.fmu.getRealOutputDerivatives
-        return b.call(get, self.v_ref, [2])[0]
+        calls, first = self._calls[i], log_mark()
+        check_interrupts()
+        if self.fmi3:
+            status = calls.get_derivatives(calls.component, self._v_ref, 1, self._order2, self._jerk, 1)
+        else:
+            status = calls.get_derivatives(calls.component, self._v_ref, 1, self._order2, self._jerk)
+        calls.check(status, calls.NAMES[self.fmi3][5], first)
+        check_interrupts()
+        return self._jerk[0]
 
     def n_events(self, i):
         """Block ``i``'s ``n_events`` where its last step ended."""
