@@ -89,10 +89,10 @@ def test_a_slipping_block_steps_each_cell_in_one_do_step(fmi, fmu_path, fmu3_pat
         cells.add((times[0], times[-1]))
         attempt_init(self, times, *args)
 
-    def recorded_step(self, i, t, h, force=None, rate=0.0):
+    def recorded_step(self, i, t, h, force=None, rate=0.0, last=True):
         if force is not None:
             steps.append((t, t + h))
-        return block_step(self, i, t, h, force, rate)
+        return block_step(self, i, t, h, force, rate, last)
 
     monkeypatch.setattr(adaptive._Attempt, "__init__", recorded_attempt)
     monkeypatch.setattr(adaptive._Blocks, "step", recorded_step)

@@ -41,7 +41,7 @@ attempt, which is redone to end on that event. The rest of the scheme is the sam
 import dataclasses
 import math
 import time
-from ctypes import byref, c_bool, c_double, c_int, c_uint
+from ctypes import byref, c_bool, c_double, c_int, c_uint, c_void_p
 
 import numpy as np
 
@@ -58,6 +58,7 @@ MAX_SWEEPS = 12
 MAX_REDOS = 60
 BLOCK_RTOL_FACTOR = 1e-4  # each block's solver.rtol: at most this times the master's rtol (and >= 1e-14)
 _GAUSS_U, _GAUSS_W = (np.array([0.5 - math.sqrt(0.15), 0.5, 0.5 + math.sqrt(0.15)]), np.array([5, 8, 5]) / 18.0)
+_GAUSS_W1, _GAUSS_W2 = _GAUSS_W * (1.0 - _GAUSS_U), _GAUSS_W * (1.0 - _GAUSS_U) ** 2  # of the moments about the end
 _READ_CELL = ("x", "v", "F_friction", "F_spring")
 _READ_END = ("z_slip", "z_stick", "t_last_event")
 _READ_INT = ("mode", "n_events")
@@ -107,11 +108,20 @@ def block_tolerances(system, rtol):
     return dataclasses.replace(system, blocks=blocks)
 
 
-def hermite(u, x0, v0, x1, v1, delta):
-    """Cubic Hermite interpolant at ``u`` in [0, 1] of a cell of length ``delta`` (s), ends ``(x, v)``."""
+def hermite_basis(u):
+    """The cubic Hermite basis at ``u`` in [0, 1]: the weights of ``x0``, ``delta v0``, ``x1`` and ``delta v1``."""
     u2, u3 = u * u, u * u * u
-    return ((2 * u3 - 3 * u2 + 1) * x0 + (u3 - 2 * u2 + u) * delta * v0 + (3 * u2 - 2 * u3) * x1
-            + (u3 - u2) * delta * v1)
+    return 2 * u3 - 3 * u2 + 1, u3 - 2 * u2 + u, 3 * u2 - 2 * u3, u3 - u2
+
+
+def hermite(basis, x0, v0, x1, v1, delta):
+    """Cubic Hermite interpolant, with the ``basis`` (:func:`hermite_basis`) at its points, of a cell of length
+    ``delta`` (s), ends ``(x, v)``."""
+    h00, h10, h01, h11 = basis
+    return h00 * x0 + h10 * delta * v0 + h01 * x1 + h11 * delta * v1
+
+
+_GAUSS_HERMITE = hermite_basis(_GAUSS_U)  # at the Gauss points of a cell
 
 
 def coupling_matrix(system):
@@ -128,15 +138,39 @@ def coupling_matrix(system):
 
 class _CellCalls:
     """One instance's C functions of a cell (FMI 2 or, ``fmi3``, 3), called without FMPy's wrappers:
-    ``set_reals``, ``set_rates`` (FMI 2's input derivatives), ``do_step``, ``get_reals``, ``get_ints``."""
+    ``set_reals``, ``set_rates`` (FMI 2's input derivatives), ``do_step``, ``get_reals``, ``get_ints``,
+    ``get_derivatives`` (of outputs); and of its saved state: :meth:`get_state`, :meth:`set_state`,
+    :meth:`free_state`."""
 
-    NAMES = {False: ("fmi2SetReal", "fmi2SetRealInputDerivatives", "fmi2DoStep", "fmi2GetReal", "fmi2GetInteger"),
-             True: ("fmi3SetFloat64", None, "fmi3DoStep", "fmi3GetFloat64", "fmi3GetInt32")}
+    NAMES = {False: ("fmi2SetReal", "fmi2SetRealInputDerivatives", "fmi2DoStep", "fmi2GetReal", "fmi2GetInteger",
+                     "fmi2GetRealOutputDerivatives"),
+             True: ("fmi3SetFloat64", None, "fmi3DoStep", "fmi3GetFloat64", "fmi3GetInt32",
+                    "fmi3GetOutputDerivatives")}
+    STATE_NAMES = {False: ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate"),
+                   True: ("fmi3GetFMUState", "fmi3SetFMUState", "fmi3FreeFMUState")}
 
     def __init__(self, instance, fmi3):
         self.instance, self.component = instance, instance.fmu.component
-        self.set_reals, self.set_rates, self.do_step, self.get_reals, self.get_ints = (
+        self.set_reals, self.set_rates, self.do_step, self.get_reals, self.get_ints, self.get_derivatives = (
             name and instance.function(name) for name in self.NAMES[fmi3])
+        self.state_names = self.STATE_NAMES[fmi3]
+        self._get_state, self._set_state, self._free_state = (instance.function(n) for n in self.state_names)
+
+    def get_state(self):
+        """The FMU's state now (a new FMU state: free it with :meth:`free_state`)."""
+        state, first = c_void_p(), log_mark()
+        self.check(self._get_state(self.component, byref(state)), self.state_names[0], first)
+        return state
+
+    def set_state(self, state):
+        """The FMU back to ``state`` (from :meth:`get_state`)."""
+        first = log_mark()
+        self.check(self._set_state(self.component, state), self.state_names[1], first)
+
+    def free_state(self, state):
+        """Free ``state`` (from :meth:`get_state`)."""
+        first = log_mark()
+        self.check(self._free_state(self.component, byref(state)), self.state_names[2], first)
 
     def check(self, status, function, first):
         """Raise the instance's :meth:`~stickslip.hosts.fmpy_host.Instance.failure` if the call ``function`` (its
@@ -169,7 +203,8 @@ class _Blocks:
         self._early, self._last_time = c_bool(), c_double()  # fmi3DoStep's earlyReturn, lastSuccessfulTime
         self._step_answers = (byref(c_bool()), byref(c_bool()), byref(self._early), byref(self._last_time))
         self._calls = [_CellCalls(instance, self.fmi3) for instance in instances]
-        self.v_ref = references(fmu, ("v",))
+        self._v_ref = (c_uint * 1)(*references(fmu, ("v",)))
+        self._order2, self._jerk = (c_int * 1)(2), (c_double * 1)()  # jerk(): v's second derivative
         self.ends = [None] * len(instances)  # each block's end outputs (see end()) where its last step ended
         self.states = [None] * len(instances)
         self.moved = [False] * len(instances)  # stepped since the save or the last restore
@@ -178,49 +213,54 @@ class _Blocks:
 
     def save(self):
         """Save every block's FMU state (the previous one freed)."""
-        for i, b in enumerate(self.instances):
+        check_interrupts()
+        for i, calls in enumerate(self._calls):
             if self.states[i] is not None:
-                b.call(b.fmu.freeFMUState, self.states[i])
-            self.states[i] = b.call(b.fmu.getFMUState)
+                calls.free_state(self.states[i])
+            self.states[i] = calls.get_state()
+        check_interrupts()
         self.moved = [False] * len(self.instances)
 
     def restore(self, i):
         """Block ``i`` back to its saved state (no call if it is there)."""
         if self.moved[i]:
-            b = self.instances[i]
-            b.call(b.fmu.setFMUState, self.states[i])
+            check_interrupts()
+            self._calls[i].set_state(self.states[i])
+            check_interrupts()
             self.moved[i] = False
             self.restores += 1
 
     def free(self):
-        for b, state in zip(self.instances, self.states):
+        for calls, state in zip(self._calls, self.states):
             if state is not None:
-                b.call(b.fmu.freeFMUState, state)
+                calls.free_state(state)
         self.states = [None] * len(self.instances)
 
-    def step(self, i, t, h, force=None, rate=0.0):
+    def step(self, i, t, h, force=None, rate=0.0, last=True):
         """Block ``i`` from ``t`` over ``h`` s with ``F_ext = force + rate (s - t)`` (N, N/s; ``force`` None: the
         force goes on as it was set): None, or the time (s) of the event inside the step where it returned early
         (its state there the event's left limit; the next step starts there). :attr:`stepped` is then
-        ``(x, v, F_friction, F_spring)`` where the step ended."""
+        ``(x, v, F_friction, F_spring)`` where the step ended; the outputs of :meth:`end` are read only if ``last``
+        (the block's last step in the attempt, as planned)."""
         check_interrupts()
-        early = self._set_step_read(self._calls[i], float(t), float(h), force, rate, log_mark())
+        early = self._set_step_read(self._calls[i], float(t), float(h), force, rate, log_mark(), last)
         check_interrupts()
         self.moved[i] = True
         self.do_steps += 1
-        reals, ints = self._reals[:], self._ints[:]
-        self.stepped, self.ends[i] = tuple(reals[:len(_READ_CELL)]), (*reals[len(_READ_CELL):], *ints)
+        reals = self._reals[:]
+        self.stepped = tuple(reals[:len(_READ_CELL)])
+        self.ends[i] = (*reals[len(_READ_CELL):], *self._ints[:]) if last else None
         if early:
             self.early_returns += 1
             return self._last_time.value
         return None
 
-    def _set_step_read(self, calls, t, h, force, rate, first):
+    def _set_step_read(self, calls, t, h, force, rate, first, last):
         """The FMI calls of :meth:`step` on the FMU's C functions (``calls``, a :class:`_CellCalls`) and arrays made
         once, log mark ``first``: the force and its rate set (FMI 2: setting ``F_ext`` sets its rate to 0; FMI 3:
-        the input ``der(F_ext)``), ``doStep``, the outputs of the cell's end and of :meth:`end` read. True if the
-        step returned early (FMI 3 with early return)."""
-        c, n = calls.component, len(self._reals)
+        the input ``der(F_ext)``), ``doStep``, the outputs of the cell's end and, if ``last``, of :meth:`end` read.
+        True if the step returned early (FMI 3 with early return)."""
+        c, n = calls.component, len(self._reals) if last else len(_READ_CELL)
         if force is not None:
             self._forces[0], self._forces[1] = force, rate
             if self.fmi3:
@@ -234,11 +274,13 @@ class _Blocks:
         if self.fmi3:
             calls.check(calls.do_step(c, t, h, False, *self._step_answers), "fmi3DoStep", first)
             calls.check(calls.get_reals(c, self._real_refs, n, self._reals, n), "fmi3GetFloat64", first)
-            calls.check(calls.get_ints(c, self._int_refs, 2, self._ints, 2), "fmi3GetInt32", first)
+            if last:
+                calls.check(calls.get_ints(c, self._int_refs, 2, self._ints, 2), "fmi3GetInt32", first)
             return self.early_return and self._early.value
         calls.check(calls.do_step(c, t, h, False), "fmi2DoStep", first)
         calls.check(calls.get_reals(c, self._real_refs, n, self._reals), "fmi2GetReal", first)
-        calls.check(calls.get_ints(c, self._int_refs, 2, self._ints), "fmi2GetInteger", first)
+        if last:
+            calls.check(calls.get_ints(c, self._int_refs, 2, self._ints), "fmi2GetInteger", first)
         return False
 
     def cell(self, i):
@@ -249,9 +291,15 @@ class _Blocks:
     def jerk(self, i):
         """Block ``i``'s ``d2v/dt2`` (m/s^3) now, with its force going on as set (``fmi2GetRealOutputDerivatives``,
         ``fmi3GetOutputDerivatives``)."""
-        b = self.instances[i]
-        get = b.fmu.getOutputDerivatives if self.fmi3 else b.fmu.getRealOutputDerivatives
-        return b.call(get, self.v_ref, [2])[0]
+        calls, first = self._calls[i], log_mark()
+        check_interrupts()
+        if self.fmi3:
+            status = calls.get_derivatives(calls.component, self._v_ref, 1, self._order2, self._jerk, 1)
+        else:
+            status = calls.get_derivatives(calls.component, self._v_ref, 1, self._order2, self._jerk)
+        calls.check(status, calls.NAMES[self.fmi3][5], first)
+        check_interrupts()
+        return self._jerk[0]
 
     def n_events(self, i):
         """Block ``i``'s ``n_events`` where its last step ended."""
@@ -259,7 +307,8 @@ class _Blocks:
 
     def end(self):
         """``(z_slip, z_stick, t_last_event, mode, n_events)`` of every block, each an array over blocks: read where
-        each block's last step ended (a block is restored only to be stepped again), or now before any step."""
+        each block's last step ended (a block is restored only to be stepped again), or now before any step or where
+        a block's last step was not planned as its last (an attempt stopped at an event)."""
         if any(end is None for end in self.ends):
             return [np.array(column) for column in read_values(self.instances, self.end_refs, self.int_refs)]
         return [np.array(column) for column in zip(*self.ends)]
@@ -271,6 +320,10 @@ class _Attempt:
 
     def __init__(self, times, X, V, cuttable):
         self.times, self.X, self.V = times, X, V
+        self.T = float(times[-1])
+        self.cell_times = times.tolist()  # s, as floats for the calls
+        self.widths = np.diff(times)  # s: each cell's length
+        self.hold_share = (times[1:] - times[0]) / (self.T - times[0])  # each cell end's share of the step
         self.cuttable = cuttable  # an early return more than EVENT_TOL before T (after the first sweep) stops it
         self.friction = np.zeros_like(X)
         self.spring = np.zeros(X.shape[0])
@@ -279,11 +332,8 @@ class _Attempt:
         self.error, self.sweeps, self.converged = 0.0, 0, False
         self.end = None
         self.cut = None  # (t_e, block): the first event a block's early return showed inside the step
-        self.forces = {}  # block: the forces (N) it was last stepped with in this attempt
-
-    @property
-    def T(self):
-        return float(self.times[-1])
+        # N: the forces each block was last stepped with in this attempt (NaN: not stepped)
+        self.forces = np.full((X.shape[0], 2 * (times.size - 1)), np.nan)
 
 
 class _Run:
@@ -397,17 +447,20 @@ class _Run:
         Jacobi: every block's forces from the waveforms before the sweep. A block whose forces did not change is not
         stepped again (:meth:`_unchanged`)."""
         start, rate, f_start, residual = self._forces(attempt)
-        for i in np.flatnonzero(~settled):
-            if slipping[i] or attempt.sweeps > 0:  # a stuck block: the force at each cell's start, held
-                line = (start[i], rate[i]) if slipping[i] else (f_start[i], np.zeros_like(rate[i]))
-                used = np.concatenate([line[0], line[0] + line[1] * np.diff(attempt.times)])
-                if not self._unchanged(i, attempt, used, floor):
-                    self.blocks.restore(i)
-                    self._sweep_block(i, attempt, *line)
-                    attempt.forces[i] = used
-            else:  # its motion does not depend on the force: stepped again only after an event
-                self.blocks.restore(i)
-                settled[i] = self._hold_block(i, attempt, f_start[i, 0])
+        # a stuck block: the force at each cell's start, held
+        start, rate = np.where(slipping[:, None], start, f_start), np.where(slipping[:, None], rate, 0.0)
+        used = np.concatenate([start, start + rate * attempt.widths], axis=1)
+        swept = ~settled & (slipping | (attempt.sweeps > 0))
+        unchanged = self._unchanged(attempt, used, floor)
+        self.stats["sweeps of a block skipped"] += int(np.count_nonzero(unchanged & swept))
+        # a block stuck at t in the first sweep: its motion does not depend on the force (stepped again only after
+        # an event)
+        self._hold_blocks(np.flatnonzero(~settled & ~swept), attempt, f_start[:, 0], settled)
+        starts, rates = start.tolist(), rate.tolist()
+        for i in np.flatnonzero(swept & ~unchanged).tolist():
+            self.blocks.restore(i)
+            self._sweep_block(i, attempt, starts[i], rates[i])
+            attempt.forces[i] = used[i]
         return residual
 
     def _predicted_acceleration(self):
@@ -416,79 +469,84 @@ class _Run:
         sweep and it is not stepped again)."""
         return np.where(self.end[3] == 0, 0.0, self.a)
 
-    def _hold_block(self, i, attempt, force):
-        """Step block ``i``, stuck at ``t``, over the whole of ``attempt`` in one ``doStep`` with ``F_ext = force``
-        (N); True if it stayed stuck: its cell ends are then on the line from its start to its end (it moves with
-        the surface)."""
-        self._step(i, self.t, attempt.T, force, 0.0, attempt, may_cut=False)
-        x, v, friction, spring = self.blocks.stepped
-        u = (attempt.times[1:] - self.t) / (attempt.T - self.t)
-        attempt.X[i, 1:], attempt.V[i, 1:] = self.x[i] + u * (x - self.x[i]), v
-        attempt.friction[i, 1:], attempt.spring[i], attempt.held[i] = friction, spring, force
-        attempt.held_rate[i] = 0.0
-        return self.blocks.n_events(i) == self.end[4][i]
+    def _hold_blocks(self, blocks, attempt, forces, settled):
+        """Step each of ``blocks`` (an index array of blocks stuck at ``t``) over the whole of ``attempt`` in one
+        ``doStep`` with ``F_ext`` its entry of ``forces`` (N, per block); ``settled`` (updated) True for those that
+        stayed stuck without an event: their cell ends are then on the line from their start to their end (they move
+        with the surface)."""
+        if blocks.size == 0:
+            return
+        ends = []
+        for i in blocks.tolist():
+            self.blocks.restore(i)
+            self._step(i, self.t, attempt.T, forces[i], 0.0, attempt, may_cut=False)
+            ends.append((*self.blocks.stepped, self.blocks.n_events(i)))
+        x, v, friction, spring, n_events = (np.array(column) for column in zip(*ends))
+        x0 = self.x[blocks]
+        attempt.X[blocks, 1:] = x0[:, None] + attempt.hold_share * (x - x0)[:, None]
+        attempt.V[blocks, 1:], attempt.friction[blocks, 1:] = v[:, None], friction[:, None]
+        attempt.spring[blocks], attempt.held[blocks], attempt.held_rate[blocks] = spring, forces[blocks], 0.0
+        settled[blocks] = n_events == self.end[4][blocks]
 
     def _sweep_block(self, i, attempt, start, rate):
         """Step block ``i`` over every cell ``k`` of ``attempt`` in one ``doStep`` with ``F_ext`` from ``start[k]``
         (N) at the cell's start, growing at ``rate[k]`` (N/s); read the cell ends."""
-        times, may_cut = attempt.times, attempt.sweeps > 0 and attempt.cuttable
-        for k in range(times.size - 1):
-            t0, t1 = float(times[k]), float(times[k + 1])
-            if self._step(i, t0, t1, start[k], rate[k], attempt, may_cut):
+        times, may_cut = attempt.cell_times, attempt.sweeps > 0 and attempt.cuttable
+        cells = len(times) - 1
+        for k in range(cells):
+            t0, t1 = times[k], times[k + 1]
+            if self._step(i, t0, t1, start[k], rate[k], attempt, may_cut, last=k == cells - 1):
                 return
             x, v, friction, spring = self.blocks.stepped
             attempt.X[i, k + 1], attempt.V[i, k + 1], attempt.friction[i, k + 1] = x, v, friction
             attempt.spring[i], attempt.held[i] = spring, start[k] + rate[k] * (t1 - t0)
             attempt.held_rate[i] = rate[k]
 
-    def _step(self, i, t0, t1, force, rate, attempt, may_cut):
+    def _step(self, i, t0, t1, force, rate, attempt, may_cut, last=True):
         """Block ``i`` from ``t0`` to ``t1`` (s) with ``F_ext = force + rate (s - t0)`` (N); True if it returned early
         at an event more than ``EVENT_TOL`` before the attempt's end and ``may_cut``: the event is then
         ``attempt.cut`` (the earliest of such) and the block stays there. Any other early return is stepped on from
-        (the event applied, the force going on along its line)."""
-        t_e = self.blocks.step(i, t0, t1 - t0, force, rate)
+        (the event applied, the force going on along its line). ``last``: the block's last step in the attempt
+        (:meth:`_Blocks.step`)."""
+        t_e = self.blocks.step(i, t0, t1 - t0, force, rate, last)
         while t_e is not None:
             if may_cut and attempt.T - t_e > EVENT_TOL:
                 attempt.cut = min(attempt.cut or (math.inf, -1), (t_e, int(i)))
                 return True
-            t_e = self.blocks.step(i, t_e, t1 - t_e)
+            t_e = self.blocks.step(i, t_e, t1 - t_e, last=last)
         return False
 
-    def _unchanged(self, i, attempt, forces, floor):
-        """True if block ``i`` need not be stepped again: when the ``forces`` (N) it would
-        be stepped with differ from those it was last stepped with in ``attempt`` by so little that its cell ends
-        could move by at most a tenth of the convergence ``floor`` (m): ``|dF| (T - t)^2 / M``."""
-        last = attempt.forces.get(i)
-        if last is None:
-            return False
-        change = float(np.max(np.abs(forces - last)))
-        unchanged = change * (attempt.T - self.t) ** 2 / self.M[i] <= 0.1 * floor
-        self.stats["sweeps of a block skipped"] += int(unchanged)
-        return unchanged
+    def _unchanged(self, attempt, forces, floor):
+        """Per block, True if it need not be stepped again: when the ``forces`` (N, one row per block) it would be
+        stepped with differ from those it was last stepped with in ``attempt`` by so little that its cell ends
+        could move by at most a tenth of the convergence ``floor`` (m): ``|dF| (T - t)^2 / M``; False for a block
+        not stepped in ``attempt`` yet."""
+        change = np.max(np.abs(forces - attempt.forces), axis=1)
+        return change * (attempt.T - self.t) ** 2 / self.M <= 0.1 * floor
 
     def _forces(self, attempt):
         """Per block and cell (arrays ``(N, cells)``): the line ``F_ext = start + rate (s - t_cell)`` (N, N/s) that
         carries the interpolated coupling force's impulse and first moment about the cell's end, the force at the
         cell's start (N, a stuck block's) and the residual ``int (F - line) (T_cell - s)^2 ds`` (N s^3)."""
-        X, V, delta = attempt.X, attempt.V, attempt.times[1] - attempt.times[0]
-        u = _GAUSS_U[None, None, :]
-        x_nodes = hermite(u, X[:, :-1, None], V[:, :-1, None], X[:, 1:, None], V[:, 1:, None], delta)
+        X, V, delta = attempt.X, attempt.V, float(attempt.widths[0])
+        x_nodes = hermite(_GAUSS_HERMITE, X[:, :-1, None], V[:, :-1, None], X[:, 1:, None], V[:, 1:, None], delta)
         F = np.einsum("ij,jkq->ikq", self.K, x_nodes)  # (N, cells, 3)
+        delta3 = delta ** 3
         impulse = delta * F @ _GAUSS_W
-        moment = delta ** 2 * F @ (_GAUSS_W * (1.0 - _GAUSS_U))
-        rate = (6.0 * impulse * delta - 12.0 * moment) / delta ** 3
+        moment = delta ** 2 * F @ _GAUSS_W1
+        rate = (6.0 * impulse * delta - 12.0 * moment) / delta3
         start = impulse / delta - 0.5 * rate * delta
-        second = delta ** 3 * F @ (_GAUSS_W * (1.0 - _GAUSS_U) ** 2)
-        residual = second - (start * delta ** 3 / 3.0 + rate * delta ** 4 / 12.0)
+        second = delta3 * F @ _GAUSS_W2
+        residual = second - (start * delta3 / 3.0 + rate * delta ** 4 / 12.0)
         return start, rate, self.K @ X[:, :-1], residual
 
     def _estimate(self, attempt, residual, slipping):
         """The step's error estimate (m): per slipping block, the velocity error of its cells' force residuals
         (``lambda^2 / 2M`` times the residual, ``lambda^2 = omega^2 + (dF_friction/dv / M)^2``) over ``lambda``,
         summed over the cells; the largest of any block."""
-        dv = np.diff(attempt.V, axis=1)
+        dv = np.abs(np.diff(attempt.V, axis=1))
         dF = np.diff(attempt.friction, axis=1)
-        gamma = np.where(np.abs(dv) > 1e-12, np.abs(dF) / np.maximum(np.abs(dv), 1e-12), 0.0)
+        gamma = np.where(dv > 1e-12, np.abs(dF) / np.maximum(dv, 1e-12), 0.0)
         lam2 = self.omega2[:, None] + (gamma / self.M[:, None]) ** 2
         per_cell = np.sqrt(lam2) / (2.0 * self.M[:, None]) * np.abs(residual)
         return float(np.max(np.where(slipping, per_cell.sum(axis=1), 0.0)))
