@@ -45,9 +45,9 @@ class BuildCompiledRuntime(build_ext):
         target = CORE if self.inplace else Path(self.build_lib) / "stickslip" / "core"
         built = [name for name in compile_runtime.COMPILED_MODULES if list(target.glob(f"{name}.*.so"))]
         if len(built) == len(compile_runtime.COMPILED_MODULES):
-            compile_runtime.write_stamp(CORE)
-            if not self.inplace:
-                compile_runtime.write_stamp(target)
+            compile_runtime.write_stamp(target)
+            if self.editable_mode and target != CORE:  # an editable install: setuptools copies them into CORE
+                compile_runtime.write_stamp(CORE)
             print(f"stickslip: the runtime's hot modules are compiled (mypyc) in {time.monotonic() - start:.0f} s",
                   file=sys.stderr)
         else:
