@@ -126,6 +126,9 @@ def test_runtime_is_bundled_under_a_private_name(fmu_path):
     assert f"'sbf_slave_{tag}.zip'" in loader and f"from sbf_slave_{tag}.fmu_slave import SpringBlockFriction" in loader
     assert f"from sbf_runtime_{runtime_tag} import" in interface and "stickslip.core" not in interface + slave
     assert f"from sbf_slave_{tag}.block_interface import" in slave and "from block_interface" not in slave
+    for name in [m for m in sys.modules if m.split(".")[0] in (f"sbf_slave_{tag}", f"sbf_runtime_{runtime_tag}")]:
+        del sys.modules[name]  # what an earlier test in this process imported, perhaps in part (an FMU's build drops
+        # the runtime it imported, not another FMU's slave): this run imports both again
     run_fmu(fmu_path, {}, 1.0, 1.0)
     runtime = sys.modules[f"sbf_runtime_{runtime_tag}"]  # the FMU's copy, though this host imported stickslip
     assert Path(runtime.__file__).parent != Path(sys.modules["stickslip.core"].__file__).parent
