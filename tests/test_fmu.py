@@ -2,6 +2,7 @@
 
 import io
 import math
+import subprocess
 import sys
 import zipfile
 from pathlib import Path
@@ -126,13 +127,17 @@ def test_runtime_is_bundled_under_a_private_name(fmu_path):
     assert f"'sbf_slave_{tag}.zip'" in loader and f"from sbf_slave_{tag}.fmu_slave import SpringBlockFriction" in loader
     assert f"from sbf_runtime_{runtime_tag} import" in interface and "stickslip.core" not in interface + slave
     assert f"from sbf_slave_{tag}.block_interface import" in slave and "from block_interface" not in slave
-    for name in [m for m in sys.modules if m.split(".")[0] in (f"sbf_slave_{tag}", f"sbf_runtime_{runtime_tag}")]:
-        del sys.modules[name]  # what an earlier test in this process imported, perhaps in part (an FMU's build drops
-        # the runtime it imported, not another FMU's slave): this run imports both again
-    run_fmu(fmu_path, {}, 1.0, 1.0)
-    runtime = sys.modules[f"sbf_runtime_{runtime_tag}"]  # the FMU's copy, though this host imported stickslip
-    assert Path(runtime.__file__).parent != Path(sys.modules["stickslip.core"].__file__).parent
-    assert f"sbf_slave_{tag}.zip" in sys.modules[f"sbf_slave_{tag}.fmu_slave"].__file__  # from its archive
+    # in a fresh host process, which has imported stickslip: what an earlier test imported into this one (an FMU's
+    # build drops the runtime it imported, not another FMU's slave) plays no part
+    probe = (f"import sys, stickslip.core; from stickslip.hosts.fmpy_host import run_fmu; "
+             f"run_fmu({str(fmu_path)!r}, {{}}, 1.0, 1.0); "
+             f"[print(sys.modules[name].__file__) for name in "
+             f"('sbf_runtime_{runtime_tag}', 'stickslip.core', 'sbf_slave_{tag}.fmu_slave')]")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    runtime, checkout, slave_module = done.stdout.split("\n")[-4:-1]
+    assert Path(runtime).parent != Path(checkout).parent  # the FMU's copy, though this host imported stickslip
+    assert f"sbf_slave_{tag}.zip" in slave_module  # from its archive
 
 
 def test_default_fmu_path_is_stickslip_dist_else_the_checkout_s_dist_else_the_user_cache(monkeypatch, tmp_path,
