@@ -299,25 +299,10 @@ class ExchangeBlock:
         block.restore(state)
         return block
 
-    @classmethod
-    def state_snapshot(cls, state):
-        """The discrete and continuous state of a :meth:`state` as JSON-serializable values (:meth:`from_snapshot`)."""
-        return {name: state[name] for name in cls._SAVED}
-
     @staticmethod
     def state_fields(state):
         """The values of :data:`STATE_FIELDS` of a :meth:`state`, in their order."""
         return _pick_saved(state) + state["_inputs"]
-
-    @classmethod
-    def from_snapshot(cls, params, snap):
-        """Rebuild a block saved by :meth:`state_snapshot` (with the same parameters). StateError or ParameterError
-        names a field that is missing, ill-typed, non-finite, beyond the force scales, or inconsistent (see
-        :meth:`checked_state`)."""
-        fields = saved_state.record("", snap, _SAVED_KINDS)
-        values = [fields[name] for name in cls._SAVED[:-1]]
-        values += saved_state.sequence("_inputs", snap["_inputs"], _INPUT_FIELDS)
-        return cls.resumed(cls.checked_state(params, values))
 
     @classmethod
     def checked_state(cls, params, values):
@@ -337,12 +322,12 @@ class ExchangeBlock:
         return state
 
 
-# The kinds of the fields of ExchangeBlock.state_snapshot (:mod:`.saved_state`)
+# The kinds of the fields of an ExchangeBlock.state that a saved state holds (:mod:`.saved_state`)
 _SAVED_KINDS = {"t": saved_state.REAL, "v_drive": saved_state.REAL, "F_ext": saved_state.REAL,
                 "mode": saved_state.MODE, "_x": saved_state.REAL, "_v": saved_state.REAL,
                 "t_stuck": saved_state.OPTIONAL_REAL, "n_stick_events": saved_state.COUNT,
                 "n_slip_events": saved_state.COUNT, "n_overshoots": saved_state.COUNT,
-                "t_last_event": saved_state.REAL, "_inputs": saved_state.NESTED}
+                "t_last_event": saved_state.REAL}
 _INPUT_FIELDS = (("v_drive", saved_state.REAL), ("F_ext", saved_state.REAL))  # the inputs at the last update
 _pick_saved = operator.itemgetter(*ExchangeBlock._SAVED[:-1])  # from a state, the saved fields but the inputs
 #: The fields of an :meth:`ExchangeBlock.state` that a saved state holds, in one row (its inputs at the last update
