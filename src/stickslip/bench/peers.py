@@ -89,8 +89,10 @@ def _stuck_phase(p, t0, x0, v_drive, F_ext, t_end, t_eval, method, rtol, atol):
 
 
 def _slip_phase(p, mode, t0, x0, v0, v_drive, F_ext, t_end, t_eval, method, rtol, atol):
+    kappa, M, F_K = p.kappa, p.M, p.kinetic.force
+
     def rhs(t, y):
-        return [y[1], (F_ext - p.kappa * y[0] + mode * p.kinetic.force(mode * (v_drive - y[1]))) / p.M]
+        return y[1], (F_ext - kappa * y[0] + mode * F_K(mode * (v_drive - y[1]))) / M
 
     def v_rel_zero(t, y):
         return mode * (v_drive - y[1])
@@ -126,7 +128,7 @@ def tuned_solve_ivp(p, x0, v0, v_drive, F_ext, t_eval, rtol, atol):
             t, x, v, stuck, mode = t_slip, edge, v_drive, False, 1 if v_drive > 0.0 else -1
             events.append(Event("slip", t, t))
             continue
-        sol = _tuned_slip(p, mode, t, x, v, v_drive, F_ext, t_eval[filled:], rtol, atol)
+        sol = _slip_phase(p, mode, t, x, v, v_drive, F_ext, t_end, t_eval[filled:], "DOP853", rtol, atol)
         if len(sol.t):  # the output times up to the event (solve_ivp includes one at the event)
             xs[filled:filled + len(sol.t)], vs[filled:filled + len(sol.t)] = sol.y
         filled += len(sol.t)
@@ -137,22 +139,6 @@ def tuned_solve_ivp(p, x0, v0, v_drive, F_ext, t_eval, rtol, atol):
         mode = mode if stuck else -mode
         events.append(Event("stick" if stuck else "overshoot", t, t))
     return Run(t_eval, xs, vs, events)
-
-
-def _tuned_slip(p, mode, t0, x0, v0, v_drive, F_ext, t_eval, rtol, atol):
-    """One slip of :func:`tuned_solve_ivp` from ``t0`` until ``v_rel = 0`` or the end of ``t_eval`` (its times
-    all after ``t0``)."""
-    kappa, M, F_K = p.kappa, p.M, p.kinetic.force
-
-    def rhs(t, y):
-        return y[1], (F_ext - kappa * y[0] + mode * F_K(mode * (v_drive - y[1]))) / M
-
-    def v_rel_zero(t, y):
-        return mode * (v_drive - y[1])
-
-    v_rel_zero.terminal, v_rel_zero.direction = True, -1
-    return solve_ivp(rhs, (t0, float(t_eval[-1])), (x0, v0), method="DOP853", t_eval=t_eval, events=v_rel_zero,
-                     rtol=rtol, atol=atol)
 
 
 def regularized_friction(p, v_rel, v_eps):
