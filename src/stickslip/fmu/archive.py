@@ -1,14 +1,13 @@
 """The FMUs' zip archives, written reproducibly: the same entries give the same bytes.
 
 Entries are written in the order of their names, each with one date and time (:func:`source_date`, else
-1980-01-01 00:00, the earliest a zip entry can hold), the Unix permissions ``rw-r--r--`` and deflate at
-zlib's default level, except the Linux shared libraries and zip archives (:data:`STORED_SUFFIXES`), which are
-stored: every host extracts them before its first step, and inflating them cost more than writing them (2.4 ms
-of a 0.94 MB library; the FMU file is larger instead), and the carried CPythons, compressed already
-(:mod:`stickslip.fmu.bundle.packing`). The aarch64 Linux binaries (:data:`DEFLATED_FOLDERS`, the loader and its start
-guard: 0.22 MB stored, 0.04 MB deflated) are deflated: most hosts extract them without loading them. The Windows
-binaries (``.dll``, ``.pyd``: the loader, the FMI library's DLL and the runtime compiled for Windows, 0.4-1.4 MB)
-are deflated: most hosts extract them without loading them.
+1980-01-01 00:00, the earliest a zip entry can hold), the Unix permissions ``rw-r--r--`` and deflate at zlib's
+highest level (:data:`DEFLATE_LEVEL`), except what is compressed already (:data:`STORED_SUFFIXES`): the packed
+CPythons (:mod:`stickslip.fmu.bundle.packing`), which are stored. The zip archives of Python code store their files
+(:mod:`stickslip.fmu.trim`) and are deflated whole here. The Linux
+shared libraries are deflated too (the compiled runtime 1.20 MB to 0.44 MB, the FMI library's binary 0.37 to 0.11
+MB): hosts inflate them when they extract the FMU, the 1.84 MB of the x86_64 Linux ones in 5 ms, and the FMU
+without its carried CPythons pays that too (benchmarks/README.md, "What the carried CPython costs").
 :func:`identity` names one build of an FMU in its model description.
 """
 
@@ -24,10 +23,10 @@ SOURCE_DATE_VARIABLE = "SOURCE_DATE_EPOCH"
 ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 #: the entries' Unix file type and permissions: a regular file, rw-r--r--
 FILE_MODE = 0o100644
-#: the entries stored without compression: shared libraries, most of an FMU's bytes, and zip archives
-STORED_SUFFIXES = (".so", ".dylib", ".zip", ".lzma")
-#: the folders whose entries are deflated whatever their suffix: the Linux binaries of machines other than x86_64
-DEFLATED_FOLDERS = ("binaries/aarch64-linux/",)
+#: the entries stored without compression: compressed already (the LZMA-packed CPythons)
+STORED_SUFFIXES = (".lzma",)
+#: zlib's level of the deflated entries: 9, the smallest (0.3 % smaller than the default 6; inflating is as fast)
+DEFLATE_LEVEL = 9
 #: the name of a Linux shared library, with or without a version after ``.so``
 SHARED_LIBRARY = re.compile(r".*\.so(\.\d+)*")
 #: the namespace of the FMUs' GUIDs (uuid5 of the model name, the FMI version and the source tag)
@@ -65,10 +64,6 @@ def write_entries(path, entries, deflate=True):
             info = zipfile.ZipInfo(name, stamp)
             info.create_system = 3  # Unix, so that hosts read external_attr as Unix permissions
             info.external_attr = FILE_MODE << 16
-            info.compress_type = zipfile.ZIP_DEFLATED if deflate and _deflated(name) else zipfile.ZIP_STORED
-            archive.writestr(info, entries[name])
-
-
-def _deflated(name):
-    """Whether the entry ``name`` is deflated (see the module)."""
-    return name.startswith(DEFLATED_FOLDERS) or not name.endswith(STORED_SUFFIXES)
+            deflated = deflate and not name.endswith(STORED_SUFFIXES)
+            info.compress_type = zipfile.ZIP_DEFLATED if deflated else zipfile.ZIP_STORED
+            archive.writestr(info, entries[name], compresslevel=DEFLATE_LEVEL if deflated else None)
