@@ -134,15 +134,18 @@ def _page(root, summary, distributions, selectors):
 
 def with_carried_licenses(entries, licenses, what):
     """Add to an FMU's ``entries`` the licence texts ``licenses`` ({name: bytes}) of what its binaries folder carries
-    besides the loader (``what``: where it is, for the page), in ``licenses/`` and as items of index.html's list."""
+    besides the loader (``what``: where it is, for the page), in ``licenses/`` and as items of index.html's list; a
+    text that ``licenses/`` holds already (another platform's build of the same package) is linked there, not copied."""
     if not licenses or INDEX not in entries:
         return
-    items = "".join(f"<li><a href=\"licenses/{name}.txt\">{_e(name)}</a>: "
+    held = {text: path.rsplit("/", 1)[1] for path, text in entries.items() if path.startswith(f"{LICENSES}/")}
+    files = {name: held.get(text, f"{name}.txt") for name, text in licenses.items()}
+    items = "".join(f"<li><a href=\"licenses/{files[name]}\">{_e(name)}</a>: "
                     f"{_e('PSF License 2' if name == 'cpython' else 'its Debian package copyright file')}; in this "
                     f"FMU: {_e(what)}</li>\n" for name in sorted(licenses))
     page = entries[INDEX].decode()
     entries[INDEX] = page.replace("</ul>\n</body>", items + "</ul>\n</body>", 1).encode()
-    entries.update({f"{LICENSES}/{name}.txt": text for name, text in licenses.items()})
+    entries.update({f"{LICENSES}/{file}": licenses[name] for name, file in files.items() if file == f"{name}.txt"})
 
 
 def _variables(root, selectors):

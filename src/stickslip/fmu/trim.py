@@ -12,9 +12,7 @@ module at the first instantiation).
   (``resources/<package>.zip``, :data:`~stickslip.fmu.staging.PACKAGE_ARCHIVE`), each module with its
   byte-compiled file for the building Python beside it (zipimport's layout; another Python compiles the source in
   memory), which the loader module puts on ``sys.path``: a host extracts one file for each, and creates and
-  removes no folder for them (each folder a host removes cost 1-4 ms on this machine's disk). The archives store
-  their files and the FMU deflates each archive whole (:mod:`stickslip.fmu.archive`): zipimport reads them
-  without inflating, and the FMI 3 FMU is 0.03 MB smaller than with each file deflated apart.
+  removes no folder for them (each folder a host removes cost 1-4 ms on this machine's disk).
 - The runtime's modules but its ``__init__.py`` go into one zip archive in the runtime's folder
   (:data:`~stickslip.core._implementation.PACKED`, zipimport's layout, the package's ``__init__.py`` puts it on the
   package's path after the folder), where the compiled modules (mypyc) and ``compiled_sources.crc32`` stay, and
@@ -107,5 +105,5 @@ def _archive(package, sources, root, with_byte_code=lambda module: True):
             if with_byte_code(module):
                 modules[f"{root}{module}.pyc"] = path.read_bytes()
     packed = io.BytesIO()
-    write_entries(packed, modules, deflate=False)  # the FMU deflates the archive whole
+    write_entries(packed, modules)
     return packed.getvalue()

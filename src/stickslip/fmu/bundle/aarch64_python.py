@@ -46,8 +46,10 @@ GLIBC = ("libc.so.6", "libm.so.6", "libdl.so.2", "libpthread.so.0", "librt.so.1"
          "ld-linux-aarch64.so.1")
 #: the file name suffix of Debian's arm64 extension modules
 SUFFIX = ".cpython-311-aarch64-linux-gnu.so"
-#: the Debian packages whose copyright files name the licences of what the bundle holds
-LICENSED_PACKAGES = ("libpython3.11-minimal", "zlib1g", "libexpat1", "libffi8", "libuuid1")
+#: the Debian packages whose copyright files name the licences of what the bundle holds, each with its library that
+#: the bundle must hold for the licence to go in (None: the CPython's, always)
+LICENSED_PACKAGES = {"libpython3.11-minimal": None, "zlib1g": "libz.so.1", "libexpat1": "libexpat.so.1",
+                     "libffi8": "libffi.so.8", "libuuid1": "libuuid.so.1"}
 
 
 class BundleError(RuntimeError):
@@ -86,7 +88,7 @@ def _bundle(root, names, extensions):
     entries[folder + zip_name] = _module_zip(root / STDLIB, names)
     entries[f"{folder}python{VERSION[0]}.{VERSION[1]}._pth"] = f"{zip_name}\nlib-dynload\n".encode()
     licenses = {f"{package}-arm64": (root / "usr/share/doc" / package / "copyright").read_bytes()
-                for package in LICENSED_PACKAGES}
+                for package, library in LICENSED_PACKAGES.items() if library is None or library in needs}
     return Bundle(entries, folder + libpython.name, tuple(f"{folder}lib/{name}" for name in needs), (), licenses)
 
 
