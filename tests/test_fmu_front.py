@@ -3,7 +3,7 @@ codes, so a tool offers the laws by name (FMI 2's stay Integers: libcosim cannot
 integer start values select them as before (FMPy, the C hosts); ``documentation/index.html`` lists the variable table with units and ranges, the laws and the licences
 of what the FMU carries (``documentation/licenses/``); no ``sources/`` (the library's C++ sources are not those
 of the FMU's binary); ``generationDateAndTime`` and the files' dates follow ``$SOURCE_DATE_EPOCH``, the same
-bytes for the same sources and date."""
+bytes for the same sources and date; every FMU is at most 8 MB, with the CPythons it carries."""
 
 import html
 import importlib.metadata
@@ -36,6 +36,8 @@ LAWS = {"kinetic.law": ("KineticLaw", KINETIC_LAWS), "static.law": ("StaticLaw",
 VISCOUS_AGING = {"kinetic.law": 2, "kinetic.F0": 0.5, "kinetic.gamma": 0.4, "static.law": 2, "static.F0": 1.0,
                  "static.A": 0.2, "static.tau": 1.0, "v_drive": 0.1}
 STOP, STEP = 30.0, 0.5
+#: the largest an FMU may be (bytes)
+MAX_FMU_SIZE = 8_000_000
 
 
 def _root(path):
@@ -198,6 +200,16 @@ def test_the_documentation_carries_the_licences_and_the_fmu_no_sources(request, 
     assert not [name for name in names if name.startswith("sources/")]
     root = _root(path)
     assert root.find("CoSimulation").find("SourceFiles") is None and "buildDescription" not in " ".join(names)
+
+
+def test_every_fmu_is_at_most_8_mb_and_stores_only_what_is_compressed_already(fmu_path, fmu3_path, coupling_path):
+    for path in (fmu_path, fmu3_path, coupling_path):
+        with zipfile.ZipFile(path) as archive:
+            stored = [item.filename for item in archive.infolist() if item.compress_type == zipfile.ZIP_STORED]
+            names = archive.namelist()
+        assert path.stat().st_size <= MAX_FMU_SIZE, (path.name, path.stat().st_size)
+        assert all(name.endswith((".zip", ".lzma")) for name in stored), (path.name, stored)
+        assert all(carried_pythons(names)), f"{path.name} carries no CPython: its size says little"
 
 
 def test_without_stickslips_licence_in_its_metadata_no_fmu_is_built(tmp_path, monkeypatch):

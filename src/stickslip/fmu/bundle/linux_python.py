@@ -66,12 +66,12 @@ PROBE = ("import importlib, json, sys, types\n"
 #: the East Asian ones (which need extension modules of their own) and the byte-to-byte ones no locale names
 CODECS = ("__init__", "aliases", "ascii", "latin_1", "utf_*", "cp125?", "iso8859_*", "koi8_*", "charmap")
 #: the extension modules left out although imported: the standard library imports each in a ``try`` and runs as
-#: Python without it, the same (``datetime``, ``json``, ``uuid``, ``typing``, ``opcode``; ``xml.etree.ElementTree``,
-#: whose ``_elementtree`` alone imports ``pyexpat``), and the FMUs use what they speed up only where they are built
-#: (the model description, its GUID) or save a state in JSON (not the loader's bytes); libuuid, which only ``_uuid``
-#: needs, goes with it. The Windows CPython carries none of them either (but those built into its DLL). The x86_64 pack
-#: is 0.15 MB smaller, the aarch64 one 0.03 MB.
-OPTIONAL_EXTENSIONS = ("_datetime", "_json", "_elementtree", "pyexpat", "_uuid", "_typing", "_opcode")
+#: Python without it, the same (``datetime``, ``json``, ``typing``, ``opcode``; ``xml.etree.ElementTree``, whose
+#: ``_elementtree`` alone imports ``pyexpat``), and the FMUs use what they speed up only where they are built (the
+#: model description) or save a state in JSON (not the loader's bytes). Not ``_uuid``: without it, the ``uuid1()`` of
+#: the FMI libraries' slaves at every instantiation imports ``random``. The Windows CPython carries none of them
+#: either (but those built into its DLL). The x86_64 pack is 0.13 MB smaller.
+OPTIONAL_EXTENSIONS = ("_datetime", "_json", "_elementtree", "pyexpat", "_typing", "_opcode")
 
 
 @dataclass(frozen=True)
