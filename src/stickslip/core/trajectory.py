@@ -67,7 +67,7 @@ from .ranges import ANY_FINITE, NON_NEGATIVE, Range, check
 from .segments import HarmonicSegment, Segment, StepSegment, StuckSegment, segment_from_list
 from .stuck import breakaway_delay
 
-RTOL_RANGE = Range(1e-14, 1e-2)
+RTOL_RANGE: Final = Range(1e-14, 1e-2)
 _MAX_EVENT_CHAIN = 100  # mode changes in a row without time advancing
 _MAX_BURST: Final = 1000  # mode changes within _BURST_WINDOW time scales sqrt(M/kappa) (stick-slip has a few per period)
 _BURST_WINDOW: Final = 1.0  # in units of sqrt(M/kappa)
