@@ -130,6 +130,11 @@ def check_state_scales(x, v, p: Parameters, state_names=("x", "v")):
                        f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, {v_name} = {v!r} m/s")
 
 
+def state_within_scales(x: float, v: float, p: Parameters) -> bool:
+    """Whether :func:`check_state_scales` passes (false for an infinity or NaN), in native arithmetic."""
+    return p.kappa * abs(x) <= MAX_FORCE_SCALE and _impedance(p) * abs(v) <= MAX_FORCE_SCALE
+
+
 def check_input_scales(v_drive, F_ext, p: Parameters):
     """Raise ParameterError if ``|F_ext|`` or ``sqrt(kappa M) |v_drive|`` exceeds :data:`MAX_FORCE_SCALE`."""
     _check_force_input_scale(F_ext, p)
@@ -159,6 +164,13 @@ def check_rate_scale(F_ext_rate, p: Parameters):
         return
     _check_force_scale("sqrt(M/kappa) * |der(F_ext)|", force,
                        f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, der(F_ext) = {F_ext_rate!r} N/s")
+
+
+def inputs_within_scales(v_drive: float, F_ext: float, F_ext_rate: float, p: Parameters) -> bool:
+    """Whether :func:`check_input_scales` and :func:`check_rate_scale` pass (false for a NaN), in native arithmetic:
+    the usual case of checks that run often (saved states)."""
+    return (abs(F_ext) <= MAX_FORCE_SCALE and _impedance(p) * abs(v_drive) <= MAX_FORCE_SCALE
+            and math.sqrt(p.M) / math.sqrt(p.kappa) * abs(F_ext_rate) <= MAX_FORCE_SCALE)
 
 
 # unit and force-scale check of each input by its FMU name (check_input)
