@@ -149,7 +149,11 @@ static int read_entry(sbf_state_plan *plan, int i, PyObject *item, int *in_build
             py.Py_IncRef(e->object);
             *in_build = e->count;
         }
-        if (e->flag < 0 || e->flag >= i || e->count < 0 || i + e->count >= plan->n) return 0;
+        if (e->flag < 0 || e->flag >= i || e->count < 0 || i + e->count >= plan->n ||
+            plan->entries[e->flag].code != 'n')
+            return 0;
+        for (int k = 0; k < e->flag; ++k) /* the flag's place is the sum of the sizes before it */
+            if (plan->entries[k].size < 0) return 0;
     }
     return e->size >= -1 && !py.PyErr_Occurred() && (inside || e->parent >= 0);
 }
