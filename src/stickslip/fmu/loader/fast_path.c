@@ -79,7 +79,7 @@ static void drop_serialized(sbf_fast_path *fast)
     fast->serialized_size = fast->serialized_room = 0;
 }
 
-/* Forget the slave's state calls (under the GIL) */
+/* Forget the slave's state calls and the plan of its states' bytes (under the GIL) */
 static void drop_state_calls(sbf_fast_path *fast)
 {
     void **calls[] = {&fast->save, &fast->restore, &fast->to_bytes, &fast->from_bytes};
@@ -87,6 +87,8 @@ static void drop_state_calls(sbf_fast_path *fast)
         if (*calls[i]) py.Py_DecRef(*calls[i]);
         *calls[i] = NULL;
     }
+    sbf_plan_free(fast->plan);
+    fast->plan = NULL;
 }
 
 /* Forget the state got last while the step call was kept (under the GIL) */
@@ -104,8 +106,6 @@ static void drop_step_call(sbf_fast_path *fast)
         if (*calls[i]) py.Py_DecRef(*calls[i]);
         *calls[i] = NULL;
     }
-    sbf_plan_free(fast->plan);
-    fast->plan = NULL;
     drop_clean_state(fast);
 }
 
