@@ -7,9 +7,13 @@ Run as ``python state_bytes_runner.py FMU_PATH...``. For each FMU, one instance 
 with an input set that the next step has yet to take (and, FMI 2, a force rate); printed: each state's bytes, the
 bytes of each deserialized and serialized again, every output read over 10 steps after setting a deserialized
 state, and, after a good state was deserialized, the status and messages of deserializing it with one field
-forged (``fmu_probe.forged_state``: out of its kind, or out of range together with the others).
+forged (``fmu_probe.forged_state``: out of its kind, or out of range together with the others). Apart
+(``python_calls``): how many calls of the slave's serializers (counted by wrapping them on its class before the
+instance is made) serializing a state took whose parts the state got just before holds, and deserializing bytes
+deserialized just before, after an input was set between steps: none where the loader packs and unpacks them.
 """
 
+import functools
 import json
 import sys
 
@@ -24,8 +28,28 @@ FORGED = [("trajectory.t", "nan"), ("trajectory.t", 1e9), ("head.time", "inf"), 
 SPECIAL = {"nan": float("nan"), "inf": float("inf"), "-inf": float("-inf")}
 
 
+def counted_serializers(extracted):
+    """The calls of the slave's serializers so far, ``{name: count}``, counted from now on: each wrapped on the
+    slave's class, which a first instance imports (the instances made after it bind the wrappers)."""
+    extracted.new_instance().free()
+    classes = {value for module in list(sys.modules.values()) for value in vars(module).values()
+               if isinstance(value, type) and hasattr(value, "state_plan")}
+    counts = {}
+    for cls in classes:
+        for name in ("_fmu_state_to_bytes", "state_from_bytes", "_fmu_state_from_bytes"):
+            counts[name] = 0
+            setattr(cls, name, staticmethod(functools.partial(_counted, counts, name, getattr(cls, name))))
+    return counts
+
+
+def _counted(counts, name, call, *args):
+    counts[name] += 1
+    return call(*args)
+
+
 def session(path):
     with ExtractedFMU(path) as extracted:
+        counts = counted_serializers(extracted)
         inst = extracted.new_instance()
         fmu, v2 = inst.fmu, extracted.fmi_version == 2
         refs = {name: v.valueReference for name, v in extracted.variables.items()}
@@ -60,6 +84,8 @@ def session(path):
             if k % 20 == 0 or k == 40:
                 record["bytes"].append(serialized())
                 record["times"].append(k * H)
+            if k == 60:
+                record["python_calls"] = python_calls(get, free, to_bytes, from_bytes, counts)
             fmu.doStep(k * H, H)
         record["again"] = []
         for data in record["bytes"]:
@@ -84,8 +110,25 @@ def session(path):
             except FmuCallError as error:
                 record["forged"].append([name, error.status, list(error.messages)])
         record["bytes"] = [data.hex() for data in record["bytes"]]
+        record["python_calls"]["total"] = sum(counts.values())
         inst.free()
         return record
+
+
+def python_calls(get, free, to_bytes, from_bytes, counts):
+    """The serializers' calls of serializing the second of two states got one after the other, and of
+    deserializing bytes a second time."""
+    first, second = get(), get()
+    to_bytes(first)
+    before = sum(counts.values())
+    data = bytes(to_bytes(second))
+    serializing = sum(counts.values()) - before
+    free(from_bytes(data))
+    before = sum(counts.values())
+    free(from_bytes(data))
+    for state in (first, second):
+        free(state)
+    return {"serializing": serializing, "deserializing": sum(counts.values()) - before}
 
 
 if __name__ == "__main__":

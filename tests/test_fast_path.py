@@ -80,7 +80,8 @@ def test_the_loader_packs_and_unpacks_fmu_states_as_the_slave_does(fmu_path, fmu
     the same bytes of each state (during initialization, stuck, slipping, an input and a force rate pending), the
     same bytes again after deserializing them, every output bit for bit after setting a deserialized state, and a
     state with one field forged (out of its kind, or out of range with the others) refused with the same reason
-    after a good state was deserialized (whose parts the loader then holds)."""
+    after a good state was deserialized (whose parts the loader then holds); and the loader, not the slave's
+    serializers, packs and unpacks states whose parts it saw last, after an input was set between steps too."""
     machine_needs.c_compiler("the FMU's loader, whose states' bytes this tests")
 
     def run(env=None):
@@ -91,7 +92,12 @@ def test_the_loader_packs_and_unpacks_fmu_states_as_the_slave_does(fmu_path, fmu
         return json.loads(done.stdout)
 
     fast, slow = run(), run(OFF)
+    calls = {path: (fast[path].pop("python_calls"), slow[path].pop("python_calls")) for path in fast}
     assert fast == slow
+    for on, off in calls.values():  # the loader's packing and unpacking took them, and keeps doing so
+        assert (on["serializing"], on["deserializing"]) == (0, 0)
+        assert off["serializing"] > 0 and off["deserializing"] > 0
+        assert 0 < on["total"] < off["total"]
     for record in fast.values():
         assert len(set(record["bytes"])) == len(record["bytes"]) == 7
         assert record["again"] == record["bytes"]

@@ -217,7 +217,8 @@ def _impedance(p: Parameters) -> float:
 
 
 def _check_force_scale(what, force, values):
-    """Raise ParameterError naming ``what`` and the variables ``values`` (a text) unless ``force <= MAX_FORCE_SCALE``."""
+    """Raise ParameterError naming ``what`` and the variables ``values`` (a text) unless
+    ``force <= MAX_FORCE_SCALE``."""
     if not force <= MAX_FORCE_SCALE:
         raise ParameterError(
             f"the force scale {what} = {force!r} N ({values}) is out of range: allowed is at most "

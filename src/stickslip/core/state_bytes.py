@@ -58,7 +58,8 @@ _PLAN_CODES = {saved_state.REAL: "d", saved_state.TIME_END: "e", saved_state.COU
                saved_state.MODE: "b", saved_state.OPTIONAL_REAL: "o", saved_state.OPTIONAL_STEP: "s"}
 #: where each value of :func:`.trajectory.state_fields` lies in a :meth:`.Trajectory.state`: an index, or the index
 #: of the stepper's record and one in it
-TRAJECTORY_PLACES: tuple = ((3,), (4,), (5,), (6,), (7,), (2,), *((i,) for i in range(10, 17)), *((20, i) for i in range(5)))
+TRAJECTORY_PLACES: tuple = ((3,), (4,), (5,), (6,), (7,), (2,), *((i,) for i in range(10, 17)),
+                           *((20, i) for i in range(5)))
 _SEGMENT_PLACE = 17  # the segment's index in a Trajectory.state
 
 

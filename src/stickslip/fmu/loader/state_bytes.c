@@ -43,8 +43,8 @@ static int resolved;                /* every function above was found */
 int sbf_state_bytes_resolve(void *lib)
 {
 #define RESOLVE(symbol) (*(void **)&py.symbol = sbf_symbol(lib, #symbol)) != NULL
-    return resolved = RESOLVE(PyTuple_New) && RESOLVE(PyTuple_SetItem) && RESOLVE(PyTuple_GetItem) && RESOLVE(PyTuple_Size) &&
-           RESOLVE(PyList_New) && RESOLVE(PyList_SetItem) && RESOLVE(PyFloat_FromDouble) &&
+    return resolved = RESOLVE(PyTuple_New) && RESOLVE(PyTuple_SetItem) && RESOLVE(PyTuple_GetItem) &&
+           RESOLVE(PyTuple_Size) && RESOLVE(PyList_New) && RESOLVE(PyList_SetItem) && RESOLVE(PyFloat_FromDouble) &&
            RESOLVE(PyFloat_AsDouble) && RESOLVE(PyLong_FromLongLong) && RESOLVE(PyLong_AsLongLong) &&
            RESOLVE(PyFrozenSet_New) && RESOLVE(PySequence_Contains) && RESOLVE(PyObject_GetAttrString) &&
            RESOLVE(PyObject_CallFunctionObjArgs) && RESOLVE(PyBytes_AsString) && RESOLVE(PyBytes_Size) &&
