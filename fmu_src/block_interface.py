@@ -571,9 +571,11 @@ def serialize_states(cls, fmi_version, extras=()):
     (:func:`loader_binding.serialized_states`): the states of :meth:`ExchangeInterface.fmu_state` with the flags named
     ``extras`` after them, in the runtime's :class:`BlockStateFormat` after the header of
     :func:`loader_binding.state_header`, whose identity names the class, the FMI version and every field (bytes of
-    another FMU or layout are refused)."""
+    another FMU or layout are refused), and the plan by which the C loader makes and reads most of those bytes itself
+    (``state_plan``, :meth:`BlockStateFormat.loader_plan`)."""
     layout = state_format(cls.__name__, fmi_version, extras)
     serialized_states(cls, layout.to_bytes, layout.from_bytes)
+    cls.state_plan = layout.loader_plan()  # the C loader packs and unpacks most states itself by it
 
 
 def state_format(class_name, fmi_version, extras=()):

@@ -73,3 +73,34 @@ def test_c_hosts_get_the_same_run_with_and_without_the_fast_path(fmi_version, ho
     assert fast.completed and slow.completed, (fast.stderr[-2000:], slow.stderr[-2000:])
     assert len(fast.series("x")[0]) == 601
     assert fast.series("x") == slow.series("x")
+
+
+def test_the_loader_packs_and_unpacks_fmu_states_as_the_slave_does(fmu_path, fmu3_path):
+    """The loader's own packing and unpacking of FMU states (state_bytes.c) against the slave's (the fast path off):
+    the same bytes of each state (during initialization, stuck, slipping, an input and a force rate pending), the
+    same bytes again after deserializing them, every output bit for bit after setting a deserialized state, and a
+    state with one field forged (out of its kind, or out of range with the others) refused with the same reason
+    after a good state was deserialized (whose parts the loader then holds); and the loader, not the slave's
+    serializers, packs and unpacks states whose parts it saw last, after an input was set between steps too."""
+    machine_needs.c_compiler("the FMU's loader, whose states' bytes this tests")
+
+    def run(env=None):
+        done = subprocess.run([sys.executable, str(RUNNER.with_name("state_bytes_runner.py")), str(fmu_path),
+                               str(fmu3_path)], capture_output=True, text=True, timeout=300,
+                              env={**os.environ, **(env or {})})
+        assert done.returncode == 0, done.stderr[-3000:]
+        return json.loads(done.stdout)
+
+    fast, slow = run(), run(OFF)
+    calls = {path: (fast[path].pop("python_calls"), slow[path].pop("python_calls")) for path in fast}
+    assert fast == slow
+    for on, off in calls.values():  # the loader's packing and unpacking took them, and keeps doing so
+        assert (on["serializing"], on["deserializing"]) == (0, 0)
+        assert off["serializing"] > 0 and off["deserializing"] > 0
+        assert 0 < on["total"] < off["total"]
+    for record in fast.values():
+        assert len(set(record["bytes"])) == len(record["bytes"]) == 7
+        assert record["again"] == record["bytes"]
+        assert [status for _, status, *_ in record["forged"]] == [3] * len(record["forged"])  # fmi2Error, fmi3Error
+        assert all(messages and ("saved state" in messages[-1] or "force scale |F_ext|" in messages[-1])
+                   for _, _, messages in record["forged"]), record["forged"]

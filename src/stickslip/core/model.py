@@ -66,7 +66,7 @@ def check_state(x, v, names=("x_start", "v_start")):
     check(names[1], v, ANY_FINITE, "m/s")
 
 
-MAX_FORCE_SCALE = 1e150  # N: forces, and the products that build them, stay far from float overflow
+MAX_FORCE_SCALE: Final = 1e150  # N: forces, and the products that build them, stay far from float overflow
 OMEGA_SQUARED_RANGE = (1e-100, 1e100)  # 1/s^2: kappa / M, so sqrt(kappa/M) and its inverse are finite
 
 
@@ -91,8 +91,8 @@ def check_scales(x, v, v_drive, F_ext, p, state_names=("x", "v")):
     for prefix, law in (("kinetic", p.kinetic), ("static", p.static)):
         for name, value in law.parameters().items():
             if law.PARAMETERS[name][2] == "N":
-                _check_force_scale(f"{prefix}.{name}", value, lambda: f"{prefix}.{name} = {value!r} N")
-    _check_force_scale("F_S(0)", p.static.force(0.0), lambda: f"static law {p.static!r}")
+                _check_force_scale(f"{prefix}.{name}", value, f"{prefix}.{name} = {value!r} N")
+    _check_force_scale("F_S(0)", p.static.force(0.0), f"static law {p.static!r}")
     check_damping(p)
     check_state_scales(x, v, p, state_names)
 
@@ -125,9 +125,14 @@ def check_state_scales(x, v, p: Parameters, state_names=("x", "v")):
     if p.kappa * abs(x) <= MAX_FORCE_SCALE and _impedance(p) * abs(v) <= MAX_FORCE_SCALE:
         return  # the usual case, without making the texts below (saved states are checked with this)
     x_name, v_name = state_names
-    _check_force_scale(f"kappa * |{x_name}|", p.kappa * abs(x), lambda: f"kappa = {p.kappa!r} N/m, {x_name} = {x!r} m")
+    _check_force_scale(f"kappa * |{x_name}|", p.kappa * abs(x), f"kappa = {p.kappa!r} N/m, {x_name} = {x!r} m")
     _check_force_scale(f"sqrt(kappa M) * |{v_name}|", _impedance(p) * abs(v),
-                       lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, {v_name} = {v!r} m/s")
+                       f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, {v_name} = {v!r} m/s")
+
+
+def state_within_scales(x: float, v: float, p: Parameters) -> bool:
+    """Whether :func:`check_state_scales` passes (false for an infinity or NaN), in native arithmetic."""
+    return p.kappa * abs(x) <= MAX_FORCE_SCALE and _impedance(p) * abs(v) <= MAX_FORCE_SCALE
 
 
 def check_input_scales(v_drive, F_ext, p: Parameters):
@@ -140,7 +145,7 @@ def _check_force_input_scale(F_ext, p: Parameters):
     """Raise ParameterError if ``|F_ext|`` (N) exceeds :data:`MAX_FORCE_SCALE`."""
     if abs(F_ext) <= MAX_FORCE_SCALE:
         return
-    _check_force_scale("|F_ext|", abs(F_ext), lambda: f"F_ext = {F_ext!r} N")
+    _check_force_scale("|F_ext|", abs(F_ext), f"F_ext = {F_ext!r} N")
 
 
 def _check_drive_scale(v_drive, p: Parameters):
@@ -148,7 +153,7 @@ def _check_drive_scale(v_drive, p: Parameters):
     if _impedance(p) * abs(v_drive) <= MAX_FORCE_SCALE:
         return
     _check_force_scale("sqrt(kappa M) * |v_drive|", _impedance(p) * abs(v_drive),
-                       lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, v_drive = {v_drive!r} m/s")
+                       f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, v_drive = {v_drive!r} m/s")
 
 
 def check_rate_scale(F_ext_rate, p: Parameters):
@@ -158,7 +163,14 @@ def check_rate_scale(F_ext_rate, p: Parameters):
     if force <= MAX_FORCE_SCALE:
         return
     _check_force_scale("sqrt(M/kappa) * |der(F_ext)|", force,
-                       lambda: f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, der(F_ext) = {F_ext_rate!r} N/s")
+                       f"kappa = {p.kappa!r} N/m, M = {p.M!r} kg, der(F_ext) = {F_ext_rate!r} N/s")
+
+
+def inputs_within_scales(v_drive: float, F_ext: float, F_ext_rate: float, p: Parameters) -> bool:
+    """Whether :func:`check_input_scales` and :func:`check_rate_scale` pass (false for a NaN), in native arithmetic:
+    the usual case of checks that run often (saved states)."""
+    return (abs(F_ext) <= MAX_FORCE_SCALE and _impedance(p) * abs(v_drive) <= MAX_FORCE_SCALE
+            and math.sqrt(p.M) / math.sqrt(p.kappa) * abs(F_ext_rate) <= MAX_FORCE_SCALE)
 
 
 # unit and force-scale check of each input by its FMU name (check_input)
@@ -205,10 +217,11 @@ def _impedance(p: Parameters) -> float:
 
 
 def _check_force_scale(what, force, values):
-    """Raise ParameterError naming ``what`` and the variables ``values()`` unless ``force <= MAX_FORCE_SCALE``."""
+    """Raise ParameterError naming ``what`` and the variables ``values`` (a text) unless
+    ``force <= MAX_FORCE_SCALE``."""
     if not force <= MAX_FORCE_SCALE:
         raise ParameterError(
-            f"the force scale {what} = {force!r} N ({values()}) is out of range: allowed is at most "
+            f"the force scale {what} = {force!r} N ({values}) is out of range: allowed is at most "
             f"{MAX_FORCE_SCALE:g} N; rescale the units of force or length"
         )
 

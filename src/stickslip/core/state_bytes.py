@@ -53,6 +53,14 @@ _CODES = {saved_state.REAL: (_REAL, "d"), saved_state.TIME_END: (_TIME_END, "d")
           saved_state.OPTIONAL_REAL: (_OPTIONAL_REAL, "Bd"), saved_state.OPTIONAL_STEP: (_OPTIONAL_STEP, "Bd")}
 _COUNT_OF_REALS = struct.Struct("<H")  # how many reals a list holds
 _SEGMENT_CODES = {segment_class.KIND: code for code, segment_class in enumerate(SEGMENT_CLASSES)}
+# the C loader's codes of the kinds of field (BlockStateFormat.loader_plan)
+_PLAN_CODES = {saved_state.REAL: "d", saved_state.TIME_END: "e", saved_state.COUNT: "q", saved_state.FLAG: "B",
+               saved_state.MODE: "b", saved_state.OPTIONAL_REAL: "o", saved_state.OPTIONAL_STEP: "s"}
+#: where each value of :func:`.trajectory.state_fields` lies in a :meth:`.Trajectory.state`: an index, or the index
+#: of the stepper's record and one in it
+TRAJECTORY_PLACES: tuple = ((3,), (4,), (5,), (6,), (7,), (2,), *((i,) for i in range(10, 17)),
+                           *((20, i) for i in range(5)))
+_SEGMENT_PLACE = 17  # the segment's index in a Trajectory.state
 
 
 class Fields:
@@ -251,7 +259,7 @@ class BlockStateFormat:
             self._packed = (pairs, self.parameters.pack([value for _, value in pairs]))
         parts.append(self._packed[1])
         if trajectory is not None:
-            segment = trajectory[17]
+            segment = trajectory[_SEGMENT_PLACE]
             code = _SEGMENT_CODES[segment.KIND]
             parts.append(self.trajectory.pack(state_fields(trajectory) + (code,)))
             if self._packed_segment[0] is not segment:  # a segment lasts for one step or many
@@ -292,6 +300,41 @@ class BlockStateFormat:
         block_part = (pairs, inputs[0], inputs[1], inputs[2], head[-2], trajectory,
                       self._pending_set(tuple(head[extras:extras + len(self.input_names)])))
         return (block_part, (block, head[-1], head[2])) + tuple(head[3:extras])
+
+    def loader_plan(self) -> tuple:
+        """How the FMUs' C loader packs and unpacks the states of this format itself (``fast_path.c``, "FMU states as
+        bytes"), giving the bytes and states :meth:`to_bytes` and :meth:`from_bytes` give: ``(header, shapes,
+        entries)``. ``shapes``: ``(path, length)`` of each tuple a state is made of, outer ones first; a path is the
+        indexes that lead from the state to a value. ``entries``: one for each field or part in the order of the
+        bytes, ``(code, path, argument)``:
+
+        - a field of a kind of :mod:`.saved_state`: ``"d"`` a finite real, ``"e"`` a real that may be ``inf``,
+          ``"q"`` a count, ``"B"`` a flag, ``"b"`` a mode, ``"o"`` a real that may be None, ``"s"`` a step that may
+          be None (argument 0);
+        - ``"n"``: a flag, 1 where the value is not None; ``"m"``: a flag, 1 where the value (a frozenset) holds the
+          argument, a name;
+        - ``"P"``: a part that states share, of ``argument`` bytes (-1: the rest, but the parts of fixed size after
+          it): the parameters, the segment with its kind's code, the model-exchange block. The loader takes such a
+          part's bytes, and the objects of bytes it saw before, from the last state packed or unpacked here;
+        - ``"["``: the value at path holds the next ``count`` entries, if the flag of entry ``flag`` is 1 (else it
+          is None); argument ``(flag, count, build)``: ``build(template, values)`` gives the value from the values
+          of those entries' fields and the same value of the last state unpacked here (:func:`checked_like`), or
+          it is None (the value is the part inside)."""
+        n_head = len(self.head.names) - 2
+        flags: list = [("n", (0, 5), 0), ("n", (1, 0), 0), ("B", (1, 2), 0)]
+        flags += [("B", (2 + i,), 0) for i in range(self.extras)]
+        flags += [("m", (0, 6), name) for name in self.input_names]
+        assert len(flags) == n_head
+        entries: list = flags + [("d", (0, 4), 0), ("d", (1, 1), 0)]
+        entries += [("d", (0, 1 + i), 0) for i in range(len(self.input_names))]
+        entries.append(("P", (0, 0), self.parameters.size))
+        trajectory: list = [(_PLAN_CODES[kind], (0, 5, *place), 0)
+                      for kind, place in zip(self.trajectory.kinds[:-1], TRAJECTORY_PLACES)]
+        entries.append(("[", (0, 5), (0, len(trajectory) + 1, checked_like)))
+        entries += trajectory + [("P", (0, 5, _SEGMENT_PLACE), -1)]
+        entries += [("[", (1, 0), (1, 1, None)), ("P", (1, 0), self.exchange.size)]
+        shapes: tuple = (((), 2 + self.extras), ((0,), 7), ((1,), 3))
+        return self.header, shapes, tuple(entries)
 
     def fields(self, data: bytes) -> list[tuple[str, int, str]]:
         """Where each field of the state in ``data`` (:meth:`to_bytes`'s bytes, header included) lies, as
@@ -359,6 +402,12 @@ class BlockStateFormat:
         if pending is None:
             pending = self._pending[flags] = frozenset(name for name, flag in zip(self.input_names, flags) if flag)
         return pending
+
+
+def checked_like(template: tuple, values: list) -> tuple:
+    """The :meth:`.Trajectory.state` of the values of :data:`.trajectory.STATE_FIELDS` (each of its kind), with the
+    parameters and the segment of the state ``template`` (:func:`.trajectory.checked_state`)."""
+    return checked_state(template[1], values, template[_SEGMENT_PLACE])
 
 
 def _all_finite(reals: list) -> bool:

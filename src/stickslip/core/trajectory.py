@@ -53,6 +53,8 @@ from .model import (
     force_resolution,
     friction_force,
     initial_mode,
+    inputs_within_scales,
+    state_within_scales,
     mode_after_input_change,
     mode_after_slip,
     slip_acceleration,
@@ -67,7 +69,7 @@ from .ranges import ANY_FINITE, NON_NEGATIVE, Range, check
 from .segments import HarmonicSegment, Segment, StepSegment, StuckSegment, segment_from_list
 from .stuck import breakaway_delay
 
-RTOL_RANGE = Range(1e-14, 1e-2)
+RTOL_RANGE: Final = Range(1e-14, 1e-2)
 _MAX_EVENT_CHAIN = 100  # mode changes in a row without time advancing
 _MAX_BURST: Final = 1000  # mode changes within _BURST_WINDOW time scales sqrt(M/kappa) (stick-slip has a few per period)
 _BURST_WINDOW: Final = 1.0  # in units of sqrt(M/kappa)
@@ -607,21 +609,31 @@ def checked_state(params: Parameters, values: list, segment: Segment) -> tuple:
     of range, inputs or a state whose force scales overflow, a segment that does not hold the saved time)."""
     (t, v_drive, F_ext, F_ext_rate, frame_t, rtol, n_stick, n_slip, n_over, chain, burst_start, burst, t_last_event,
      h, stiff, votes, n_steps, n_rejected) = values
-    if not RTOL_RANGE.low <= rtol <= RTOL_RANGE.high:
-        check("saved state rtol", rtol, RTOL_RANGE, error=StateError)
-    check_input_scales(v_drive, F_ext, params)
-    drift = _checked_drift(F_ext_rate, params, StateError)
-    if not (segment.t0 <= t <= segment.t1 and t_last_event <= t and frame_t <= t):
+    if not _saved_values_hold(params, segment, t, v_drive, F_ext, F_ext_rate, frame_t, rtol, t_last_event):
+        if not RTOL_RANGE.low <= rtol <= RTOL_RANGE.high:
+            check("saved state rtol", rtol, RTOL_RANGE, error=StateError)
+        check_input_scales(v_drive, F_ext, params)
+        _checked_drift(F_ext_rate, params, StateError)
         raise StateError(f"saved state t = {t!r} s lies outside its segment [{segment.t0!r}, {segment.t1!r}] s "
                          f"or before its last event at {t_last_event!r} s or its inputs' time {frame_t!r} s")
+    drift = float(F_ext_rate) / params.kappa
     x, v = segment.state(t)
-    if not (_finite(x) and _finite(v)):
-        saved_state.field("x at t", x, saved_state.REAL)
-        saved_state.field("v at t", v, saved_state.REAL)
-    check_state_scales(x, v, params, ("saved state x", "saved state v"))
+    if not state_within_scales(x, v, params):
+        if not (_finite(x) and _finite(v)):
+            saved_state.field("x at t", x, saved_state.REAL)
+            saved_state.field("v at t", v, saved_state.REAL)
+        check_state_scales(x, v, params, ("saved state x", "saved state v"))
     return (None, params, rtol, t, v_drive, F_ext, F_ext_rate, frame_t, drift, v_drive - drift, n_stick, n_slip,
             n_over, chain, burst_start, burst, t_last_event, segment, x, v, (h, stiff, votes, n_steps, n_rejected,
                                                                               None, -1), -1)
+
+
+def _saved_values_hold(p: Parameters, segment: Segment, t: float, v_drive: float, F_ext: float, F_ext_rate: float,
+                       frame_t: float, rtol: float, t_last_event: float) -> bool:
+    """Whether :func:`checked_state`'s checks of the saved values pass (the tolerance, the inputs' force scales, the
+    segment holding ``t`` after the last event and the inputs' time), in native arithmetic: false for a NaN."""
+    return (RTOL_RANGE.low <= rtol <= RTOL_RANGE.high and inputs_within_scales(v_drive, F_ext, F_ext_rate, p)
+            and segment.t0 <= t <= segment.t1 and t_last_event <= t and frame_t <= t)
 
 
 def check_step(current_time: float, step_size: float, t: float) -> None:

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "platform.h"
+#include "state_bytes.h"
 
 /* ---- CPython: the functions the fast path calls (stable C API) ---- */
 typedef void PyObject;
@@ -58,6 +59,7 @@ void sbf_fast_resolve(void *lib)
                 RESOLVE(PyBytes_FromStringAndSize) && RESOLVE(PyBytes_Size) && RESOLVE(PyBytes_AsString) &&
                 (py_none = sbf_symbol(lib, "_Py_NoneStruct")) != NULL;
 #undef RESOLVE
+    sbf_state_bytes_resolve(lib); /* without its functions, the slave's Python makes every state's bytes */
 }
 
 /* ---- binding: the slave offers itself while the inner library constructs it ---- */
@@ -70,12 +72,14 @@ SBF_EXPORT const char *sbf_bound_folder(void) { return binding ? binding->folder
 /* Forget the bytes of the state serialized last (under the GIL) */
 static void drop_serialized(sbf_fast_path *fast)
 {
-    if (fast->serialized) py.Py_DecRef(fast->serialized);
     if (fast->serialized_state) py.Py_DecRef(fast->serialized_state);
-    fast->serialized = fast->serialized_state = NULL;
+    free(fast->serialized);
+    fast->serialized_state = NULL;
+    fast->serialized = NULL;
+    fast->serialized_size = fast->serialized_room = 0;
 }
 
-/* Forget the slave's state calls (under the GIL) */
+/* Forget the slave's state calls and the plan of its states' bytes (under the GIL) */
 static void drop_state_calls(sbf_fast_path *fast)
 {
     void **calls[] = {&fast->save, &fast->restore, &fast->to_bytes, &fast->from_bytes};
@@ -83,6 +87,8 @@ static void drop_state_calls(sbf_fast_path *fast)
         if (*calls[i]) py.Py_DecRef(*calls[i]);
         *calls[i] = NULL;
     }
+    sbf_plan_free(fast->plan);
+    fast->plan = NULL;
 }
 
 /* Forget the state got last while the step call was kept (under the GIL) */
@@ -124,6 +130,7 @@ SBF_EXPORT int sbf_bind_slave(PyObject *slave, unsigned first, const char *kinds
     fast->to_bytes = fast->restore ? py.PyObject_GetAttrString(slave, "_fmu_state_to_bytes") : NULL;
     fast->from_bytes = fast->to_bytes ? py.PyObject_GetAttrString(slave, "state_from_bytes") : NULL;
     if (!fast->from_bytes) drop_state_calls(fast);
+    fast->plan = fast->from_bytes ? sbf_plan_new(slave) : NULL;
     py.PyErr_Clear();
     return 1;
 }
@@ -523,57 +530,79 @@ int sbf_state_free(sbf_fast_path *fast, void **state)
     return 0;
 }
 
-/* The bytes of `state` (a new reference, or NULL with `why` saying why), kept for the next call on the same state
- * (the size is asked for before the bytes). Under the GIL. */
-static PyObject *state_bytes(sbf_fast_path *fast, void *state, const char *function, char *why, size_t why_size)
+/* `size` bytes of `bytes` as those of `state`, serialized last; 0 if out of memory. Under the GIL. */
+static int keep_serialized(sbf_fast_path *fast, void *state, const void *bytes, size_t size)
 {
-    if (fast->serialized_state != state) {
-        PyObject *data = py.PyObject_CallFunctionObjArgs(fast->to_bytes, (PyObject *)state, NULL);
-        if (!data || py.PyBytes_Size(data) < 0) {
+    if (size > fast->serialized_room) {
+        unsigned char *room = realloc(fast->serialized, size);
+        if (!room) return 0;
+        fast->serialized = room;
+        fast->serialized_room = size;
+    }
+    memcpy(fast->serialized, bytes, size);
+    fast->serialized_size = size;
+    py.Py_IncRef(state);
+    if (fast->serialized_state) py.Py_DecRef(fast->serialized_state);
+    fast->serialized_state = state;
+    return 1;
+}
+
+/* The bytes of `state` in fast->serialized, made for the first of the calls on the same state (the size is asked
+ * for before the bytes): packed by the plan, else by the slave's _fmu_state_to_bytes (the plan then takes its parts
+ * from them). 0, or 1 with `why` saying why not. Under the GIL. */
+static int state_bytes(sbf_fast_path *fast, void *state, const char *function, char *why, size_t why_size)
+{
+    if (fast->serialized_state == state) return 0;
+    const unsigned char *bytes = NULL;
+    long size = fast->plan ? sbf_plan_pack(fast->plan, state, &bytes) : -1;
+    PyObject *data = NULL;
+    if (size < 0) {
+        data = py.PyObject_CallFunctionObjArgs(fast->to_bytes, (PyObject *)state, NULL);
+        size = data ? (long)py.PyBytes_Size(data) : -1;
+        if (size < 0) {
             exception_text(function, why, why_size);
             if (data) py.Py_DecRef(data);
-            return NULL;
+            return 1;
         }
-        drop_serialized(fast);
-        py.Py_IncRef(state);
-        fast->serialized_state = state;
-        fast->serialized = data;
+        bytes = (const unsigned char *)py.PyBytes_AsString(data);
+        if (fast->plan) sbf_plan_packed(fast->plan, state, bytes, (size_t)size);
     }
-    py.Py_IncRef(fast->serialized);
-    return fast->serialized;
+    int kept = keep_serialized(fast, state, bytes, (size_t)size);
+    if (data) py.Py_DecRef(data);
+    if (!kept) snprintf(why, why_size, "%s: out of memory for the state's %ld bytes", function, size);
+    return !kept;
 }
 
 int sbf_state_size(sbf_fast_path *fast, void *state, size_t *size, char *why, size_t why_size)
 {
     if (!states_taken(fast) || !size) return -1;
-    int gil = py.PyGILState_Ensure();
-    PyObject *data = state_bytes(fast, state, "SerializedFMUstateSize", why, why_size);
-    if (data) {
-        *size = (size_t)py.PyBytes_Size(data);
-        py.Py_DecRef(data);
+    if (fast->serialized_state == state) { /* its bytes are kept: no call into Python */
+        *size = fast->serialized_size;
+        return 0;
     }
+    int gil = py.PyGILState_Ensure();
+    int outcome = state_bytes(fast, state, "SerializedFMUstateSize", why, why_size);
+    if (!outcome) *size = fast->serialized_size;
     py.PyGILState_Release(gil);
-    return data == NULL;
+    return outcome;
 }
 
 int sbf_state_serialize(sbf_fast_path *fast, void *state, void *bytes, size_t size, char *why, size_t why_size)
 {
     if (!states_taken(fast) || !bytes) return -1;
-    int gil = py.PyGILState_Ensure();
-    PyObject *data = state_bytes(fast, state, "SerializeFMUstate", why, why_size);
-    int outcome = data == NULL;
-    if (data) {
-        size_t n = (size_t)py.PyBytes_Size(data);
-        if (n > size) {
-            snprintf(why, why_size, "SerializeFMUstate: size = %zu bytes, but the state takes %zu (the size "
-                     "SerializedFMUstateSize gives)", size, n);
-            outcome = 1;
-        } else {
-            memcpy(bytes, py.PyBytes_AsString(data), n);
-        }
-        py.Py_DecRef(data);
+    int outcome = 0;
+    if (fast->serialized_state != state) { /* else its bytes are kept: no call into Python */
+        int gil = py.PyGILState_Ensure();
+        outcome = state_bytes(fast, state, "SerializeFMUstate", why, why_size);
+        py.PyGILState_Release(gil);
     }
-    py.PyGILState_Release(gil);
+    if (!outcome && fast->serialized_size > size) {
+        snprintf(why, why_size, "SerializeFMUstate: size = %zu bytes, but the state takes %zu (the size "
+                 "SerializedFMUstateSize gives)", size, fast->serialized_size);
+        outcome = 1;
+    } else if (!outcome) {
+        memcpy(bytes, fast->serialized, fast->serialized_size);
+    }
     return outcome;
 }
 
@@ -582,8 +611,12 @@ int sbf_state_deserialize(sbf_fast_path *fast, const void *bytes, size_t size, v
 {
     if (!states_taken(fast) || !state || (size && !bytes)) return -1;
     int gil = py.PyGILState_Ensure();
-    PyObject *data = py.PyBytes_FromStringAndSize(size ? bytes : "", (ptrdiff_t)size);
-    PyObject *restored = data ? py.PyObject_CallFunctionObjArgs(fast->from_bytes, data, NULL) : NULL;
+    PyObject *data = NULL, *restored = fast->plan && size ? sbf_plan_unpack(fast->plan, bytes, size) : NULL;
+    if (!restored) { /* the slave's unpacking, which the plan takes its parts from, or the reason for a refusal */
+        data = py.PyBytes_FromStringAndSize(size ? bytes : "", (ptrdiff_t)size);
+        restored = data ? py.PyObject_CallFunctionObjArgs(fast->from_bytes, data, NULL) : NULL;
+        if (restored && fast->plan) sbf_plan_unpacked(fast->plan, restored, bytes, size);
+    }
     if (restored)
         *state = restored;
     else

@@ -46,8 +46,10 @@ typedef struct {
     void *clean_state; /* the FMU state got last while the step call was kept (a reference held), or NULL */
     void *save, *restore;   /* the slave's save_state and restore_state (references held), NULL if it has none */
     void *to_bytes, *from_bytes; /* with them, its _fmu_state_to_bytes and state_from_bytes (references held) */
+    struct sbf_state_plan *plan; /* with them, the plan of its states' bytes (state_bytes.h), NULL if it has none */
     void *serialized_state; /* the FMU state serialized last (a reference held), NULL if none */
-    void *serialized;       /* its bytes (a reference held) */
+    unsigned char *serialized; /* its bytes (malloc'd) */
+    size_t serialized_size, serialized_room;
 } sbf_fast_path;
 
 /* Resolve the CPython functions the fast path calls from `libpython` (sbf_open_library's or sbf_process_python's
@@ -115,7 +117,9 @@ int sbf_slave_time(sbf_fast_path *fast, double *t);
  * (forward the call), 0 if done, 1 if refused, with the slave's exception as "[<function>] <repr>" in `why`.
  *   get: the state into *state; set: restore_state(state), after which the step call is kept only if the slave says
  *   it still holds; free: the reference dropped, *state = NULL; size and serialize: the bytes of
- *   _fmu_state_to_bytes(state), made once for both calls; deserialize: state_from_bytes(bytes) into *state.
+ *   _fmu_state_to_bytes(state), made once for both calls; deserialize: state_from_bytes(bytes) into *state. Where
+ *   the slave gives its states' plan, the loader packs and unpacks the states whose shared parts it saw last itself
+ *   (state_bytes.h), to the same bytes and states.
  * A state got while the step call was kept, set again while it still is (only steps and reads in between), differs
  * from the instance in its trajectory alone: set restores that (the third call of fast_step_call(), the trajectory's
  * compiled restore, of the state's trajectory part) without the slave's restore_state; the slave hears that the

@@ -1,8 +1,9 @@
 """Compile the loader and put it into a PythonFMU (FMI 2) or pythonfmu3 (FMI 3) FMU as its Linux and Windows binary.
 
-The loader is ``runtime.c`` (CPython and the inner library) and ``fast_path.c`` (steps and output reads
-without the inner library) with the front of the FMU's FMI version (``fmi2_front.c`` or ``fmi3_front.c``) and
-the platform layer of the target (``platform_posix.c`` or ``platform_windows.c``).
+The loader is ``runtime.c`` (CPython and the inner library), ``fast_path.c`` (steps and output reads
+without the inner library) and ``state_bytes.c`` (FMU states' bytes without the slave's Python), with the front of
+the FMU's FMI version (``fmi2_front.c`` or ``fmi3_front.c``) and the platform layer of the target
+(``platform_posix.c`` or ``platform_windows.c``).
 
 - Linux: ``binaries/<linux folder>/<model identifier>.so``; the library's own binary stays beside it as
   ``<model identifier>_pythonfmu.so``, and the start guard (``start_guard.c``, the lock under which the first
@@ -46,7 +47,7 @@ FRONTS = {2: (HERE / "fmi2_front.c", "binaries/linux64", "PythonFMU"),
 #: FMI version: the FMU's folder of Windows (x86_64) binaries
 WINDOWS_FOLDERS = {2: "binaries/win64", 3: "binaries/x86_64-windows"}
 RUNTIME = (HERE / "runtime.c", HERE / "runtime.h", HERE / "fast_path.c", HERE / "fast_path.h", HERE / "platform.h",
-           HERE / "carried.c", HERE / "carried.h")
+           HERE / "carried.c", HERE / "carried.h", HERE / "state_bytes.c", HERE / "state_bytes.h")
 PLATFORMS = {"linux": HERE / "platform_posix.c", "windows": HERE / "platform_windows.c"}
 #: the variable naming the C++ compiler of pythonfmu3's x86_64 binary that the FMI 3 FMU's CPython carries, and its
 #: default
@@ -181,7 +182,8 @@ def _packed_defines(packed):
 
 
 def _loader_sources(fmi_version, platform):
-    return [str(FRONTS[fmi_version][0]), str(RUNTIME[0]), str(RUNTIME[2]), str(RUNTIME[5]), str(PLATFORMS[platform])]
+    return [str(FRONTS[fmi_version][0]), *(str(path) for path in RUNTIME if path.suffix == ".c"),
+            str(PLATFORMS[platform])]
 
 
 def _loader_defines(inner_name, token, slave_survives_release, soname, model_exchange, fmi_version):
