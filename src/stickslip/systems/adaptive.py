@@ -17,7 +17,15 @@ exact to ``omega^2 delta^4`` for a cell of length ``delta``, third order in all)
 block stuck at ``t``, whose motion ``F_ext`` does not change, is stepped over the whole step in one ``doStep`` with
 the force at ``t`` held in the first sweep only (its cell ends on the line between its ends); if its FMU had an
 event, it is stepped again cell by cell with the force at each cell's start (a block is restored only if it was
-stepped).
+stepped). Where such a block's force is steady (every force it would be stepped with within ``STEADY_FORCE`` of its
+force scale of the force it holds, as between stuck neighbours), it is stepped ahead instead: one ``doStep`` from
+``t`` to ``AHEAD_STEPS`` longest steps on (at least to ``T``), its state at ``t`` kept. While its force stays steady
+and its step ahead shows no event before an attempt's end, it is neither stepped nor restored nor saved: its cell
+ends, ``F_spring`` and ``z_slip`` are read off the lines between its step's ends (it moves with the surface); an
+attempt that ends past its line steps it on in one more ``doStep``; when its force moves, or an event of its step
+(its breakaway under the held force: FMI 3's early return, FMI 2's ``n_events``) comes before the attempt's end, it is
+brought back: its state restored and stepped to ``t`` under the force it held, then stepped as any block stuck at
+``t``.
 Each block's ``solver.rtol`` (its own integration tolerance) is lowered to ``BLOCK_RTOL_FACTOR`` times ``rtol``:
 a block slipping with a numeric law restarts its integration at every ``doStep``.
 
