@@ -224,7 +224,7 @@ class _Blocks:
     def save(self, skip):
         """Save the FMU state of every block not to ``skip`` (True per block; the previous state freed)."""
         check_interrupts()
-        for i in np.flatnonzero(~skip).tolist():
+        for i in (~skip).nonzero()[0].tolist():
             self.save_block(i)
         check_interrupts()
 
@@ -482,7 +482,7 @@ class _Run:
                 break  # rejected whatever the sweeps give
         self.stats["sweeps"] += attempt.sweeps
         attempt.end = self.blocks.end()
-        ahead = np.flatnonzero(self.ahead.on)
+        ahead = self.ahead.on.nonzero()[0]
         if ahead.size:  # where the blocks ahead are at T (their FMUs are further)
             attempt.end[0][ahead] = attempt.ahead_z_slip[ahead]
             for k in range(1, len(attempt.end)):
@@ -502,7 +502,7 @@ class _Run:
         # a stuck block's force is steady where it stays within steady_force of the one it holds
         holds = np.where(self.ahead.on, self.ahead.force, f_start[:, 0])
         steady = np.max(np.abs(lines - holds[:, None]), axis=1) <= self.steady_force
-        for i in np.flatnonzero(self.ahead.on & ~steady).tolist():
+        for i in (self.ahead.on & ~steady).nonzero()[0].tolist():
             self._bring_back(i, attempt)
             settled[i] = False
         swept = ~settled & (slipping | (attempt.sweeps > 0))
@@ -510,11 +510,11 @@ class _Run:
         self.stats["sweeps of a block skipped"] += int(np.count_nonzero(unchanged & swept))
         # a block stuck at t in the first sweep: its motion does not depend on the force (stepped again only after
         # an event)
-        held = np.flatnonzero(~settled & ~swept)
+        held = (~settled & ~swept).nonzero()[0]
         if held.size:
             self._hold_blocks(held, attempt, f_start[:, 0], settled, steady)
         starts, rates = start.tolist(), rate.tolist()
-        for i in np.flatnonzero(swept & ~unchanged).tolist():
+        for i in (swept & ~unchanged).nonzero()[0].tolist():
             self.blocks.restore(i)
             self._sweep_block(i, attempt, starts[i], rates[i])
             attempt.forces[i] = used[i]
@@ -575,10 +575,10 @@ class _Run:
         """The rows of ``attempt`` of the blocks stepped ahead, those blocks ``settled``; one stepped ahead to before
         ``T`` is stepped further first (:meth:`_step_further`) or, where that shows an event before ``T``, brought
         back to ``t`` (:meth:`_bring_back`)."""
-        for i in np.flatnonzero(self.ahead.on & (self.ahead.until < attempt.T)).tolist():
+        for i in (self.ahead.on & (self.ahead.until < attempt.T)).nonzero()[0].tolist():
             if not self._step_further(i, attempt):
                 self._bring_back(i, attempt)
-        blocks = np.flatnonzero(self.ahead.on)
+        blocks = self.ahead.on.nonzero()[0]
         if blocks.size:
             self._fill_ahead(blocks, attempt)
             settled[blocks] = True
@@ -689,8 +689,8 @@ class _Run:
         """The step's error estimate (m): per slipping block, the velocity error of its cells' force residuals
         (``lambda^2 / 2M`` times the residual, ``lambda^2 = omega^2 + (dF_friction/dv / M)^2``) over ``lambda``,
         summed over the cells; the largest of any block."""
-        dv = np.abs(np.diff(attempt.V, axis=1))
-        dF = np.diff(attempt.friction, axis=1)
+        dv = np.abs(attempt.V[:, 1:] - attempt.V[:, :-1])
+        dF = attempt.friction[:, 1:] - attempt.friction[:, :-1]
         gamma = np.where(dv > 1e-12, np.abs(dF) / np.maximum(dv, 1e-12), 0.0)
         lam2 = self.omega2[:, None] + (gamma / self.M[:, None]) ** 2
         per_cell = np.sqrt(lam2) / (2.0 * self.M[:, None]) * np.abs(residual)
