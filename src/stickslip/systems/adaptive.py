@@ -222,7 +222,7 @@ class _Blocks:
         self.stepped = None  # (x, v, F_friction, F_spring) where the last step ended
 
     def save(self, skip):
-        """Save the FMU state of every block not to ``skip`` (True per block; the previous state freed)."""
+        """Save the FMU state of each block that ``skip`` (a bool per block) does not mark (the previous state freed)."""
         check_interrupts()
         for i in (~skip).nonzero()[0].tolist():
             self.save_block(i)
@@ -385,8 +385,8 @@ class _Run:
         self.grid = system.times()
         self.t_end = float(self.grid[-1])
         self.ahead_length = AHEAD_STEPS * self.h_slip
-        # N: a stuck block's force may move this much and it stays ahead (a shift of its margin, far below round-off's
-        # effect on the positions of a step)
+        # N, per block: how far a stuck block's force may move from the one it holds and still be steady (its margin
+        # moves by as much)
         self.steady_force = STEADY_FORCE * self.omega2 * self.M * system.length_scale
         self.ahead = _Ahead(system.n)
         self.t = 0.0
