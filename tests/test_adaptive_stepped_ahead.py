@@ -11,7 +11,7 @@ from stickslip.reference import simulate_chain
 from stickslip.systems import adaptive, load_system, make_master
 from stickslip.systems.compare import compare
 
-# b1 breaks away at 14 s and slips once; b2 (its neighbour, aging) and b3 (aging) stay stuck throughout; b4 breaks
+# b1 breaks away at 11 s and slips once; b2 (its neighbour, aging) and b3 (aging) stay stuck throughout; b4 breaks
 # away at 20 s under a force that has been steady since the start (b3 and b4 move together with the surface)
 CHAIN4 = """
 [system]
