@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
+import stickslip.reference as reference_package
 from stickslip.chain.lyapunov import largest_lyapunov
 from stickslip.chain.spec import ChainSpec
-from stickslip.systems import run as system_run
 from stickslip.systems.chaos import Divergence, efoldings, judge_by_statistics, report_lines, rounded, two_sample_tests
 from stickslip.systems.native import NativeMaster
 from stickslip.systems.run import run_system
@@ -51,7 +51,7 @@ _references = {}
 @pytest.fixture
 def reference_once(monkeypatch):
     """The chain reference of ``system run``, each tolerance run once for this module's chaotic chain."""
-    simulate = system_run.simulate_chain
+    simulate = reference_package.simulate_chain
 
     def cached(blocks, coupling, v_drive, t_eval, rtol=1e-12, progress=None):
         key = (len(blocks), float(t_eval[-1]), rtol)
@@ -59,7 +59,7 @@ def reference_once(monkeypatch):
             _references[key] = simulate(blocks, coupling, v_drive, t_eval, rtol=rtol, progress=progress)
         return _references[key]
 
-    monkeypatch.setattr(system_run, "simulate_chain", cached)
+    monkeypatch.setattr(reference_package, "simulate_chain", cached)  # system run takes it from there
 
 
 def chaotic_file(tmp_path, F_stribeck=0.4):

@@ -16,12 +16,11 @@ constant and each block's breakaway is the single block's closed form (:func:`~.
 """
 
 import math
-from collections import namedtuple
 
 import numpy as np
 from scipy.integrate import DOP853
 
-from .chain_result import ChainEvent, ChainPiece, ChainResult
+from .chain_result import ChainBlock, ChainEvent, ChainPiece, ChainResult
 from .errors import ReferenceParameterError, ReferenceSolverError
 from .laws import ReferenceParameters
 from .numeric import STEPS_PER_PERIOD, SUBSTEPS, tolerances
@@ -31,10 +30,6 @@ from .zero_crossing import first_zero
 
 MAX_EVENTS_PER_INSTANT = 1000
 _EPS = 2.220446049250313e-16
-
-#: one block of a chain: its parameters, start position ``x0`` (m) and velocity ``v0`` (m/s)
-ChainBlock = namedtuple("ChainBlock", "params x0 v0")
-
 
 def simulate_chain(blocks, coupling, v_drive, t_eval, rtol=1e-12, progress=None):
     """Simulate the chain ``blocks`` (:class:`ChainBlock`) joined by ``coupling`` (``N - 1`` stiffnesses,

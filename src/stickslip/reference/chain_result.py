@@ -1,11 +1,16 @@
-"""What :func:`~.chain.simulate_chain` returns: the chain's trajectory on a grid, its events and its dense solution."""
+"""What :func:`~.chain.simulate_chain` takes and returns: the chain's blocks; its trajectory on a grid, its events and
+its dense solution."""
 
 import math
+from collections import namedtuple
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .rules import STUCK
+
+#: one block of a chain: its parameters, start position ``x0`` (m) and velocity ``v0`` (m/s)
+ChainBlock = namedtuple("ChainBlock", "params x0 v0")
 
 
 @dataclass(frozen=True)

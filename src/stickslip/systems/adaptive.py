@@ -17,7 +17,15 @@ exact to ``omega^2 delta^4`` for a cell of length ``delta``, third order in all)
 block stuck at ``t``, whose motion ``F_ext`` does not change, is stepped over the whole step in one ``doStep`` with
 the force at ``t`` held in the first sweep only (its cell ends on the line between its ends); if its FMU had an
 event, it is stepped again cell by cell with the force at each cell's start (a block is restored only if it was
-stepped).
+stepped). Where such a block's force is steady (every force it would be stepped with within ``STEADY_FORCE`` of its
+force scale of the force it holds, as between stuck neighbours), it is stepped ahead instead: one ``doStep`` from
+``t`` to ``AHEAD_STEPS`` longest steps on (at least to ``T``), its state at ``t`` kept. While its force stays steady
+and its step ahead shows no event before an attempt's end, it is neither stepped nor restored nor saved: its cell
+ends, ``F_spring`` and ``z_slip`` are read off the lines between its step's ends (it moves with the surface); an
+attempt that ends past its line steps it on in one more ``doStep``; when its force moves, or an event of its step
+(its breakaway under the held force: FMI 3's early return, FMI 2's ``n_events``) comes before the attempt's end, it is
+brought back: its state restored and stepped to ``t`` under the force it held, then stepped as any block stuck at
+``t``.
 Each block's ``solver.rtol`` (its own integration tolerance) is lowered to ``BLOCK_RTOL_FACTOR`` times ``rtol``:
 a block slipping with a numeric law restarts its integration at every ``doStep``.
 
@@ -56,6 +64,8 @@ CELLS = 4  # cells per communication step while a block slips (1 while all are s
 STEPS_PER_PERIOD = 8  # longest step: this fraction of the shortest free period
 MAX_SWEEPS = 12
 MAX_REDOS = 60
+AHEAD_STEPS = 8  # a block stuck under a steady force is stepped ahead by this many longest steps
+STEADY_FORCE = 1e-13  # of a block's force scale (kappa times the chain's length scale): a force this close is steady
 BLOCK_RTOL_FACTOR = 1e-4  # each block's solver.rtol: at most this times the master's rtol (and >= 1e-14)
 _GAUSS_U, _GAUSS_W = (np.array([0.5 - math.sqrt(0.15), 0.5, 0.5 + math.sqrt(0.15)]), np.array([5, 8, 5]) / 18.0)
 _GAUSS_W1, _GAUSS_W2 = _GAUSS_W * (1.0 - _GAUSS_U), _GAUSS_W * (1.0 - _GAUSS_U) ** 2  # of the moments about the end
@@ -211,15 +221,20 @@ class _Blocks:
         self.do_steps = self.restores = self.early_returns = 0
         self.stepped = None  # (x, v, F_friction, F_spring) where the last step ended
 
-    def save(self):
-        """Save every block's FMU state (the previous one freed)."""
+    def save(self, skip):
+        """Save the FMU state of each block that ``skip`` (a bool per block) does not mark (the previous state freed)."""
         check_interrupts()
-        for i, calls in enumerate(self._calls):
-            if self.states[i] is not None:
-                calls.free_state(self.states[i])
-            self.states[i] = calls.get_state()
+        for i in (~skip).nonzero()[0].tolist():
+            self.save_block(i)
         check_interrupts()
-        self.moved = [False] * len(self.instances)
+
+    def save_block(self, i):
+        """Save block ``i``'s FMU state (the previous one freed): it is now where it is restored to."""
+        calls = self._calls[i]
+        if self.states[i] is not None:
+            calls.free_state(self.states[i])
+        self.states[i] = calls.get_state()
+        self.moved[i] = False
 
     def restore(self, i):
         """Block ``i`` back to its saved state (no call if it is there)."""
@@ -329,11 +344,32 @@ class _Attempt:
         self.spring = np.zeros(X.shape[0])
         self.held = np.zeros(X.shape[0])  # N: each block's F_ext at the end of its last cell
         self.held_rate = np.zeros(X.shape[0])  # N/s: and its rate there
+        self.ahead_z_slip = np.zeros(X.shape[0])  # N: the z_slip at T of the blocks stepped ahead (their FMUs' line)
         self.error, self.sweeps, self.converged = 0.0, 0, False
         self.end = None
         self.cut = None  # (t_e, block): the first event a block's early return showed inside the step
         # N: the forces each block was last stepped with in this attempt (NaN: not stepped)
         self.forces = np.full((X.shape[0], 2 * (times.size - 1)), np.nan)
+
+
+class _Ahead:
+    """The blocks stepped ahead, arrays over all blocks (``on``: those stepped ahead). Such a block, stuck at ``t0``,
+    was stepped to ``t1`` (s) under ``force`` (N) held, without an event before ``until`` (s): its FMU is left at
+    ``t1``, its state saved at ``t0`` kept. ``lines`` (``(blocks, 3, 2)``): its ``x``, ``F_spring`` and ``z_slip``
+    (m, N, N) at ``t0`` and at ``t1``; ``v`` (m/s) and ``friction`` (N) at ``t1``; ``end``: :meth:`_Blocks.end`'s
+    outputs at ``t0`` (a column each; they keep their values while it sticks without an event). In between it moves
+    on the line between its ends (with the surface)."""
+
+    def __init__(self, n):
+        self.on = np.zeros(n, bool)
+        self.t0, self.t1, self.until, self.force, self.v, self.friction = (np.zeros(n) for _ in range(6))
+        self.lines = np.zeros((n, 3, 2))
+        self.end = np.zeros((n, len(_READ_END) + len(_READ_INT)))
+
+    def begin(self, i, t0, force, start, end):
+        """Block ``i`` stepped ahead from ``t0`` (s) under ``force`` (N), ``start`` its ``(x, F_spring, z_slip)`` and
+        ``end`` its :meth:`_Blocks.end` outputs at ``t0`` (its line's end is set next)."""
+        self.on[i], self.t0[i], self.force[i], self.lines[i, :, 0], self.end[i] = True, t0, force, start, end
 
 
 class _Run:
@@ -347,9 +383,15 @@ class _Run:
         self.tol = rtol * system.length_scale  # m per s
         self.h_slip = system.shortest_period() / STEPS_PER_PERIOD
         self.grid = system.times()
+        self.t_end = float(self.grid[-1])
+        self.ahead_length = AHEAD_STEPS * self.h_slip
+        # N, per block: how far a stuck block's force may move from the one it holds and still be steady (its margin
+        # moves by as much)
+        self.steady_force = STEADY_FORCE * self.omega2 * self.M * system.length_scale
+        self.ahead = _Ahead(system.n)
         self.t = 0.0
         first = np.array([blocks.cell(i) for i in range(system.n)])
-        self.x, self.v = first[:, 0], first[:, 1]
+        self.x, self.v, self.spring = first[:, 0], first[:, 1], first[:, 3]
         self.a = (first[:, 3] + first[:, 2] + self.K @ self.x) / self.M
         self.end = blocks.end()
         self.jerk = self._jerk(np.zeros(system.n))
@@ -358,13 +400,13 @@ class _Run:
         self.events, self.complete = [], True
         self.h = self.h_slip / 4.0
         self.stats = {"communication steps": 0, "rejected steps": 0, "event redos": 0, "events not landed": 0,
-                      "sweeps": 0, "sweeps of a block skipped": 0}
+                      "sweeps": 0, "sweeps of a block skipped": 0, "stuck blocks stepped ahead": 0,
+                      "holds of a block stepped ahead": 0, "blocks brought back from ahead": 0}
 
     def run(self):
         start = time.perf_counter()
-        t_end = float(self.grid[-1])
         try:
-            while self.t < t_end:
+            while self.t < self.t_end:
                 self._advance()
         finally:
             self.blocks.free()
@@ -380,7 +422,7 @@ class _Run:
 
     def _advance(self):
         """One accepted communication step from ``t`` (redone shorter, and on an event, as needed)."""
-        self.blocks.save()
+        self.blocks.save(skip=self.ahead.on)
         next_grid = self.grid[np.searchsorted(self.grid, self.t, side="right")]
         slipping = bool(np.any(self.end[3] != 0))
         for _ in range(MAX_REDOS):
@@ -422,6 +464,7 @@ class _Run:
         slipping = self.end[3] != 0
         floor = max(0.01 * self.tol * (T - self.t), 1e-14 * (1.0 + float(np.max(np.abs(self.x)))))
         settled = np.zeros(self.system.n, bool)  # stuck at t and still stuck, without an event, after a sweep
+        self._ahead_rows(attempt, settled)
         while attempt.sweeps < MAX_SWEEPS and not attempt.converged:
             X, V = attempt.X.copy(), attempt.V.copy()
             residual = self._sweep(attempt, slipping, settled, floor)
@@ -439,6 +482,11 @@ class _Run:
                 break  # rejected whatever the sweeps give
         self.stats["sweeps"] += attempt.sweeps
         attempt.end = self.blocks.end()
+        ahead = self.ahead.on.nonzero()[0]
+        if ahead.size:  # where the blocks ahead are at T (their FMUs are further)
+            attempt.end[0][ahead] = attempt.ahead_z_slip[ahead]
+            for k in range(1, len(attempt.end)):
+                attempt.end[k][ahead] = self.ahead.end[ahead, k]
         return attempt
 
     def _sweep(self, attempt, slipping, settled, floor):
@@ -450,14 +498,23 @@ class _Run:
         # a stuck block: the force at each cell's start, held
         start, rate = np.where(slipping[:, None], start, f_start), np.where(slipping[:, None], rate, 0.0)
         used = np.concatenate([start, start + rate * attempt.widths], axis=1)
+        lines = np.concatenate([used, self.K @ attempt.X[:, -1:]], axis=1)  # and the force at T
+        # a stuck block's force is steady where it stays within steady_force of the one it holds
+        holds = np.where(self.ahead.on, self.ahead.force, f_start[:, 0])
+        steady = np.max(np.abs(lines - holds[:, None]), axis=1) <= self.steady_force
+        for i in (self.ahead.on & ~steady).nonzero()[0].tolist():
+            self._bring_back(i, attempt)
+            settled[i] = False
         swept = ~settled & (slipping | (attempt.sweeps > 0))
         unchanged = self._unchanged(attempt, used, floor)
         self.stats["sweeps of a block skipped"] += int(np.count_nonzero(unchanged & swept))
         # a block stuck at t in the first sweep: its motion does not depend on the force (stepped again only after
         # an event)
-        self._hold_blocks(np.flatnonzero(~settled & ~swept), attempt, f_start[:, 0], settled)
+        held = (~settled & ~swept).nonzero()[0]
+        if held.size:
+            self._hold_blocks(held, attempt, f_start[:, 0], settled, steady)
         starts, rates = start.tolist(), rate.tolist()
-        for i in np.flatnonzero(swept & ~unchanged).tolist():
+        for i in (swept & ~unchanged).nonzero()[0].tolist():
             self.blocks.restore(i)
             self._sweep_block(i, attempt, starts[i], rates[i])
             attempt.forces[i] = used[i]
@@ -469,24 +526,112 @@ class _Run:
         sweep and it is not stepped again)."""
         return np.where(self.end[3] == 0, 0.0, self.a)
 
-    def _hold_blocks(self, blocks, attempt, forces, settled):
+    def _hold_blocks(self, blocks, attempt, forces, settled, steady):
         """Step each of ``blocks`` (an index array of blocks stuck at ``t``) over the whole of ``attempt`` in one
         ``doStep`` with ``F_ext`` its entry of ``forces`` (N, per block); ``settled`` (updated) True for those that
         stayed stuck without an event: their cell ends are then on the line from their start to their end (they move
-        with the surface)."""
-        if blocks.size == 0:
-            return
-        ends = []
+        with the surface). A block whose force is ``steady`` (per block) over the attempt is stepped ahead instead
+        (:meth:`_step_ahead`) where that shows no event before ``T``."""
+        ends, stepped = [], []
         for i in blocks.tolist():
+            if steady[i] and self._step_ahead(i, attempt, forces[i]):
+                settled[i] = True
+                continue
             self.blocks.restore(i)
             self._step(i, self.t, attempt.T, forces[i], 0.0, attempt, may_cut=False)
             ends.append((*self.blocks.stepped, self.blocks.n_events(i)))
+            stepped.append(i)
+        if not stepped:
+            return
+        blocks = np.array(stepped)
         x, v, friction, spring, n_events = (np.array(column) for column in zip(*ends))
         x0 = self.x[blocks]
         attempt.X[blocks, 1:] = x0[:, None] + attempt.hold_share * (x - x0)[:, None]
         attempt.V[blocks, 1:], attempt.friction[blocks, 1:] = v[:, None], friction[:, None]
         attempt.spring[blocks], attempt.held[blocks], attempt.held_rate[blocks] = spring, forces[blocks], 0.0
         settled[blocks] = n_events == self.end[4][blocks]
+
+    def _step_ahead(self, i, attempt, force):
+        """Step block ``i``, stuck at ``t`` under the steady ``force`` (N), ahead in one ``doStep`` beyond ``T``, by
+        ``ahead_length`` (to the run's end at most; with early return, to its first event): True if that shows no
+        event before ``T``, the block then stepped ahead (:class:`_Ahead`; its rows of ``attempt`` filled), else
+        False (its FMU moved)."""
+        self.blocks.restore(i)
+        t1 = min(max(attempt.T, self.t + self.ahead_length), self.t_end)
+        t_e = self.blocks.step(i, self.t, t1 - self.t, force, 0.0)
+        if t_e is None and self.blocks.n_events(i) != self.end[4][i]:
+            return False
+        self.ahead.begin(i, self.t, force, (self.x[i], self.spring[i], self.margin[i]),
+                         [column[i] for column in self.end])
+        self._end_line(i, t1 if t_e is None else t_e, t_e)
+        self.stats["stuck blocks stepped ahead"] += 1
+        if self.ahead.until[i] < attempt.T:
+            self.ahead.on[i] = False
+            return False
+        self._fill_ahead(np.array([i]), attempt)
+        return True
+
+    def _ahead_rows(self, attempt, settled):
+        """The rows of ``attempt`` of the blocks stepped ahead, those blocks ``settled``; one stepped ahead to before
+        ``T`` is stepped further first (:meth:`_step_further`) or, where that shows an event before ``T``, brought
+        back to ``t`` (:meth:`_bring_back`)."""
+        for i in (self.ahead.on & (self.ahead.until < attempt.T)).nonzero()[0].tolist():
+            if not self._step_further(i, attempt):
+                self._bring_back(i, attempt)
+        blocks = self.ahead.on.nonzero()[0]
+        if blocks.size:
+            self._fill_ahead(blocks, attempt)
+            settled[blocks] = True
+            self.stats["holds of a block stepped ahead"] += blocks.size
+
+    def _step_further(self, i, attempt):
+        """Block ``i``, stepped ahead to before ``T`` without an event, stepped on from its ``t1`` beyond ``T`` by
+        ``ahead_length`` under the force it holds (its line then ends further): True if that shows no event before
+        ``T``."""
+        ahead = self.ahead
+        t1 = float(ahead.t1[i])
+        if ahead.until[i] < t1 or t1 >= self.t_end:
+            return False  # its line ends at an event, or at the run's end
+        t2 = min(max(attempt.T, t1 + self.ahead_length), self.t_end)
+        t_e = self.blocks.step(i, t1, t2 - t1)
+        if t_e is None and self.blocks.n_events(i) != ahead.end[i, 4]:
+            return False  # passed an event (its FMU beyond it: brought back)
+        self._end_line(i, t2 if t_e is None else t_e, t_e)
+        self.stats["stuck blocks stepped ahead"] += 1
+        return ahead.until[i] >= attempt.T
+
+    def _end_line(self, i, t1, t_e):
+        """Block ``i``'s line (stepped ahead) ends at ``t1`` (s), where its last step ended (at ``t_e``: returned early
+        at its breakaway, where ``z_slip`` is 0, ``until`` then just before it; its outputs there are those after
+        it)."""
+        x, v, friction, spring = self.blocks.stepped
+        ahead = self.ahead
+        ahead.t1[i], ahead.until[i] = t1, (t1 if t_e is None else t_e - EVENT_TOL)
+        ahead.lines[i, :, 1] = x, spring, (self.blocks.ends[i][0] if t_e is None else 0.0)
+        ahead.v[i], ahead.friction[i] = v, friction
+
+    def _fill_ahead(self, blocks, attempt):
+        """The rows of ``attempt`` of ``blocks`` (an index array of blocks stepped ahead) on their lines."""
+        ahead = self.ahead
+        share = (attempt.times[None, 1:] - ahead.t0[blocks, None]) / (ahead.t1 - ahead.t0)[blocks, None]
+        start, end = ahead.lines[blocks, :, :1], ahead.lines[blocks, :, 1:]
+        on_line = start + share[:, None, :] * (end - start)  # (blocks, x spring z_slip, cell ends)
+        attempt.X[blocks, 1:] = on_line[:, 0]
+        attempt.V[blocks, 1:], attempt.friction[blocks, 1:] = ahead.v[blocks, None], ahead.friction[blocks, None]
+        attempt.spring[blocks], attempt.ahead_z_slip[blocks] = on_line[:, 1, -1], on_line[:, 2, -1]
+        attempt.held[blocks], attempt.held_rate[blocks] = ahead.force[blocks], 0.0
+
+    def _bring_back(self, i, attempt):
+        """Block ``i``, stepped ahead, back at ``t``: its state at its ``t0`` restored, stepped to ``t`` under the
+        force it held, its state saved there (the step's) and its margin at ``t`` read."""
+        ahead = self.ahead
+        ahead.on[i] = False
+        self.blocks.restore(i)
+        if self.t > ahead.t0[i]:
+            self._step(i, float(ahead.t0[i]), self.t, float(ahead.force[i]), 0.0, attempt, may_cut=False)
+            self.blocks.save_block(i)
+            self.margin[i] = self.blocks.ends[i][0]
+        self.stats["blocks brought back from ahead"] += 1
 
     def _sweep_block(self, i, attempt, start, rate):
         """Step block ``i`` over every cell ``k`` of ``attempt`` in one ``doStep`` with ``F_ext`` from ``start[k]``
@@ -544,8 +689,8 @@ class _Run:
         """The step's error estimate (m): per slipping block, the velocity error of its cells' force residuals
         (``lambda^2 / 2M`` times the residual, ``lambda^2 = omega^2 + (dF_friction/dv / M)^2``) over ``lambda``,
         summed over the cells; the largest of any block."""
-        dv = np.abs(np.diff(attempt.V, axis=1))
-        dF = np.diff(attempt.friction, axis=1)
+        dv = np.abs(attempt.V[:, 1:] - attempt.V[:, :-1])
+        dF = attempt.friction[:, 1:] - attempt.friction[:, :-1]
         gamma = np.where(dv > 1e-12, np.abs(dF) / np.maximum(dv, 1e-12), 0.0)
         lam2 = self.omega2[:, None] + (gamma / self.M[:, None]) ** 2
         per_cell = np.sqrt(lam2) / (2.0 * self.M[:, None]) * np.abs(residual)
@@ -558,7 +703,7 @@ class _Run:
         self.events += events
         self.complete = self.complete and complete
         self.t, self.end, self.margin = attempt.T, end, self._held_margin(attempt)
-        self.x, self.v = attempt.X[:, -1].copy(), attempt.V[:, -1].copy()
+        self.x, self.v, self.spring = attempt.X[:, -1].copy(), attempt.V[:, -1].copy(), attempt.spring.copy()
         self.a = (attempt.spring + attempt.friction[:, -1] + self.K @ self.x) / self.M
         self.jerk = self._jerk(attempt.held_rate)
         self.stats["communication steps"] += 1

@@ -16,8 +16,6 @@ import math
 import time
 
 import numpy as np
-from scipy.integrate import DOP853
-from scipy.optimize import brentq
 
 from ..hosts.fmpy_host import FMUError
 from .master import SystemResult, block_instances, checked_rtol, new_event
@@ -76,6 +74,8 @@ class _Run:
         return signs
 
     def run(self):
+        from scipy.integrate import DOP853  # here: the command's other masters do not import SciPy
+
         start = time.perf_counter()
         atol = self.rtol * self.blocks.nominals()
         t_end = float(self.grid[-1])
@@ -158,6 +158,8 @@ class _Run:
         j = next((j for j in range(1, 5) if gs[j] <= 0.0 and max(gs[:j]) > 0.0), None)
         if j is None:
             return t_a if max(gs) <= 0.0 else t_b
+        from scipy.optimize import brentq  # here, as DOP853 in run()
+
         xtol = 4.0 * _EPS * abs(s[j]) + 1e-300
         root = brentq(g, s[j - 1], s[j], xtol=xtol, rtol=4.0 * _EPS)
         past = min(s[j], root + 2.0 * xtol)

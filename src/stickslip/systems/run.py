@@ -17,7 +17,6 @@ import numpy as np
 
 from ..fmu import ensure_fmu
 from ..fmu.variables import START_VALUES
-from ..reference import simulate_chain
 from ..hosts.fmpy_host import read_model_description
 from ..hosts.progress import TimeProgress
 from ..hosts.run_limits import output_folder
@@ -92,6 +91,8 @@ def against_reference(system, master, result, events_file, show_progress):
     Lyapunov exponent says first whether the chain's trajectory diverges (:mod:`.chaos`); if it does, the reference
     runs at both tolerances of :data:`~.chaos.REFERENCE_RTOLS` and the run is judged by its slip events'
     statistics, else the reference runs once and the amplitude judges."""
+    from ..reference import simulate_chain  # here: a run without the reference does not load SciPy's integrators
+
     tolerance = system.tolerances[master]
     divergence = None
     if tolerance is not None:
