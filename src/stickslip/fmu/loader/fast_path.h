@@ -26,6 +26,7 @@
 #include <stddef.h>
 
 #define SBF_MAX_OUTPUTS 64
+#define SBF_MAX_KEPT 4 /* inputs the loader may keep between steps (sbf_keep_inputs) */
 /* The environment variable that turns the fast path off for the process when it is "0" (to compare the paths) */
 #define SBF_FAST_PATH_VARIABLE "SBF_FAST_PATH"
 
@@ -48,6 +49,15 @@ typedef struct {
     void *to_bytes, *from_bytes; /* with them, its _fmu_state_to_bytes and state_from_bytes (references held) */
     void *serialized_state; /* the FMU state serialized last (a reference held), NULL if none */
     void *serialized;       /* its bytes (a reference held) */
+    /* the inputs kept in C until the next step (sbf_keep_inputs), by the slave's rules (its kept_inputs()) */
+    int rules_asked;                 /* the slave was asked for them (since it bound or a state was set) */
+    size_t n_rules;                  /* the inputs it lets the loader keep (0: none) */
+    unsigned rule_vr[SBF_MAX_KEPT];  /* each one's value reference, */
+    int rule_order[SBF_MAX_KEPT];    /* the order of its derivative set (0: the value itself), */
+    double rule_bound[SBF_MAX_KEPT]; /* the magnitude up to which a finite value surely passes the slave's checks */
+    double kept[SBF_MAX_KEPT];       /* the value kept of each rule's input, */
+    size_t kept_order[SBF_MAX_KEPT]; /* and the rules of the inputs kept, in the order they were last set */
+    size_t n_kept;
 } sbf_fast_path;
 
 /* Resolve the CPython functions the fast path calls from `libpython` (sbf_open_library's or sbf_process_python's
@@ -127,6 +137,23 @@ int sbf_state_size(sbf_fast_path *fast, void *state, size_t *size, char *why, si
 int sbf_state_serialize(sbf_fast_path *fast, void *state, void *bytes, size_t size, char *why, size_t why_size);
 int sbf_state_deserialize(sbf_fast_path *fast, const void *bytes, size_t size, void **state, char *why,
                           size_t why_size);
+
+/* The block's real inputs kept in C between steps: a master sets F_ext and its rate before every step, each set a
+ * call into the slave's Python as costly as the step. The slave tells the loader once (kept_inputs(), after
+ * initialization: fmu_src/block_interface.py) which inputs it may keep and the magnitude up to which a finite value
+ * surely passes its checks; the loader keeps such values and hands them over in the order they were last set with
+ * the next step, in the same call into Python (the slave's step_kept, or step_to_event's `sets`), or before any other
+ * call that reaches the slave (sbf_fast_forward: the slave's take_kept). Any other value, and any call that is not
+ * all kept inputs, goes to the slave as before (refused there with its message).
+ *   sbf_keep_inputs: 1 if the n values of the inputs vr[0..n) (order[i] the order of the derivative set, or the
+ *   values themselves where `order` is NULL) were kept (the outputs' buffer then stale); 0 if nothing was kept
+ *   (forward the call). Only for a co-simulation instance in Step Mode (the front checks), with the fast path on.
+ *   sbf_kept_state_get: sbf_state_get after the kept inputs are handed over (a state holds every input set).
+ *   sbf_kept_state_set: sbf_state_set after they are dropped (the state sets every input), the rules asked again (the
+ *   state's parameters may differ). */
+int sbf_keep_inputs(sbf_fast_path *fast, const unsigned *vr, const int *order, size_t n, const double *values);
+int sbf_kept_state_get(sbf_fast_path *fast, void **state, char *why, size_t why_size);
+int sbf_kept_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size);
 
 /* Drop the slave and its step call (freeing the instance). */
 void sbf_fast_unbind(sbf_fast_path *fast);
