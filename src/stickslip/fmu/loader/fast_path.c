@@ -526,8 +526,9 @@ int sbf_keep_inputs(sbf_fast_path *fast, const unsigned *vr, const int *order, s
         ask_rules(fast);
         py.PyGILState_Release(gil);
     }
-    for (size_t i = 0; i < n; ++i)
-        if ((rules[i] = rule_for(fast, vr[i], order ? order[i] : 0, values[i])) < 0) return 0;
+    for (size_t i = 0; i < n; ++i) /* a derivative's order is 1 or more: 0 is the slave's to refuse */
+        if ((order && order[i] < 1) || (rules[i] = rule_for(fast, vr[i], order ? order[i] : 0, values[i])) < 0)
+            return 0;
     for (size_t i = 0; i < n; ++i) keep_value(fast, (size_t)rules[i], values[i]);
     fast->fresh = 0; /* outputs may depend on the inputs: read them from the slave, which is handed the inputs first */
     return 1;
