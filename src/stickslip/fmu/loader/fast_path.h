@@ -10,10 +10,12 @@
  *     first outputs, x and v), and keeps them in a buffer of its own;
  *   - answers reads of outputs from that buffer, without entering Python; a read of another output asks the
  *     second call (Trajectory.outputs: every output at the current state) once per step;
- *   - before forwarding any other call to the inner library, tells the slave that the state moved (its own
- *     caches of the outputs are stale: outputs_changed()) and, unless the call only reads, forgets the step
- *     call and the buffer: inputs, parameters, a restored state or a reset change what the next step starts
- *     from, and the slave gives a new step call for it.
+ *   - keeps the values of the inputs a host sets between steps where they surely pass the slave's checks, and
+ *     hands them to the slave with the next step, in the same call into Python (sbf_keep_inputs, below);
+ *   - before forwarding any other call to the inner library, hands the slave the inputs it kept, tells it that
+ *     the state moved (its own caches of the outputs are stale: outputs_changed()) and, unless the call only
+ *     reads, forgets the step call and the buffer: inputs, parameters, a restored state or a reset change what
+ *     the next step starts from, and the slave gives a new step call for it.
  * The outputs are the very values the slave's getters answer (the same conversions as the inner library's),
  * so results do not depend on which path a call takes. Where the slave offers nothing (a pythonfmu binary
  * without this loader's symbol, a CPython without the functions below) or SBF_FAST_PATH=0 is in the environment,
@@ -72,12 +74,14 @@ void sbf_fast_binding(sbf_fast_path *fast);
  * thread, byte for byte as the host named it (the inner library may have been given another path to it), or NULL. */
 const char *sbf_bound_folder(void);
 
-/* A communication step from `t` by `h` (s): -1 if the fast path cannot take it (forward the call instead), 0 if
- * taken, 1 if the step failed, with the slave's exception as "[doStep] <repr>" in `why`. */
+/* A communication step from `t` by `h` (s), with the inputs kept handed over in the same call (the slave's
+ * step_kept): -1 if the fast path cannot take it (forward the call instead; the inputs kept are the slave's by
+ * then), 0 if taken, 1 if the step failed, with the slave's exception as "[doStep] <repr>" in `why`. */
 int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size);
 
-/* Before a call is forwarded to the inner library: the slave hears that the state moved; if `changes` (the call
- * may change the state, parameters or inputs), the step call and the buffer are forgotten. */
+/* Before a call is forwarded to the inner library: the slave takes the inputs kept (take_kept; the step call is
+ * then forgotten) and hears that the state moved; if `changes` (the call may change the state, parameters or
+ * inputs), the step call and the buffer are forgotten. */
 void sbf_fast_forward(sbf_fast_path *fast, int changes);
 
 /* 1 with the `n` values of the outputs `vr` in `values` if the buffer holds them all (each of kind 'r', or 'i'
@@ -102,7 +106,7 @@ int sbf_slave_exchange(sbf_fast_path *fast, const char *function, const double *
                        double *out, size_t n_out, char *why, size_t why_size);
 
 /* fmi3DoStep with early return: the bound slave's step_to_event (fmu_src/SpringBlockFriction_fmi3.py) from `t` by
- * `h` (s), `event_mode`: the instance uses event mode (the step also stops at an event at t + h, and the event is left
+ * `h` (s), with the inputs kept handed over in the same call, `event_mode`: the instance uses event mode (the step also stops at an event at t + h, and the event is left
  * for sbf_slave_apply_events). 0 with the time reached in *reached, *stopped = 1 if it stopped at an event there
  * (short of t + h, or with `event_mode` at it), and every output there in the buffer (the reads after the step are
  * answered from it, as after sbf_fast_step); -1 if no slave is bound (take the step another way); 1 if the step
