@@ -637,7 +637,7 @@ def sure_bound(name, params):
     def allowed(exponent):
         try:
             check_input(name, math.ldexp(1.0, exponent), params)
-        except ParameterError:
+        except ValueError:  # ParameterError is one
             return False
         return True
 
