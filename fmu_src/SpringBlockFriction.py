@@ -34,7 +34,7 @@ from xml.etree.ElementTree import Element
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
 from block_interface import (
-    DERIVATIVES, FIRST_OUTPUT, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, PYTHONFMU_ENTRY_POINTS, STATES, VARIABLES,
+    DERIVATIVES, F_EXT_RATE, FIRST_OUTPUT, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, PYTHONFMU_ENTRY_POINTS, STATES, VARIABLES,
     BlockInterface, ExchangeInterface, balance_release, serialize_states,
 )
 
@@ -48,6 +48,10 @@ FIRST_DERIVATIVE = len(VARIABLES)
 _NAMES = tuple(v.name for v in VARIABLES) + tuple(name for name, _, _ in DERIVATIVES)
 _REFERENCES = {Real: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "real") | frozenset(
     range(FIRST_DERIVATIVE, len(_NAMES))), Integer: frozenset(r for r, v in enumerate(VARIABLES) if v.kind == "integer")}
+#: the inputs the C loader may keep between steps (BlockInterface.kept_inputs): (name, value reference, order), the
+#: rate as F_ext's first input derivative (fmi2SetRealInputDerivatives)
+_KEPT_INPUTS = (("v_drive", _REFERENCE_OF["v_drive"], 0), ("F_ext", _REFERENCE_OF["F_ext"], 0),
+                (F_EXT_RATE, _REFERENCE_OF["F_ext"], 1))
 _MAX_READ_PLANS = 64  # distinct sets of value references whose checked reader an instance keeps
 
 
@@ -199,6 +203,11 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
         """fmi2SetRealInputDerivatives (the C loader calls it: PythonFMU has none): see
         :meth:`BlockInterface.set_input_derivatives`; returns a warning's text or None."""
         return self.set_input_derivatives(_names(vrs), orders, values)
+
+    def kept_input_references(self):
+        """``(name, value reference, order)`` of the inputs the C loader may keep (:meth:`BlockInterface.kept_inputs`):
+        v_drive and F_ext set by fmi2SetReal, F_ext's rate by fmi2SetRealInputDerivatives of order 1."""
+        return _KEPT_INPUTS
 
     def get_real_output_derivatives(self, vrs, orders):
         """fmi2GetRealOutputDerivatives (the C loader calls it): see :meth:`BlockInterface.output_derivatives`."""

@@ -27,7 +27,7 @@ from pythonfmu3 import (CoSimulation, Fmi3Causality, Fmi3SlaveBase, Fmi3Status, 
                         ModelExchange)
 
 from block_interface import (
-    DERIVATIVES, F_EXT_RATE, INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, BlockInterface, ExchangeInterface,
+    DERIVATIVES, F_EXT_RATE, INDICATORS, INPUTS, MAX_OUTPUT_DERIVATIVE_ORDER, BlockInterface, ExchangeInterface,
     balance_release, serialize_states,
 )
 
@@ -71,6 +71,8 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
         self.register_variable(Float64("time", causality=Fmi3Causality.independent,
                                        variability=Fmi3Variability.continuous, description="simulation time",
                                        getter=lambda: self.time), nested=False)
+        references = {v.name: v.value_reference for v in self.vars.values()}
+        self._kept_inputs = tuple((name, references[name], 0) for name in INPUTS + (F_EXT_RATE,))
         self.offer_to_loader(3)
 
     def to_xml(self, model_options=None):
@@ -220,13 +222,15 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
             self.trajectory = self.new_trajectory(t0=current_time)
         self._stepped = True
 
-    def step_to_event(self, current_time, step_size, event_mode):
-        """fmi3DoStep with early return (the C loader calls it for an instance made with earlyReturnAllowed): the step
+    def step_to_event(self, current_time, step_size, event_mode, sets=()):
+        """fmi3DoStep with early return (the C loader calls it for an instance made with earlyReturnAllowed), with the
+        inputs the loader kept since the last step taken first (``sets``, :meth:`BlockInterface.take_kept`): the step
         of :meth:`do_step` that stops at the first stick, breakaway or overshoot inside it. ``event_mode``: the
         instance uses event mode, so the step also stops at an event at its end, and the event is left for
         :meth:`apply_step_events` (the outputs are its left limit); else it is applied at once. ``(time reached (s),
         True if it stopped at an event, every output there)`` (:meth:`Trajectory.outputs`, the values the getters
         answer: the loader keeps them)."""
+        self.take_kept(sets)
         self._start_at(current_time)
         self.outputs_changed()
         trajectory = self.current_trajectory()
@@ -240,6 +244,11 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
         in event mode and the events due now applied."""
         self.outputs_changed()
         self.current_trajectory().apply_events()
+
+    def kept_input_references(self):
+        """``(name, value reference, order)`` of the inputs the C loader may keep (:meth:`BlockInterface.kept_inputs`):
+        v_drive, F_ext and der(F_ext), each set by fmi3SetFloat64."""
+        return self._kept_inputs
 
     def get_output_derivatives(self, vrs, orders):
         """fmi3GetOutputDerivatives (the C loader calls it): see :meth:`BlockInterface.output_derivatives`."""

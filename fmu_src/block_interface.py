@@ -203,6 +203,7 @@ class BlockInterface:
         self._ignored_derivatives = set()  # (input, order) of the derivatives ignored so far (warned about once)
         self._output_cache = {}  # {output name: value} at the current state, filled as outputs are read
         self._saved_parameters = None  # the parameters' (name, value) pairs of the FMU states saved (block_state)
+        self._kept_rules = None  # (Parameters, kept_inputs' answer for them), see kept_inputs
 
     def register_variables(self, classes, causalities, variabilities):
         """Register :data:`VARIABLES` with the FMI library: ``classes`` maps a kind ("real", "integer", and
@@ -387,6 +388,44 @@ class BlockInterface:
         lastSuccessfulTime after a failed step): the end of the last step, or of the part of a failed step it went,
         or of a restored state; the start time until initialization ends."""
         return self.start_time if self.trajectory is None else self.trajectory.t
+
+    # ---- inputs the C loader keeps until the next step ------------------------------
+
+    def kept_inputs(self):
+        """What the C loader may keep of the inputs a host sets between steps, handing them over with the next step
+        (:meth:`step_kept`) or before any other call (:meth:`take_kept`) in one call into Python: one ``(value
+        reference, order, bound)`` per input of :meth:`kept_input_references`, ``order`` 0 where the value is set
+        (fmi2SetReal, fmi3SetFloat64), 1 for FMI 2's first input derivative; a finite value of magnitude at most
+        ``bound`` passes :meth:`check_setting` now (:func:`sure_bound`), so the loader keeps it, and forwards any
+        other (the slave refuses it as before). None during initialization, when the checks may still change. The
+        loader asks once per instance and again after a state is set (its parameters may differ)."""
+        if self.trajectory is None:
+            return None
+        params = self.trajectory.params
+        if self._kept_rules is None or self._kept_rules[0] is not params:
+            rules = tuple((reference, order, sure_bound(name, params))
+                          for name, reference, order in self.kept_input_references())
+            self._kept_rules = params, rules
+        return self._kept_rules[1]
+
+    def take_kept(self, sets):
+        """Take the inputs the C loader kept, ``((index, value), ...)`` in the order they were last set, ``index``
+        into :meth:`kept_input_references`; each value one :meth:`kept_inputs` allows, so nothing is checked again."""
+        names = self.kept_input_references()
+        for index, value in sets:
+            name = names[index][0]
+            if name == F_EXT_RATE:
+                self.take_rate(value)
+            else:
+                self.take_value(name, value)
+
+    def step_kept(self, current_time, step_size, sets):
+        """The C loader's doStep with the inputs it kept (:meth:`take_kept`), one call: the first outputs after the
+        step, as the step call of :meth:`fast_step_call` gives them; None if the loader cannot take this step itself
+        (the inputs taken, it forwards the step)."""
+        self.take_kept(sets)
+        calls = self.fast_step_call()
+        return None if calls is None else calls[0](current_time, step_size)
 
     # ---- FMU state ---------------------------------------------------------------
 
@@ -590,6 +629,30 @@ _INPUT_KEYS = frozenset(_INPUT_KEYS_IN_ORDER)
 #: the parameters of an FMU state (:meth:`BlockInterface.block_state`'s pairs, in their order) and their kinds
 _PARAMETER_FIELDS = tuple((v.name, saved_state.COUNT if v.kind == "integer" else saved_state.REAL) for v in VARIABLES
                           if v.causality == "parameter")
+
+
+def sure_bound(name, params):
+    """The largest power of two (N, m/s or N/s) that the runtime's :func:`check_input` allows for the input ``name``
+    ("v_drive", "F_ext", "der(F_ext)") with the parameters ``params``; the checks bound the magnitude (finite, a force
+    scale at most its limit, monotone in it), so every finite value of magnitude up to it is allowed too. -1.0 if
+    not even the smallest positive float is allowed (no value is surely allowed)."""
+    def allowed(exponent):
+        try:
+            check_input(name, math.ldexp(1.0, exponent), params)
+        except ValueError:  # ParameterError is one
+            return False
+        return True
+
+    low, high = _FLOAT_EXPONENTS  # 2**low allowed, 2**high not (2**1024 overflows: no float)
+    if not allowed(low):
+        return -1.0
+    while high - low > 1:
+        middle = (low + high) // 2
+        low, high = (middle, high) if allowed(middle) else (low, middle)
+    return math.ldexp(1.0, low)
+
+
+_FLOAT_EXPONENTS = (-1074, 1024)  # the smallest positive float is 2**-1074; floats end below 2**1024
 
 
 def _law(values, kind, build):

@@ -2,6 +2,8 @@
 #define _GNU_SOURCE
 #include "fast_path.h"
 
+#include <limits.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -61,6 +63,8 @@ void sbf_fast_resolve(void *lib)
 #undef RESOLVE
     sbf_state_bytes_resolve(lib); /* without its functions, the slave's Python makes every state's bytes */
 }
+
+static PyObject *kept_sets(sbf_fast_path *fast); /* the inputs kept, as the slave takes them (below) */
 
 /* ---- binding: the slave offers itself while the inner library constructs it ---- */
 static SBF_THREAD_LOCAL sbf_fast_path *binding;
@@ -198,10 +202,36 @@ static int have_step_call(sbf_fast_path *fast)
     return found;
 }
 
+/* sbf_fast_step with the inputs kept handed over in the same call (the slave's step_kept), under the GIL: -1 if the
+ * slave took them but cannot take the step itself (forward it) */
+static int kept_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size)
+{
+    PyObject *sets = kept_sets(fast);
+    PyObject *result = sets ? py.PyObject_CallMethod(fast->slave, "step_kept", "(ddO)", t, h, sets) : NULL;
+    if (sets) py.Py_DecRef(sets);
+    drop_clean_state(fast); /* the instance's inputs changed since it was got */
+    if (result == py_none) {
+        py.Py_DecRef(result);
+        return -1;
+    }
+    fast->moved = 1; /* a failed step may have moved the state part of the way */
+    int outcome = keep_outputs(fast, result) ? 0 : 1;
+    if (outcome) exception_text("doStep", why, why_size);
+    if (result) py.Py_DecRef(result);
+    if (outcome == 0 && !fast->step && have_step_call(fast) < 0) /* for the reads of the other outputs, and the */
+        py.PyErr_Clear();                                           /* steps without inputs set before them */
+    return outcome;
+}
+
 int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size)
 {
     if (!fast->slave || !stepping) return -1;
     int gil = py.PyGILState_Ensure();
+    if (fast->n_kept) {
+        int outcome = kept_step(fast, t, h, why, why_size);
+        py.PyGILState_Release(gil);
+        return outcome;
+    }
     int outcome = -1;
     int found = have_step_call(fast);
     if (found != 0) {
@@ -221,10 +251,22 @@ int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why
     return outcome;
 }
 
+/* The inputs kept handed to the slave (its take_kept), under the GIL; the step call is forgotten (the slave gives a
+ * new one that applies them, as after a set forwarded). */
+static void hand_over(sbf_fast_path *fast)
+{
+    PyObject *sets = kept_sets(fast);
+    PyObject *done = sets ? py.PyObject_CallMethod(fast->slave, "take_kept", "(O)", sets) : NULL;
+    if (sets) py.Py_DecRef(sets);
+    if (done) py.Py_DecRef(done);
+    py.PyErr_Clear(); /* none: kept_inputs allowed every value */
+    drop_step_call(fast);
+}
+
 void sbf_fast_forward(sbf_fast_path *fast, int changes)
 {
     if (changes) fast->fresh = 0;
-    if (!fast->moved && !(changes && fast->step)) return;
+    if (!fast->moved && !fast->n_kept && !(changes && fast->step)) return;
     int gil = py.PyGILState_Ensure();
     if (fast->moved) {
         PyObject *done = py.PyObject_CallMethod(fast->slave, "outputs_changed", NULL);
@@ -234,6 +276,7 @@ void sbf_fast_forward(sbf_fast_path *fast, int changes)
             py.PyErr_Clear();
         fast->moved = 0;
     }
+    if (fast->n_kept) hand_over(fast);
     if (changes) drop_step_call(fast);
     py.PyGILState_Release(gil);
 }
@@ -335,7 +378,10 @@ int sbf_slave_event_step(sbf_fast_path *fast, double t, double h, int event_mode
     if (!fast->slave) return -1;
     int gil = py.PyGILState_Ensure();
     drop_step_call(fast); /* the first step may start a new trajectory */
-    PyObject *result = py.PyObject_CallMethod(fast->slave, "step_to_event", "(ddi)", t, h, event_mode);
+    PyObject *sets = kept_sets(fast); /* handed over with the step */
+    PyObject *result =
+        sets ? py.PyObject_CallMethod(fast->slave, "step_to_event", "(ddiO)", t, h, event_mode, sets) : NULL;
+    if (sets) py.Py_DecRef(sets);
     fast->moved = 1; /* a failed step may have moved the state part of the way */
     fast->fresh = 0;
     int outcome = 1;
@@ -432,6 +478,115 @@ int sbf_slave_derivatives(sbf_fast_path *fast, const char *function, const char 
     for (size_t i = 0; i < sizeof held / sizeof *held; ++i)
         if (held[i]) py.Py_DecRef(held[i]);
     py.PyGILState_Release(gil);
+    return outcome;
+}
+
+/* ---- the inputs kept until the next step ---- */
+
+/* The slave's rules for keeping inputs (its kept_inputs()), asked once, under the GIL: none if it gives none or a
+ * malformed answer (no Python exception left pending). */
+static void ask_rules(sbf_fast_path *fast)
+{
+    PyObject *rules = py.PyObject_CallMethod(fast->slave, "kept_inputs", NULL);
+    ptrdiff_t n = rules && rules != py_none ? py.PyTuple_Size(rules) : 0;
+    ptrdiff_t i = 0;
+    for (; i < n && n <= SBF_MAX_KEPT; ++i) {
+        PyObject *rule = py.PyTuple_GetItem(rules, i);
+        if (!rule || py.PyTuple_Size(rule) != 3) break;
+        long vr = py.PyLong_AsLong(py.PyTuple_GetItem(rule, 0)), order = py.PyLong_AsLong(py.PyTuple_GetItem(rule, 1));
+        double bound = py.PyFloat_AsDouble(py.PyTuple_GetItem(rule, 2));
+        if (py.PyErr_Occurred() || vr < 0 || (unsigned long)vr > UINT_MAX || order < 0 || order > INT_MAX) break;
+        fast->rule_vr[i] = (unsigned)vr, fast->rule_order[i] = (int)order, fast->rule_bound[i] = bound;
+    }
+    fast->rules_asked = 1;
+    fast->n_rules = i == n ? (size_t)n : 0;
+    py.PyErr_Clear();
+    if (rules) py.Py_DecRef(rules);
+}
+
+/* The rule that keeps `value` set for the input `vr` (its derivative of order `order`), or -1 if none surely does */
+static int rule_for(const sbf_fast_path *fast, unsigned vr, int order, double value)
+{
+    for (size_t k = 0; k < fast->n_rules; ++k)
+        if (fast->rule_vr[k] == vr && fast->rule_order[k] == order)
+            return isfinite(value) && fabs(value) <= fast->rule_bound[k] ? (int)k : -1;
+    return -1;
+}
+
+/* `value` kept for the input of `rule`, which becomes the last set */
+static void keep_value(sbf_fast_path *fast, size_t rule, double value)
+{
+    size_t j = 0;
+    while (j < fast->n_kept && fast->kept_order[j] != rule) ++j;
+    if (j < fast->n_kept) {
+        memmove(fast->kept_order + j, fast->kept_order + j + 1, (fast->n_kept - j - 1) * sizeof *fast->kept_order);
+        --fast->n_kept;
+    }
+    fast->kept_order[fast->n_kept++] = rule;
+    fast->kept[rule] = value;
+}
+
+int sbf_keep_inputs(sbf_fast_path *fast, const unsigned *vr, const int *order, size_t n, const double *values)
+{
+    int rules[SBF_MAX_KEPT];
+    if (!fast->slave || !stepping || n == 0 || n > SBF_MAX_KEPT || !vr || !values) return 0;
+    if (!fast->rules_asked) {
+        int gil = py.PyGILState_Ensure();
+        ask_rules(fast);
+        py.PyGILState_Release(gil);
+    }
+    for (size_t i = 0; i < n; ++i) /* a derivative's order is 1 or more: 0 is the slave's to refuse */
+        if ((order && order[i] < 1) || (rules[i] = rule_for(fast, vr[i], order ? order[i] : 0, values[i])) < 0)
+            return 0;
+    for (size_t i = 0; i < n; ++i) keep_value(fast, (size_t)rules[i], values[i]);
+    fast->fresh = 0; /* outputs may depend on the inputs: read them from the slave, which is handed the inputs first */
+    return 1;
+}
+
+/* (rule, value) as the slave takes it, or NULL (an exception set) */
+static PyObject *kept_pair(size_t rule, double value)
+{
+    PyObject *pair = py.PyTuple_New(2), *index = py.PyLong_FromLong((long)rule), *number = py.PyFloat_FromDouble(value);
+    if (!pair || !index || !number) {
+        PyObject *made[] = {pair, index, number};
+        for (size_t i = 0; i < sizeof made / sizeof *made; ++i)
+            if (made[i]) py.Py_DecRef(made[i]);
+        return NULL;
+    }
+    py.PyTuple_SetItem(pair, 0, index);
+    py.PyTuple_SetItem(pair, 1, number);
+    return pair;
+}
+
+/* The inputs kept, ((rule, value), ...) in the order they were last set (a new reference, or NULL with an exception
+ * set), forgotten. Under the GIL. */
+static PyObject *kept_sets(sbf_fast_path *fast)
+{
+    PyObject *sets;
+#define KEPT_PAIR(i) kept_pair(fast->kept_order[i], fast->kept[fast->kept_order[i]])
+    NEW_TUPLE(sets, fast->n_kept, KEPT_PAIR);
+#undef KEPT_PAIR
+    fast->n_kept = 0;
+    return sets;
+}
+
+int sbf_kept_state_get(sbf_fast_path *fast, void **state, char *why, size_t why_size)
+{
+    if (fast->n_kept) {
+        int gil = py.PyGILState_Ensure();
+        hand_over(fast);
+        py.PyGILState_Release(gil);
+    }
+    return sbf_state_get(fast, state, why, why_size);
+}
+
+int sbf_kept_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size)
+{
+    int outcome = sbf_state_set(fast, state, why, why_size);
+    if (outcome == 0) {
+        fast->n_kept = 0; /* the state sets every input (refused, the instance keeps them) */
+        if (state != fast->clean_state) fast->rules_asked = 0; /* not rewound: its parameters may differ */
+    }
     return outcome;
 }
 

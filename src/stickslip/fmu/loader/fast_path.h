@@ -10,10 +10,12 @@
  *     first outputs, x and v), and keeps them in a buffer of its own;
  *   - answers reads of outputs from that buffer, without entering Python; a read of another output asks the
  *     second call (Trajectory.outputs: every output at the current state) once per step;
- *   - before forwarding any other call to the inner library, tells the slave that the state moved (its own
- *     caches of the outputs are stale: outputs_changed()) and, unless the call only reads, forgets the step
- *     call and the buffer: inputs, parameters, a restored state or a reset change what the next step starts
- *     from, and the slave gives a new step call for it.
+ *   - keeps the values of the inputs a host sets between steps where they surely pass the slave's checks, and
+ *     hands them to the slave with the next step, in the same call into Python (sbf_keep_inputs, below);
+ *   - before forwarding any other call to the inner library, hands the slave the inputs it kept, tells it that
+ *     the state moved (its own caches of the outputs are stale: outputs_changed()) and, unless the call only
+ *     reads, forgets the step call and the buffer: inputs, parameters, a restored state or a reset change what
+ *     the next step starts from, and the slave gives a new step call for it.
  * The outputs are the very values the slave's getters answer (the same conversions as the inner library's),
  * so results do not depend on which path a call takes. Where the slave offers nothing (a pythonfmu binary
  * without this loader's symbol, a CPython without the functions below) or SBF_FAST_PATH=0 is in the environment,
@@ -26,6 +28,7 @@
 #include <stddef.h>
 
 #define SBF_MAX_OUTPUTS 64
+#define SBF_MAX_KEPT 4 /* inputs the loader may keep between steps (sbf_keep_inputs) */
 /* The environment variable that turns the fast path off for the process when it is "0" (to compare the paths) */
 #define SBF_FAST_PATH_VARIABLE "SBF_FAST_PATH"
 
@@ -50,6 +53,15 @@ typedef struct {
     void *serialized_state; /* the FMU state serialized last (a reference held), NULL if none */
     unsigned char *serialized; /* its bytes (malloc'd) */
     size_t serialized_size, serialized_room;
+    /* the inputs kept in C until the next step (sbf_keep_inputs), by the slave's rules (its kept_inputs()) */
+    int rules_asked;                 /* the slave was asked for them (since it bound or a state was set) */
+    size_t n_rules;                  /* the inputs it lets the loader keep (0: none) */
+    unsigned rule_vr[SBF_MAX_KEPT];  /* each one's value reference, */
+    int rule_order[SBF_MAX_KEPT];    /* the order of its derivative set (0: the value itself), */
+    double rule_bound[SBF_MAX_KEPT]; /* the magnitude up to which a finite value surely passes the slave's checks */
+    double kept[SBF_MAX_KEPT];       /* the value kept of each rule's input, */
+    size_t kept_order[SBF_MAX_KEPT]; /* and the rules of the inputs kept, in the order they were last set */
+    size_t n_kept;
 } sbf_fast_path;
 
 /* Resolve the CPython functions the fast path calls from `libpython` (sbf_open_library's or sbf_process_python's
@@ -64,12 +76,14 @@ void sbf_fast_binding(sbf_fast_path *fast);
  * thread, byte for byte as the host named it (the inner library may have been given another path to it), or NULL. */
 const char *sbf_bound_folder(void);
 
-/* A communication step from `t` by `h` (s): -1 if the fast path cannot take it (forward the call instead), 0 if
- * taken, 1 if the step failed, with the slave's exception as "[doStep] <repr>" in `why`. */
+/* A communication step from `t` by `h` (s), with the inputs kept handed over in the same call (the slave's
+ * step_kept): -1 if the fast path cannot take it (forward the call instead; the inputs kept are the slave's by
+ * then), 0 if taken, 1 if the step failed, with the slave's exception as "[doStep] <repr>" in `why`. */
 int sbf_fast_step(sbf_fast_path *fast, double t, double h, char *why, size_t why_size);
 
-/* Before a call is forwarded to the inner library: the slave hears that the state moved; if `changes` (the call
- * may change the state, parameters or inputs), the step call and the buffer are forgotten. */
+/* Before a call is forwarded to the inner library: the slave takes the inputs kept (take_kept; the step call is
+ * then forgotten) and hears that the state moved; if `changes` (the call may change the state, parameters or
+ * inputs), the step call and the buffer are forgotten. */
 void sbf_fast_forward(sbf_fast_path *fast, int changes);
 
 /* 1 with the `n` values of the outputs `vr` in `values` if the buffer holds them all (each of kind 'r', or 'i'
@@ -94,7 +108,7 @@ int sbf_slave_exchange(sbf_fast_path *fast, const char *function, const double *
                        double *out, size_t n_out, char *why, size_t why_size);
 
 /* fmi3DoStep with early return: the bound slave's step_to_event (fmu_src/SpringBlockFriction_fmi3.py) from `t` by
- * `h` (s), `event_mode`: the instance uses event mode (the step also stops at an event at t + h, and the event is left
+ * `h` (s), with the inputs kept handed over in the same call, `event_mode`: the instance uses event mode (the step also stops at an event at t + h, and the event is left
  * for sbf_slave_apply_events). 0 with the time reached in *reached, *stopped = 1 if it stopped at an event there
  * (short of t + h, or with `event_mode` at it), and every output there in the buffer (the reads after the step are
  * answered from it, as after sbf_fast_step); -1 if no slave is bound (take the step another way); 1 if the step
@@ -131,6 +145,23 @@ int sbf_state_size(sbf_fast_path *fast, void *state, size_t *size, char *why, si
 int sbf_state_serialize(sbf_fast_path *fast, void *state, void *bytes, size_t size, char *why, size_t why_size);
 int sbf_state_deserialize(sbf_fast_path *fast, const void *bytes, size_t size, void **state, char *why,
                           size_t why_size);
+
+/* The block's real inputs kept in C between steps: a master sets F_ext and its rate before every step, each set a
+ * call into the slave's Python as costly as the step. The slave tells the loader once (kept_inputs(), after
+ * initialization: fmu_src/block_interface.py) which inputs it may keep and the magnitude up to which a finite value
+ * surely passes its checks; the loader keeps such values and hands them over in the order they were last set with
+ * the next step, in the same call into Python (the slave's step_kept, or step_to_event's `sets`), or before any other
+ * call that reaches the slave (sbf_fast_forward: the slave's take_kept). Any other value, and any call that is not
+ * all kept inputs, goes to the slave as before (refused there with its message).
+ *   sbf_keep_inputs: 1 if the n values of the inputs vr[0..n) (order[i] the order of the derivative set, or the
+ *   values themselves where `order` is NULL) were kept (the outputs' buffer then stale); 0 if nothing was kept
+ *   (forward the call). Only for a co-simulation instance in Step Mode (the front checks), with the fast path on.
+ *   sbf_kept_state_get: sbf_state_get after the kept inputs are handed over (a state holds every input set).
+ *   sbf_kept_state_set: sbf_state_set after they are dropped (the state sets every input), the rules asked again (the
+ *   state's parameters may differ). */
+int sbf_keep_inputs(sbf_fast_path *fast, const unsigned *vr, const int *order, size_t n, const double *values);
+int sbf_kept_state_get(sbf_fast_path *fast, void **state, char *why, size_t why_size);
+int sbf_kept_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size);
 
 /* Drop the slave and its step call (freeing the instance). */
 void sbf_fast_unbind(sbf_fast_path *fast);

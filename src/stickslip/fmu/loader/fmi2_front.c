@@ -58,7 +58,6 @@ typedef struct {
 #define FORWARDED(X)                                                                                               \
     X(fmi2GetBoolean, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Boolean *x), (v, n, x)) \
     X(fmi2GetString, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2String *x), (v, n, x)) \
-    X(fmi2SetReal, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Real *x), (v, n, x)) \
     X(fmi2SetInteger, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Integer *x), (v, n, x)) \
     X(fmi2SetBoolean, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Boolean *x), (v, n, x)) \
     X(fmi2SetString, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2String *x), (v, n, x)) \
@@ -80,6 +79,11 @@ typedef struct {
     X(fmi2GetInteger, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, fmi2Integer *x),       \
       (v, n, x), sbf_fast_integers)
 
+/* The setter of the inputs that the loader may keep until the next step (sbf_keep_inputs): kept there, else
+ * forwarded by forward_<name>; exported below. */
+#define KEPT_SETTERS(X) \
+    X(fmi2SetReal, RECOVERABLE, (fmi2Component c, const fmi2ValueReference *v, size_t n, const fmi2Real *x), (v, n, x))
+
 /* The functions forwarded that move the instance between FMI 2's states (sbf_mode) or need one, and the
  * deserialization of states: forwarded by forward_<name>, exported below. */
 #define TRACKED(X)                                                                                                 \
@@ -99,7 +103,7 @@ typedef struct {
 /* The functions forwarded that take an FMU state, refused for a NULL one (SBF_STATE_USED): forwarded by
  * forward_<name>, exported below. */
 #define STATE_USED(X)                                                                                              \
-    X(fmi2SetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate s), (s), sbf_state_set)                         \
+    X(fmi2SetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate s), (s), sbf_kept_state_set)                         \
     X(fmi2SerializedFMUstateSize, KEPT, (fmi2Component c, fmi2FMUstate s, size_t *n), (s, n), sbf_state_size)      \
     X(fmi2SerializeFMUstate, KEPT, (fmi2Component c, fmi2FMUstate s, fmi2Byte *b, size_t n), (s, b, n),             \
       sbf_state_serialize)
@@ -109,6 +113,7 @@ static struct {
 #define POINTER(name, failure, params, args, ...) fmi2Status(*name) params;
     READERS(POINTER)
     FORWARDED(POINTER)
+    KEPT_SETTERS(POINTER)
     TRACKED(POINTER)
     STATE_USED(POINTER)
     STATE_GOT(POINTER)
@@ -167,7 +172,7 @@ static void relay_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Status 
 static int resolve_inner(void *lib, const char *path)
 {
 #define LOAD(name, failure, params, args, ...) && (*(void **)&inner.name = sbf_symbol(lib, #name)) != NULL
-    if (1 READERS(LOAD) FORWARDED(LOAD) TRACKED(LOAD) STATE_USED(LOAD) STATE_GOT(LOAD) LOAD(fmi2Instantiate, , , )
+    if (1 READERS(LOAD) FORWARDED(LOAD) KEPT_SETTERS(LOAD) TRACKED(LOAD) STATE_USED(LOAD) STATE_GOT(LOAD) LOAD(fmi2Instantiate, , , )
             LOAD(fmi2FreeInstance, , , ) LOAD(fmi2SetDebugLogging, , , )
             LOAD(fmi2FreeFMUstate, , , ))
         return 1;
@@ -359,6 +364,7 @@ READERS(READER)
 SBF_FREE_STATE(fmi2Status, fmi2Error, fmi2Fatal, fmi2FreeFMUstate, fmi2FMUstate)
 #define FORWARD(name, failure, params, args, ...) \
     SBF_FORWARD_AS(static, forward_##name, fmi2Status, fmi2Error, fmi2Fatal, name, failure, params, args)
+KEPT_SETTERS(FORWARD)
 TRACKED(FORWARD)
 STATE_USED(FORWARD)
 #undef FORWARD
@@ -388,6 +394,26 @@ static int refused_in_state(fmi2Component c, const char *function, unsigned allo
     if (!sbf_call_refused(((Instance *)c)->mode, allowed, function, why, sizeof why)) return 0;
     host_log(c, fmi2Error, why);
     return 1;
+}
+
+/* 1 if the loader kept the n values of the real inputs vr[0..n) (their derivatives of the orders order[0..n), or the
+ * values themselves where `order` is NULL) until the next step: a co-simulation instance in Step Mode
+ * (sbf_keep_inputs) */
+static int inputs_kept(fmi2Component c, const fmi2ValueReference *vr, const fmi2Integer *order, size_t n,
+                       const fmi2Real *values)
+{
+    Instance *inst = c;
+    if (!inst || inst->exchange || inst->mode != SBF_STEPPING) return 0;
+    sbf_keep_thread_state();
+    sbf_call_begin();
+    int done = sbf_keep_inputs(&inst->fast, vr, order, n, values);
+    sbf_call_end();
+    return done;
+}
+
+EXPORT fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference *vr, size_t n, const fmi2Real *value)
+{
+    return inputs_kept(c, vr, NULL, n, value) ? fmi2OK : forward_fmi2SetReal(c, vr, n, value);
 }
 
 EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
@@ -472,6 +498,7 @@ static fmi2Status derivatives(fmi2Component c, const char *function, const char 
         host_log(c, fmi2Error, why);
         return fmi2Error;
     }
+    if (writes && inputs_kept(c, vr, order, n, values)) return fmi2OK;
     sbf_keep_thread_state();
     sbf_call_begin();
     sbf_fast_forward(&inst->fast, writes);

@@ -66,7 +66,6 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
  * SpringBlockFriction_fmi3's do) the instance stays valid for fmi3Reset, fmi3SetFMUState and fmi3FreeInstance,
  * which is what fmi3Error means, so fmi3Fatal is returned and logged as fmi3Error. KEPT: the status as is. */
 #define FORWARDED(X)                                                                                               \
-    X(fmi3SetFloat64, RECOVERABLE, SETTER(fmi3Float64), ARRAY_ARGS)                                               \
     X(fmi3SetInt32, RECOVERABLE, SETTER(fmi3Int32), ARRAY_ARGS)                                                   \
     GET_AND_SET(X, Int64, fmi3Int64)                                                                              \
     GET_AND_SET(X, UInt64, fmi3UInt64)                                                                            \
@@ -76,6 +75,10 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
       (fmi3Instance c, const fmi3ValueReference *unknowns, size_t nUnknowns, const fmi3ValueReference *knowns,    \
        size_t nKnowns, const fmi3Float64 *seed, size_t nSeed, fmi3Float64 *sensitivity, size_t nSensitivity),    \
       (unknowns, nUnknowns, knowns, nKnowns, seed, nSeed, sensitivity, nSensitivity))
+
+/* The setter of the inputs that the loader may keep until the next step (sbf_keep_inputs): kept there, else
+ * forwarded by forward_<name>; exported below. */
+#define KEPT_SETTERS(X) X(fmi3SetFloat64, RECOVERABLE, SETTER(fmi3Float64), ARRAY_ARGS)
 
 /* The model-exchange functions forwarded as they are, refused for a co-simulation instance (FMI 3.0 section
  * 2.3: "Not allowed in Co-Simulation") and outside the states they are allowed in (the last argument,
@@ -137,7 +140,7 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
 /* The functions forwarded that take an FMU state, refused for a NULL one (SBF_STATE_USED): forwarded by
  * forward_<name>, exported below. */
 #define STATE_USED(X)                                                                                              \
-    X(fmi3SetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState s), (s), sbf_state_set)                          \
+    X(fmi3SetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState s), (s), sbf_kept_state_set)                          \
     X(fmi3SerializedFMUStateSize, KEPT, (fmi3Instance c, fmi3FMUState s, size_t *size), (s, size), sbf_state_size) \
     X(fmi3SerializeFMUState, KEPT, (fmi3Instance c, fmi3FMUState s, fmi3Byte *bytes, size_t size), (s, bytes, size), \
       sbf_state_serialize)
@@ -187,6 +190,7 @@ static struct {
 #define POINTER(name, failure, params, args, ...) fmi3Status(*name) params;
     READERS(POINTER)
     FORWARDED(POINTER)
+    KEPT_SETTERS(POINTER)
     EXCHANGE_ONLY(POINTER)
     TRACKED(POINTER)
     STATE_USED(POINTER)
@@ -247,7 +251,7 @@ static void relay_log(fmi3InstanceEnvironment env, fmi3Status status, fmi3String
 static int resolve_inner(void *lib, const char *path)
 {
 #define LOAD(name, failure, params, args, ...) && (*(void **)&inner.name = sbf_symbol(lib, #name)) != NULL
-    if (1 READERS(LOAD) FORWARDED(LOAD) EXCHANGE_ONLY(LOAD) TRACKED(LOAD) STATE_USED(LOAD) STATE_GOT(LOAD)
+    if (1 READERS(LOAD) FORWARDED(LOAD) KEPT_SETTERS(LOAD) EXCHANGE_ONLY(LOAD) TRACKED(LOAD) STATE_USED(LOAD) STATE_GOT(LOAD)
             LOAD(fmi3InstantiateCoSimulation, , , ) LOAD(fmi3InstantiateModelExchange, , , )
             LOAD(fmi3FreeInstance, , , ) LOAD(fmi3GetContinuousStateDerivatives, , , )
             LOAD(fmi3FreeFMUState, , , ))
@@ -431,6 +435,7 @@ READERS(READER)
 #undef READER
 #define FORWARD(name, failure, params, args, ...) \
     SBF_FORWARD_AS(static, forward_##name, fmi3Status, fmi3Error, fmi3Fatal, name, failure, params, args)
+KEPT_SETTERS(FORWARD)
 EXCHANGE_ONLY(FORWARD)
 TRACKED(FORWARD)
 STATE_USED(FORWARD)
@@ -461,6 +466,22 @@ static int refused_in_state(fmi3Instance c, const char *function, unsigned allow
     if (!c || !sbf_call_refused(((Instance *)c)->mode, allowed, function, why, sizeof why)) return 0;
     host_log(c, fmi3Error, why);
     return 1;
+}
+
+/* Values of inputs set in Step Mode of a co-simulation instance that the loader keeps until the next step
+ * (sbf_keep_inputs: scalars, nValues = nValueReferences), else forwarded */
+EXPORT fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference *vr, size_t nvr, const fmi3Float64 *values,
+                                 size_t n)
+{
+    Instance *inst = c;
+    if (inst && !inst->exchange && inst->mode == SBF_STEPPING && n == nvr) {
+        sbf_keep_thread_state();
+        sbf_call_begin();
+        int done = sbf_keep_inputs(&inst->fast, vr, NULL, nvr, values);
+        sbf_call_end();
+        if (done) return fmi3OK;
+    }
+    return forward_fmi3SetFloat64(c, vr, nvr, values, n);
 }
 
 EXPORT fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
@@ -618,8 +639,7 @@ static fmi3Status event_step(Instance *inst, double t, double h, char *why, size
                              fmi3Boolean *handling, fmi3Float64 *reached)
 {
     int stopped = 0;
-    sbf_call_begin();
-    sbf_fast_forward(&inst->fast, 1);
+    sbf_call_begin(); /* the slave hears of the last step, and takes the inputs kept, in the step */
     int outcome = sbf_slave_event_step(&inst->fast, t, h, inst->event_mode, reached, &stopped, why, size);
     sbf_call_end();
     if (outcome < 0) return fmi3Discard;

@@ -38,6 +38,9 @@
  *        b logged once)
  * ramp   as run, but after initialization sets the first time derivative of the real input ($HOST_RAMP: "VR RATE")
  *        with fmi2SetRealInputDerivatives and prints "status ramp CODE" before the "x" lines
+ * wave   as run, but before every step sets the real input ($HOST_WAVE: "VR AMPLITUDE") to AMPLITUDE sin(t) and its
+ *        first time derivative to AMPLITUDE cos(t) (fmi2SetReal, fmi2SetRealInputDerivatives), t the step's start, as
+ *        a co-simulation master sets a coupling force and its rate
  * With $HOST_LOGGING=1 every instance is made with loggingOn (else off).
  * Every line is flushed. The exit code is 0 when the mode ran to its end (a
  * failing FMI call ends the program with "failed FUNCTION STATUS" and code 1). */
@@ -273,6 +276,30 @@ static void mode_ramp(void)
     run_initialized(c, "x");
 }
 
+static void mode_wave(void)
+{
+    const char *wave = getenv("HOST_WAVE");
+    VR vr;
+    int order = 1;
+    double amplitude, t = 0.0;
+    if (!wave || sscanf(wave, "%u %lf", &vr, &amplitude) != 2) {
+        say("failed HOST_WAVE \"VR AMPLITUDE\" not set\n");
+        exit(1);
+    }
+    Component c = instantiate("wave");
+    check("fmi2ExitInitializationMode", initialize(c, n_settings));
+    say("x %.17g %.17g\n", t, read_output(c));
+    for (long n = 0; !done(t, stop_time); ++n) {
+        double next = next_point(n, stop_time), force = amplitude * sin(t), rate = amplitude * cos(t);
+        check("fmi2SetReal", fmi.set_real(c, &vr, 1, &force));
+        check("fmi2SetRealInputDerivatives", fmi.set_input_derivatives(c, &vr, 1, &order, &rate));
+        check("fmi2DoStep", fmi.do_step(c, t, next - t, 1));
+        t = next;
+        say("x %.17g %.17g\n", t, read_output(c));
+    }
+    finish(c);
+}
+
 static void mode_reset(void)
 {
     Component c = instantiate("bad");
@@ -505,6 +532,7 @@ int main(int argc, char **argv)
     else if (!strcmp(mode, "bad")) mode_bad();
     else if (!strcmp(mode, "reset")) mode_reset();
     else if (!strcmp(mode, "ramp")) mode_ramp();
+    else if (!strcmp(mode, "wave")) mode_wave();
     else if (!strcmp(mode, "two")) mode_two();
     else if (!strcmp(mode, "threads")) mode_threads();
     else if (!strcmp(mode, "state")) mode_state();
