@@ -1,14 +1,34 @@
 """The masters by name (``--master``): each a module with one class (:mod:`.master` says what it implements)."""
 
+import importlib
+from collections.abc import Mapping
+
 from ..hosts.fmpy_host import FMUError
-from .adaptive import AdaptiveMaster
 from .master import Master
-from .me import MeMaster
-from .native import NativeMaster
-from .zoh import ZohMaster
+
+
+class _Classes(Mapping):
+    """Name: class, each class's module imported when the class is first asked for (a run loads only its master's,
+    not e.g. the ``zoh`` master's SSP engines and the FMU builds behind them)."""
+
+    def __init__(self, homes):
+        self._homes = homes  # name: (module, class name)
+
+    def __getitem__(self, name):
+        module, cls = self._homes[name]
+        return getattr(importlib.import_module(module, __package__), cls)
+
+    def __iter__(self):
+        return iter(self._homes)
+
+    def __len__(self):
+        return len(self._homes)
+
 
 #: master name: its class
-MASTERS: dict[str, type[Master]] = {cls.NAME: cls for cls in (ZohMaster, MeMaster, AdaptiveMaster, NativeMaster)}
+MASTERS: Mapping[str, type[Master]] = _Classes({"zoh": (".zoh", "ZohMaster"), "me": (".me", "MeMaster"),
+                                                "adaptive": (".adaptive", "AdaptiveMaster"),
+                                                "native": (".native", "NativeMaster")})
 
 
 def make_master(name, **options) -> Master:
