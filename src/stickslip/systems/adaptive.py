@@ -324,9 +324,10 @@ class _Blocks:
         """``(z_slip, z_stick, t_last_event, mode, n_events)`` of every block, each an array over blocks: read where
         each block's last step ended (a block is restored only to be stepped again), or now before any step or where
         a block's last step was not planned as its last (an attempt stopped at an event)."""
-        if any(end is None for end in self.ends):
+        if None in self.ends:
             return [np.array(column) for column in read_values(self.instances, self.end_refs, self.int_refs)]
-        return [np.array(column) for column in zip(*self.ends)]
+        reals, ints = len(_READ_END), len(_READ_INT)
+        return [*np.array([end[:reals] for end in self.ends]).T, *np.array([end[reals:] for end in self.ends]).T]
 
 
 class _Attempt:
@@ -637,14 +638,17 @@ class _Run:
         """Step block ``i`` over every cell ``k`` of ``attempt`` in one ``doStep`` with ``F_ext`` from ``start[k]``
         (N) at the cell's start, growing at ``rate[k]`` (N/s); read the cell ends."""
         times, may_cut = attempt.cell_times, attempt.sweeps > 0 and attempt.cuttable
-        cells = len(times) - 1
+        cells, blocks, ends = len(times) - 1, self.blocks, []
         for k in range(cells):
             t0, t1 = times[k], times[k + 1]
             if self._step(i, t0, t1, start[k], rate[k], attempt, may_cut, last=k == cells - 1):
-                return
-            x, v, friction, spring = self.blocks.stepped
-            attempt.X[i, k + 1], attempt.V[i, k + 1], attempt.friction[i, k + 1] = x, v, friction
-            attempt.spring[i], attempt.held[i] = spring, start[k] + rate[k] * (t1 - t0)
+                break
+            ends.append(blocks.stepped)
+        if ends:  # the cells stepped (all, but for a step stopped at an event), written at once
+            x, v, friction, spring = zip(*ends)
+            k = len(ends) - 1  # the last one
+            attempt.X[i, 1:k + 2], attempt.V[i, 1:k + 2], attempt.friction[i, 1:k + 2] = x, v, friction
+            attempt.spring[i], attempt.held[i] = spring[k], start[k] + rate[k] * (times[k + 1] - times[k])
             attempt.held_rate[i] = rate[k]
 
     def _step(self, i, t0, t1, force, rate, attempt, may_cut, last=True):
