@@ -118,6 +118,13 @@ def block_tolerances(system, rtol):
     return dataclasses.replace(system, blocks=blocks)
 
 
+def cell_times(t, T, cells):
+    """The ends of ``cells`` equal cells from ``t`` to ``T`` (s), as ``np.linspace(t, T, cells + 1)`` gives them
+    (``t + k (T - t) / cells``, the last ``T``), as floats."""
+    step = (T - t) / cells
+    return [t + k * step for k in range(cells)] + [T]
+
+
 def hermite_basis(u):
     """The cubic Hermite basis at ``u`` in [0, 1]: the weights of ``x0``, ``delta v0``, ``x1`` and ``delta v1``."""
     u2, u3 = u * u, u * u * u
@@ -425,7 +432,7 @@ class _Run:
         """One accepted communication step from ``t`` (redone shorter, and on an event, as needed)."""
         self.blocks.save(skip=self.ahead.on)
         next_grid = self.grid[np.searchsorted(self.grid, self.t, side="right")]
-        slipping = bool(np.any(self.end[3] != 0))
+        slipping = bool((self.end[3] != 0).any())
         for _ in range(MAX_REDOS):
             h = min(self.h, self.h_slip) if slipping else math.inf
             T = min(self.t + h, float(next_grid))
@@ -455,15 +462,16 @@ class _Run:
     def _attempt(self, T, cells, cuttable=True):
         """The step ``[t, T]`` in ``cells`` cells, swept until the waveforms converge (or ``MAX_SWEEPS``); with early
         return (FMI 3) and ``cuttable``, stopped at the first event a block's early return shows inside it."""
-        times = np.linspace(self.t, T, cells + 1)
-        if not np.all(np.diff(times) > 0.0):  # a step of a few ulp (an event landed just before a grid point)
-            times = np.array([self.t, T])
+        times = cell_times(self.t, T, cells)
+        if not all(s0 < s1 for s0, s1 in zip(times, times[1:])):  # a step of a few ulp (an event landed just
+            times = [self.t, T]  # before a grid point)
+        times = np.array(times)
         tau = times - self.t
         a, j = self._predicted_acceleration()[:, None], self.jerk[:, None]
         attempt = _Attempt(times, self.x[:, None] + self.v[:, None] * tau + a * tau ** 2 / 2 + j * tau ** 3 / 6,
                            self.v[:, None] + a * tau + j * tau ** 2 / 2, cuttable and self.blocks.early_return)
         slipping = self.end[3] != 0
-        floor = max(0.01 * self.tol * (T - self.t), 1e-14 * (1.0 + float(np.max(np.abs(self.x)))))
+        floor = max(0.01 * self.tol * (T - self.t), 1e-14 * (1.0 + float(np.abs(self.x).max())))
         settled = np.zeros(self.system.n, bool)  # stuck at t and still stuck, without an event, after a sweep
         self._ahead_rows(attempt, settled)
         while attempt.sweeps < MAX_SWEEPS and not attempt.converged:
@@ -472,11 +480,11 @@ class _Run:
             if attempt.cut is not None:
                 break  # redone to end at the event (_land)
             delta = times[1] - times[0]
-            change = max(float(np.max(np.abs(attempt.X - X))), float(np.max(np.abs(attempt.V - V))) * delta)
+            change = max(float(np.abs(attempt.X - X).max()), float(np.abs(attempt.V - V).max()) * delta)
             attempt.sweeps += 1
             # a hold that had an event is swept before the attempt converges (the cubic predictor
             # can make the first sweep's change tiny on a short step)
-            unswept = attempt.sweeps == 1 and np.any(~slipping & ~settled)
+            unswept = attempt.sweeps == 1 and (~slipping & ~settled).any()
             attempt.converged = change <= floor and not unswept
             attempt.error = self._estimate(attempt, residual, slipping)
             if attempt.error > 4.0 * self.tol * (T - self.t):
@@ -502,7 +510,7 @@ class _Run:
         lines = np.concatenate([used, self.K @ attempt.X[:, -1:]], axis=1)  # and the force at T
         # a stuck block's force is steady where it stays within steady_force of the one it holds
         holds = np.where(self.ahead.on, self.ahead.force, f_start[:, 0])
-        steady = np.max(np.abs(lines - holds[:, None]), axis=1) <= self.steady_force
+        steady = np.abs(lines - holds[:, None]).max(axis=1) <= self.steady_force
         for i in (self.ahead.on & ~steady).nonzero()[0].tolist():
             self._bring_back(i, attempt)
             settled[i] = False
@@ -670,7 +678,7 @@ class _Run:
         stepped with differ from those it was last stepped with in ``attempt`` by so little that its cell ends
         could move by at most a tenth of the convergence ``floor`` (m): ``|dF| (T - t)^2 / M``; False for a block
         not stepped in ``attempt`` yet."""
-        change = np.max(np.abs(forces - attempt.forces), axis=1)
+        change = np.abs(forces - attempt.forces).max(axis=1)
         return change * (attempt.T - self.t) ** 2 / self.M <= 0.1 * floor
 
     def _forces(self, attempt):
@@ -698,7 +706,7 @@ class _Run:
         gamma = np.where(dv > 1e-12, np.abs(dF) / np.maximum(dv, 1e-12), 0.0)
         lam2 = self.omega2[:, None] + (gamma / self.M[:, None]) ** 2
         per_cell = np.sqrt(lam2) / (2.0 * self.M[:, None]) * np.abs(residual)
-        return float(np.max(np.where(slipping, per_cell.sum(axis=1), 0.0)))
+        return float(np.where(slipping, per_cell.sum(axis=1), 0.0).max())
 
     def _accept(self, attempt):
         """Make ``attempt`` the new communication point; record its events."""
