@@ -14,6 +14,7 @@ from stickslip.cli import main
 from stickslip.hosts.fmpy_host import FmuCallError, FMUError
 from stickslip.reference import simulate_chain
 from stickslip.systems import MASTERS, SystemFileError, load_system, make_master
+from stickslip.systems.adaptive import cell_times
 from stickslip.systems.compare import compare
 from stickslip.systems.master import SystemResult, block_instances
 from stickslip.systems.me_blocks import ExchangeBlocks
@@ -253,6 +254,14 @@ def test_adaptive_takes_a_step_of_a_few_ulp(fmu_path):
 def test_adaptive_refuses_a_bad_rtol():
     with pytest.raises(FMUError, match=r"adaptive: rtol = 0.5: allowed is \[1e-14, 0.01\]"):
         make_master("adaptive", rtol=0.5)
+
+
+def test_adaptive_cell_times_are_those_of_linspace():
+    """The master's cell ends, as floats, bit for bit those of ``np.linspace`` (the steps and results hang on them)."""
+    pairs = np.random.default_rng(3).uniform(0.0, 300.0, (50, 2)).cumsum(axis=1)
+    for t, T in [(0.0, 0.0125), (71.3, 71.3 + 1e-9), *pairs.tolist()]:
+        for cells in (1, 4):
+            assert np.array(cell_times(t, T, cells)).tobytes() == np.linspace(t, T, cells + 1).tobytes()
 
 
 # ---------------------------------------------------------------- the command
