@@ -108,13 +108,13 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
         else:
             super().check_setting(name, value)
 
-    def take_value(self, name, value):
+    def take_value(self, name, value, kept=False):
         """:meth:`ExchangeInterface.take_value`; setting ``F_ext`` keeps ``der(F_ext)``, an input of its own."""
         if name == F_EXT_RATE:
             self.take_rate(value)
             return
         rate = self.values[F_EXT_RATE]
-        super().take_value(name, value)
+        super().take_value(name, value, kept)
         self.values[F_EXT_RATE] = rate
 
     def _local(self, name, unit, description, getter, derivative=None):
