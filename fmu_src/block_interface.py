@@ -417,18 +417,22 @@ class BlockInterface:
 
     def take_kept(self, sets):
         """Take the inputs the C loader kept, ``((index, value), ...)`` in the order they were last set, ``index``
-        into :meth:`kept_input_references`; each value one :meth:`kept_inputs` allows, so nothing is checked again:
-        the trajectory takes them at once (:meth:`Trajectory.take_checked_inputs`) where ``F_ext`` is among them and
-        no input was set otherwise since it last took them (else ``F_ext`` going on from now, or a value set
-        otherwise, is checked when the trajectory takes it, :meth:`current_trajectory`)."""
+        into :meth:`kept_input_references`; each value one :meth:`kept_inputs` allows, so nothing is checked again
+        (the trajectory takes them at the next step, :meth:`current_trajectory`)."""
         names = self.kept_input_references()
-        checked = self.trajectory is not None and not self._inputs_set
         for index, value in sets:
             name = names[index][0]
             if name == F_EXT_RATE:
                 self.take_rate(value)
             else:
                 self.take_value(name, value, kept=True)
+
+    def take_kept_for_step(self, sets):
+        """:meth:`take_kept` right before a step: the trajectory takes them at once, unchecked
+        (:meth:`Trajectory.take_checked_inputs`), where ``F_ext`` is among them and no input was set otherwise since it
+        last took them (else ``F_ext`` going on from now, or a value set otherwise, is checked as it takes it)."""
+        checked = self.trajectory is not None and not self._inputs_set
+        self.take_kept(sets)
         if checked and "F_ext" in self._inputs_set:
             self._apply_inputs(self.trajectory.take_checked_inputs)
 
@@ -436,7 +440,7 @@ class BlockInterface:
         """The C loader's doStep with the inputs it kept (:meth:`take_kept`), one call: the first outputs after the
         step, as the step call of :meth:`fast_step_call` gives them; None if the loader cannot take this step itself
         (the inputs taken, it forwards the step)."""
-        self.take_kept(sets)
+        self.take_kept_for_step(sets)
         calls = self.fast_step_call()
         return None if calls is None else calls[0](current_time, step_size)
 
