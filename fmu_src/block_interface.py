@@ -429,12 +429,20 @@ class BlockInterface:
 
     def take_kept_for_step(self, sets):
         """:meth:`take_kept` right before a step: the trajectory takes them at once, unchecked
-        (:meth:`Trajectory.take_checked_inputs`), where ``F_ext`` is among them and no input was set otherwise since it
-        last took them (else ``F_ext`` going on from now, or a value set otherwise, is checked as it takes it)."""
-        checked = self.trajectory is not None and not self._inputs_set
+        (:meth:`Trajectory.take_checked_inputs`), where no input was set otherwise since it last took them, ``F_ext``
+        is among them and each other input is too or is the one the trajectory holds (else ``F_ext`` going on from
+        now, a value set otherwise or one of a state set, is checked as the trajectory takes it)."""
+        sure = self.trajectory is not None and not self._inputs_set
         self.take_kept(sets)
-        if checked and "F_ext" in self._inputs_set:
+        if sure and self._kept_inputs_complete():
             self._apply_inputs(self.trajectory.take_checked_inputs)
+
+    def _kept_inputs_complete(self):
+        """Whether the inputs just kept (:meth:`take_kept_for_step`) give the trajectory every input it would take:
+        ``F_ext``, and ``v_drive`` and ``der(F_ext)`` each kept or equal to the trajectory's."""
+        values, kept, trajectory = self.values, self._inputs_set, self.trajectory
+        return ("F_ext" in kept and ("v_drive" in kept or values["v_drive"] == trajectory.v_drive)
+                and (F_EXT_RATE in kept or values[F_EXT_RATE] == trajectory.F_ext_rate))
 
     def step_kept(self, current_time, step_size, sets):
         """The C loader's doStep with the inputs it kept (:meth:`take_kept`), one call: the first outputs after the
