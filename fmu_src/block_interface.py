@@ -524,13 +524,15 @@ class ExchangeInterface:
 
     def take_value(self, name, value, kept=False):
         """A parameter or an input, checked (:meth:`BlockInterface.take_value`); after initialization an input is also
-        held by the model-exchange block, both interfaces alike (one ``kept`` by the C loader taken unchecked: the
-        block holds the other input already, checked)."""
+        held by the model-exchange block, both interfaces alike (one ``kept`` by the C loader taken unchecked, beside
+        the other input the block holds, checked)."""
         super().take_value(name, value, kept)
         if name in INPUTS and self.block is not None:
             self._block_saved = None
-            hold = self.block.take_checked_inputs if kept else self.block.set_inputs
-            hold(self.values["v_drive"], self.values["F_ext"])
+            if kept:
+                self.block.take_checked_input(name, value)
+            else:
+                self.block.set_inputs(self.values["v_drive"], self.values["F_ext"])
 
     def current_state(self):
         """What the outputs are read from: the trajectory until the first model-exchange call, then the block (during

@@ -187,7 +187,7 @@ def test_a_c_host_that_sets_the_force_before_every_step_gets_the_slave_s_run(hos
 def test_a_kept_force_beside_a_forged_drive_of_a_state_set_is_refused_naming_the_drive(fmu_path):
     """A state set whose held ``v_drive`` (not pending) is finite but beyond its force scale, the trajectory's own
     in range (its bytes forged): the force the loader keeps goes to the trajectory with that drive checked, so the
-    step is refused naming v_drive, as without the loader; the run goes on from the step before."""
+    step is refused naming v_drive (without the loader, the force's set is)."""
     machine_needs.c_compiler("the FMU's loader, whose kept inputs this tests")
     with ExtractedFMU(fmu_path) as extracted:
         inst = extracted.new_instance()
