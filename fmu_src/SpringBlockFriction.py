@@ -154,9 +154,9 @@ class SpringBlockFriction(ExchangeInterface, Fmi2Slave, BlockInterface):
             raise TypeError(f"{_NAMES[reference]} (valueReference={reference}) is {what}: it cannot be set")
         self.set_values([VARIABLES[r].name for r in references], values)
 
-    def take_value(self, name, value):
+    def take_value(self, name, value, kept=False):
         """Take a parameter (before initialization ends) or an input, checked: the outputs follow at the next read."""
-        super().take_value(name, value)
+        super().take_value(name, value, kept)
         self._by_reference[_REFERENCE_OF[name]] = value
         self._outputs_stale = self._derivatives_stale = True
 

@@ -108,13 +108,13 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
         else:
             super().check_setting(name, value)
 
-    def take_value(self, name, value):
+    def take_value(self, name, value, kept=False):
         """:meth:`ExchangeInterface.take_value`; setting ``F_ext`` keeps ``der(F_ext)``, an input of its own."""
         if name == F_EXT_RATE:
             self.take_rate(value)
             return
         rate = self.values[F_EXT_RATE]
-        super().take_value(name, value)
+        super().take_value(name, value, kept)
         self.values[F_EXT_RATE] = rate
 
     def _local(self, name, unit, description, getter, derivative=None):
@@ -224,13 +224,13 @@ class SpringBlockFriction(ExchangeInterface, Fmi3SlaveBase, ModelExchange, CoSim
 
     def step_to_event(self, current_time, step_size, event_mode, sets=()):
         """fmi3DoStep with early return (the C loader calls it for an instance made with earlyReturnAllowed), with the
-        inputs the loader kept since the last step taken first (``sets``, :meth:`BlockInterface.take_kept`): the step
-        of :meth:`do_step` that stops at the first stick, breakaway or overshoot inside it. ``event_mode``: the
+        inputs the loader kept since the last step taken first (``sets``, :meth:`BlockInterface.take_kept_for_step`):
+        the step of :meth:`do_step` that stops at the first stick, breakaway or overshoot inside it. ``event_mode``: the
         instance uses event mode, so the step also stops at an event at its end, and the event is left for
         :meth:`apply_step_events` (the outputs are its left limit); else it is applied at once. ``(time reached (s),
         True if it stopped at an event, every output there)`` (:meth:`Trajectory.outputs`, the values the getters
         answer: the loader keeps them)."""
-        self.take_kept(sets)
+        self.take_kept_for_step(sets)
         self._start_at(current_time)
         self.outputs_changed()
         trajectory = self.current_trajectory()

@@ -230,9 +230,10 @@ class BlockInterface:
         self.check_setting(name, value)
         self.take_value(name, value)
 
-    def take_value(self, name, value):
+    def take_value(self, name, value, kept=False):
         """Take the value of a parameter or input that :meth:`check_setting` allowed (a slave extends this, not
-        :meth:`set_variable`, so that a value is checked once)."""
+        :meth:`set_variable`, so that a value is checked once); ``kept``: an input the C loader kept
+        (:meth:`take_kept`), which the runtime need not check again."""
         self.values[name] = value
         if name not in INPUTS:
             self._saved_parameters = None  # the next state saved has parameters of its own
@@ -294,11 +295,17 @@ class BlockInterface:
         if self.trajectory is None:
             return self.new_trajectory()
         if self._inputs_set:
-            trajectory, v = self.trajectory, self.values
-            force = v["F_ext"] if "F_ext" in self._inputs_set else trajectory.F_ext_now  # else F_ext goes on from now
-            trajectory.set_inputs(v["v_drive"], force, v[F_EXT_RATE])
-            self._inputs_set.clear()
+            self._apply_inputs(self.trajectory.set_inputs)
         return self.trajectory
+
+    def _apply_inputs(self, set_inputs):
+        """Hand the inputs to the trajectory through ``set_inputs`` (its :meth:`Trajectory.set_inputs`, or
+        :meth:`Trajectory.take_checked_inputs` where each is known to pass its checks): ``F_ext`` goes on from now
+        unless it was set."""
+        v = self.values
+        force = v["F_ext"] if "F_ext" in self._inputs_set else self.trajectory.F_ext_now
+        set_inputs(v["v_drive"], force, v[F_EXT_RATE])
+        self._inputs_set.clear()
 
     # ---- input and output derivatives (FMI 2) -------------------------------------------
 
@@ -410,20 +417,38 @@ class BlockInterface:
 
     def take_kept(self, sets):
         """Take the inputs the C loader kept, ``((index, value), ...)`` in the order they were last set, ``index``
-        into :meth:`kept_input_references`; each value one :meth:`kept_inputs` allows, so nothing is checked again."""
+        into :meth:`kept_input_references`; each value one :meth:`kept_inputs` allows, so nothing is checked again
+        (the trajectory takes them at the next step, :meth:`current_trajectory`)."""
         names = self.kept_input_references()
         for index, value in sets:
             name = names[index][0]
             if name == F_EXT_RATE:
                 self.take_rate(value)
             else:
-                self.take_value(name, value)
+                self.take_value(name, value, kept=True)
+
+    def take_kept_for_step(self, sets):
+        """:meth:`take_kept` right before a step: the trajectory takes them at once, unchecked
+        (:meth:`Trajectory.take_checked_inputs`), where no input was set otherwise since it last took them, ``F_ext``
+        is among them and each other input is too or is the one the trajectory holds (else ``F_ext`` going on from
+        now, a value set otherwise or one of a state set, is checked as the trajectory takes it)."""
+        sure = self.trajectory is not None and not self._inputs_set
+        self.take_kept(sets)
+        if sure and self._kept_inputs_complete():
+            self._apply_inputs(self.trajectory.take_checked_inputs)
+
+    def _kept_inputs_complete(self):
+        """Whether the inputs just kept (:meth:`take_kept_for_step`) give the trajectory every input it would take:
+        ``F_ext``, and ``v_drive`` and ``der(F_ext)`` each kept or equal to the trajectory's."""
+        values, kept, trajectory = self.values, self._inputs_set, self.trajectory
+        return ("F_ext" in kept and ("v_drive" in kept or values["v_drive"] == trajectory.v_drive)
+                and (F_EXT_RATE in kept or values[F_EXT_RATE] == trajectory.F_ext_rate))
 
     def step_kept(self, current_time, step_size, sets):
         """The C loader's doStep with the inputs it kept (:meth:`take_kept`), one call: the first outputs after the
         step, as the step call of :meth:`fast_step_call` gives them; None if the loader cannot take this step itself
         (the inputs taken, it forwards the step)."""
-        self.take_kept(sets)
+        self.take_kept_for_step(sets)
         calls = self.fast_step_call()
         return None if calls is None else calls[0](current_time, step_size)
 
@@ -497,13 +522,17 @@ class ExchangeInterface:
         """Initialization ends: the ExchangeBlock of the current values (ParameterError for a bad parameter)."""
         self.block, self._block_saved = self._new_block(), None
 
-    def take_value(self, name, value):
+    def take_value(self, name, value, kept=False):
         """A parameter or an input, checked (:meth:`BlockInterface.take_value`); after initialization an input is also
-        held by the model-exchange block, both interfaces alike."""
-        super().take_value(name, value)
+        held by the model-exchange block, both interfaces alike (one ``kept`` by the C loader taken unchecked, beside
+        the other input the block holds, checked)."""
+        super().take_value(name, value, kept)
         if name in INPUTS and self.block is not None:
             self._block_saved = None
-            self.block.set_inputs(self.values["v_drive"], self.values["F_ext"])
+            if kept:
+                self.block.take_checked_input(name, value)
+            else:
+                self.block.set_inputs(self.values["v_drive"], self.values["F_ext"])
 
     def current_state(self):
         """What the outputs are read from: the trajectory until the first model-exchange call, then the block (during

@@ -17,7 +17,9 @@ from pathlib import Path
 import pytest
 
 import machine_needs
+from fmu_probe import forged_state
 from stickslip.hosts.c_host import run_host
+from stickslip.hosts.fmpy_host import ExtractedFMU, FmuCallError
 
 RUNNER = Path(__file__).resolve().parent / "fast_path_runner.py"
 OFF = {"SBF_FAST_PATH": "0"}
@@ -180,3 +182,26 @@ def test_a_c_host_that_sets_the_force_before_every_step_gets_the_slave_s_run(hos
     assert len(kept.series("x")[0]) == 301
     assert kept.series("x") == forwarded.series("x")
 
+
+
+def test_a_kept_force_beside_a_forged_drive_of_a_state_set_is_refused_naming_the_drive(fmu_path):
+    """A state set whose held ``v_drive`` (not pending) is finite but beyond its force scale, the trajectory's own
+    in range (its bytes forged): the force the loader keeps goes to the trajectory with that drive checked, so the
+    step is refused naming v_drive (without the loader, the force's set is)."""
+    machine_needs.c_compiler("the FMU's loader, whose kept inputs this tests")
+    with ExtractedFMU(fmu_path) as extracted:
+        inst = extracted.new_instance()
+        fmu, ref = inst.fmu, {name: v.valueReference for name, v in extracted.variables.items()}
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        fmu.doStep(0.0, H)
+        state = fmu.getFMUstate()
+        forged = forged_state(bytes(fmu.serializeFMUstate(state)), 2, "inputs.v_drive", 1e200)
+        fmu.freeFMUstate(state)
+        fmu.setFMUstate(fmu.deSerializeFMUstate(forged))
+        fmu.setReal([ref["F_ext"]], [0.3])
+        with pytest.raises(FmuCallError) as refused:
+            inst.call(fmu.doStep, H, H)
+        assert any("v_drive = 1e+200 m/s" in message for message in refused.value.messages), refused.value.messages
+        inst.free()

@@ -141,3 +141,20 @@ def test_a_bad_rate_is_refused_by_name(rate, named):
     with pytest.raises(ParameterError, match=r"der\(F_ext\)"):
         traj.set_inputs(0.0, 0.0, rate)
     assert traj.F_ext_rate == 0.0  # refused: the trajectory is unchanged
+
+
+def test_inputs_taken_as_checked_move_the_block_as_set_inputs_does():
+    """take_checked_inputs (inputs a slave knows pass the checks) against set_inputs: the ramp's closed form, and the
+    same state bit for bit after each change of the inputs, through the stick, the breakaway and the slide."""
+    checked, unchecked = Trajectory(COULOMB, 0.0, 0.0, v_drive=0.0), Trajectory(COULOMB, 0.0, 0.0, v_drive=0.0)
+    unchecked.take_checked_inputs(0.0, 0.0, RATE)
+    unchecked.advance_to(6.0)
+    assert abs(unchecked.x - ramp_motion(6.0)[0]) < 1e-13 and abs(unchecked.v - ramp_motion(6.0)[1]) < 1e-13
+    unchecked = Trajectory(COULOMB, 0.0, 0.0, v_drive=0.0)
+    for k, t in enumerate(np.arange(0.0, 9.0, 0.5)):
+        inputs = (0.1 * (k % 3), 1.5 * math.sin(t), 0.5 * math.cos(t))
+        for trajectory, take in ((checked, checked.set_inputs), (unchecked, unchecked.take_checked_inputs)):
+            trajectory.advance_to(float(t))
+            take(*inputs)
+        assert unchecked.snapshot() == checked.snapshot()
+    assert checked.n_events >= 3 and checked.n_slip_events >= 1

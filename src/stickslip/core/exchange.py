@@ -138,6 +138,15 @@ class ExchangeBlock:
         check_input_scales(v_drive, F_ext, self.params)
         self.v_drive, self.F_ext = v_drive, F_ext
 
+    def take_checked_input(self, name, value):
+        """The input ``name`` ("v_drive" in m/s or "F_ext" in N) set to ``value``, which passed
+        :func:`.model.check_input` with :attr:`params` (a slave's input that its host's checks already bound): nothing
+        checked again, the other input held as it is."""
+        if name == "v_drive":
+            self.v_drive = float(value)
+        else:
+            self.F_ext = float(value)
+
     def nominals(self):
         """Scales of ``x`` and ``v`` (m, m/s): ``F_S(0)/kappa`` and ``F_S(0)/sqrt(kappa M)``, the stick-slip
         amplitude and the slip's speed scale, so a host's absolute tolerance is relative to them."""

@@ -171,13 +171,28 @@ class Trajectory:
 
     def set_inputs(self, v_drive, F_ext, F_ext_rate=0.0):
         """Hold ``v_drive`` (m/s) from ``self.t`` on, and ``F_ext`` (N) there, growing at ``F_ext_rate`` (N/s) from
-        there; a stuck block moves with the new surface speed. A no-op where nothing changes."""
-        if v_drive == self.v_drive and F_ext_rate == self.F_ext_rate and F_ext == (
-                self.F_ext if F_ext_rate == 0.0 else self.F_ext_now):
+        there; a stuck block moves with the new surface speed. A no-op where nothing changes. ParameterError naming
+        the input and its range for one that is not finite or whose force scale overflows (the inputs kept)."""
+        if self._holds_inputs(v_drive, F_ext, F_ext_rate):
             return
         check_inputs(v_drive, F_ext)
         check_input_scales(v_drive, F_ext, self.params)
-        drift = _checked_drift(F_ext_rate, self.params)
+        self._take_inputs(v_drive, F_ext, F_ext_rate, _checked_drift(F_ext_rate, self.params))
+
+    def take_checked_inputs(self, v_drive, F_ext, F_ext_rate):
+        """:meth:`set_inputs` for inputs that each passed :func:`.model.check_input` with :attr:`params` (a slave's
+        inputs that its host's checks already bound): the same result, nothing checked again."""
+        if not self._holds_inputs(v_drive, F_ext, F_ext_rate):
+            self._take_inputs(v_drive, F_ext, F_ext_rate, float(F_ext_rate) / self.params.kappa)
+
+    def _holds_inputs(self, v_drive, F_ext, F_ext_rate) -> bool:
+        """Whether the trajectory holds these inputs already from ``self.t`` on (see :meth:`set_inputs`)."""
+        return v_drive == self.v_drive and F_ext_rate == self.F_ext_rate and F_ext == (
+            self.F_ext if F_ext_rate == 0.0 else self.F_ext_now)
+
+    def _take_inputs(self, v_drive, F_ext, F_ext_rate, drift: float) -> None:
+        """Hold the inputs of :meth:`set_inputs` from ``self.t`` on, ``drift`` their frame's speed (m/s,
+        :func:`_checked_drift`)."""
         x, v = self.x, self.v
         segment = self._segment
         t_stick = segment.t_stick(self.t)
