@@ -122,7 +122,7 @@ def check_damping(p):
 def check_state_scales(x, v, p: Parameters, state_names=("x", "v")):
     """Raise ParameterError, naming the state by ``state_names``, if ``kappa |x|`` or ``sqrt(kappa M) |v|``
     exceeds :data:`MAX_FORCE_SCALE`."""
-    if p.kappa * abs(x) <= MAX_FORCE_SCALE and _impedance(p) * abs(v) <= MAX_FORCE_SCALE:
+    if state_within_scales(x, v, p):
         return  # the usual case, without making the texts below (saved states are checked with this)
     x_name, v_name = state_names
     _check_force_scale(f"kappa * |{x_name}|", p.kappa * abs(x), f"kappa = {p.kappa!r} N/m, {x_name} = {x!r} m")
@@ -159,7 +159,7 @@ def _check_drive_scale(v_drive, p: Parameters):
 def check_rate_scale(F_ext_rate, p: Parameters):
     """Raise ParameterError if ``sqrt(M/kappa) |der(F_ext)|``, the force a growing ``F_ext`` adds over the block's
     time scale, exceeds :data:`MAX_FORCE_SCALE`."""
-    force = math.sqrt(p.M) / math.sqrt(p.kappa) * abs(F_ext_rate)
+    force = _rate_force(F_ext_rate, p)
     if force <= MAX_FORCE_SCALE:
         return
     _check_force_scale("sqrt(M/kappa) * |der(F_ext)|", force,
@@ -170,7 +170,12 @@ def inputs_within_scales(v_drive: float, F_ext: float, F_ext_rate: float, p: Par
     """Whether :func:`check_input_scales` and :func:`check_rate_scale` pass (false for a NaN), in native arithmetic:
     the usual case of checks that run often (saved states)."""
     return (abs(F_ext) <= MAX_FORCE_SCALE and _impedance(p) * abs(v_drive) <= MAX_FORCE_SCALE
-            and math.sqrt(p.M) / math.sqrt(p.kappa) * abs(F_ext_rate) <= MAX_FORCE_SCALE)
+            and _rate_force(F_ext_rate, p) <= MAX_FORCE_SCALE)
+
+
+def _rate_force(F_ext_rate: float, p: Parameters) -> float:
+    """``sqrt(M/kappa) |der(F_ext)|`` (N): the force a growing ``F_ext`` (N/s) adds over the block's time scale."""
+    return math.sqrt(p.M) / math.sqrt(p.kappa) * abs(F_ext_rate)
 
 
 # unit and force-scale check of each input by its FMU name (check_input)

@@ -177,22 +177,23 @@ class Trajectory:
             return
         check_inputs(v_drive, F_ext)
         check_input_scales(v_drive, F_ext, self.params)
-        self._take_inputs(v_drive, F_ext, F_ext_rate, _checked_drift(F_ext_rate, self.params))
+        _checked_drift(F_ext_rate, self.params)
+        self._take_inputs(v_drive, F_ext, F_ext_rate)
 
     def take_checked_inputs(self, v_drive, F_ext, F_ext_rate):
         """:meth:`set_inputs` for inputs that each passed :func:`.model.check_input` with :attr:`params` (a slave's
         inputs that its host's checks already bound): the same result, nothing checked again."""
         if not self._holds_inputs(v_drive, F_ext, F_ext_rate):
-            self._take_inputs(v_drive, F_ext, F_ext_rate, float(F_ext_rate) / self.params.kappa)
+            self._take_inputs(v_drive, F_ext, F_ext_rate)
 
     def _holds_inputs(self, v_drive, F_ext, F_ext_rate) -> bool:
         """Whether the trajectory holds these inputs already from ``self.t`` on (see :meth:`set_inputs`)."""
         return v_drive == self.v_drive and F_ext_rate == self.F_ext_rate and F_ext == (
             self.F_ext if F_ext_rate == 0.0 else self.F_ext_now)
 
-    def _take_inputs(self, v_drive, F_ext, F_ext_rate, drift: float) -> None:
-        """Hold the inputs of :meth:`set_inputs` from ``self.t`` on, ``drift`` their frame's speed (m/s,
-        :func:`_checked_drift`)."""
+    def _take_inputs(self, v_drive, F_ext, F_ext_rate) -> None:
+        """Hold the inputs of :meth:`set_inputs` from ``self.t`` on, their frame moving at :func:`_drift`."""
+        drift = _drift(F_ext_rate, self.params)
         x, v = self.x, self.v
         segment = self._segment
         t_stick = segment.t_stick(self.t)
@@ -631,7 +632,7 @@ def checked_state(params: Parameters, values: list, segment: Segment) -> tuple:
         _checked_drift(F_ext_rate, params, StateError)
         raise StateError(f"saved state t = {t!r} s lies outside its segment [{segment.t0!r}, {segment.t1!r}] s "
                          f"or before its last event at {t_last_event!r} s or its inputs' time {frame_t!r} s")
-    drift = float(F_ext_rate) / params.kappa
+    drift = _drift(F_ext_rate, params)
     x, v = segment.state(t)
     if not state_within_scales(x, v, params):
         if not (_finite(x) and _finite(v)):
@@ -675,6 +676,11 @@ def _checked_drift(F_ext_rate, p, error=ParameterError):
     if not (isinstance(F_ext_rate, float) and _finite(F_ext_rate)):
         check("der(F_ext)", F_ext_rate, ANY_FINITE, "N/s", error=error)
     check_rate_scale(F_ext_rate, p)
+    return _drift(F_ext_rate, p)
+
+
+def _drift(F_ext_rate, p: Parameters) -> float:
+    """``F_ext_rate / kappa`` (m/s): the frame's speed for ``F_ext`` growing at ``F_ext_rate`` (N/s)."""
     return float(F_ext_rate) / p.kappa
 
 

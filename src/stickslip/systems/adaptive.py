@@ -567,13 +567,10 @@ class _Run:
         False (its FMU moved)."""
         self.blocks.restore(i)
         t1 = min(max(attempt.T, self.t + self.ahead_length), self.t_end)
-        t_e = self.blocks.step(i, self.t, t1 - self.t, force, 0.0)
-        if t_e is None and self.blocks.n_events(i) != self.end[4][i]:
+        if not self._extend_line(i, self.t, t1, force, self.end[4][i]):
             return False
         self.ahead.begin(i, self.t, force, (self.x[i], self.spring[i], self.margin[i]),
                          [column[i] for column in self.end])
-        self._end_line(i, t1 if t_e is None else t_e, t_e)
-        self.stats["stuck blocks stepped ahead"] += 1
         if self.ahead.until[i] < attempt.T:
             self.ahead.on[i] = False
             return False
@@ -602,12 +599,18 @@ class _Run:
         if ahead.until[i] < t1 or t1 >= self.t_end:
             return False  # its line ends at an event, or at the run's end
         t2 = min(max(attempt.T, t1 + self.ahead_length), self.t_end)
-        t_e = self.blocks.step(i, t1, t2 - t1)
-        if t_e is None and self.blocks.n_events(i) != ahead.end[i, 4]:
-            return False  # passed an event (its FMU beyond it: brought back)
-        self._end_line(i, t2 if t_e is None else t_e, t_e)
+        return self._extend_line(i, t1, t2, None, ahead.end[i, 4]) and ahead.until[i] >= attempt.T
+
+    def _extend_line(self, i, t0, t1, force, n_events):
+        """Step block ``i`` from ``t0`` to ``t1`` (s) in one ``doStep`` under ``force`` held (N; None: the force it
+        holds), ``n_events`` its event count at ``t0``: False if that passed an event it did not return early at
+        (its FMU beyond it), else True, its line ending where the step ended (:meth:`_end_line`)."""
+        t_e = self.blocks.step(i, t0, t1 - t0, force, 0.0)
+        if t_e is None and self.blocks.n_events(i) != n_events:
+            return False
+        self._end_line(i, t1 if t_e is None else t_e, t_e)
         self.stats["stuck blocks stepped ahead"] += 1
-        return ahead.until[i] >= attempt.T
+        return True
 
     def _end_line(self, i, t1, t_e):
         """Block ``i``'s line (stepped ahead) ends at ``t1`` (s), where its last step ended (at ``t_e``: returned early
