@@ -570,26 +570,6 @@ static PyObject *kept_sets(sbf_fast_path *fast)
     return sets;
 }
 
-int sbf_kept_state_get(sbf_fast_path *fast, void **state, char *why, size_t why_size)
-{
-    if (fast->n_kept) {
-        int gil = py.PyGILState_Ensure();
-        hand_over(fast);
-        py.PyGILState_Release(gil);
-    }
-    return sbf_state_get(fast, state, why, why_size);
-}
-
-int sbf_kept_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size)
-{
-    int outcome = sbf_state_set(fast, state, why, why_size);
-    if (outcome == 0) {
-        fast->n_kept = 0; /* the state sets every input (refused, the instance keeps them) */
-        if (state != fast->clean_state) fast->rules_asked = 0; /* not rewound: its parameters may differ */
-    }
-    return outcome;
-}
-
 /* ---- model exchange (FMI 2) ---- */
 
 int sbf_slave_exchange(sbf_fast_path *fast, const char *function, const double *in, size_t n_in, size_t count,
@@ -618,8 +598,14 @@ static int states_taken(const sbf_fast_path *fast) { return fast->restore && ste
 
 int sbf_state_get(sbf_fast_path *fast, void **state, char *why, size_t why_size)
 {
-    if (!states_taken(fast) || !state) return -1;
+    int taken = states_taken(fast) && state;
+    if (!taken && !fast->n_kept) return -1;
     int gil = py.PyGILState_Ensure();
+    if (fast->n_kept) hand_over(fast); /* a state holds every input set, whoever takes it */
+    if (!taken) {
+        py.PyGILState_Release(gil);
+        return -1;
+    }
     PyObject *saved = py.PyObject_CallFunctionObjArgs(fast->save, NULL);
     drop_clean_state(fast);
     if (saved) {
@@ -660,6 +646,7 @@ int sbf_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size)
     if (!states_taken(fast)) return -1;
     int gil = py.PyGILState_Ensure();
     if (rewound(fast, (PyObject *)state)) {
+        fast->n_kept = 0; /* the state sets every input */
         py.PyGILState_Release(gil);
         return 0;
     }
@@ -668,8 +655,13 @@ int sbf_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size)
     fast->fresh = 0;
     fast->moved = 0; /* the restore told the slave's caches */
     if (!kept || py.PyObject_IsTrue(kept) != 1) drop_step_call(fast);
-    if (!kept) exception_text("SetFMUstate", why, why_size);
-    else py.Py_DecRef(kept);
+    if (!kept) {
+        exception_text("SetFMUstate", why, why_size); /* refused: the instance keeps its inputs kept */
+    } else {
+        py.Py_DecRef(kept);
+        fast->n_kept = 0;       /* the state sets every input */
+        fast->rules_asked = 0;  /* not rewound: its parameters may differ */
+    }
     py.PyErr_Clear();
     py.PyGILState_Release(gil);
     return kept == NULL;

@@ -156,12 +156,10 @@ int sbf_state_deserialize(sbf_fast_path *fast, const void *bytes, size_t size, v
  *   sbf_keep_inputs: 1 if the n values of the inputs vr[0..n) (order[i] the order of the derivative set, or the
  *   values themselves where `order` is NULL) were kept (the outputs' buffer then stale); 0 if nothing was kept
  *   (forward the call). Only for a co-simulation instance in Step Mode (the front checks), with the fast path on.
- *   sbf_kept_state_get: sbf_state_get after the kept inputs are handed over (a state holds every input set).
- *   sbf_kept_state_set: sbf_state_set after they are dropped (the state sets every input), the rules asked again (the
- *   state's parameters may differ). */
+ *   sbf_state_get hands the kept inputs over first (a state holds every input set, also one the inner library
+ *   takes); a state set drops them (the state sets every input), and, unless it rewound, has the rules asked again
+ *   (the state's parameters may differ). */
 int sbf_keep_inputs(sbf_fast_path *fast, const unsigned *vr, const int *order, size_t n, const double *values);
-int sbf_kept_state_get(sbf_fast_path *fast, void **state, char *why, size_t why_size);
-int sbf_kept_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size);
 
 /* Drop the slave and its step call (freeing the instance). */
 void sbf_fast_unbind(sbf_fast_path *fast);

@@ -103,7 +103,7 @@ typedef struct {
 /* The functions forwarded that take an FMU state, refused for a NULL one (SBF_STATE_USED): forwarded by
  * forward_<name>, exported below. */
 #define STATE_USED(X)                                                                                              \
-    X(fmi2SetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate s), (s), sbf_kept_state_set)                         \
+    X(fmi2SetFMUstate, RECOVERABLE, (fmi2Component c, fmi2FMUstate s), (s), sbf_state_set)                         \
     X(fmi2SerializedFMUstateSize, KEPT, (fmi2Component c, fmi2FMUstate s, size_t *n), (s, n), sbf_state_size)      \
     X(fmi2SerializeFMUstate, KEPT, (fmi2Component c, fmi2FMUstate s, fmi2Byte *b, size_t n), (s, b, n),             \
       sbf_state_serialize)

@@ -140,7 +140,7 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
 /* The functions forwarded that take an FMU state, refused for a NULL one (SBF_STATE_USED): forwarded by
  * forward_<name>, exported below. */
 #define STATE_USED(X)                                                                                              \
-    X(fmi3SetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState s), (s), sbf_kept_state_set)                          \
+    X(fmi3SetFMUState, RECOVERABLE, (fmi3Instance c, fmi3FMUState s), (s), sbf_state_set)                          \
     X(fmi3SerializedFMUStateSize, KEPT, (fmi3Instance c, fmi3FMUState s, size_t *size), (s, size), sbf_state_size) \
     X(fmi3SerializeFMUState, KEPT, (fmi3Instance c, fmi3FMUState s, fmi3Byte *bytes, size_t size), (s, bytes, size), \
       sbf_state_serialize)

@@ -176,11 +176,11 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
         return forward(c SBF_FORWARD_ARGS args);                                                                  \
     }
 /* The exported fmi2GetFMUstate / fmi3GetFMUState `name`: the slave's state with the inputs the loader kept
- * (sbf_kept_state_get), else forwarded by `forward`. */
+ * (sbf_state_get), else forwarded by `forward`. */
 #define SBF_STATE_GOT(Status, error, name, forward, params, args)                                                 \
     SBF_EXPORT Status name params                                                    \
     {                                                                                                             \
-        SBF_STATE_FAST(error, sbf_kept_state_get, args)                                                           \
+        SBF_STATE_FAST(error, sbf_state_get, args)                                                           \
         return forward(c SBF_FORWARD_ARGS args);                                                                  \
     }
 /* In an FMU-state function: return what the bound slave answers (`answer`, a sbf_state_* function of fast_path.h,
