@@ -7,7 +7,8 @@ Run as ``python state_bytes_runner.py FMU_PATH...``. For each FMU, one instance 
 with an input set that the next step has yet to take (and, FMI 2, a force rate); printed: each state's bytes, the
 bytes of each deserialized and serialized again, every output read over 10 steps after setting a deserialized
 state, and, after a good state was deserialized, the status and messages of deserializing it with one field
-forged (``fmu_probe.forged_state``: out of its kind, or out of range together with the others). Apart
+forged (``fmu_probe.forged_state``: out of its kind, or out of range together with the others, the block's inputs
+among them) and, after those, the messages of setting each input of :data:`SET_BEYOND` to 1e200. Apart
 (``python_calls``): how many calls of the slave's serializers (counted by wrapping them on its class before the
 instance is made) serializing a state took whose parts the state got just before holds, and deserializing bytes
 deserialized just before, after an input was set between steps: none where the loader packs and unpacks them.
@@ -24,7 +25,9 @@ from stickslip.hosts.fmpy_host import ExtractedFMU, FmuCallError
 H = 0.05  # s
 FORGED = [("trajectory.t", "nan"), ("trajectory.t", 1e9), ("head.time", "inf"), ("inputs.v_drive", "-inf"),
           ("trajectory.counts.n_stick_events", -1), ("trajectory.stepper.h", -0.5), ("trajectory.rtol", 0.5),
-          ("trajectory.F_ext", 1e200)]
+          ("trajectory.F_ext", 1e200), ("inputs.F_ext", 1e200), ("inputs.v_drive", 1e200),
+          ("inputs.der(F_ext)", 1e200)]
+SET_BEYOND = ("F_ext", "v_drive")  # inputs set beyond their force scale, for the sets' refusals
 SPECIAL = {"nan": float("nan"), "inf": float("inf"), "-inf": float("-inf")}
 
 
@@ -109,6 +112,12 @@ def session(path):
                 free(state)
             except FmuCallError as error:
                 record["forged"].append([name, error.status, list(error.messages)])
+        record["set_refusals"] = {}
+        for name in SET_BEYOND:
+            try:
+                inst.call(set_real, [refs[name]], [1e200])
+            except FmuCallError as error:
+                record["set_refusals"][name] = list(error.messages)
         record["bytes"] = [data.hex() for data in record["bytes"]]
         record["python_calls"]["total"] = sum(counts.values())
         inst.free()

@@ -108,8 +108,14 @@ def test_the_loader_packs_and_unpacks_fmu_states_as_the_slave_does(fmu_path, fmu
         assert len(set(record["bytes"])) == len(record["bytes"]) == 7
         assert record["again"] == record["bytes"]
         assert [status for _, status, *_ in record["forged"]] == [3] * len(record["forged"])  # fmi2Error, fmi3Error
-        assert all(messages and ("saved state" in messages[-1] or "force scale |F_ext|" in messages[-1])
-                   for _, _, messages in record["forged"]), record["forged"]
+        assert all(messages and ("saved state" in messages[-1] or "force scale |F_ext|" in messages[-1]
+                                 or name.startswith("inputs.")) for name, _, messages in record["forged"]), record
+        # the block's inputs out of the range their sets allow: refused with the words of those sets' refusals
+        refused = {name: messages[-1] for name, _, messages in record["forged"]}
+        for name, beyond in (("F_ext", "|F_ext| = 1e+200 N (F_ext = 1e+200 N) is out of range: allowed is at most "),
+                             ("v_drive", "v_drive = 1e+200 m/s) is out of range: allowed is at most ")):
+            assert beyond in refused[f"inputs.{name}"] and beyond in record["set_refusals"][name][-1], record
+        assert "der(F_ext) = 1e+200 N/s) is out of range: allowed is at most " in refused["inputs.der(F_ext)"]
 
 
 # ---- the inputs kept until the next step (scene force-wave) ----
@@ -184,10 +190,10 @@ def test_a_c_host_that_sets_the_force_before_every_step_gets_the_slave_s_run(hos
 
 
 
-def test_a_kept_force_beside_a_forged_drive_of_a_state_set_is_refused_naming_the_drive(fmu_path):
-    """A state set whose held ``v_drive`` (not pending) is finite but beyond its force scale, the trajectory's own
-    in range (its bytes forged): the force the loader keeps goes to the trajectory with that drive checked, so the
-    step is refused naming v_drive (without the loader, the force's set is)."""
+def test_a_state_holding_a_forged_drive_is_refused_naming_it_and_a_kept_force_goes_on(fmu_path):
+    """A state whose held ``v_drive`` (not pending) is finite but beyond its force scale, the trajectory's own in
+    range (its bytes forged): deserializing it is refused naming v_drive, as setting that drive is, and the instance
+    goes on with the force the loader keeps until its step."""
     machine_needs.c_compiler("the FMU's loader, whose kept inputs this tests")
     with ExtractedFMU(fmu_path) as extracted:
         inst = extracted.new_instance()
@@ -199,9 +205,10 @@ def test_a_kept_force_beside_a_forged_drive_of_a_state_set_is_refused_naming_the
         state = fmu.getFMUstate()
         forged = forged_state(bytes(fmu.serializeFMUstate(state)), 2, "inputs.v_drive", 1e200)
         fmu.freeFMUstate(state)
-        fmu.setFMUstate(fmu.deSerializeFMUstate(forged))
-        fmu.setReal([ref["F_ext"]], [0.3])
         with pytest.raises(FmuCallError) as refused:
-            inst.call(fmu.doStep, H, H)
+            inst.call(fmu.deSerializeFMUstate, forged)
         assert any("v_drive = 1e+200 m/s" in message for message in refused.value.messages), refused.value.messages
+        fmu.setReal([ref["F_ext"]], [0.3])
+        inst.call(fmu.doStep, H, H)
+        assert fmu.getReal([ref["F_ext"]]) == [0.3]  # the step took the force it kept, nothing refused
         inst.free()

@@ -28,8 +28,8 @@ from stickslip.core import poly
 from stickslip.core.integrators import dopri5_step
 from stickslip.core.model import SlipAccelerator
 from stickslip.core.numeric_slip import MEMO_SIZE, _slip_end
-from stickslip.core.state_bytes import TRAJECTORY_PLACES
-from stickslip.core.trajectory import STATE_FIELDS, state_fields
+from stickslip.core.trajectory import (SEGMENT_PLACE, STATE_FIELDS, STATE_LAYOUT, STATE_PLACES, checked_state,
+                                      state_fields)
 
 
 def event_log(traj, t_end, dt):
@@ -285,21 +285,25 @@ def test_state_restored_in_place_or_resumed_continues_bit_for_bit_mid_stick_and_
 
 
 def test_the_places_of_a_saved_trajectory_state_hold_its_saved_fields():
-    """The places the FMUs' loader packs a trajectory's fields from (``state_bytes.TRAJECTORY_PLACES``, in
-    ``BlockStateFormat.loader_plan``) hold the very values ``state_fields`` gives, in their order, mid slip."""
+    """The places the FMUs' loader packs a trajectory's fields from and unpacks them to (``trajectory.STATE_PLACES``,
+    derived from ``STATE_LAYOUT``, in ``BlockStateFormat.loader_plan``) hold the very values ``state_fields`` gives,
+    in their order, mid slip, and ``checked_state`` puts each value it takes at its place."""
     traj = Trajectory(Parameters(40.0, 1.0, Lubricated(), Constant(F0=1.0)), 0.0, 0.1, v_drive=0.1)
-    traj.advance_to(5.0)
+    traj.advance_to(20.0)
     state = traj.state()
 
-    def at(place):
+    def at(state, place):
         value = state
         for index in place:
             value = value[index]
         return value
 
     fields = state_fields(state)
-    assert len(TRAJECTORY_PLACES) == len(fields) == len(STATE_FIELDS)
-    assert all(at(place) is value for place, value in zip(TRAJECTORY_PLACES, fields))
+    assert len(STATE_PLACES) == len(fields) == len(STATE_FIELDS)
+    assert len(STATE_LAYOUT) == len(state) and state[SEGMENT_PLACE].KIND == "step"
+    assert all(at(state, place) is value for place, value in zip(STATE_PLACES, fields))
+    checked = checked_state(state[1], list(fields), state[SEGMENT_PLACE])
+    assert all(at(checked, place) is value for place, value in zip(STATE_PLACES, fields))
 
 
 def test_stiff_overdamped_slip_switches_method_and_stays_accurate():

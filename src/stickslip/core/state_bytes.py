@@ -36,8 +36,9 @@ from typing import Any, Callable, Final
 from . import saved_state
 from .errors import StateError
 from .exchange import STATE_FIELDS as EXCHANGE_FIELDS, ExchangeBlock
+from .model import check_input, inputs_within_scales
 from .segments import SEGMENT_CLASSES, checked_segment
-from .trajectory import STATE_FIELDS as TRAJECTORY_FIELDS, checked_state, state_fields
+from .trajectory import SEGMENT_PLACE, STATE_FIELDS as TRAJECTORY_FIELDS, STATE_PLACES, checked_state, state_fields
 
 # the kinds of field, as codes (Final: compiled code compares them natively), and their struct formats
 _REAL: Final = 0
@@ -52,15 +53,13 @@ _CODES = {saved_state.REAL: (_REAL, "d"), saved_state.TIME_END: (_TIME_END, "d")
           saved_state.FLAG: (_FLAG, "B"), saved_state.MODE: (_MODE, "b"),
           saved_state.OPTIONAL_REAL: (_OPTIONAL_REAL, "Bd"), saved_state.OPTIONAL_STEP: (_OPTIONAL_STEP, "Bd")}
 _COUNT_OF_REALS = struct.Struct("<H")  # how many reals a list holds
+_SEGMENT_PLACE: Final = SEGMENT_PLACE  # where a Trajectory.state holds its segment (Final: a native constant here)
+_TRAJECTORY_VALUES: Final = len(TRAJECTORY_FIELDS)  # the values checked_state takes
 _SEGMENT_CODES = {segment_class.KIND: code for code, segment_class in enumerate(SEGMENT_CLASSES)}
 # the C loader's codes of the kinds of field (BlockStateFormat.loader_plan)
 _PLAN_CODES = {saved_state.REAL: "d", saved_state.TIME_END: "e", saved_state.COUNT: "q", saved_state.FLAG: "B",
                saved_state.MODE: "b", saved_state.OPTIONAL_REAL: "o", saved_state.OPTIONAL_STEP: "s"}
-#: where each value of :func:`.trajectory.state_fields` lies in a :meth:`.Trajectory.state`: an index, or the index
-#: of the stepper's record and one in it
-TRAJECTORY_PLACES: tuple = ((3,), (4,), (5,), (6,), (7,), (2,), *((i,) for i in range(10, 17)),
-                           *((20, i) for i in range(5)))
-_SEGMENT_PLACE = 17  # the segment's index in a Trajectory.state
+
 
 
 class Fields:
@@ -289,6 +288,7 @@ class BlockStateFormat:
                 raise StateError(f"saved state segment = {code} is not a kind of segment: allowed is 0 to "
                                  f"{len(self.segments) - 1} ({', '.join(c.KIND for c in SEGMENT_CLASSES)})")
             segment, offset = self._segment(data, offset, code, params)
+            self._check_held_inputs(params, inputs[0], inputs[1], inputs[2])
             trajectory = checked_state(params, values, segment)
         if head[1]:
             block = self._block(data, offset, params)
@@ -317,24 +317,46 @@ class BlockStateFormat:
           it): the parameters, the segment with its kind's code, the model-exchange block. The loader takes such a
           part's bytes, and the objects of bytes it saw before, from the last state packed or unpacked here;
         - ``"["``: the value at path holds the next ``count`` entries, if the flag of entry ``flag`` is 1 (else it
-          is None); argument ``(flag, count, build)``: ``build(template, values)`` gives the value from the values
-          of those entries' fields and the same value of the last state unpacked here (:func:`checked_like`), or
-          it is None (the value is the part inside)."""
+          is None); argument ``(flag, count, build, also)``: ``build(template, values)`` gives the value from the
+          values of those entries' fields, then those of the entries ``also`` (indexes of fields before it), and the
+          same value of the last state unpacked here (:meth:`checked_like`), or it is None (the value is the part
+          inside)."""
         n_head = len(self.head.names) - 2
         flags: list = [("n", (0, 5), 0), ("n", (1, 0), 0), ("B", (1, 2), 0)]
         flags += [("B", (2 + i,), 0) for i in range(self.extras)]
         flags += [("m", (0, 6), name) for name in self.input_names]
         assert len(flags) == n_head
         entries: list = flags + [("d", (0, 4), 0), ("d", (1, 1), 0)]
+        held = tuple(range(len(entries), len(entries) + len(self.input_names)))  # the block's inputs
         entries += [("d", (0, 1 + i), 0) for i in range(len(self.input_names))]
         entries.append(("P", (0, 0), self.parameters.size))
         trajectory: list = [(_PLAN_CODES[kind], (0, 5, *place), 0)
-                      for kind, place in zip(self.trajectory.kinds[:-1], TRAJECTORY_PLACES)]
-        entries.append(("[", (0, 5), (0, len(trajectory) + 1, checked_like)))
+                            for kind, place in zip(self.trajectory.kinds[:-1], STATE_PLACES)]
+        entries.append(("[", (0, 5), (0, len(trajectory) + 1, self.checked_like, held)))
         entries += trajectory + [("P", (0, 5, _SEGMENT_PLACE), -1)]
-        entries += [("[", (1, 0), (1, 1, None)), ("P", (1, 0), self.exchange.size)]
+        entries += [("[", (1, 0), (1, 1, None, ())), ("P", (1, 0), self.exchange.size)]
         shapes: tuple = (((), 2 + self.extras), ((0,), 7), ((1,), 3))
         return self.header, shapes, tuple(entries)
+
+    def checked_like(self, template: tuple, values: list) -> tuple:
+        """The :meth:`.Trajectory.state` of ``values``: those of :data:`.trajectory.STATE_FIELDS` (each of its kind),
+        then the block's inputs ``v_drive``, ``F_ext`` and ``der(F_ext)`` (:meth:`loader_plan`'s ``also``), under the
+        parameters and with the segment of the trajectory's state ``template``: the inputs checked as :meth:`unpack`
+        checks them, the rest by :func:`.trajectory.checked_state`. ``values`` is the loader's, emptied of the
+        inputs."""
+        params = template[1]
+        n = _TRAJECTORY_VALUES
+        self._check_held_inputs(params, values[n], values[n + 1], values[n + 2])
+        del values[n:]
+        return checked_state(params, values, template[_SEGMENT_PLACE])
+
+    def _check_held_inputs(self, params: Any, v_drive: float, F_ext: float, F_ext_rate: float) -> None:
+        """ParameterError naming the first of the block's inputs held by a state with a trajectory, under its
+        parameters ``params``, that setting it would refuse (:func:`.model.check_input`: finite, within its force
+        scale)."""
+        if not inputs_within_scales(v_drive, F_ext, F_ext_rate, params):
+            for name, value in zip(self.input_names, (v_drive, F_ext, F_ext_rate)):
+                check_input(name, value, params)
 
     def fields(self, data: bytes) -> list[tuple[str, int, str]]:
         """Where each field of the state in ``data`` (:meth:`to_bytes`'s bytes, header included) lies, as
@@ -402,12 +424,6 @@ class BlockStateFormat:
         if pending is None:
             pending = self._pending[flags] = frozenset(name for name, flag in zip(self.input_names, flags) if flag)
         return pending
-
-
-def checked_like(template: tuple, values: list) -> tuple:
-    """The :meth:`.Trajectory.state` of the values of :data:`.trajectory.STATE_FIELDS` (each of its kind), with the
-    parameters and the segment of the state ``template`` (:func:`.trajectory.checked_state`)."""
-    return checked_state(template[1], values, template[_SEGMENT_PLACE])
 
 
 def _all_finite(reals: list) -> bool:

@@ -69,7 +69,9 @@ from .ranges import ANY_FINITE, NON_NEGATIVE, Range, check
 from .segments import HarmonicSegment, Segment, StepSegment, StuckSegment, segment_from_list
 from .stuck import breakaway_delay
 
-RTOL_RANGE: Final = Range(1e-14, 1e-2)
+_RTOL_LOW: Final = 1e-14  # solver.rtol's bounds as floats: compiled code compares them natively
+_RTOL_HIGH: Final = 1e-2
+RTOL_RANGE: Final = Range(_RTOL_LOW, _RTOL_HIGH)
 _MAX_EVENT_CHAIN = 100  # mode changes in a row without time advancing
 _MAX_BURST: Final = 1000  # mode changes within _BURST_WINDOW time scales sqrt(M/kappa) (stick-slip has a few per period)
 _BURST_WINDOW: Final = 1.0  # in units of sqrt(M/kappa)
@@ -198,7 +200,7 @@ class Trajectory:
         segment = self._segment
         t_stick = segment.t_stick(self.t)
         old_mode = segment.mode
-        v_frame = float(v_drive) - drift
+        v_frame = _frame_speed(v_drive, drift)
         new_mode = mode_after_input_change(old_mode, x, v, t_stick, v_drive, F_ext, self.params)
         self.v_drive, self.F_ext, self.F_ext_rate = float(v_drive), float(F_ext), float(F_ext_rate)
         self._frame_t, self._drift, self._v_frame = self.t, drift, v_frame
@@ -612,9 +614,29 @@ STATE_FIELDS = (("t", saved_state.REAL), ("v_drive", saved_state.REAL), ("F_ext"
                 *((f"stepper.{name}", kind) for name, kind in _STEPPER_FIELDS))
 
 
+#: What a :meth:`Trajectory.state` holds, item by item (the fields of :data:`STATE_FIELDS` by their names), and what
+#: its stepper's part (:meth:`.SlipStepper.state`, the item ``stepper``) holds
+STATE_LAYOUT = ("trajectory", "params", "rtol", "t", "v_drive", "F_ext", "F_ext_rate", "frame_t", "drift", "v_frame",
+                *(name for name, _ in STATE_FIELDS[6:12]), "t_last_event", "segment", "x", "v", "stepper", "events")
+STEPPER_LAYOUT = (*(name for name, _ in STATE_FIELDS[13:]), "stepper.record", "stepper.cursor")
+SEGMENT_PLACE = STATE_LAYOUT.index("segment")
+
+
+def _place(name: str) -> tuple:
+    """Where the field ``name`` of :data:`STATE_FIELDS` lies in a :meth:`Trajectory.state`: its index, or the
+    stepper's index and its index there."""
+    if name in STEPPER_LAYOUT:
+        return STATE_LAYOUT.index("stepper"), STEPPER_LAYOUT.index(name)
+    return (STATE_LAYOUT.index(name),)
+
+
+#: where each value of :data:`STATE_FIELDS` lies in a :meth:`Trajectory.state` (:func:`_place`), in their order
+STATE_PLACES = tuple(_place(name) for name, _ in STATE_FIELDS)
+
+
 def state_fields(state: tuple) -> tuple:
-    """The values of :data:`STATE_FIELDS` of a :meth:`Trajectory.state`, in their order (its segment is
-    ``state[17]``)."""
+    """The values of :data:`STATE_FIELDS` of a :meth:`Trajectory.state`, in their order (those at
+    :data:`STATE_PLACES`; its segment is ``state[SEGMENT_PLACE]``)."""
     return state[3:8] + (state[2],) + state[10:17] + state[20][:5]
 
 
@@ -622,33 +644,35 @@ def checked_state(params: Parameters, values: list, segment: Segment) -> tuple:
     """A :meth:`Trajectory.state` (of no trajectory: :meth:`Trajectory.resumed` goes on from it) from the values of
     :data:`STATE_FIELDS`, each of its kind, and a checked segment (:func:`.segments.checked_segment`), saved under
     ``params``: StateError or ParameterError naming a value that no trajectory under ``params`` holds (a tolerance out
-    of range, inputs or a state whose force scales overflow, a segment that does not hold the saved time)."""
+    of range, inputs or a state whose force scales overflow, a segment that does not hold the saved time). The values
+    are placed in the state as they are (nothing boxed again); only what follows from them is made."""
     (t, v_drive, F_ext, F_ext_rate, frame_t, rtol, n_stick, n_slip, n_over, chain, burst_start, burst, t_last_event,
      h, stiff, votes, n_steps, n_rejected) = values
     if not _saved_values_hold(params, segment, t, v_drive, F_ext, F_ext_rate, frame_t, rtol, t_last_event):
-        if not RTOL_RANGE.low <= rtol <= RTOL_RANGE.high:
+        if not _RTOL_LOW <= rtol <= _RTOL_HIGH:
             check("saved state rtol", rtol, RTOL_RANGE, error=StateError)
         check_input_scales(v_drive, F_ext, params)
         _checked_drift(F_ext_rate, params, StateError)
         raise StateError(f"saved state t = {t!r} s lies outside its segment [{segment.t0!r}, {segment.t1!r}] s "
                          f"or before its last event at {t_last_event!r} s or its inputs' time {frame_t!r} s")
     drift = _drift(F_ext_rate, params)
+    v_frame = _frame_speed(v_drive, drift)
     x, v = segment.state(t)
     if not state_within_scales(x, v, params):
         if not (_finite(x) and _finite(v)):
             saved_state.field("x at t", x, saved_state.REAL)
             saved_state.field("v at t", v, saved_state.REAL)
         check_state_scales(x, v, params, ("saved state x", "saved state v"))
-    return (None, params, rtol, t, v_drive, F_ext, F_ext_rate, frame_t, drift, v_drive - drift, n_stick, n_slip,
-            n_over, chain, burst_start, burst, t_last_event, segment, x, v, (h, stiff, votes, n_steps, n_rejected,
-                                                                              None, -1), -1)
+    return (None, params, rtol, t, v_drive, F_ext, F_ext_rate, frame_t, drift, v_frame, n_stick, n_slip, n_over,
+            chain, burst_start, burst, t_last_event, segment, x, v,
+            (h, stiff, votes, n_steps, n_rejected, None, -1), -1)
 
 
 def _saved_values_hold(p: Parameters, segment: Segment, t: float, v_drive: float, F_ext: float, F_ext_rate: float,
                        frame_t: float, rtol: float, t_last_event: float) -> bool:
     """Whether :func:`checked_state`'s checks of the saved values pass (the tolerance, the inputs' force scales, the
     segment holding ``t`` after the last event and the inputs' time), in native arithmetic: false for a NaN."""
-    return (RTOL_RANGE.low <= rtol <= RTOL_RANGE.high and inputs_within_scales(v_drive, F_ext, F_ext_rate, p)
+    return (_RTOL_LOW <= rtol <= _RTOL_HIGH and inputs_within_scales(v_drive, F_ext, F_ext_rate, p)
             and segment.t0 <= t <= segment.t1 and t_last_event <= t and frame_t <= t)
 
 
@@ -679,9 +703,14 @@ def _checked_drift(F_ext_rate, p, error=ParameterError):
     return _drift(F_ext_rate, p)
 
 
-def _drift(F_ext_rate, p: Parameters) -> float:
+def _drift(F_ext_rate: float, p: Parameters) -> float:
     """``F_ext_rate / kappa`` (m/s): the frame's speed for ``F_ext`` growing at ``F_ext_rate`` (N/s)."""
-    return float(F_ext_rate) / p.kappa
+    return F_ext_rate / p.kappa
+
+
+def _frame_speed(v_drive: float, drift: float) -> float:
+    """``v_drive - drift`` (m/s): the surface's speed in the frame that drifts at ``drift`` (m/s)."""
+    return v_drive - drift
 
 
 def _finite(value: float) -> bool:

@@ -83,6 +83,12 @@ static void drop_serialized(sbf_fast_path *fast)
     fast->serialized_size = fast->serialized_room = 0;
 }
 
+/* Drop the references of the FMU states the host freed since the last state call (under the GIL) */
+static void drop_freed(sbf_fast_path *fast)
+{
+    while (fast->n_freed) py.Py_DecRef(fast->freed[--fast->n_freed]);
+}
+
 /* Forget the slave's state calls and the plan of its states' bytes (under the GIL) */
 static void drop_state_calls(sbf_fast_path *fast)
 {
@@ -124,6 +130,7 @@ SBF_EXPORT int sbf_bind_slave(PyObject *slave, unsigned first, const char *kinds
     if (!fast || !available || !slave || n == 0 || n > SBF_MAX_OUTPUTS || strspn(kinds, "ri") != n) return 0;
     drop_step_call(fast);
     drop_serialized(fast);
+    drop_freed(fast);
     if (fast->slave) py.Py_DecRef(fast->slave);
     drop_state_calls(fast);
     py.Py_IncRef(slave);
@@ -287,6 +294,7 @@ void sbf_fast_unbind(sbf_fast_path *fast)
         int gil = py.PyGILState_Ensure();
         drop_step_call(fast);
         drop_serialized(fast);
+        drop_freed(fast);
         drop_state_calls(fast);
         py.Py_DecRef(fast->slave);
         py.PyGILState_Release(gil);
@@ -602,6 +610,7 @@ int sbf_state_get(sbf_fast_path *fast, void **state, char *why, size_t why_size)
     if (!taken && !fast->n_kept) return -1;
     int gil = py.PyGILState_Ensure();
     if (fast->n_kept) hand_over(fast); /* a state holds every input set, whoever takes it */
+    drop_freed(fast);
     if (!taken) {
         py.PyGILState_Release(gil);
         return -1;
@@ -645,6 +654,7 @@ int sbf_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size)
 {
     if (!states_taken(fast)) return -1;
     int gil = py.PyGILState_Ensure();
+    drop_freed(fast);
     if (rewound(fast, (PyObject *)state)) {
         fast->n_kept = 0; /* the state sets every input */
         py.PyGILState_Release(gil);
@@ -670,9 +680,14 @@ int sbf_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size)
 int sbf_state_free(sbf_fast_path *fast, void **state)
 {
     if (!states_taken(fast) || !state || !*state) return -1;
-    int gil = py.PyGILState_Ensure();
-    py.Py_DecRef(*state);
-    py.PyGILState_Release(gil);
+    if (fast->n_freed == SBF_MAX_FREED) { /* no room to wait: drop them all now */
+        int gil = py.PyGILState_Ensure();
+        drop_freed(fast);
+        py.Py_DecRef(*state);
+        py.PyGILState_Release(gil);
+    } else {
+        fast->freed[fast->n_freed++] = *state; /* dropped by the next state call, under the GIL it takes */
+    }
     *state = NULL;
     return 0;
 }
@@ -699,6 +714,7 @@ static int keep_serialized(sbf_fast_path *fast, void *state, const void *bytes, 
  * from them). 0, or 1 with `why` saying why not. Under the GIL. */
 static int state_bytes(sbf_fast_path *fast, void *state, const char *function, char *why, size_t why_size)
 {
+    drop_freed(fast);
     if (fast->serialized_state == state) return 0;
     const unsigned char *bytes = NULL;
     long size = fast->plan ? sbf_plan_pack(fast->plan, state, &bytes) : -1;
@@ -758,6 +774,7 @@ int sbf_state_deserialize(sbf_fast_path *fast, const void *bytes, size_t size, v
 {
     if (!states_taken(fast) || !state || (size && !bytes)) return -1;
     int gil = py.PyGILState_Ensure();
+    drop_freed(fast);
     PyObject *data = NULL, *restored = fast->plan && size ? sbf_plan_unpack(fast->plan, bytes, size) : NULL;
     if (!restored) { /* the slave's unpacking, which the plan takes its parts from, or the reason for a refusal */
         data = py.PyBytes_FromStringAndSize(size ? bytes : "", (ptrdiff_t)size);

@@ -29,6 +29,7 @@
 
 #define SBF_MAX_OUTPUTS 64
 #define SBF_MAX_KEPT 4 /* inputs the loader may keep between steps (sbf_keep_inputs) */
+#define SBF_MAX_FREED 8 /* FMU states freed by the host whose references wait for the loader's next call into Python */
 /* The environment variable that turns the fast path off for the process when it is "0" (to compare the paths) */
 #define SBF_FAST_PATH_VARIABLE "SBF_FAST_PATH"
 
@@ -53,6 +54,8 @@ typedef struct {
     void *serialized_state; /* the FMU state serialized last (a reference held), NULL if none */
     unsigned char *serialized; /* its bytes (malloc'd) */
     size_t serialized_size, serialized_room;
+    void *freed[SBF_MAX_FREED]; /* FMU states the host freed, their references dropped at the next state call */
+    int n_freed;
     /* the inputs kept in C until the next step (sbf_keep_inputs), by the slave's rules (its kept_inputs()) */
     int rules_asked;                 /* the slave was asked for them (since it bound or a state was set) */
     size_t n_rules;                  /* the inputs it lets the loader keep (0: none) */
@@ -140,6 +143,8 @@ int sbf_slave_time(sbf_fast_path *fast, double *t);
  * state moved as after a step. */
 int sbf_state_get(sbf_fast_path *fast, void **state, char *why, size_t why_size);
 int sbf_state_set(sbf_fast_path *fast, void *state, char *why, size_t why_size);
+/* Free: the state's reference waits (at most SBF_MAX_FREED of them) for the next state call, which drops it under the
+ * GIL it takes anyway (the GIL is taken once per Deserialize + Free, Get + Free); unbinding drops them too. */
 int sbf_state_free(sbf_fast_path *fast, void **state);
 int sbf_state_size(sbf_fast_path *fast, void *state, size_t *size, char *why, size_t why_size);
 int sbf_state_serialize(sbf_fast_path *fast, void *state, void *bytes, size_t size, char *why, size_t why_size);

@@ -55,7 +55,7 @@ int sbf_state_bytes_resolve(void *lib)
 }
 
 /* ---- the plan ---- */
-enum { MAX_DEPTH = 4, MAX_ENTRIES = 96, MAX_SHAPES = 8, MAX_NAMES = 8 };
+enum { MAX_DEPTH = 4, MAX_ENTRIES = 96, MAX_SHAPES = 8, MAX_ITEMS = 64, MAX_NAMES = 8, MAX_ALSO = 4, MAX_SECTIONS = 8 };
 
 typedef struct {
     char code;            /* BlockStateFormat.loader_plan's: a kind (d e q B b o s), n, m, P or [ */
@@ -64,6 +64,8 @@ typedef struct {
     long size;            /* bytes in a state's bytes (-1: a part of any size) */
     int parent;           /* the shape holding the value (-1: none, a value a section's build takes) */
     int flag, count;      /* "[": the entry of its flag, the entries inside */
+    size_t flag_at;       /* "[": where its flag lies in a state's bytes (the head's sizes are fixed) */
+    int also[MAX_ALSO], n_also; /* "[": the entries before it whose values its build takes after its own */
     PyObject *object;     /* "m": the name (a reference held); "[": the build, or NULL */
     int bit;              /* "m": its bit among the names */
 } entry;
@@ -78,6 +80,7 @@ struct sbf_state_plan {
     unsigned char *header;
     size_t header_size;
     int n, n_shapes, names;
+    int sections[MAX_SECTIONS], n_sections; /* the entries "[" */
     entry entries[MAX_ENTRIES];
     int shape_depth[MAX_SHAPES];
     ptrdiff_t shape_path[MAX_SHAPES][MAX_DEPTH], shape_length[MAX_SHAPES];
@@ -86,6 +89,9 @@ struct sbf_state_plan {
     unsigned char *template_bytes;   /* its bytes */
     size_t template_size;
     part unpacked[MAX_ENTRIES];      /* for "P": where its bytes lie in template_bytes */
+    size_t laid[MAX_ENTRIES];        /* the layout of the bytes unpacked last (layout's offsets), if laid_size */
+    size_t laid_size;                /* their size (0: none laid under this template) */
+    unsigned laid_sections;          /* their sections' flags, a bit each */
     PyObject *pending[1 << MAX_NAMES]; /* the frozenset of the names of each combination of "m" flags, or NULL */
     unsigned char *out;              /* the bytes packed last */
     size_t capacity;
@@ -123,6 +129,20 @@ static long field_size(char code)
     }
 }
 
+/* The section `e` (entry i)'s `also` from the Python tuple `also` of entry indexes: fields placed before it; 0 if
+ * malformed */
+static int read_also(const sbf_state_plan *plan, int i, entry *e, PyObject *also)
+{
+    ptrdiff_t n = also ? py.PyTuple_Size(also) : -1;
+    if (n < 0 || n > MAX_ALSO) return 0;
+    for (e->n_also = 0; e->n_also < (int)n; ++e->n_also) {
+        int k = (int)py.PyLong_AsLongLong(py.PyTuple_GetItem(also, e->n_also));
+        if (k < 0 || k >= i || plan->entries[k].parent < 0 || field_size(plan->entries[k].code) < 8) return 0;
+        e->also[e->n_also] = k;
+    }
+    return 1;
+}
+
 /* Entry `i` of the plan from the Python tuple (code, path, argument); 0 if malformed */
 static int read_entry(sbf_state_plan *plan, int i, PyObject *item, int *in_build)
 {
@@ -140,7 +160,7 @@ static int read_entry(sbf_state_plan *plan, int i, PyObject *item, int *in_build
         e->bit = plan->names++;
         py.Py_IncRef(e->object = argument);
     } else if (e->code == '[') {
-        if (py.PyTuple_Size(argument) != 3) return 0;
+        if (py.PyTuple_Size(argument) != 4 || !read_also(plan, i, e, py.PyTuple_GetItem(argument, 3))) return 0;
         e->flag = (int)py.PyLong_AsLongLong(py.PyTuple_GetItem(argument, 0));
         e->count = (int)py.PyLong_AsLongLong(py.PyTuple_GetItem(argument, 1));
         PyObject *build = py.PyTuple_GetItem(argument, 2);
@@ -152,8 +172,13 @@ static int read_entry(sbf_state_plan *plan, int i, PyObject *item, int *in_build
         if (e->flag < 0 || e->flag >= i || e->count < 0 || i + e->count >= plan->n ||
             plan->entries[e->flag].code != 'n')
             return 0;
-        for (int k = 0; k < e->flag; ++k) /* the flag's place is the sum of the sizes before it */
+        if (plan->n_sections == MAX_SECTIONS) return 0;
+        plan->sections[plan->n_sections++] = i;
+        e->flag_at = plan->header_size;
+        for (int k = 0; k < e->flag; ++k) { /* the flag's place is the sum of the sizes before it */
             if (plan->entries[k].size < 0) return 0;
+            e->flag_at += (size_t)plan->entries[k].size;
+        }
     }
     return e->size >= -1 && !py.PyErr_Occurred() && (inside || e->parent >= 0);
 }
@@ -177,7 +202,8 @@ static int read_plan(sbf_state_plan *plan, PyObject *tuple)
             return 0;
         plan->shape_length[s] = (ptrdiff_t)py.PyLong_AsLongLong(py.PyTuple_GetItem(shape, 1));
         plan->n_shapes = s + 1;
-        if (plan->shape_length[s] < 1 || (s > 0 && shape_of(plan, plan->shape_path[s], plan->shape_depth[s] - 1) < 0))
+        if (plan->shape_length[s] < 1 || plan->shape_length[s] > MAX_ITEMS ||
+            (s > 0 && shape_of(plan, plan->shape_path[s], plan->shape_depth[s] - 1) < 0))
             return 0; /* the outermost shape first, each inside one before it */
     }
     int in_build = 0;
@@ -258,10 +284,8 @@ static int layout(const sbf_state_plan *plan, const unsigned char *bytes, size_t
         }
         offset[i] = 0;
         if (e->code == '[') {
-            size_t flag_at = plan->header_size;
-            for (int k = 0; k < e->flag; ++k) flag_at += plan->entries[k].size; /* the head: fixed sizes */
-            if (flag_at >= size || bytes[flag_at] > 1) return 0;
-            if (!bytes[flag_at]) skip = e->count;
+            if (e->flag_at >= size || bytes[e->flag_at] > 1) return 0;
+            if (!bytes[e->flag_at]) skip = e->count;
         } else if (e->size >= 0) {
             fixed += (size_t)e->size;
         } else if (variable >= 0) {
@@ -438,15 +462,24 @@ static PyObject *pending(sbf_state_plan *plan, unsigned bits)
     return plan->pending[bits] = set;
 }
 
-/* `value` (a reference stolen) into its place, shape `s`'s item `index`; 0 if that fails */
-static int place(PyObject **shapes, int s, ptrdiff_t index, PyObject *value)
+/* A state being unpacked: its tuples (the outermost first), the "m" flags set, the items placed in each tuple (a
+ * bit each) */
+typedef struct {
+    PyObject *shapes[MAX_SHAPES];
+    unsigned bits;
+    uint64_t placed[MAX_SHAPES];
+} unpacking;
+
+/* `value` (a reference stolen) into its place, the item `index` of shape `s`; 0 if that fails */
+static int place(unpacking *u, int s, ptrdiff_t index, PyObject *value)
 {
-    if (!value) return 0;
-    return py.PyTuple_SetItem(shapes[s], index, value) == 0;
+    if (!value || py.PyTuple_SetItem(u->shapes[s], index, value) != 0) return 0;
+    u->placed[s] |= (uint64_t)1 << index;
+    return 1;
 }
 
-/* The value of the section `e` (entry i) from its fields' values `values` (a list, stolen) under the template; NULL
- * if refused */
+/* The value of the section `e` from its fields' values `values` (a list, stolen) under the template; NULL if
+ * refused */
 static PyObject *built(sbf_state_plan *plan, const entry *e, PyObject *values)
 {
     PyObject *template = value_at(plan->template, e->path, e->depth);
@@ -455,10 +488,24 @@ static PyObject *built(sbf_state_plan *plan, const entry *e, PyObject *values)
     return value;
 }
 
-/* The entries of bytes[at..] from entry i on, into their places in `shapes` (or, within a section that builds
+/* The values of the fields the section `e` takes after its own (its `also`, placed before it) into values[from..];
+ * 0 if one is missing */
+static int add_also(const sbf_state_plan *plan, const entry *e, const unpacking *u, PyObject *values, int from)
+{
+    for (int j = 0; j < e->n_also; ++j) {
+        const entry *f = &plan->entries[e->also[j]];
+        PyObject *value = py.PyTuple_GetItem(u->shapes[f->parent], f->path[f->depth - 1]);
+        if (!value) return 0;
+        py.Py_IncRef(value);
+        if (py.PyList_SetItem(values, from + j, value) != 0) return 0;
+    }
+    return 1;
+}
+
+/* The entries of bytes[at..] from entry i on, into their places in the state `u` (or, within a section that builds
  * its value, into `values`); the index of the last entry done, or -1 if refused */
-static int unpack_entries(sbf_state_plan *plan, const unsigned char *bytes, const size_t *offset, PyObject **shapes,
-                          unsigned *bits, int first, int last, PyObject *values)
+static int unpack_entries(sbf_state_plan *plan, const unsigned char *bytes, const size_t *offset, unpacking *u,
+                          int first, int last, PyObject *values)
 {
     int n_values = 0;
     for (int i = first; i <= last; ++i) {
@@ -466,18 +513,19 @@ static int unpack_entries(sbf_state_plan *plan, const unsigned char *bytes, cons
         PyObject *value;
         if (e->code == '[' && e->count > 0 && offset[i + 1] == SIZE_MAX) { /* an absent section: its value is None */
             py.Py_IncRef(none);
-            if (!place(shapes, e->parent, e->path[e->depth - 1], none)) return -1;
+            if (!place(u, e->parent, e->path[e->depth - 1], none)) return -1;
             i += e->count;
             continue;
         }
         if (e->code == '[') {
             if (!e->object) continue; /* its part is its value */
-            PyObject *list = py.PyList_New(e->count - 1);
-            if (!list || unpack_entries(plan, bytes, offset, shapes, bits, i + 1, i + e->count, list) < 0) {
+            PyObject *list = py.PyList_New(e->count - 1 + e->n_also);
+            if (!list || unpack_entries(plan, bytes, offset, u, i + 1, i + e->count, list) < 0 ||
+                !add_also(plan, e, u, list, e->count - 1)) {
                 if (list) py.Py_DecRef(list);
                 return -1;
             }
-            if (!place(shapes, e->parent, e->path[e->depth - 1], built(plan, e, list))) return -1;
+            if (!place(u, e->parent, e->path[e->depth - 1], built(plan, e, list))) return -1;
             i += e->count;
             continue;
         }
@@ -487,17 +535,20 @@ static int unpack_entries(sbf_state_plan *plan, const unsigned char *bytes, cons
             if (!values) {
                 value = value_at(plan->template, e->path, e->depth);
                 if (value) py.Py_IncRef(value);
-                if (!place(shapes, e->parent, e->path[e->depth - 1], value)) return -1;
+                if (!place(u, e->parent, e->path[e->depth - 1], value)) return -1;
             }
             continue;
         }
+        if (e->code == 'n' || e->code == 'm') { /* a flag that places nothing itself */
+            unsigned char flag = bytes[offset[i]];
+            if (flag > 1) return -1;
+            u->bits |= (unsigned)(e->code == 'm' && flag) << e->bit;
+            continue;
+        }
         if (!(value = unpack_field(e, bytes + offset[i]))) return -1;
-        if (e->code == 'm' && value == yes) *bits |= 1u << e->bit;
         if (values) {
             if (py.PyList_SetItem(values, n_values++, value) != 0) return -1;
-        } else if (e->code == 'n' || e->code == 'm') {
-            py.Py_DecRef(value);
-        } else if (!place(shapes, e->parent, e->path[e->depth - 1], value)) {
+        } else if (!place(u, e->parent, e->path[e->depth - 1], value)) {
             return -1;
         }
     }
@@ -505,48 +556,68 @@ static int unpack_entries(sbf_state_plan *plan, const unsigned char *bytes, cons
 }
 
 /* The state's tuples, the inner ones in their places in the outer; NULL if out of memory */
-static PyObject *new_shapes(const sbf_state_plan *plan, PyObject **shapes)
+static PyObject *new_shapes(const sbf_state_plan *plan, unpacking *u)
 {
     for (int s = 0; s < plan->n_shapes; ++s) {
-        shapes[s] = py.PyTuple_New(plan->shape_length[s]);
-        int ok = shapes[s] != NULL;
+        u->shapes[s] = py.PyTuple_New(plan->shape_length[s]);
+        int ok = u->shapes[s] != NULL;
         if (ok && s > 0) {
             int outer = shape_of(plan, plan->shape_path[s], plan->shape_depth[s] - 1);
-            ok = place(shapes, outer, plan->shape_path[s][plan->shape_depth[s] - 1], shapes[s]);
+            ok = place(u, outer, plan->shape_path[s][plan->shape_depth[s] - 1], u->shapes[s]);
         }
         if (!ok) {
-            if (s > 0 || shapes[0]) py.Py_DecRef(shapes[0]);
+            if (s > 0 || u->shapes[0]) py.Py_DecRef(u->shapes[0]);
             return NULL;
         }
     }
-    return shapes[0];
+    return u->shapes[0];
+}
+
+/* Where each entry of bytes[0..size) lies (layout's offsets), the part of any size as big as the template's: the
+ * layout of the bytes unpacked last again where they are as long and have the same sections (the offsets follow
+ * from those alone), else laid out anew; NULL if the bytes do not fit the plan. */
+static const size_t *laid_out(sbf_state_plan *plan, const unsigned char *bytes, size_t size)
+{
+    if (size < plan->header_size || memcmp(bytes, plan->header, plan->header_size) != 0) return NULL;
+    unsigned sections = 0;
+    for (int k = 0; k < plan->n_sections; ++k) {
+        size_t at = plan->entries[plan->sections[k]].flag_at;
+        if (at >= size || bytes[at] > 1) return NULL;
+        sections |= (unsigned)bytes[at] << k;
+    }
+    if (size == plan->laid_size && sections == plan->laid_sections) return plan->laid;
+    size_t sizes[MAX_ENTRIES];
+    long rest = -1;
+    for (int i = 0; i < plan->n; ++i)
+        if (plan->entries[i].size < 0) rest = (long)plan->unpacked[i].size;
+    int fits = layout(plan, bytes, size, rest, plan->laid, sizes);
+    plan->laid_size = fits ? size : 0;
+    plan->laid_sections = sections;
+    return fits ? plan->laid : NULL;
 }
 
 static PyObject *unpack(sbf_state_plan *plan, const unsigned char *bytes, size_t size)
 {
-    size_t offset[MAX_ENTRIES], sizes[MAX_ENTRIES];
-    long rest = -1;
-    for (int i = 0; i < plan->n; ++i)
-        if (plan->entries[i].size < 0) rest = (long)plan->unpacked[i].size;
-    PyObject *shapes[MAX_SHAPES];
-    if (!plan->template || !layout(plan, bytes, size, rest, offset, sizes) || !new_shapes(plan, shapes)) return NULL;
-    unsigned bits = 0;
-    int done = unpack_entries(plan, bytes, offset, shapes, &bits, 0, plan->n - 1, NULL) == plan->n - 1;
+    const size_t *offset = plan->template ? laid_out(plan, bytes, size) : NULL;
+    unpacking u = {.bits = 0};
+    if (!offset || !new_shapes(plan, &u)) return NULL;
+    int done = unpack_entries(plan, bytes, offset, &u, 0, plan->n - 1, NULL) == plan->n - 1;
     for (int i = 0; done && i < plan->n; ++i) { /* the names of the "m" flags: one frozenset */
         const entry *e = &plan->entries[i];
         if (e->code != 'm') continue;
-        PyObject *set = pending(plan, bits);
+        PyObject *set = pending(plan, u.bits);
         if (set) py.Py_IncRef(set);
-        done = place(shapes, e->parent, e->path[e->depth - 1], set);
+        done = place(&u, e->parent, e->path[e->depth - 1], set);
         break;
     }
     for (int s = 0; done && s < plan->n_shapes; ++s) /* every item placed */
-        for (ptrdiff_t k = 0; done && k < plan->shape_length[s]; ++k) done = py.PyTuple_GetItem(shapes[s], k) != NULL;
+        done = u.placed[s] == (plan->shape_length[s] == MAX_ITEMS ? ~(uint64_t)0
+                                                                   : ((uint64_t)1 << plan->shape_length[s]) - 1);
     if (!done) {
-        py.Py_DecRef(shapes[0]);
+        py.Py_DecRef(u.shapes[0]);
         return NULL;
     }
-    return shapes[0];
+    return u.shapes[0];
 }
 
 void *sbf_plan_unpack(sbf_state_plan *plan, const unsigned char *bytes, size_t size)
@@ -561,6 +632,7 @@ void sbf_plan_unpacked(sbf_state_plan *plan, void *state, const unsigned char *b
     size_t offset[MAX_ENTRIES], sizes[MAX_ENTRIES];
     drop_template(plan);
     memset(plan->unpacked, 0, sizeof plan->unpacked);
+    plan->laid_size = 0; /* the part of any size may differ */
     if (!layout(plan, bytes, size, -1, offset, sizes) || !(plan->template_bytes = malloc(size + 1))) return;
     memcpy(plan->template_bytes, bytes, size);
     plan->template_size = size;
