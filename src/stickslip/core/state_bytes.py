@@ -54,7 +54,6 @@ _CODES = {saved_state.REAL: (_REAL, "d"), saved_state.TIME_END: (_TIME_END, "d")
           saved_state.OPTIONAL_REAL: (_OPTIONAL_REAL, "Bd"), saved_state.OPTIONAL_STEP: (_OPTIONAL_STEP, "Bd")}
 _COUNT_OF_REALS = struct.Struct("<H")  # how many reals a list holds
 _SEGMENT_PLACE: Final = SEGMENT_PLACE  # where a Trajectory.state holds its segment (Final: a native constant here)
-_TRAJECTORY_VALUES: Final = len(TRAJECTORY_FIELDS)  # the values checked_state takes
 _SEGMENT_CODES = {segment_class.KIND: code for code, segment_class in enumerate(SEGMENT_CLASSES)}
 # the C loader's codes of the kinds of field (BlockStateFormat.loader_plan)
 _PLAN_CODES = {saved_state.REAL: "d", saved_state.TIME_END: "e", saved_state.COUNT: "q", saved_state.FLAG: "B",
@@ -342,12 +341,17 @@ class BlockStateFormat:
         """The :meth:`.Trajectory.state` of ``values``: those of :data:`.trajectory.STATE_FIELDS` (each of its kind),
         then the block's inputs ``v_drive``, ``F_ext`` and ``der(F_ext)`` (:meth:`loader_plan`'s ``also``), under the
         parameters and with the segment of the trajectory's state ``template``: the inputs checked as :meth:`unpack`
-        checks them, the rest by :func:`.trajectory.checked_state`. ``values`` is the loader's, emptied of the
-        inputs."""
+        checks them (unless they are the trajectory's, which it checks), the rest by
+        :func:`.trajectory.checked_state`. ``values`` is the loader's, emptied of the inputs."""
         params = template[1]
-        n = _TRAJECTORY_VALUES
-        self._check_held_inputs(params, values[n], values[n + 1], values[n + 2])
-        del values[n:]
+        rate: float = values.pop()
+        F_ext: float = values.pop()
+        v_drive: float = values.pop()
+        held_drive: float = values[1]  # the trajectory's inputs (STATE_FIELDS), typed: compared natively
+        held_force: float = values[2]
+        held_rate: float = values[3]
+        if not (v_drive == held_drive and F_ext == held_force and rate == held_rate):
+            self._check_held_inputs(params, v_drive, F_ext, rate)
         return checked_state(params, values, template[_SEGMENT_PLACE])
 
     def _check_held_inputs(self, params: Any, v_drive: float, F_ext: float, F_ext_rate: float) -> None:
