@@ -302,7 +302,7 @@ def test_the_places_of_a_saved_trajectory_state_hold_its_saved_fields():
     assert len(STATE_PLACES) == len(fields) == len(STATE_FIELDS)
     assert len(STATE_LAYOUT) == len(state) and state[SEGMENT_PLACE].KIND == "step"
     assert all(at(state, place) is value for place, value in zip(STATE_PLACES, fields))
-    checked = checked_state(state[1], list(fields), state[SEGMENT_PLACE])
+    checked = checked_state(state[1], state[SEGMENT_PLACE], *fields)
     assert all(at(checked, place) is value for place, value in zip(STATE_PLACES, fields))
 
 

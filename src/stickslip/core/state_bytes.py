@@ -288,7 +288,7 @@ class BlockStateFormat:
                                  f"{len(self.segments) - 1} ({', '.join(c.KIND for c in SEGMENT_CLASSES)})")
             segment, offset = self._segment(data, offset, code, params)
             self._check_held_inputs(params, inputs[0], inputs[1], inputs[2])
-            trajectory = checked_state(params, values, segment)
+            trajectory = checked_state(params, segment, *values)
         if head[1]:
             block = self._block(data, offset, params)
             offset += self.exchange.size
@@ -316,10 +316,10 @@ class BlockStateFormat:
           it): the parameters, the segment with its kind's code, the model-exchange block. The loader takes such a
           part's bytes, and the objects of bytes it saw before, from the last state packed or unpacked here;
         - ``"["``: the value at path holds the next ``count`` entries, if the flag of entry ``flag`` is 1 (else it
-          is None); argument ``(flag, count, build, also)``: ``build(template, values)`` gives the value from the
-          values of those entries' fields, then those of the entries ``also`` (indexes of fields before it), and the
-          same value of the last state unpacked here (:meth:`checked_like`), or it is None (the value is the part
-          inside)."""
+          is None); argument ``(flag, count, build, also)``: ``build(template, *values)`` gives the value from the
+          same value of the last state unpacked here and the values of those entries' fields, then those of the
+          entries ``also`` (indexes of fields before it) (:meth:`checked_like`), or it is None (the value is the
+          part inside)."""
         n_head = len(self.head.names) - 2
         flags: list = [("n", (0, 5), 0), ("n", (1, 0), 0), ("B", (1, 2), 0)]
         flags += [("B", (2 + i,), 0) for i in range(self.extras)]
@@ -337,22 +337,22 @@ class BlockStateFormat:
         shapes: tuple = (((), 2 + self.extras), ((0,), 7), ((1,), 3))
         return self.header, shapes, tuple(entries)
 
-    def checked_like(self, template: tuple, values: list) -> tuple:
-        """The :meth:`.Trajectory.state` of ``values``: those of :data:`.trajectory.STATE_FIELDS` (each of its kind),
-        then the block's inputs ``v_drive``, ``F_ext`` and ``der(F_ext)`` (:meth:`loader_plan`'s ``also``), under the
-        parameters and with the segment of the trajectory's state ``template``: the inputs checked as :meth:`unpack`
-        checks them (unless they are the trajectory's, which it checks), the rest by
-        :func:`.trajectory.checked_state`. ``values`` is the loader's, emptied of the inputs."""
+    def checked_like(self, template: tuple, t, v_drive, F_ext, F_ext_rate, frame_t, rtol, n_stick, n_slip, n_over,
+                     chain, burst_start, burst, t_last_event, h, stiff, votes, n_steps, n_rejected,
+                     held_drive: float, held_force: float, held_rate: float) -> tuple:
+        """The :meth:`.Trajectory.state` of the values of :data:`.trajectory.STATE_FIELDS` (each of its kind) under
+        the parameters and with the segment of the trajectory's state ``template`` (:func:`.trajectory.checked_state`),
+        after the block's inputs ``v_drive``, ``F_ext`` and ``der(F_ext)`` (``held_*``, :meth:`loader_plan`'s
+        ``also``), checked as :meth:`unpack` checks them unless they are the trajectory's, which it checks."""
         params = template[1]
-        rate: float = values.pop()
-        F_ext: float = values.pop()
-        v_drive: float = values.pop()
-        held_drive: float = values[1]  # the trajectory's inputs (STATE_FIELDS), typed: compared natively
-        held_force: float = values[2]
-        held_rate: float = values[3]
-        if not (v_drive == held_drive and F_ext == held_force and rate == held_rate):
-            self._check_held_inputs(params, v_drive, F_ext, rate)
-        return checked_state(params, values, template[_SEGMENT_PLACE])
+        same_drive: float = v_drive  # the trajectory's inputs, typed: compared natively
+        same_force: float = F_ext
+        same_rate: float = F_ext_rate
+        if not (held_drive == same_drive and held_force == same_force and held_rate == same_rate):
+            self._check_held_inputs(params, held_drive, held_force, held_rate)
+        return checked_state(params, template[_SEGMENT_PLACE], t, v_drive, F_ext, F_ext_rate, frame_t, rtol, n_stick,
+                             n_slip, n_over, chain, burst_start, burst, t_last_event, h, stiff, votes, n_steps,
+                             n_rejected)
 
     def _check_held_inputs(self, params: Any, v_drive: float, F_ext: float, F_ext_rate: float) -> None:
         """ParameterError naming the first of the block's inputs held by a state with a trajectory, under its

@@ -488,7 +488,7 @@ class Trajectory:
         values += saved_state.sequence("counts", snap["counts"], _COUNT_FIELDS)
         values += saved_state.sequence("burst", snap["burst"], _BURST_FIELDS) + [fields["t_last_event"]]
         values += saved_state.sequence("stepper", snap["stepper"], _STEPPER_FIELDS)
-        return cls.resumed(checked_state(params, values, segment_from_list(snap["segment"], params)))
+        return cls.resumed(checked_state(params, segment_from_list(snap["segment"], params), *values))
 
     # ------------------------------------------------------------------
     # segments and transitions
@@ -640,14 +640,15 @@ def state_fields(state: tuple) -> tuple:
     return state[3:8] + (state[2],) + state[10:17] + state[20][:5]
 
 
-def checked_state(params: Parameters, values: list, segment: Segment) -> tuple:
-    """A :meth:`Trajectory.state` (of no trajectory: :meth:`Trajectory.resumed` goes on from it) from the values of
-    :data:`STATE_FIELDS`, each of its kind, and a checked segment (:func:`.segments.checked_segment`), saved under
+def checked_state(params: Parameters, segment: Segment, t, v_drive, F_ext, F_ext_rate, frame_t, rtol, n_stick,
+                  n_slip, n_over, chain, burst_start, burst, t_last_event, h, stiff, votes, n_steps,
+                  n_rejected) -> tuple:
+    """A :meth:`Trajectory.state` (of no trajectory: :meth:`Trajectory.resumed` goes on from it) from a checked
+    segment (:func:`.segments.checked_segment`) and the values of :data:`STATE_FIELDS`, each of its kind, saved under
     ``params``: StateError or ParameterError naming a value that no trajectory under ``params`` holds (a tolerance out
     of range, inputs or a state whose force scales overflow, a segment that does not hold the saved time). The values
-    are placed in the state as they are (nothing boxed again); only what follows from them is made."""
-    (t, v_drive, F_ext, F_ext_rate, frame_t, rtol, n_stick, n_slip, n_over, chain, burst_start, burst, t_last_event,
-     h, stiff, votes, n_steps, n_rejected) = values
+    are placed in the state as they are (nothing boxed again, no list of them made); only what follows from them is
+    made."""
     if not _saved_values_hold(params, segment, t, v_drive, F_ext, F_ext_rate, frame_t, rtol, t_last_event):
         if not _RTOL_LOW <= rtol <= _RTOL_HIGH:
             check("saved state rtol", rtol, RTOL_RANGE, error=StateError)

@@ -19,8 +19,6 @@ static struct {
     int (*PyTuple_SetItem)(PyObject *, ptrdiff_t, PyObject *);
     PyObject *(*PyTuple_GetItem)(PyObject *, ptrdiff_t);
     ptrdiff_t (*PyTuple_Size)(PyObject *);
-    PyObject *(*PyList_New)(ptrdiff_t);
-    int (*PyList_SetItem)(PyObject *, ptrdiff_t, PyObject *);
     PyObject *(*PyFloat_FromDouble)(double);
     double (*PyFloat_AsDouble)(PyObject *);
     PyObject *(*PyLong_FromLongLong)(long long);
@@ -28,7 +26,7 @@ static struct {
     PyObject *(*PyFrozenSet_New)(PyObject *);
     int (*PySequence_Contains)(PyObject *, PyObject *);
     PyObject *(*PyObject_GetAttrString)(PyObject *, const char *);
-    PyObject *(*PyObject_CallFunctionObjArgs)(PyObject *, ...);
+    PyObject *(*PyObject_Vectorcall)(PyObject *, PyObject *const *, size_t, PyObject *); /* CPython 3.9+, or NULL */
     char *(*PyBytes_AsString)(PyObject *);
     ptrdiff_t (*PyBytes_Size)(PyObject *);
     const char *(*PyUnicode_AsUTF8)(PyObject *);
@@ -38,16 +36,18 @@ static struct {
     void (*Py_DecRef)(PyObject *);
 } py;
 static PyObject *none, *yes, *no; /* Py_None, Py_True, Py_False */
-static int resolved;                /* every function above was found */
+static int resolved;                /* every function above was found (PyObject_Vectorcall may lack: then the
+                                     * slave's Python unpacks every state) */
 
 int sbf_state_bytes_resolve(void *lib)
 {
 #define RESOLVE(symbol) (*(void **)&py.symbol = sbf_symbol(lib, #symbol)) != NULL
+    *(void **)&py.PyObject_Vectorcall = sbf_symbol(lib, "PyObject_Vectorcall");
     return resolved = RESOLVE(PyTuple_New) && RESOLVE(PyTuple_SetItem) && RESOLVE(PyTuple_GetItem) &&
-           RESOLVE(PyTuple_Size) && RESOLVE(PyList_New) && RESOLVE(PyList_SetItem) && RESOLVE(PyFloat_FromDouble) &&
+           RESOLVE(PyTuple_Size) && RESOLVE(PyFloat_FromDouble) &&
            RESOLVE(PyFloat_AsDouble) && RESOLVE(PyLong_FromLongLong) && RESOLVE(PyLong_AsLongLong) &&
            RESOLVE(PyFrozenSet_New) && RESOLVE(PySequence_Contains) && RESOLVE(PyObject_GetAttrString) &&
-           RESOLVE(PyObject_CallFunctionObjArgs) && RESOLVE(PyBytes_AsString) && RESOLVE(PyBytes_Size) &&
+           RESOLVE(PyBytes_AsString) && RESOLVE(PyBytes_Size) &&
            RESOLVE(PyUnicode_AsUTF8) && RESOLVE(PyErr_Occurred) && RESOLVE(PyErr_Clear) && RESOLVE(Py_IncRef) &&
            RESOLVE(Py_DecRef) && (none = sbf_symbol(lib, "_Py_NoneStruct")) != NULL &&
            (yes = sbf_symbol(lib, "_Py_TrueStruct")) != NULL && (no = sbf_symbol(lib, "_Py_FalseStruct")) != NULL;
@@ -55,6 +55,7 @@ int sbf_state_bytes_resolve(void *lib)
 }
 
 /* ---- the plan ---- */
+#define VECTORCALL_ARGUMENTS_OFFSET ((size_t)1 << (8 * sizeof(size_t) - 1)) /* PY_VECTORCALL_ARGUMENTS_OFFSET */
 enum { MAX_DEPTH = 4, MAX_ENTRIES = 96, MAX_SHAPES = 8, MAX_ITEMS = 64, MAX_NAMES = 8, MAX_ALSO = 4, MAX_SECTIONS = 8 };
 
 typedef struct {
@@ -478,36 +479,49 @@ static int place(unpacking *u, int s, ptrdiff_t index, PyObject *value)
     return 1;
 }
 
-/* The value of the section `e` from its fields' values `values` (a list, stolen) under the template; NULL if
- * refused */
-static PyObject *built(sbf_state_plan *plan, const entry *e, PyObject *values)
+/* The values a section's build is called with: a free slot (for the callee's own use, as vectorcall allows), the
+ * template's value, the section's fields' values, then those of its `also` (references held) */
+typedef struct {
+    PyObject *items[2 + MAX_ENTRIES + MAX_ALSO];
+    int n; /* items[2..2+n) are held */
+} arguments;
+
+static void drop_arguments(arguments *a)
 {
-    PyObject *template = value_at(plan->template, e->path, e->depth);
-    PyObject *value = template && values ? py.PyObject_CallFunctionObjArgs(e->object, template, values, NULL) : NULL;
-    if (values) py.Py_DecRef(values);
+    while (a->n) py.Py_DecRef(a->items[2 + --a->n]);
+}
+
+/* The value of the section `e` from the values `a` (dropped) under the template: its build called with them (no
+ * list or tuple made); NULL if refused */
+static PyObject *built(sbf_state_plan *plan, const entry *e, arguments *a)
+{
+    a->items[1] = value_at(plan->template, e->path, e->depth);
+    PyObject *value = a->items[1] ? py.PyObject_Vectorcall(e->object, a->items + 1,
+                                                           (size_t)(1 + a->n) | VECTORCALL_ARGUMENTS_OFFSET, NULL)
+                                  : NULL;
+    drop_arguments(a);
     return value;
 }
 
-/* The values of the fields the section `e` takes after its own (its `also`, placed before it) into values[from..];
- * 0 if one is missing */
-static int add_also(const sbf_state_plan *plan, const entry *e, const unpacking *u, PyObject *values, int from)
+/* The values of the fields the section `e` takes after its own (its `also`, placed before it) into `a`; 0 if one
+ * is missing */
+static int add_also(const sbf_state_plan *plan, const entry *e, const unpacking *u, arguments *a)
 {
     for (int j = 0; j < e->n_also; ++j) {
         const entry *f = &plan->entries[e->also[j]];
         PyObject *value = py.PyTuple_GetItem(u->shapes[f->parent], f->path[f->depth - 1]);
         if (!value) return 0;
         py.Py_IncRef(value);
-        if (py.PyList_SetItem(values, from + j, value) != 0) return 0;
+        a->items[2 + a->n++] = value;
     }
     return 1;
 }
 
 /* The entries of bytes[at..] from entry i on, into their places in the state `u` (or, within a section that builds
- * its value, into `values`); the index of the last entry done, or -1 if refused */
+ * its value, into the arguments `a`); the index of the last entry done, or -1 if refused */
 static int unpack_entries(sbf_state_plan *plan, const unsigned char *bytes, const size_t *offset, unpacking *u,
-                          int first, int last, PyObject *values)
+                          int first, int last, arguments *a)
 {
-    int n_values = 0;
     for (int i = first; i <= last; ++i) {
         const entry *e = &plan->entries[i];
         PyObject *value;
@@ -519,20 +533,20 @@ static int unpack_entries(sbf_state_plan *plan, const unsigned char *bytes, cons
         }
         if (e->code == '[') {
             if (!e->object) continue; /* its part is its value */
-            PyObject *list = py.PyList_New(e->count - 1 + e->n_also);
-            if (!list || unpack_entries(plan, bytes, offset, u, i + 1, i + e->count, list) < 0 ||
-                !add_also(plan, e, u, list, e->count - 1)) {
-                if (list) py.Py_DecRef(list);
+            arguments inner = {.n = 0};
+            if (!py.PyObject_Vectorcall || unpack_entries(plan, bytes, offset, u, i + 1, i + e->count, &inner) < 0 ||
+                inner.n != e->count - 1 || !add_also(plan, e, u, &inner)) { /* all but one part are fields */
+                drop_arguments(&inner);
                 return -1;
             }
-            if (!place(u, e->parent, e->path[e->depth - 1], built(plan, e, list))) return -1;
+            if (!place(u, e->parent, e->path[e->depth - 1], built(plan, e, &inner))) return -1;
             i += e->count;
             continue;
         }
         if (e->code == 'P') {
             const part *p = &plan->unpacked[i];
             if (!p->size || memcmp(bytes + offset[i], plan->template_bytes + p->offset, p->size) != 0) return -1;
-            if (!values) {
+            if (!a) {
                 value = value_at(plan->template, e->path, e->depth);
                 if (value) py.Py_IncRef(value);
                 if (!place(u, e->parent, e->path[e->depth - 1], value)) return -1;
@@ -546,13 +560,13 @@ static int unpack_entries(sbf_state_plan *plan, const unsigned char *bytes, cons
             continue;
         }
         if (!(value = unpack_field(e, bytes + offset[i]))) return -1;
-        if (values) {
-            if (py.PyList_SetItem(values, n_values++, value) != 0) return -1;
+        if (a) {
+            a->items[2 + a->n++] = value;
         } else if (!place(u, e->parent, e->path[e->depth - 1], value)) {
             return -1;
         }
     }
-    return values && n_values != last - first ? -1 : last; /* the list holds the fields, all but one part */
+    return last;
 }
 
 /* The state's tuples, the inner ones in their places in the outer; NULL if out of memory */
