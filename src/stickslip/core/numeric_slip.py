@@ -41,7 +41,7 @@ class SlipStepper:
     """
 
     __slots__ = ("rtol", "h", "stiff", "votes", "n_steps", "n_rejected", "_slip", "_memo", "_memo_size",
-                 "_recorded", "_record", "_cursor")
+                 "_recorded", "record", "cursor")
     rtol: float
     h: float | None  # s: the next step's size; None at the start of a slip phase
     stiff: bool
@@ -52,8 +52,9 @@ class SlipStepper:
     _memo: dict  # slip key -> the slip's recorded steps, each (step, ends_in_event, h, stiff, votes, rejected)
     _memo_size: int  # most steps recorded over all slips
     _recorded: int  # steps recorded in the memo
-    _record: list | None  # the current slip's recorded steps (None: the next step starts a slip)
-    _cursor: int  # index in _record of the next step to replay; len(_record) while recording; -1: neither
+    record: list | None  # the current slip's recorded steps (None: the next step starts a slip)
+    cursor: int  # index in record of the next step to replay; len(record) while recording; -1: neither
+    # (h to n_rejected, record and cursor: what a Trajectory.state holds of the stepper, read there)
 
     def __init__(self, rtol: float, h: float | None = None, stiff: bool = False, votes: int = 0, n_steps: int = 0,
                  n_rejected: int = 0, memo_size: int = MEMO_SIZE) -> None:
@@ -67,26 +68,23 @@ class SlipStepper:
         self._memo = {}
         self._memo_size = memo_size
         self._recorded = 0
-        self._record = None
-        self._cursor = -1
+        self.record = None
+        self.cursor = -1
 
-    def state(self) -> tuple:
-        """Everything a step depends on, as an immutable tuple (:meth:`restore`): the step size, the method, the
-        counters (these five are what a saved state holds), and where the current slip is in its record of
-        steps (shared: a record only grows, by the steps that follow from the same start, so the steps replayed
-        from it are the same)."""
-        return self.h, self.stiff, self.votes, self.n_steps, self.n_rejected, self._record, self._cursor
-
-    def restore(self, state: tuple, own: bool) -> None:
-        """Go back to a :meth:`state`; ``own``: it is a state of this stepper (its record is one of this memo's),
-        else the current slip is recorded anew (a record of another stepper may be of other parameters)."""
-        self.h, self.stiff, self.votes, self.n_steps, self.n_rejected, record, cursor = state
-        self._record, self._cursor = (record, cursor) if own else (None, -1)
+    def restore(self, h: float | None, stiff: bool, votes: int, n_steps: int, n_rejected: int, record: list | None,
+                cursor: int, own: bool) -> None:
+        """Go back to where a step depends on (what a :meth:`.Trajectory.state` holds of this stepper): the step size,
+        the method, the counters (these five are what a saved state holds), and where the current slip is in its
+        record of steps (shared: a record only grows, by the steps that follow from the same start, so the steps
+        replayed from it are the same); ``own``: the record is one of this memo's, else the current slip is recorded
+        anew (a record of another stepper may be of other parameters)."""
+        self.h, self.stiff, self.votes, self.n_steps, self.n_rejected = h, stiff, votes, n_steps, n_rejected
+        self.record, self.cursor = (record, cursor) if own else (None, -1)
 
     def restart(self):
         """A new slip phase begins (after an event or an input change): forget the step size."""
         self.h = None
-        self._record = None
+        self.record = None
 
     def step(self, t0: float, x0: float, v0: float, mode: int, v_drive: float, F_ext: float,
              p: Parameters) -> tuple[Step, bool]:
@@ -99,7 +97,7 @@ class SlipStepper:
         """
         if not self._memo_size:
             return self._integrate(t0, x0, v0, mode, v_drive, F_ext, p)
-        record = self._record
+        record = self.record
         if record is None:  # the slip's first step: its steps are known, or are recorded from here
             key = (x0, v0, mode, v_drive, F_ext, self.h, self.stiff, self.votes)
             known = self._memo.get(key)
@@ -108,14 +106,14 @@ class SlipStepper:
                     self._memo.clear()  # bounded memory: a long aperiodic run keeps only recent slips
                     self._recorded = 0
                 known = self._memo[key] = []
-            record = self._record = known
-            self._cursor = 0
-        cursor = self._cursor
+            record = self.record = known
+            self.cursor = 0
+        cursor = self.cursor
         if 0 <= cursor < len(record):
             entry: tuple[Step, bool, float | None, bool, int, int] = record[cursor]
             if _advances(t0, entry[0].h):  # else integrated: the record is left
                 step, ends_in_event, self.h, self.stiff, self.votes, rejected = entry
-                self._cursor = cursor + 1
+                self.cursor = cursor + 1
                 self.n_steps += 1
                 self.n_rejected += rejected
                 return step, ends_in_event
@@ -124,9 +122,9 @@ class SlipStepper:
         if cursor == len(record) and self._recorded < self._memo_size:
             record.append((step, ends_in_event, self.h, self.stiff, self.votes, self.n_rejected - rejected_before))
             self._recorded += 1
-            self._cursor = cursor + 1
+            self.cursor = cursor + 1
         else:
-            self._cursor = -1  # the memo is full, or this slip left its record: integrate to its end
+            self.cursor = -1  # the memo is full, or this slip left its record: integrate to its end
         return step, ends_in_event
 
     def _integrate(self, t0: float, x0: float, v0: float, mode: int, v_drive: float, F_ext: float,

@@ -446,10 +446,12 @@ class Trajectory:
         parameters, the current segment, the stepper's record of steps): taken and restored (:meth:`restore`)
         without copying or checking anything. :func:`state_snapshot` turns it into :meth:`snapshot`'s values."""
         events = -1 if self.events is None else len(self.events)
+        stepper = self._stepper
         return (self, self.params, self.rtol, self.t, self.v_drive, self.F_ext, self.F_ext_rate, self._frame_t,
                 self._drift, self._v_frame, self.n_stick_events, self.n_slip_events, self.n_overshoots, self._chain,
-                self._burst_start, self._burst, self.t_last_event, self._segment, self._x, self._v,
-                self._stepper.state(), events)
+                self._burst_start, self._burst, self.t_last_event, self._segment, self._x, self._v, stepper.h,
+                stepper.stiff, stepper.votes, stepper.n_steps, stepper.n_rejected, stepper.record, stepper.cursor,
+                events)
 
     def restore(self, state: tuple) -> None:
         """Go back to a :meth:`state` of this trajectory (ValueError for one of another: :meth:`resumed`); the
@@ -470,8 +472,9 @@ class Trajectory:
         """Every field from ``state`` (``own``: one of this trajectory, whose stepper's record it may share)."""
         (_, self.params, self.rtol, self.t, self.v_drive, self.F_ext, self.F_ext_rate, self._frame_t, self._drift,
          self._v_frame, self.n_stick_events, self.n_slip_events, self.n_overshoots, self._chain, self._burst_start,
-         self._burst, self.t_last_event, self._segment, self._x, self._v, stepper, events) = state
-        self._stepper.restore(stepper, own)
+         self._burst, self.t_last_event, self._segment, self._x, self._v, h, stiff, votes, n_steps, n_rejected, record,
+         cursor, events) = state
+        self._stepper.restore(h, stiff, votes, n_steps, n_rejected, record, cursor, own)
         if self.events is not None and events >= 0:
             del self.events[events:]
 
@@ -588,7 +591,7 @@ class Trajectory:
 def state_snapshot(state: tuple):
     """:meth:`Trajectory.snapshot`'s JSON-serializable values of a :meth:`Trajectory.state`."""
     (_, _, rtol, t, v_drive, F_ext, F_ext_rate, frame_t, _, _, n_stick, n_slip, n_over, chain, burst_start, burst,
-     t_last_event, segment, _, _, stepper, _) = state
+     t_last_event, segment, _, _, h, stiff, votes, n_steps, n_rejected, _, _, _) = state
     return {
         "t": t,
         "v_drive": v_drive,
@@ -599,7 +602,7 @@ def state_snapshot(state: tuple):
         "counts": [n_stick, n_slip, n_over, chain],
         "burst": [burst_start, burst],
         "t_last_event": t_last_event,
-        "stepper": list(stepper[:5]),
+        "stepper": [h, stiff, votes, n_steps, n_rejected],
         "segment": segment.to_list(),
     }
 
@@ -614,30 +617,20 @@ STATE_FIELDS = (("t", saved_state.REAL), ("v_drive", saved_state.REAL), ("F_ext"
                 *((f"stepper.{name}", kind) for name, kind in _STEPPER_FIELDS))
 
 
-#: What a :meth:`Trajectory.state` holds, item by item (the fields of :data:`STATE_FIELDS` by their names), and what
-#: its stepper's part (:meth:`.SlipStepper.state`, the item ``stepper``) holds
+#: What a :meth:`Trajectory.state` holds, item by item: the fields of :data:`STATE_FIELDS` by their names, the stepper's
+#: record of steps and where the current slip is in it (:meth:`.SlipStepper.restore`) after its fields
 STATE_LAYOUT = ("trajectory", "params", "rtol", "t", "v_drive", "F_ext", "F_ext_rate", "frame_t", "drift", "v_frame",
-                *(name for name, _ in STATE_FIELDS[6:12]), "t_last_event", "segment", "x", "v", "stepper", "events")
-STEPPER_LAYOUT = (*(name for name, _ in STATE_FIELDS[13:]), "stepper.record", "stepper.cursor")
+                *(name for name, _ in STATE_FIELDS[6:13]), "segment", "x", "v",
+                *(name for name, _ in STATE_FIELDS[13:]), "stepper.record", "stepper.cursor", "events")
 SEGMENT_PLACE = STATE_LAYOUT.index("segment")
-
-
-def _place(name: str) -> tuple:
-    """Where the field ``name`` of :data:`STATE_FIELDS` lies in a :meth:`Trajectory.state`: its index, or the
-    stepper's index and its index there."""
-    if name in STEPPER_LAYOUT:
-        return STATE_LAYOUT.index("stepper"), STEPPER_LAYOUT.index(name)
-    return (STATE_LAYOUT.index(name),)
-
-
-#: where each value of :data:`STATE_FIELDS` lies in a :meth:`Trajectory.state` (:func:`_place`), in their order
-STATE_PLACES = tuple(_place(name) for name, _ in STATE_FIELDS)
+#: where each value of :data:`STATE_FIELDS` lies in a :meth:`Trajectory.state` (a path of one index), in their order
+STATE_PLACES = tuple((STATE_LAYOUT.index(name),) for name, _ in STATE_FIELDS)
 
 
 def state_fields(state: tuple) -> tuple:
     """The values of :data:`STATE_FIELDS` of a :meth:`Trajectory.state`, in their order (those at
     :data:`STATE_PLACES`; its segment is ``state[SEGMENT_PLACE]``)."""
-    return state[3:8] + (state[2],) + state[10:17] + state[20][:5]
+    return state[3:8] + (state[2],) + state[10:17] + state[20:25]
 
 
 def checked_state(params: Parameters, segment: Segment, t, v_drive, F_ext, F_ext_rate, frame_t, rtol, n_stick,
@@ -665,8 +658,7 @@ def checked_state(params: Parameters, segment: Segment, t, v_drive, F_ext, F_ext
             saved_state.field("v at t", v, saved_state.REAL)
         check_state_scales(x, v, params, ("saved state x", "saved state v"))
     return (None, params, rtol, t, v_drive, F_ext, F_ext_rate, frame_t, drift, v_frame, n_stick, n_slip, n_over,
-            chain, burst_start, burst, t_last_event, segment, x, v,
-            (h, stiff, votes, n_steps, n_rejected, None, -1), -1)
+            chain, burst_start, burst, t_last_event, segment, x, v, h, stiff, votes, n_steps, n_rejected, None, -1, -1)
 
 
 def _saved_values_hold(p: Parameters, segment: Segment, t: float, v_drive: float, F_ext: float, F_ext_rate: float,

@@ -533,7 +533,8 @@ static int unpack_entries(sbf_state_plan *plan, const unsigned char *bytes, cons
         }
         if (e->code == '[') {
             if (!e->object) continue; /* its part is its value */
-            arguments inner = {.n = 0};
+            arguments inner;
+            inner.n = 0; /* its items are written as they come (not cleared: that would take longer than the rest) */
             if (!py.PyObject_Vectorcall || unpack_entries(plan, bytes, offset, u, i + 1, i + e->count, &inner) < 0 ||
                 inner.n != e->count - 1 || !add_also(plan, e, u, &inner)) { /* all but one part are fields */
                 drop_arguments(&inner);
