@@ -303,8 +303,10 @@ class BlockStateFormat:
     def loader_plan(self) -> tuple:
         """How the FMUs' C loader packs and unpacks the states of this format itself (``fast_path.c``, "FMU states as
         bytes"), giving the bytes and states :meth:`to_bytes` and :meth:`from_bytes` give: ``(header, shapes,
-        entries)``. ``shapes``: ``(path, length)`` of each tuple a state is made of, outer ones first; a path is the
-        indexes that lead from the state to a value. ``entries``: one for each field or part in the order of the
+        entries)``. ``shapes``: ``(path, length, shared)`` of each tuple a state is made of, outer ones first; a path
+        is the indexes that lead from the state to a value; ``shared``: states of a run share the tuple, taken from
+        the last state unpacked here where the bytes of its entries are that state's (the model-exchange part:
+        in co-simulation no block, the start time and the interface, the same for every state). ``entries``: one for each field or part in the order of the
         bytes, ``(code, path, argument)``:
 
         - a field of a kind of :mod:`.saved_state`: ``"d"`` a finite real, ``"e"`` a real that may be ``inf``,
@@ -334,7 +336,7 @@ class BlockStateFormat:
         entries.append(("[", (0, 5), (0, len(trajectory) + 1, self.checked_like, held)))
         entries += trajectory + [("P", (0, 5, _SEGMENT_PLACE), -1)]
         entries += [("[", (1, 0), (1, 1, None, ())), ("P", (1, 0), self.exchange.size)]
-        shapes: tuple = (((), 2 + self.extras), ((0,), 7), ((1,), 3))
+        shapes: tuple = (((), 2 + self.extras, False), ((0,), 7, False), ((1,), 3, True))
         return self.header, shapes, tuple(entries)
 
     def checked_like(self, template: tuple, t, v_drive, F_ext, F_ext_rate, frame_t, rtol, n_stick, n_slip, n_over,

@@ -85,11 +85,13 @@ struct sbf_state_plan {
     entry entries[MAX_ENTRIES];
     int shape_depth[MAX_SHAPES];
     ptrdiff_t shape_path[MAX_SHAPES][MAX_DEPTH], shape_length[MAX_SHAPES];
+    int shape_shared[MAX_SHAPES]; /* states of a run share the tuple while its entries' bytes are the same */
     part packed[MAX_ENTRIES];        /* for "P": the template's for packing */
     PyObject *template;              /* the state unpacked last by the slave (a reference held), or NULL */
     unsigned char *template_bytes;   /* its bytes */
     size_t template_size;
     part unpacked[MAX_ENTRIES];      /* for "P": where its bytes lie in template_bytes */
+    size_t template_laid[MAX_ENTRIES]; /* where each entry lies in template_bytes (layout's offsets) */
     size_t laid[MAX_ENTRIES];        /* the layout of the bytes unpacked last (layout's offsets), if laid_size */
     size_t laid_size;                /* their size (0: none laid under this template) */
     unsigned laid_sections;          /* their sections' flags, a bit each */
@@ -181,6 +183,7 @@ static int read_entry(sbf_state_plan *plan, int i, PyObject *item, int *in_build
             e->flag_at += (size_t)plan->entries[k].size;
         }
     }
+    if (e->parent >= 0 && plan->shape_shared[e->parent] && e->size < 0) return 0; /* a shared shape's size is fixed */
     return e->size >= -1 && !py.PyErr_Occurred() && (inside || e->parent >= 0);
 }
 
@@ -198,14 +201,16 @@ static int read_plan(sbf_state_plan *plan, PyObject *tuple)
     plan->header_size = (size_t)size;
     for (int s = 0; s < (int)n_shapes; ++s) {
         PyObject *shape = py.PyTuple_GetItem(shapes, s);
-        if (py.PyTuple_Size(shape) != 2 || (plan->shape_depth[s] = read_path(py.PyTuple_GetItem(shape, 0),
+        if (py.PyTuple_Size(shape) != 3 || (plan->shape_depth[s] = read_path(py.PyTuple_GetItem(shape, 0),
                                                                            plan->shape_path[s])) < 0)
             return 0;
         plan->shape_length[s] = (ptrdiff_t)py.PyLong_AsLongLong(py.PyTuple_GetItem(shape, 1));
+        plan->shape_shared[s] = py.PyTuple_GetItem(shape, 2) == yes;
         plan->n_shapes = s + 1;
-        if (plan->shape_length[s] < 1 || plan->shape_length[s] > MAX_ITEMS ||
-            (s > 0 && shape_of(plan, plan->shape_path[s], plan->shape_depth[s] - 1) < 0))
-            return 0; /* the outermost shape first, each inside one before it */
+        int outer = s > 0 ? shape_of(plan, plan->shape_path[s], plan->shape_depth[s] - 1) : -1;
+        if (plan->shape_length[s] < 1 || plan->shape_length[s] > MAX_ITEMS || (s > 0 && outer < 0) ||
+            (s == 0 && plan->shape_shared[s]) || (outer >= 0 && plan->shape_shared[outer]))
+            return 0; /* the outermost shape first, each inside one before it; no shape in a shared one */
     }
     int in_build = 0;
     plan->n = (int)n;
@@ -469,6 +474,7 @@ typedef struct {
     PyObject *shapes[MAX_SHAPES];
     unsigned bits;
     uint64_t placed[MAX_SHAPES];
+    unsigned shared; /* the shared shapes taken from the template, a bit each: their entries are not unpacked */
 } unpacking;
 
 /* `value` (a reference stolen) into its place, the item `index` of shape `s`; 0 if that fails */
@@ -525,6 +531,10 @@ static int unpack_entries(sbf_state_plan *plan, const unsigned char *bytes, cons
     for (int i = first; i <= last; ++i) {
         const entry *e = &plan->entries[i];
         PyObject *value;
+        if (e->parent >= 0 && u->shared >> e->parent & 1) { /* the template's, as its bytes are */
+            i += e->code == '[' ? e->count : 0;
+            continue;
+        }
         if (e->code == '[' && e->count > 0 && offset[i + 1] == SIZE_MAX) { /* an absent section: its value is None */
             py.Py_IncRef(none);
             if (!place(u, e->parent, e->path[e->depth - 1], none)) return -1;
@@ -570,11 +580,34 @@ static int unpack_entries(sbf_state_plan *plan, const unsigned char *bytes, cons
     return last;
 }
 
-/* The state's tuples, the inner ones in their places in the outer; NULL if out of memory */
-static PyObject *new_shapes(const sbf_state_plan *plan, unpacking *u)
+/* 1 if the bytes of every entry of the shared shape `s` at `offset` are the template's (then so is its tuple, which
+ * nothing changes) */
+static int as_template(const sbf_state_plan *plan, int s, const unsigned char *bytes, const size_t *offset)
+{
+    for (int i = 0; i < plan->n; ++i) {
+        const entry *e = &plan->entries[i];
+        size_t there = plan->template_laid[i];
+        if (e->parent != s) continue;
+        if ((offset[i] == SIZE_MAX) != (there == SIZE_MAX)) return 0;
+        if (offset[i] != SIZE_MAX && memcmp(bytes + offset[i], plan->template_bytes + there, (size_t)e->size) != 0)
+            return 0;
+    }
+    return 1;
+}
+
+/* The state's tuples, the inner ones in their places in the outer, a shared one as the template's where its bytes
+ * are (u->shared); NULL if out of memory */
+static PyObject *new_shapes(const sbf_state_plan *plan, const unsigned char *bytes, const size_t *offset,
+                            unpacking *u)
 {
     for (int s = 0; s < plan->n_shapes; ++s) {
-        u->shapes[s] = py.PyTuple_New(plan->shape_length[s]);
+        PyObject *shared = plan->shape_shared[s] && as_template(plan, s, bytes, offset)
+                               ? value_at(plan->template, plan->shape_path[s], plan->shape_depth[s]) : NULL;
+        if (shared) {
+            py.Py_IncRef(shared);
+            u->shared |= 1u << s;
+        }
+        u->shapes[s] = shared ? shared : py.PyTuple_New(plan->shape_length[s]);
         int ok = u->shapes[s] != NULL;
         if (ok && s > 0) {
             int outer = shape_of(plan, plan->shape_path[s], plan->shape_depth[s] - 1);
@@ -615,7 +648,7 @@ static PyObject *unpack(sbf_state_plan *plan, const unsigned char *bytes, size_t
 {
     const size_t *offset = plan->template ? laid_out(plan, bytes, size) : NULL;
     unpacking u = {.bits = 0};
-    if (!offset || !new_shapes(plan, &u)) return NULL;
+    if (!offset || !new_shapes(plan, bytes, offset, &u)) return NULL;
     int done = unpack_entries(plan, bytes, offset, &u, 0, plan->n - 1, NULL) == plan->n - 1;
     for (int i = 0; done && i < plan->n; ++i) { /* the names of the "m" flags: one frozenset */
         const entry *e = &plan->entries[i];
@@ -626,7 +659,7 @@ static PyObject *unpack(sbf_state_plan *plan, const unsigned char *bytes, size_t
         break;
     }
     for (int s = 0; done && s < plan->n_shapes; ++s) /* every item placed */
-        done = u.placed[s] == (plan->shape_length[s] == MAX_ITEMS ? ~(uint64_t)0
+        done = u.shared >> s & 1 || u.placed[s] == (plan->shape_length[s] == MAX_ITEMS ? ~(uint64_t)0
                                                                    : ((uint64_t)1 << plan->shape_length[s]) - 1);
     if (!done) {
         py.Py_DecRef(u.shapes[0]);
@@ -650,6 +683,7 @@ void sbf_plan_unpacked(sbf_state_plan *plan, void *state, const unsigned char *b
     plan->laid_size = 0; /* the part of any size may differ */
     if (!layout(plan, bytes, size, -1, offset, sizes) || !(plan->template_bytes = malloc(size + 1))) return;
     memcpy(plan->template_bytes, bytes, size);
+    memcpy(plan->template_laid, offset, sizeof offset);
     plan->template_size = size;
     py.Py_IncRef(plan->template = state);
     for (int i = 0; i < plan->n; ++i)
