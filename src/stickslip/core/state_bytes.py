@@ -305,9 +305,9 @@ class BlockStateFormat:
         bytes"), giving the bytes and states :meth:`to_bytes` and :meth:`from_bytes` give: ``(header, shapes,
         entries)``. ``shapes``: ``(path, length, shared)`` of each tuple a state is made of, outer ones first; a path
         is the indexes that lead from the state to a value; ``shared``: states of a run share the tuple, taken from
-        the last state unpacked here where the bytes of its entries are that state's (the model-exchange part:
-        in co-simulation no block, the start time and the interface, the same for every state). ``entries``: one for each field or part in the order of the
-        bytes, ``(code, path, argument)``:
+        the last state unpacked here where the bytes of its entries are that state's (the model-exchange part: in
+        co-simulation no block, the start time and the interface, the same for every state). ``entries``: one for
+        each field or part in the order of the bytes, ``(code, path, argument)``:
 
         - a field of a kind of :mod:`.saved_state`: ``"d"`` a finite real, ``"e"`` a real that may be ``inf``,
           ``"q"`` a count, ``"B"`` a flag, ``"b"`` a mode, ``"o"`` a real that may be None, ``"s"`` a step that may

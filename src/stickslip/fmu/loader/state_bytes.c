@@ -85,7 +85,9 @@ struct sbf_state_plan {
     entry entries[MAX_ENTRIES];
     int shape_depth[MAX_SHAPES];
     ptrdiff_t shape_path[MAX_SHAPES][MAX_DEPTH], shape_length[MAX_SHAPES];
+    int shape_outer[MAX_SHAPES];  /* the shape holding each (-1: none, the outermost) */
     int shape_shared[MAX_SHAPES]; /* states of a run share the tuple while its entries' bytes are the same */
+    int first_name;               /* the first "m" entry (-1: none), whose place the frozenset of the names takes */
     part packed[MAX_ENTRIES];        /* for "P": the template's for packing */
     PyObject *template;              /* the state unpacked last by the slave (a reference held), or NULL */
     unsigned char *template_bytes;   /* its bytes */
@@ -207,15 +209,18 @@ static int read_plan(sbf_state_plan *plan, PyObject *tuple)
         plan->shape_length[s] = (ptrdiff_t)py.PyLong_AsLongLong(py.PyTuple_GetItem(shape, 1));
         plan->shape_shared[s] = py.PyTuple_GetItem(shape, 2) == yes;
         plan->n_shapes = s + 1;
-        int outer = s > 0 ? shape_of(plan, plan->shape_path[s], plan->shape_depth[s] - 1) : -1;
+        int outer = plan->shape_outer[s] = s > 0 ? shape_of(plan, plan->shape_path[s], plan->shape_depth[s] - 1) : -1;
         if (plan->shape_length[s] < 1 || plan->shape_length[s] > MAX_ITEMS || (s > 0 && outer < 0) ||
             (s == 0 && plan->shape_shared[s]) || (outer >= 0 && plan->shape_shared[outer]))
             return 0; /* the outermost shape first, each inside one before it; no shape in a shared one */
     }
     int in_build = 0;
     plan->n = (int)n;
-    for (int i = 0; i < plan->n; ++i)
+    plan->first_name = -1;
+    for (int i = 0; i < plan->n; ++i) {
         if (!read_entry(plan, i, py.PyTuple_GetItem(entries, i), &in_build)) return 0;
+        if (plan->entries[i].code == 'm' && plan->first_name < 0) plan->first_name = i;
+    }
     return plan->shape_depth[0] == 0;
 }
 
@@ -610,8 +615,7 @@ static PyObject *new_shapes(const sbf_state_plan *plan, const unsigned char *byt
         u->shapes[s] = shared ? shared : py.PyTuple_New(plan->shape_length[s]);
         int ok = u->shapes[s] != NULL;
         if (ok && s > 0) {
-            int outer = shape_of(plan, plan->shape_path[s], plan->shape_depth[s] - 1);
-            ok = place(u, outer, plan->shape_path[s][plan->shape_depth[s] - 1], u->shapes[s]);
+            ok = place(u, plan->shape_outer[s], plan->shape_path[s][plan->shape_depth[s] - 1], u->shapes[s]);
         }
         if (!ok) {
             if (s > 0 || u->shapes[0]) py.Py_DecRef(u->shapes[0]);
@@ -650,13 +654,11 @@ static PyObject *unpack(sbf_state_plan *plan, const unsigned char *bytes, size_t
     unpacking u = {.bits = 0};
     if (!offset || !new_shapes(plan, bytes, offset, &u)) return NULL;
     int done = unpack_entries(plan, bytes, offset, &u, 0, plan->n - 1, NULL) == plan->n - 1;
-    for (int i = 0; done && i < plan->n; ++i) { /* the names of the "m" flags: one frozenset */
-        const entry *e = &plan->entries[i];
-        if (e->code != 'm') continue;
+    if (done && plan->first_name >= 0) { /* the names of the "m" flags: one frozenset */
+        const entry *e = &plan->entries[plan->first_name];
         PyObject *set = pending(plan, u.bits);
         if (set) py.Py_IncRef(set);
         done = place(&u, e->parent, e->path[e->depth - 1], set);
-        break;
     }
     for (int s = 0; done && s < plan->n_shapes; ++s) /* every item placed */
         done = u.shared >> s & 1 || u.placed[s] == (plan->shape_length[s] == MAX_ITEMS ? ~(uint64_t)0
