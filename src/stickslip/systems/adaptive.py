@@ -47,6 +47,7 @@ attempt, which is redone to end on that event. The rest of the scheme is the sam
 """
 
 import dataclasses
+import functools
 import math
 import time
 from ctypes import byref, c_bool, c_double, c_int, c_uint, c_void_p
@@ -131,14 +132,41 @@ def hermite_basis(u):
     return 2 * u3 - 3 * u2 + 1, u3 - 2 * u2 + u, 3 * u2 - 2 * u3, u3 - u2
 
 
-def hermite(basis, x0, v0, x1, v1, delta):
-    """Cubic Hermite interpolant, with the ``basis`` (:func:`hermite_basis`) at its points, of a cell of length
-    ``delta`` (s), ends ``(x, v)``."""
-    h00, h10, h01, h11 = basis
-    return h00 * x0 + h10 * delta * v0 + h01 * x1 + h11 * delta * v1
+# the weights, at a cell's Gauss points, of the force F there in the line that carries F's impulse and first moment
+# about the cell's end: its value at the cell's start and end, its rate times the cell's length, and the residual
+# int (F - line) (T_cell - s)^2 ds over the cell's length cubed (the Gauss rule of the cubic (T_cell - s)^2 F minus
+# the line's, exact for the line: no cancellation)
+_LINE_START, _LINE_END = 6.0 * _GAUSS_W1 - 2.0 * _GAUSS_W, 4.0 * _GAUSS_W - 6.0 * _GAUSS_W1
+_LINE_RATE, _LINE_RESIDUAL = 6.0 * _GAUSS_W - 12.0 * _GAUSS_W1, _GAUSS_W * (_GAUSS_U ** 2 - _GAUSS_U + 1.0 / 6.0)
 
 
-_GAUSS_HERMITE = hermite_basis(_GAUSS_U)  # at the Gauss points of a cell
+@functools.lru_cache(maxsize=None)
+def force_map(cells):
+    """``P`` with ``F = K [X | delta V] P`` (``X``, ``V``: the positions and velocities at the ``cells + 1`` cell ends
+    of ``cells`` equal cells of length ``delta``, one row per block) the forces of a sweep, before scaling by
+    ``delta`` (:func:`force_columns`): the columns of ``F`` are the groups (``cells`` columns each, one per cell, but
+    for the single columns) the line's start (N), its end, the force at ``T`` (one column); a stuck block's force at
+    each cell's start twice, at ``T`` (one); the line's rate times ``delta`` (N), the residual over ``delta^3``. The
+    positions inside a cell are its cubic Hermite interpolant through ``x`` and ``v`` at its ends."""
+    c = cells
+    P = np.zeros((2 * (c + 1), 6 * c + 2))
+    basis = np.array(hermite_basis(_GAUSS_U))  # (4, Gauss points)
+    for first, weights in ((0, _LINE_START), (c, _LINE_END), (4 * c + 2, _LINE_RATE), (5 * c + 2, _LINE_RESIDUAL)):
+        h00, h10, h01, h11 = basis @ weights
+        for k in range(c):
+            P[(k, c + 1 + k, k + 1, c + 2 + k), first + k] = h00, h10, h01, h11
+    for k in range(c):
+        P[k, (2 * c + 1 + k, 3 * c + 1 + k)] = 1.0
+    P[c, (2 * c, 4 * c + 1)] = 1.0
+    P.flags.writeable = False
+    return P
+
+
+def force_columns(cells, delta):
+    """:func:`force_map` scaled for cells of length ``delta`` (s): ``F = K [X | V] P``."""
+    rows = np.repeat([1.0, delta], cells + 1)
+    columns = np.repeat([1.0, 1.0 / delta, delta ** 3], [4 * cells + 2, cells, cells])
+    return force_map(cells) * rows[:, None] * columns
 
 
 def coupling_matrix(system):
@@ -263,46 +291,45 @@ class _Blocks:
         force goes on as it was set): None, or the time (s) of the event inside the step where it returned early
         (its state there the event's left limit; the next step starts there). :attr:`stepped` is then
         ``(x, v, F_friction, F_spring)`` where the step ended; the outputs of :meth:`end` are read only if ``last``
-        (the block's last step in the attempt, as planned)."""
-        check_interrupts()
-        early = self._set_step_read(self._calls[i], float(t), float(h), force, rate, log_mark(), last)
+        (the block's last step in the attempt, as planned). A Ctrl-C is looked for after the calls (as after every
+        FMI call: none can have come unseen before them)."""
+        early = self._set_step_read(self._calls[i], t, h, force, rate, last)
         check_interrupts()
         self.moved[i] = True
         self.do_steps += 1
-        reals = self._reals[:]
-        self.stepped = tuple(reals[:len(_READ_CELL)])
-        self.ends[i] = (*reals[len(_READ_CELL):], *self._ints[:]) if last else None
+        self.stepped = self._reals[:len(_READ_CELL)]
+        self.ends[i] = (*self._reals[len(_READ_CELL):], *self._ints) if last else None
         if early:
             self.early_returns += 1
             return self._last_time.value
         return None
 
-    def _set_step_read(self, calls, t, h, force, rate, first, last):
+    def _set_step_read(self, calls, t, h, force, rate, last):
         """The FMI calls of :meth:`step` on the FMU's C functions (``calls``, a :class:`_CellCalls`) and arrays made
-        once, log mark ``first``: the force and its rate set (FMI 2: setting ``F_ext`` sets its rate to 0; FMI 3:
-        the input ``der(F_ext)``), ``doStep``, the outputs of the cell's end and, if ``last``, of :meth:`end` read.
-        True if the step returned early (FMI 3 with early return)."""
-        c, n = calls.component, len(self._reals) if last else len(_READ_CELL)
+        once: the force and its rate set (FMI 2: setting ``F_ext`` sets its rate to 0; FMI 3: the input
+        ``der(F_ext)``), ``doStep``, the outputs of the cell's end and, if ``last``, of :meth:`end` read. True if the
+        step returned early (FMI 3 with early return)."""
+        c, n, first, check = calls.component, len(self._reals) if last else len(_READ_CELL), log_mark(), calls.check
         if force is not None:
             self._forces[0], self._forces[1] = force, rate
             if self.fmi3:
-                calls.check(calls.set_reals(c, self._force_refs, 2, self._forces, 2), "fmi3SetFloat64", first)
+                check(calls.set_reals(c, self._force_refs, 2, self._forces, 2), "fmi3SetFloat64", first)
             else:
-                calls.check(calls.set_reals(c, self._force_refs, 1, self._forces), "fmi2SetReal", first)
+                check(calls.set_reals(c, self._force_refs, 1, self._forces), "fmi2SetReal", first)
                 if rate != 0.0:
                     self._rate[0] = rate
-                    calls.check(calls.set_rates(c, self._force_refs, 1, self._order, self._rate),
-                                "fmi2SetRealInputDerivatives", first)
+                    check(calls.set_rates(c, self._force_refs, 1, self._order, self._rate),
+                          "fmi2SetRealInputDerivatives", first)
         if self.fmi3:
-            calls.check(calls.do_step(c, t, h, False, *self._step_answers), "fmi3DoStep", first)
-            calls.check(calls.get_reals(c, self._real_refs, n, self._reals, n), "fmi3GetFloat64", first)
+            check(calls.do_step(c, t, h, False, *self._step_answers), "fmi3DoStep", first)
+            check(calls.get_reals(c, self._real_refs, n, self._reals, n), "fmi3GetFloat64", first)
             if last:
-                calls.check(calls.get_ints(c, self._int_refs, 2, self._ints, 2), "fmi3GetInt32", first)
+                check(calls.get_ints(c, self._int_refs, 2, self._ints, 2), "fmi3GetInt32", first)
             return self.early_return and self._early.value
-        calls.check(calls.do_step(c, t, h, False), "fmi2DoStep", first)
-        calls.check(calls.get_reals(c, self._real_refs, n, self._reals), "fmi2GetReal", first)
+        check(calls.do_step(c, t, h, False), "fmi2DoStep", first)
+        check(calls.get_reals(c, self._real_refs, n, self._reals), "fmi2GetReal", first)
         if last:
-            calls.check(calls.get_ints(c, self._int_refs, 2, self._ints), "fmi2GetInteger", first)
+            check(calls.get_ints(c, self._int_refs, 2, self._ints), "fmi2GetInteger", first)
         return False
 
     def cell(self, i):
@@ -338,14 +365,19 @@ class _Blocks:
 
 
 class _Attempt:
-    """One communication step ``[t, T]`` tried: the cell times, each block's ``x``, ``v`` (arrays ``(N, cells + 1)``)
-    and ``F_friction`` at the cell ends, the end outputs, the error estimate (m) and the sweeps it took."""
+    """One communication step ``[t, T]`` tried: the cell times, each block's ``x``, ``v`` (arrays ``(N, cells + 1)``,
+    views of ``XV``, both side by side) and ``F_friction`` at the cell ends, the end outputs, the error estimate (m)
+    and the sweeps it took."""
 
     def __init__(self, times, X, V, cuttable):
-        self.times, self.X, self.V = times, X, V
+        self.times, self.cells = times, times.size - 1
+        self.XV = np.concatenate([X, V], axis=1)
+        self.X, self.V = self.XV[:, :self.cells + 1], self.XV[:, self.cells + 1:]
         self.T = float(times[-1])
         self.cell_times = times.tolist()  # s, as floats for the calls
-        self.widths = np.diff(times)  # s: each cell's length
+        self.delta = self.cell_times[1] - self.cell_times[0]  # s: each cell's length
+        self.force_columns = force_columns(self.cells, self.delta)  # the sweep's forces (_Run._forces)
+        self.change_scale = np.repeat([1.0, self.delta], self.cells + 1)  # a sweep's change of x and v in m
         self.hold_share = (times[1:] - times[0]) / (self.T - times[0])  # each cell end's share of the step
         self.cuttable = cuttable  # an early return more than EVENT_TOL before T (after the first sweep) stops it
         self.friction = np.zeros_like(X)
@@ -475,12 +507,11 @@ class _Run:
         settled = np.zeros(self.system.n, bool)  # stuck at t and still stuck, without an event, after a sweep
         self._ahead_rows(attempt, settled)
         while attempt.sweeps < MAX_SWEEPS and not attempt.converged:
-            X, V = attempt.X.copy(), attempt.V.copy()
+            before = attempt.XV.copy()
             residual = self._sweep(attempt, slipping, settled, floor)
             if attempt.cut is not None:
                 break  # redone to end at the event (_land)
-            delta = times[1] - times[0]
-            change = max(float(np.abs(attempt.X - X).max()), float(np.abs(attempt.V - V).max()) * delta)
+            change = float((np.abs(attempt.XV - before) * attempt.change_scale).max())
             attempt.sweeps += 1
             # a hold that had an event is swept before the attempt converges (the cubic predictor
             # can make the first sweep's change tiny on a short step)
@@ -503,13 +534,10 @@ class _Run:
         event) once over ``attempt``; return the force residuals (:meth:`_forces`) of the waveforms before it.
         Jacobi: every block's forces from the waveforms before the sweep. A block whose forces did not change is not
         stepped again (:meth:`_unchanged`)."""
-        start, rate, f_start, residual = self._forces(attempt)
-        # a stuck block: the force at each cell's start, held
-        start, rate = np.where(slipping[:, None], start, f_start), np.where(slipping[:, None], rate, 0.0)
-        used = np.concatenate([start, start + rate * attempt.widths], axis=1)
-        lines = np.concatenate([used, self.K @ attempt.X[:, -1:]], axis=1)  # and the force at T
+        lines, rate, residual = self._forces(attempt, slipping)
+        used, held_force = lines[:, :-1], lines[:, 0]  # the force at each cell's start and end; a stuck block's at t
         # a stuck block's force is steady where it stays within steady_force of the one it holds
-        holds = np.where(self.ahead.on, self.ahead.force, f_start[:, 0])
+        holds = np.where(self.ahead.on, self.ahead.force, held_force)
         steady = np.abs(lines - holds[:, None]).max(axis=1) <= self.steady_force
         for i in (self.ahead.on & ~steady).nonzero()[0].tolist():
             self._bring_back(i, attempt)
@@ -521,8 +549,8 @@ class _Run:
         # an event)
         held = (~settled & ~swept).nonzero()[0]
         if held.size:
-            self._hold_blocks(held, attempt, f_start[:, 0], settled, steady)
-        starts, rates = start.tolist(), rate.tolist()
+            self._hold_blocks(held, attempt, held_force, settled, steady)
+        starts, rates = lines[:, :attempt.cells].tolist(), rate.tolist()
         for i in (swept & ~unchanged).nonzero()[0].tolist():
             self.blocks.restore(i)
             self._sweep_block(i, attempt, starts[i], rates[i])
@@ -684,21 +712,16 @@ class _Run:
         change = np.abs(forces - attempt.forces).max(axis=1)
         return change * (attempt.T - self.t) ** 2 / self.M <= 0.1 * floor
 
-    def _forces(self, attempt):
-        """Per block and cell (arrays ``(N, cells)``): the line ``F_ext = start + rate (s - t_cell)`` (N, N/s) that
-        carries the interpolated coupling force's impulse and first moment about the cell's end, the force at the
-        cell's start (N, a stuck block's) and the residual ``int (F - line) (T_cell - s)^2 ds`` (N s^3)."""
-        X, V, delta = attempt.X, attempt.V, float(attempt.widths[0])
-        x_nodes = hermite(_GAUSS_HERMITE, X[:, :-1, None], V[:, :-1, None], X[:, 1:, None], V[:, 1:, None], delta)
-        F = np.einsum("ij,jkq->ikq", self.K, x_nodes)  # (N, cells, 3)
-        delta3 = delta ** 3
-        impulse = delta * F @ _GAUSS_W
-        moment = delta ** 2 * F @ _GAUSS_W1
-        rate = (6.0 * impulse * delta - 12.0 * moment) / delta3
-        start = impulse / delta - 0.5 * rate * delta
-        second = delta3 * F @ _GAUSS_W2
-        residual = second - (start * delta3 / 3.0 + rate * delta ** 4 / 12.0)
-        return start, rate, self.K @ X[:, :-1], residual
+    def _forces(self, attempt, slipping):
+        """``(lines, rate, residual)``, arrays ``(N, cells)`` but for ``lines``: per block, ``F_ext`` at each cell's
+        start, at each cell's end and at ``T`` (N; ``2 cells + 1`` columns): a ``slipping`` block's on the line
+        ``F_ext = start + rate (s - t_cell)`` (N, N/s) that carries the interpolated coupling force's impulse and first
+        moment about the cell's end, a stuck block's held from the cell's start (its ``rate`` 0); and the residual
+        ``int (F - line) (T_cell - s)^2 ds`` (N s^3) of the line (:func:`force_map`)."""
+        c = attempt.cells
+        F = (self.K @ attempt.XV) @ attempt.force_columns
+        lines = np.where(slipping[:, None], F[:, :2 * c + 1], F[:, 2 * c + 1:4 * c + 2])
+        return lines, np.where(slipping[:, None], F[:, 4 * c + 2:5 * c + 2], 0.0), F[:, 5 * c + 2:]
 
     def _estimate(self, attempt, residual, slipping):
         """The step's error estimate (m): per slipping block, the velocity error of its cells' force residuals
