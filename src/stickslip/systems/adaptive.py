@@ -162,11 +162,19 @@ def force_map(cells):
     return P
 
 
+@functools.lru_cache(maxsize=None)
+def _scale_kinds(cells):
+    """Which scale of :func:`force_columns` each row (0: ``x``, 1: ``v``) and column (0: 1, 1: ``1 / delta``, 2:
+    ``delta^3``) of :func:`force_map` takes."""
+    return np.repeat([0, 1], cells + 1), np.repeat([0, 1, 2], [4 * cells + 2, cells, cells])
+
+
 def force_columns(cells, delta):
-    """:func:`force_map` scaled for cells of length ``delta`` (s): ``F = K [X | V] P``."""
-    rows = np.repeat([1.0, delta], cells + 1)
-    columns = np.repeat([1.0, 1.0 / delta, delta ** 3], [4 * cells + 2, cells, cells])
-    return force_map(cells) * rows[:, None] * columns
+    """``(P, rows)``: :func:`force_map` scaled for cells of length ``delta`` (s), ``F = K [X | V] P``, and the scale
+    of each row (1 for ``x``, ``delta`` for ``v``: ``[X | V] * rows`` is in m)."""
+    row_kinds, column_kinds = _scale_kinds(cells)
+    rows = np.array([1.0, delta])[row_kinds]
+    return force_map(cells) * rows[:, None] * np.array([1.0, 1.0 / delta, delta ** 3])[column_kinds], rows
 
 
 def coupling_matrix(system):
@@ -376,15 +384,14 @@ class _Attempt:
         self.T = float(times[-1])
         self.cell_times = times.tolist()  # s, as floats for the calls
         self.delta = self.cell_times[1] - self.cell_times[0]  # s: each cell's length
-        self.force_columns = force_columns(self.cells, self.delta)  # the sweep's forces (_Run._forces)
-        self.change_scale = np.repeat([1.0, self.delta], self.cells + 1)  # a sweep's change of x and v in m
+        # the sweep's forces (_Run._forces), and the scale of a sweep's change of x and v (to m)
+        self.force_columns, self.change_scale = force_columns(self.cells, self.delta)
         self.hold_share = (times[1:] - times[0]) / (self.T - times[0])  # each cell end's share of the step
         self.cuttable = cuttable  # an early return more than EVENT_TOL before T (after the first sweep) stops it
         self.friction = np.zeros_like(X)
-        self.spring = np.zeros(X.shape[0])
-        self.held = np.zeros(X.shape[0])  # N: each block's F_ext at the end of its last cell
-        self.held_rate = np.zeros(X.shape[0])  # N/s: and its rate there
-        self.ahead_z_slip = np.zeros(X.shape[0])  # N: the z_slip at T of the blocks stepped ahead (their FMUs' line)
+        # N: F_spring at T; each block's F_ext at the end of its last cell (N) and its rate there (N/s); the z_slip
+        # at T of the blocks stepped ahead (their FMUs' line)
+        self.spring, self.held, self.held_rate, self.ahead_z_slip = np.zeros((4, X.shape[0]))
         self.error, self.sweeps, self.converged = 0.0, 0, False
         self.end = None
         self.cut = None  # (t_e, block): the first event a block's early return showed inside the step
@@ -542,16 +549,18 @@ class _Run:
         for i in (self.ahead.on & ~steady).nonzero()[0].tolist():
             self._bring_back(i, attempt)
             settled[i] = False
-        swept = ~settled & (slipping | (attempt.sweeps > 0))
-        unchanged = self._unchanged(attempt, used, floor)
-        self.stats["sweeps of a block skipped"] += int(np.count_nonzero(unchanged & swept))
-        # a block stuck at t in the first sweep: its motion does not depend on the force (stepped again only after
-        # an event)
-        held = (~settled & ~swept).nonzero()[0]
-        if held.size:
-            self._hold_blocks(held, attempt, held_force, settled, steady)
+        if attempt.sweeps == 0:  # no block was stepped in the attempt yet
+            # a block stuck at t: its motion does not depend on the force (stepped again only after an event)
+            held = (~settled & ~slipping).nonzero()[0]
+            if held.size:
+                self._hold_blocks(held, attempt, held_force, settled, steady)
+            stepped = ~settled & slipping
+        else:
+            swept = ~settled
+            stepped = swept & ~self._unchanged(attempt, used, floor)
+            self.stats["sweeps of a block skipped"] += int(np.count_nonzero(swept)) - int(np.count_nonzero(stepped))
         starts, rates = lines[:, :attempt.cells].tolist(), rate.tolist()
-        for i in (swept & ~unchanged).nonzero()[0].tolist():
+        for i in stepped.nonzero()[0].tolist():
             self.blocks.restore(i)
             self._sweep_block(i, attempt, starts[i], rates[i])
             attempt.forces[i] = used[i]
@@ -726,7 +735,9 @@ class _Run:
     def _estimate(self, attempt, residual, slipping):
         """The step's error estimate (m): per slipping block, the velocity error of its cells' force residuals
         (``lambda^2 / 2M`` times the residual, ``lambda^2 = omega^2 + (dF_friction/dv / M)^2``) over ``lambda``,
-        summed over the cells; the largest of any block."""
+        summed over the cells; the largest of any block (0 if none slips)."""
+        if not slipping.any():
+            return 0.0
         dv = np.abs(attempt.V[:, 1:] - attempt.V[:, :-1])
         dF = attempt.friction[:, 1:] - attempt.friction[:, :-1]
         gamma = np.where(dv > 1e-12, np.abs(dF) / np.maximum(dv, 1e-12), 0.0)
@@ -737,7 +748,7 @@ class _Run:
     def _accept(self, attempt):
         """Make ``attempt`` the new communication point; record its events."""
         before, end = self.end, attempt.end
-        events, complete = step_events(end[2], before[3], end[3], before[4], end[4])
+        events, complete = step_events(*(column.tolist() for column in (end[2], before[3], end[3], before[4], end[4])))
         self.events += events
         self.complete = self.complete and complete
         self.t, self.end, self.margin = attempt.T, end, self._held_margin(attempt)
