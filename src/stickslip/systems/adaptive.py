@@ -394,6 +394,7 @@ class _Attempt:
         self.spring, self.held, self.held_rate, self.ahead_z_slip = np.zeros((4, X.shape[0]))
         self.error, self.sweeps, self.converged = 0.0, 0, False
         self.end = None
+        self.margin = None  # N: the true z_slip at T (_Run._held_margin), once the end outputs are read
         self.cut = None  # (t_e, block): the first event a block's early return showed inside the step
         # N: the forces each block was last stepped with in this attempt (NaN: not stepped)
         self.forces = np.full((X.shape[0], 2 * (times.size - 1)), np.nan)
@@ -762,15 +763,17 @@ class _Run:
         output derivative, with the coupling force's rate ``K v`` in place of the ``rate`` (N/s) its force was last
         set with; 0 while stuck."""
         jerk = np.zeros(self.system.n)
-        for i in np.flatnonzero(self.end[3] != 0):
+        for i in (self.end[3] != 0).nonzero()[0].tolist():
             jerk[i] = self.blocks.jerk(i) + (self.K[i] @ self.v - rate[i]) / self.M[i]
         return jerk
 
     def _held_margin(self, attempt):
         """Each block's ``z_slip`` (N) at the step's end with the true coupling force there (the FMU's is with the
-        force it held over the last cell); meaningful for the blocks stuck at ``t``."""
-        kx = -attempt.spring
-        return attempt.end[0] + np.abs(kx - attempt.held) - np.abs(kx - self.K @ attempt.X[:, -1])
+        force it held over the last cell); meaningful for the blocks stuck at ``t``. Worked out once per attempt."""
+        if attempt.margin is None:
+            kx = -attempt.spring
+            attempt.margin = attempt.end[0] + np.abs(kx - attempt.held) - np.abs(kx - self.K @ attempt.X[:, -1])
+        return attempt.margin
 
     def _crossing(self, attempt):
         """``(block, t_e)`` of the first event in ``attempt``, None if none: a block's own (``n_events`` moved; ``t_e``
@@ -781,9 +784,9 @@ class _Run:
             return attempt.cut[1], attempt.cut[0]
         moved = attempt.end[4] != self.end[4]
         found = [(attempt.end[2][i] if attempt.end[4][i] == self.end[4][i] + 1 else 0.5 * (self.t + attempt.T),
-                  int(i), True) for i in np.flatnonzero(moved)]
+                  int(i), True) for i in moved.nonzero()[0].tolist()]
         margin = self._held_margin(attempt)
-        for i in np.flatnonzero((self.end[3] == 0) & ~moved & (margin < 0.0)):
+        for i in ((self.end[3] == 0) & ~moved & (margin < 0.0)).nonzero()[0].tolist():
             share = self.margin[i] / max(self.margin[i] - margin[i], 1e-300)
             found.append((self.t + min(max(share, 0.0), 1.0) * (attempt.T - self.t), int(i), False))
         if not found:
