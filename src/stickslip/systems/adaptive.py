@@ -65,6 +65,7 @@ CELLS = 4  # cells per communication step while a block slips (1 while all are s
 STEPS_PER_PERIOD = 8  # longest step: this fraction of the shortest free period
 MAX_SWEEPS = 12
 MAX_REDOS = 60
+ZERO_ITERATIONS = 12  # Illinois steps on a breakaway's margin along an attempt's waveforms (the first redo's time)
 AHEAD_STEPS = 8  # a block stuck under a steady force is stepped ahead by this many longest steps
 STEADY_FORCE = 1e-13  # of a block's force scale (kappa times the chain's length scale): a force this close is steady
 BLOCK_RTOL_FACTOR = 1e-4  # each block's solver.rtol: at most this times the master's rtol (and >= 1e-14)
@@ -427,7 +428,8 @@ class _Run:
         self.system, self.blocks, self.progress = system, blocks, progress
         self.K = coupling_matrix(system)
         self.M = np.array([b["M"] for b in system.blocks])
-        self.omega2 = np.array([b["kappa"] / b["M"] for b in system.blocks])
+        self.kappa = np.array([b["kappa"] for b in system.blocks])
+        self.omega2 = self.kappa / self.M
         self.tol = rtol * system.length_scale  # m per s
         self.h_slip = system.shortest_period() / STEPS_PER_PERIOD
         self.grid = system.times()
@@ -803,6 +805,36 @@ class _Run:
             return float(mode * (self.end if attempt is None else attempt.end)[1][block])
         return float(self.margin[block] if attempt is None else self._held_margin(attempt)[block])
 
+    def _margin_zero(self, attempt, block):
+        """Where the true margin of ``block`` (stuck at ``t``) first falls below zero in ``attempt`` (s): its FMU's
+        ``z_slip`` (under the force it held) on the line between its values at ``t`` and ``T``, corrected as in
+        :meth:`_held_margin` with ``kappa x`` and the coupling force of the positions' cubic Hermite waveforms;
+        located by the Illinois method in the first cell whose end has it negative. None if no cell end has it
+        negative before ``T``'s or at ``T``."""
+        held, margin_t, z_end = attempt.held[block], self.margin[block], attempt.end[0][block]
+        X, V, delta = attempt.X, attempt.V, attempt.delta
+
+        def margin(k, u):  # at the share u of cell k
+            h00, h10, h01, h11 = hermite_basis(u)
+            x = h00 * X[:, k] + h10 * delta * V[:, k] + h01 * X[:, k + 1] + h11 * delta * V[:, k + 1]
+            kx, share = self.kappa[block] * x[block], (k + u) / attempt.cells
+            return margin_t + share * (z_end - margin_t) + abs(kx - held) - abs(kx - float(self.K[block] @ x))
+
+        for k in range(attempt.cells):
+            lo, hi, m_lo, m_hi, side = 0.0, 1.0, margin(k, 0.0), margin(k, 1.0), 0
+            if m_hi < 0.0 <= m_lo:
+                break
+        else:
+            return None
+        for _ in range(ZERO_ITERATIONS):
+            u = min(max((lo * m_hi - hi * m_lo) / (m_hi - m_lo), lo), hi)
+            m = margin(k, u)
+            if m < 0.0:
+                hi, m_hi, m_lo, side = u, m, (m_lo * 0.5 if side == 1 else m_lo), 1
+            else:
+                lo, m_lo, m_hi, side = u, m, (m_hi * 0.5 if side == -1 else m_hi), -1
+        return attempt.cell_times[k] + 0.5 * (lo + hi) * delta
+
     def _bracket(self, lo_attempt, attempt, crossing):
         """``(psi_lo, psi_hi, rate)``: the indicator of the crossing's block at the end of ``lo_attempt`` (None:
         ``t``) and of ``attempt``; past a block's own event at ``t_e`` the latter is ``-(T - t_e) * rate``, with the
@@ -820,18 +852,27 @@ class _Run:
         event comes first (:meth:`_bracket`; a redo that shows another block's event first brackets that one)."""
         lo_attempt, lo, hi, side = None, self.t, attempt.T, 0
         psi_lo, psi_hi, rate = self._bracket(None, attempt, crossing)
+        zero = self._margin_zero(attempt, crossing[0]) if crossing[1] is None else None
+        # a breakaway's first two redos: just before and just after where the attempt's waveforms put it
+        guesses = [] if zero is None else [zero - 0.4 * EVENT_TOL, zero + 0.4 * EVENT_TOL]
         for _ in range(MAX_REDOS):
             own = crossing[1]
             if attempt.T == hi and hi - (lo if own is None else own) <= EVENT_TOL:
                 return attempt
             if hi - lo <= EVENT_TOL:  # the event's far side (a step before it would end on a stale mode)
                 T = hi if hi > lo else lo + 0.5 * EVENT_TOL
+            elif own is not None and own >= lo:  # half the tolerance past the block's own event, where it lands
+                T = min(max(own + 0.5 * EVENT_TOL, lo + 0.25 * EVENT_TOL), hi - 0.25 * EVENT_TOL)
+            elif guesses and lo < guesses[0] < hi:
+                T = guesses.pop(0)
             else:
                 T = min(max((lo * psi_hi - hi * psi_lo) / (psi_hi - psi_lo), lo + 0.25 * EVENT_TOL),
                         hi - 0.25 * EVENT_TOL)
             attempt = self._attempt(T, CELLS if np.any(self.end[3] != 0) else 1)
             self.stats["event redos"] += 1
             found = self._crossing(attempt)
+            if found is not None:  # the zero is before T: the guess after it is no use
+                guesses.clear()
             if found is None:
                 lo_attempt, lo, psi_lo = attempt, T, max(self._indicator(attempt, crossing[0]), 1e-300)
                 psi_hi, side = (psi_hi * 0.5 if side == -1 else psi_hi), -1
