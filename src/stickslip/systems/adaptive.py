@@ -5,7 +5,8 @@ One co-simulation instance of ``SpringBlockFriction.fmu`` per block (FMPy, :mod:
 A communication step ``[t, T]`` is cut into cells; every block's FMU state at ``t`` is saved
 (``fmi2GetFMUstate``) and the step is iterated (Jacobi waveform relaxation): each block steps its cells with
 ``F_ext`` taken from the neighbours' positions of the previous sweep (iteration 0: extrapolated), interpolated
-by cubic Hermite polynomials through ``x`` and ``v`` at the cell ends; the states are restored
+by cubic Hermite polynomials through ``x`` and ``v`` at the cell ends (a sweep's forces, their lines and residuals
+are one linear map of those, :func:`force_map`); the states are restored
 (``fmi2SetFMUstate``) before every new sweep, until the cell-end positions change by less than a hundredth of
 the step's tolerance. The first sweep's waveforms are cubic (each slipping block's ``d2v/dt2`` from its output
 derivative, stuck blocks moving with the surface), and a block whose forces changed so little since it was last
@@ -37,7 +38,10 @@ its true ``z_slip`` (with the coupling force at the step's end) below zero, the 
 the event, located by the Illinois method on the block's indicator (the true ``z_slip`` stuck, ``mode * z_stick``
 slipping; past a block's own event: minus the time since it, scaled by the indicator's rate; a redo that shows
 another block's event first brackets that one) until the event lies within ``EVENT_TOL`` s before the step's end
-(after ``MAX_REDOS`` tries the last one is kept and counted). A step never ends just before an event: a slipping
+(after ``MAX_REDOS`` tries the last one is kept and counted). A redo after a block's own event ends half
+``EVENT_TOL`` past its time; the first two redos of a stuck block's breakaway end just before and just after the
+zero of its true ``z_slip`` along the attempt's cubic Hermite waveforms (its FMU's ``z_slip`` taken on the line
+between ``t`` and ``T``): most events land in one or two redos. A step never ends just before an event: a slipping
 block whose ``v_rel`` has crossed zero by less than its FMU's event location would start the next step on the
 wrong side (a spurious overshoot). Every communication point of the output grid is one.
 
