@@ -302,8 +302,9 @@ def test_adaptive_force_map_gives_each_cells_line_and_residual():
 def test_adaptive_lands_a_cascades_events_in_few_redos(fmu_path, monkeypatch):
     """The Burridge-Knopoff chain's first cascade (67.7 s to 72 s, 14 events): a stuck block's breakaway is tried
     first just before and just after the zero of its true margin along the attempt's cubic waveforms, a block's own
-    event half the event tolerance past its time: each breakaway lands in 2 or 3 redos (Illinois alone took 5 or 6),
-    each own event in 1 or 2; within 1e-9 of the amplitude, every event paired with the reference's within 1e-8 s."""
+    event half the event tolerance past its time, and the step after a breakaway ends just past it: most breakaways
+    land in 2 redos (Illinois alone took 5 or 6 each, 74 redos in all), own events in at most 2; within 1e-9 of the
+    amplitude, every event paired with the reference's within 1e-8 s."""
     redos = {True: [], False: []}  # a breakaway's landing (True) or a block's own event's
     land = adaptive._Run._land
 
@@ -320,7 +321,9 @@ def test_adaptive_lands_a_cascades_events_in_few_redos(fmu_path, monkeypatch):
     comparison = compare(result, reference, 1e-9)
     assert comparison.ok and list(comparison.master_events) == list(comparison.reference_events), comparison
     assert np.all(comparison.max_event_dt < 1e-8), comparison.max_event_dt
-    assert len(redos[True]) >= 5 and max(redos[True]) <= 3 and max(redos[False]) <= 2, redos
+    breakaways = sorted(redos[True])
+    assert len(breakaways) >= 5 and breakaways[len(breakaways) // 2] == 2 and breakaways[-1] <= 4, redos
+    assert max(redos[False]) <= 2 and sum(breakaways) + sum(redos[False]) <= 40, redos
 
 
 # ---------------------------------------------------------------- the command

@@ -41,7 +41,8 @@ another block's event first brackets that one) until the event lies within ``EVE
 (after ``MAX_REDOS`` tries the last one is kept and counted). A redo after a block's own event ends half
 ``EVENT_TOL`` past its time; the first two redos of a stuck block's breakaway end just before and just after the
 zero of its true ``z_slip`` along the attempt's cubic Hermite waveforms (its FMU's ``z_slip`` taken on the line
-between ``t`` and ``T``): most events land in one or two redos. A step never ends just before an event: a slipping
+between ``t`` and ``T``), and the step after a breakaway landed so ends just past it (the block breaks away at
+its start): most events land in one or two redos. A step never ends just before an event: a slipping
 block whose ``v_rel`` has crossed zero by less than its FMU's event location would start the next step on the
 wrong side (a spurious overshoot). Every communication point of the output grid is one.
 
@@ -453,6 +454,7 @@ class _Run:
         self.rows = [(self.x.copy(), self.v.copy(), self.end[3].copy())]
         self.events, self.complete = [], True
         self.h = self.h_slip / 4.0
+        self.breaking = None  # the block whose breakaway the last step was landed on (its margin's zero)
         self.stats = {"communication steps": 0, "rejected steps": 0, "event redos": 0, "events not landed": 0,
                       "sweeps": 0, "sweeps of a block skipped": 0, "stuck blocks stepped ahead": 0,
                       "holds of a block stepped ahead": 0, "blocks brought back from ahead": 0}
@@ -479,13 +481,18 @@ class _Run:
         self.blocks.save(skip=self.ahead.on)
         next_grid = self.grid[np.searchsorted(self.grid, self.t, side="right")]
         slipping = bool((self.end[3] != 0).any())
+        # a block whose breakaway the last step landed on breaks away at once: the step ends just past it (a longer
+        # one would be redone to end there)
+        breaking, self.breaking = self.breaking, None
+        first = self.t + 0.5 * EVENT_TOL if breaking is not None and self.end[3][breaking] == 0 else None
         for _ in range(MAX_REDOS):
             h = min(self.h, self.h_slip) if slipping else math.inf
-            T = min(self.t + h, float(next_grid))
+            T = min(self.t + h if first is None else first, float(next_grid))
             clipped = T < self.t + h
             attempt = self._attempt(T, CELLS if slipping else 1)
             if attempt.cut is not None or (attempt.converged and attempt.error <= 2.0 * self.tol * (T - self.t)):
                 break
+            first = None
             self.stats["rejected steps"] += 1
             self.h = (T - self.t) * (0.5 if not attempt.converged else self._factor(attempt))
         else:
@@ -862,6 +869,7 @@ class _Run:
         for _ in range(MAX_REDOS):
             own = crossing[1]
             if attempt.T == hi and hi - (lo if own is None else own) <= EVENT_TOL:
+                self.breaking = crossing[0] if own is None else None
                 return attempt
             if hi - lo <= EVENT_TOL:  # the event's far side (a step before it would end on a stale mode)
                 T = hi if hi > lo else lo + 0.5 * EVENT_TOL
