@@ -483,8 +483,9 @@ class _Run:
         slipping = bool((self.end[3] != 0).any())
         # a block whose breakaway the last step landed on breaks away at once: the step ends just past it (a longer
         # one would be redone to end there)
-        breaking, self.breaking = self.breaking, None
-        first = self.t + 0.5 * EVENT_TOL if breaking is not None and self.end[3][breaking] == 0 else None
+        breaking, self.breaking, first = self.breaking, None, self.t + 0.5 * EVENT_TOL
+        if breaking is None or self.end[3][breaking] != 0 or first <= self.t:  # (or floats space times wider there)
+            first = None
         for _ in range(MAX_REDOS):
             h = min(self.h, self.h_slip) if slipping else math.inf
             T = min(self.t + h if first is None else first, float(next_grid))
