@@ -26,7 +26,9 @@ ends, ``F_spring`` and ``z_slip`` are read off the lines between its step's ends
 attempt that ends past its line steps it on in one more ``doStep``; when its force moves, or an event of its step
 (its breakaway under the held force: FMI 3's early return, FMI 2's ``n_events``) comes before the attempt's end, it is
 brought back: its state restored and stepped to ``t`` under the force it held, then stepped as any block stuck at
-``t``.
+``t``. An FMI 2 step ahead that passed the breakaway is redone from the saved state to ``EVENT_TOL`` before the
+breakaway's time it showed (``t_last_event``), where FMI 3's early return leaves the block: its line ends there, and
+no later step ahead goes on through the slip after the breakaway again.
 Each block's ``solver.rtol`` (its own integration tolerance) is lowered to ``BLOCK_RTOL_FACTOR`` times ``rtol``:
 a block slipping with a numeric law restarts its integration at every ``doStep``.
 
@@ -619,7 +621,7 @@ class _Run:
         False (its FMU moved)."""
         self.blocks.restore(i)
         t1 = min(max(attempt.T, self.t + self.ahead_length), self.t_end)
-        if not self._extend_line(i, self.t, t1, force, self.end[4][i]):
+        if not self._extend_line(i, self.t, t1, force, self.end[4][i], self.t, force):
             return False
         self.ahead.begin(i, self.t, force, (self.x[i], self.spring[i], self.margin[i]),
                          [column[i] for column in self.end])
@@ -651,18 +653,35 @@ class _Run:
         if ahead.until[i] < t1 or t1 >= self.t_end:
             return False  # its line ends at an event, or at the run's end
         t2 = min(max(attempt.T, t1 + self.ahead_length), self.t_end)
-        return self._extend_line(i, t1, t2, None, ahead.end[i, 4]) and ahead.until[i] >= attempt.T
+        return (self._extend_line(i, t1, t2, None, ahead.end[i, 4], float(ahead.t0[i]), float(ahead.force[i]))
+                and ahead.until[i] >= attempt.T)
 
-    def _extend_line(self, i, t0, t1, force, n_events):
+    def _extend_line(self, i, t0, t1, force, n_events, saved_at, held):
         """Step block ``i`` from ``t0`` to ``t1`` (s) in one ``doStep`` under ``force`` held (N; None: the force it
-        holds), ``n_events`` its event count at ``t0``: False if that passed an event it did not return early at
-        (its FMU beyond it), else True, its line ending where the step ended (:meth:`_end_line`)."""
+        holds, ``held``), ``n_events`` its event count at ``t0`` and at ``saved_at``, where its FMU state was saved:
+        True, its line ending where the step ended (:meth:`_end_line`), or at its breakaway where the step passed it
+        without returning early (:meth:`_before_breakaway`); False if that fails (its FMU beyond the event)."""
         t_e = self.blocks.step(i, t0, t1 - t0, force, 0.0)
         if t_e is None and self.blocks.n_events(i) != n_events:
-            return False
+            t_e = self._before_breakaway(i, t0, n_events, saved_at, held)
+            if t_e is None:
+                return False
         self._end_line(i, t1 if t_e is None else t_e, t_e)
         self.stats["stuck blocks stepped ahead"] += 1
         return True
+
+    def _before_breakaway(self, i, t0, n_events, saved_at, held):
+        """Block ``i``, whose step from ``t0`` (s) passed its breakaway (FMI 2: no early return; its event count was
+        ``n_events``), back at its state saved at ``saved_at`` and stepped under ``held`` (N) to ``EVENT_TOL`` before
+        the breakaway's time its step showed, as FMI 3's early return would leave it (the slip after the breakaway not
+        integrated again at every attempt until it): that time, or None where the step showed more than the one event
+        or that time is not after ``t0`` (its FMU then beyond the event)."""
+        t_b = self.blocks.ends[i][2] - EVENT_TOL  # its t_last_event
+        if self.blocks.n_events(i) != n_events + 1 or t_b <= t0:
+            return None
+        self.blocks.restore(i)
+        self.blocks.step(i, saved_at, t_b - saved_at, held, 0.0)
+        return t_b if self.blocks.n_events(i) == n_events else None
 
     def _end_line(self, i, t1, t_e):
         """Block ``i``'s line (stepped ahead) ends at ``t1`` (s), where its last step ended (at ``t_e``: returned early
