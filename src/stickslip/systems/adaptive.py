@@ -541,9 +541,12 @@ class _Run:
             # can make the first sweep's change tiny on a short step)
             unswept = attempt.sweeps == 1 and (~slipping & ~settled).any()
             attempt.converged = change <= floor and not unswept
-            attempt.error = self._estimate(attempt, residual, slipping)
-            if attempt.error > 4.0 * self.tol * (T - self.t):
-                break  # rejected whatever the sweeps give
+            # the error estimate after the first sweep (an attempt far off is rejected there) and the last (those
+            # between would be overwritten)
+            if attempt.sweeps == 1 or attempt.converged or attempt.sweeps == MAX_SWEEPS:
+                attempt.error = self._estimate(attempt, residual, slipping)
+                if attempt.error > 4.0 * self.tol * (T - self.t):
+                    break  # rejected whatever the sweeps give
         self.stats["sweeps"] += attempt.sweeps
         attempt.end = self.blocks.end()
         ahead = self.ahead.on.nonzero()[0]
@@ -696,9 +699,10 @@ class _Run:
     def _fill_ahead(self, blocks, attempt):
         """The rows of ``attempt`` of ``blocks`` (an index array of blocks stepped ahead) on their lines."""
         ahead = self.ahead
-        share = (attempt.times[None, 1:] - ahead.t0[blocks, None]) / (ahead.t1 - ahead.t0)[blocks, None]
-        start, end = ahead.lines[blocks, :, :1], ahead.lines[blocks, :, 1:]
-        on_line = start + share[:, None, :] * (end - start)  # (blocks, x spring z_slip, cell ends)
+        t0, lines = ahead.t0[blocks], ahead.lines[blocks]
+        share = (attempt.times[1:] - t0[:, None]) / (ahead.t1[blocks] - t0)[:, None]
+        start = lines[:, :, :1]
+        on_line = start + share[:, None, :] * (lines[:, :, 1:] - start)  # (blocks, x spring z_slip, cell ends)
         attempt.X[blocks, 1:] = on_line[:, 0]
         attempt.V[blocks, 1:], attempt.friction[blocks, 1:] = ahead.v[blocks, None], ahead.friction[blocks, None]
         attempt.spring[blocks], attempt.ahead_z_slip[blocks] = on_line[:, 1, -1], on_line[:, 2, -1]
