@@ -5,7 +5,8 @@ One co-simulation instance of ``SpringBlockFriction.fmu`` per block (FMPy, :mod:
 A communication step ``[t, T]`` is cut into cells; every block's FMU state at ``t`` is saved
 (``fmi2GetFMUstate``) and the step is iterated (Jacobi waveform relaxation): each block steps its cells with
 ``F_ext`` taken from the neighbours' positions of the previous sweep (iteration 0: extrapolated), interpolated
-by cubic Hermite polynomials through ``x`` and ``v`` at the cell ends; the states are restored
+by cubic Hermite polynomials through ``x`` and ``v`` at the cell ends (a sweep's forces, their lines and residuals
+are one linear map of those, :func:`force_map`); the states are restored
 (``fmi2SetFMUstate``) before every new sweep, until the cell-end positions change by less than a hundredth of
 the step's tolerance. The first sweep's waveforms are cubic (each slipping block's ``d2v/dt2`` from its output
 derivative, stuck blocks moving with the surface), and a block whose forces changed so little since it was last
@@ -25,7 +26,9 @@ ends, ``F_spring`` and ``z_slip`` are read off the lines between its step's ends
 attempt that ends past its line steps it on in one more ``doStep``; when its force moves, or an event of its step
 (its breakaway under the held force: FMI 3's early return, FMI 2's ``n_events``) comes before the attempt's end, it is
 brought back: its state restored and stepped to ``t`` under the force it held, then stepped as any block stuck at
-``t``.
+``t``. An FMI 2 step ahead that passed the breakaway is redone from the saved state to ``EVENT_TOL`` before the
+breakaway's time it showed (``t_last_event``), where FMI 3's early return leaves the block: its line ends there, and
+no later step ahead goes on through the slip after the breakaway again.
 Each block's ``solver.rtol`` (its own integration tolerance) is lowered to ``BLOCK_RTOL_FACTOR`` times ``rtol``:
 a block slipping with a numeric law restarts its integration at every ``doStep``.
 
@@ -37,7 +40,11 @@ its true ``z_slip`` (with the coupling force at the step's end) below zero, the 
 the event, located by the Illinois method on the block's indicator (the true ``z_slip`` stuck, ``mode * z_stick``
 slipping; past a block's own event: minus the time since it, scaled by the indicator's rate; a redo that shows
 another block's event first brackets that one) until the event lies within ``EVENT_TOL`` s before the step's end
-(after ``MAX_REDOS`` tries the last one is kept and counted). A step never ends just before an event: a slipping
+(after ``MAX_REDOS`` tries the last one is kept and counted). A redo after a block's own event ends half
+``EVENT_TOL`` past its time; the first two redos of a stuck block's breakaway end just before and just after the
+zero of its true ``z_slip`` along the attempt's cubic Hermite waveforms (its FMU's ``z_slip`` taken on the line
+between ``t`` and ``T``), and the step after a breakaway landed so ends just past it (the block breaks away at
+its start): most events land in one or two redos. A step never ends just before an event: a slipping
 block whose ``v_rel`` has crossed zero by less than its FMU's event location would start the next step on the
 wrong side (a spurious overshoot). Every communication point of the output grid is one.
 
@@ -47,6 +54,7 @@ attempt, which is redone to end on that event. The rest of the scheme is the sam
 """
 
 import dataclasses
+import functools
 import math
 import time
 from ctypes import byref, c_bool, c_double, c_int, c_uint, c_void_p
@@ -64,6 +72,7 @@ CELLS = 4  # cells per communication step while a block slips (1 while all are s
 STEPS_PER_PERIOD = 8  # longest step: this fraction of the shortest free period
 MAX_SWEEPS = 12
 MAX_REDOS = 60
+ZERO_ITERATIONS = 12  # Illinois steps on a breakaway's margin along an attempt's waveforms (the first redo's time)
 AHEAD_STEPS = 8  # a block stuck under a steady force is stepped ahead by this many longest steps
 STEADY_FORCE = 1e-13  # of a block's force scale (kappa times the chain's length scale): a force this close is steady
 BLOCK_RTOL_FACTOR = 1e-4  # each block's solver.rtol: at most this times the master's rtol (and >= 1e-14)
@@ -131,14 +140,49 @@ def hermite_basis(u):
     return 2 * u3 - 3 * u2 + 1, u3 - 2 * u2 + u, 3 * u2 - 2 * u3, u3 - u2
 
 
-def hermite(basis, x0, v0, x1, v1, delta):
-    """Cubic Hermite interpolant, with the ``basis`` (:func:`hermite_basis`) at its points, of a cell of length
-    ``delta`` (s), ends ``(x, v)``."""
-    h00, h10, h01, h11 = basis
-    return h00 * x0 + h10 * delta * v0 + h01 * x1 + h11 * delta * v1
+# the weights, at a cell's Gauss points, of the force F there in the line that carries F's impulse and first moment
+# about the cell's end: its value at the cell's start and end, its rate times the cell's length, and the residual
+# int (F - line) (T_cell - s)^2 ds over the cell's length cubed (the Gauss rule of the cubic (T_cell - s)^2 F minus
+# the line's, exact for the line: no cancellation)
+_LINE_START, _LINE_END = 6.0 * _GAUSS_W1 - 2.0 * _GAUSS_W, 4.0 * _GAUSS_W - 6.0 * _GAUSS_W1
+_LINE_RATE, _LINE_RESIDUAL = 6.0 * _GAUSS_W - 12.0 * _GAUSS_W1, _GAUSS_W * (_GAUSS_U ** 2 - _GAUSS_U + 1.0 / 6.0)
 
 
-_GAUSS_HERMITE = hermite_basis(_GAUSS_U)  # at the Gauss points of a cell
+@functools.lru_cache(maxsize=None)
+def force_map(cells):
+    """``P`` with ``F = K [X | delta V] P`` (``X``, ``V``: the positions and velocities at the ``cells + 1`` cell ends
+    of ``cells`` equal cells of length ``delta``, one row per block) the forces of a sweep, before scaling by
+    ``delta`` (:func:`force_columns`): the columns of ``F`` are the groups (``cells`` columns each, one per cell, but
+    for the single columns) the line's start (N), its end, the force at ``T`` (one column); a stuck block's force at
+    each cell's start twice, at ``T`` (one); the line's rate times ``delta`` (N), the residual over ``delta^3``. The
+    positions inside a cell are its cubic Hermite interpolant through ``x`` and ``v`` at its ends."""
+    c = cells
+    P = np.zeros((2 * (c + 1), 6 * c + 2))
+    basis = np.array(hermite_basis(_GAUSS_U))  # (4, Gauss points)
+    for first, weights in ((0, _LINE_START), (c, _LINE_END), (4 * c + 2, _LINE_RATE), (5 * c + 2, _LINE_RESIDUAL)):
+        h00, h10, h01, h11 = basis @ weights
+        for k in range(c):
+            P[(k, c + 1 + k, k + 1, c + 2 + k), first + k] = h00, h10, h01, h11
+    for k in range(c):
+        P[k, (2 * c + 1 + k, 3 * c + 1 + k)] = 1.0
+    P[c, (2 * c, 4 * c + 1)] = 1.0
+    P.flags.writeable = False
+    return P
+
+
+@functools.lru_cache(maxsize=None)
+def _scale_kinds(cells):
+    """Which scale of :func:`force_columns` each row (0: ``x``, 1: ``v``) and column (0: 1, 1: ``1 / delta``, 2:
+    ``delta^3``) of :func:`force_map` takes."""
+    return np.repeat([0, 1], cells + 1), np.repeat([0, 1, 2], [4 * cells + 2, cells, cells])
+
+
+def force_columns(cells, delta):
+    """``(P, rows)``: :func:`force_map` scaled for cells of length ``delta`` (s), ``F = K [X | V] P``, and the scale
+    of each row (1 for ``x``, ``delta`` for ``v``: ``[X | V] * rows`` is in m)."""
+    row_kinds, column_kinds = _scale_kinds(cells)
+    rows = np.array([1.0, delta])[row_kinds]
+    return force_map(cells) * rows[:, None] * np.array([1.0, 1.0 / delta, delta ** 3])[column_kinds], rows
 
 
 def coupling_matrix(system):
@@ -263,46 +307,45 @@ class _Blocks:
         force goes on as it was set): None, or the time (s) of the event inside the step where it returned early
         (its state there the event's left limit; the next step starts there). :attr:`stepped` is then
         ``(x, v, F_friction, F_spring)`` where the step ended; the outputs of :meth:`end` are read only if ``last``
-        (the block's last step in the attempt, as planned)."""
-        check_interrupts()
-        early = self._set_step_read(self._calls[i], float(t), float(h), force, rate, log_mark(), last)
+        (the block's last step in the attempt, as planned). A Ctrl-C is looked for after the calls (as after every
+        FMI call: none can have come unseen before them)."""
+        early = self._set_step_read(self._calls[i], t, h, force, rate, last)
         check_interrupts()
         self.moved[i] = True
         self.do_steps += 1
-        reals = self._reals[:]
-        self.stepped = tuple(reals[:len(_READ_CELL)])
-        self.ends[i] = (*reals[len(_READ_CELL):], *self._ints[:]) if last else None
+        self.stepped = self._reals[:len(_READ_CELL)]
+        self.ends[i] = (*self._reals[len(_READ_CELL):], *self._ints) if last else None
         if early:
             self.early_returns += 1
             return self._last_time.value
         return None
 
-    def _set_step_read(self, calls, t, h, force, rate, first, last):
+    def _set_step_read(self, calls, t, h, force, rate, last):
         """The FMI calls of :meth:`step` on the FMU's C functions (``calls``, a :class:`_CellCalls`) and arrays made
-        once, log mark ``first``: the force and its rate set (FMI 2: setting ``F_ext`` sets its rate to 0; FMI 3:
-        the input ``der(F_ext)``), ``doStep``, the outputs of the cell's end and, if ``last``, of :meth:`end` read.
-        True if the step returned early (FMI 3 with early return)."""
-        c, n = calls.component, len(self._reals) if last else len(_READ_CELL)
+        once: the force and its rate set (FMI 2: setting ``F_ext`` sets its rate to 0; FMI 3: the input
+        ``der(F_ext)``), ``doStep``, the outputs of the cell's end and, if ``last``, of :meth:`end` read. True if the
+        step returned early (FMI 3 with early return)."""
+        c, n, first, check = calls.component, len(self._reals) if last else len(_READ_CELL), log_mark(), calls.check
         if force is not None:
             self._forces[0], self._forces[1] = force, rate
             if self.fmi3:
-                calls.check(calls.set_reals(c, self._force_refs, 2, self._forces, 2), "fmi3SetFloat64", first)
+                check(calls.set_reals(c, self._force_refs, 2, self._forces, 2), "fmi3SetFloat64", first)
             else:
-                calls.check(calls.set_reals(c, self._force_refs, 1, self._forces), "fmi2SetReal", first)
+                check(calls.set_reals(c, self._force_refs, 1, self._forces), "fmi2SetReal", first)
                 if rate != 0.0:
                     self._rate[0] = rate
-                    calls.check(calls.set_rates(c, self._force_refs, 1, self._order, self._rate),
-                                "fmi2SetRealInputDerivatives", first)
+                    check(calls.set_rates(c, self._force_refs, 1, self._order, self._rate),
+                          "fmi2SetRealInputDerivatives", first)
         if self.fmi3:
-            calls.check(calls.do_step(c, t, h, False, *self._step_answers), "fmi3DoStep", first)
-            calls.check(calls.get_reals(c, self._real_refs, n, self._reals, n), "fmi3GetFloat64", first)
+            check(calls.do_step(c, t, h, False, *self._step_answers), "fmi3DoStep", first)
+            check(calls.get_reals(c, self._real_refs, n, self._reals, n), "fmi3GetFloat64", first)
             if last:
-                calls.check(calls.get_ints(c, self._int_refs, 2, self._ints, 2), "fmi3GetInt32", first)
+                check(calls.get_ints(c, self._int_refs, 2, self._ints, 2), "fmi3GetInt32", first)
             return self.early_return and self._early.value
-        calls.check(calls.do_step(c, t, h, False), "fmi2DoStep", first)
-        calls.check(calls.get_reals(c, self._real_refs, n, self._reals), "fmi2GetReal", first)
+        check(calls.do_step(c, t, h, False), "fmi2DoStep", first)
+        check(calls.get_reals(c, self._real_refs, n, self._reals), "fmi2GetReal", first)
         if last:
-            calls.check(calls.get_ints(c, self._int_refs, 2, self._ints), "fmi2GetInteger", first)
+            check(calls.get_ints(c, self._int_refs, 2, self._ints), "fmi2GetInteger", first)
         return False
 
     def cell(self, i):
@@ -338,23 +381,28 @@ class _Blocks:
 
 
 class _Attempt:
-    """One communication step ``[t, T]`` tried: the cell times, each block's ``x``, ``v`` (arrays ``(N, cells + 1)``)
-    and ``F_friction`` at the cell ends, the end outputs, the error estimate (m) and the sweeps it took."""
+    """One communication step ``[t, T]`` tried: the cell times, each block's ``x``, ``v`` (arrays ``(N, cells + 1)``,
+    views of ``XV``, both side by side) and ``F_friction`` at the cell ends, the end outputs, the error estimate (m)
+    and the sweeps it took."""
 
     def __init__(self, times, X, V, cuttable):
-        self.times, self.X, self.V = times, X, V
+        self.times, self.cells = times, times.size - 1
+        self.XV = np.concatenate([X, V], axis=1)
+        self.X, self.V = self.XV[:, :self.cells + 1], self.XV[:, self.cells + 1:]
         self.T = float(times[-1])
         self.cell_times = times.tolist()  # s, as floats for the calls
-        self.widths = np.diff(times)  # s: each cell's length
+        self.delta = self.cell_times[1] - self.cell_times[0]  # s: each cell's length
+        # the sweep's forces (_Run._forces), and the scale of a sweep's change of x and v (to m)
+        self.force_columns, self.change_scale = force_columns(self.cells, self.delta)
         self.hold_share = (times[1:] - times[0]) / (self.T - times[0])  # each cell end's share of the step
         self.cuttable = cuttable  # an early return more than EVENT_TOL before T (after the first sweep) stops it
         self.friction = np.zeros_like(X)
-        self.spring = np.zeros(X.shape[0])
-        self.held = np.zeros(X.shape[0])  # N: each block's F_ext at the end of its last cell
-        self.held_rate = np.zeros(X.shape[0])  # N/s: and its rate there
-        self.ahead_z_slip = np.zeros(X.shape[0])  # N: the z_slip at T of the blocks stepped ahead (their FMUs' line)
+        # N: F_spring at T; each block's F_ext at the end of its last cell (N) and its rate there (N/s); the z_slip
+        # at T of the blocks stepped ahead (their FMUs' line)
+        self.spring, self.held, self.held_rate, self.ahead_z_slip = np.zeros((4, X.shape[0]))
         self.error, self.sweeps, self.converged = 0.0, 0, False
         self.end = None
+        self.margin = None  # N: the true z_slip at T (_Run._held_margin), once the end outputs are read
         self.cut = None  # (t_e, block): the first event a block's early return showed inside the step
         # N: the forces each block was last stepped with in this attempt (NaN: not stepped)
         self.forces = np.full((X.shape[0], 2 * (times.size - 1)), np.nan)
@@ -387,7 +435,8 @@ class _Run:
         self.system, self.blocks, self.progress = system, blocks, progress
         self.K = coupling_matrix(system)
         self.M = np.array([b["M"] for b in system.blocks])
-        self.omega2 = np.array([b["kappa"] / b["M"] for b in system.blocks])
+        self.kappa = np.array([b["kappa"] for b in system.blocks])
+        self.omega2 = self.kappa / self.M
         self.tol = rtol * system.length_scale  # m per s
         self.h_slip = system.shortest_period() / STEPS_PER_PERIOD
         self.grid = system.times()
@@ -407,6 +456,7 @@ class _Run:
         self.rows = [(self.x.copy(), self.v.copy(), self.end[3].copy())]
         self.events, self.complete = [], True
         self.h = self.h_slip / 4.0
+        self.breaking = None  # the block whose breakaway the last step was landed on (its margin's zero)
         self.stats = {"communication steps": 0, "rejected steps": 0, "event redos": 0, "events not landed": 0,
                       "sweeps": 0, "sweeps of a block skipped": 0, "stuck blocks stepped ahead": 0,
                       "holds of a block stepped ahead": 0, "blocks brought back from ahead": 0}
@@ -433,13 +483,19 @@ class _Run:
         self.blocks.save(skip=self.ahead.on)
         next_grid = self.grid[np.searchsorted(self.grid, self.t, side="right")]
         slipping = bool((self.end[3] != 0).any())
+        # a block whose breakaway the last step landed on breaks away at once: the step ends just past it (a longer
+        # one would be redone to end there)
+        breaking, self.breaking, first = self.breaking, None, self.t + 0.5 * EVENT_TOL
+        if breaking is None or self.end[3][breaking] != 0 or first <= self.t:  # (or floats space times wider there)
+            first = None
         for _ in range(MAX_REDOS):
             h = min(self.h, self.h_slip) if slipping else math.inf
-            T = min(self.t + h, float(next_grid))
+            T = min(self.t + h if first is None else first, float(next_grid))
             clipped = T < self.t + h
             attempt = self._attempt(T, CELLS if slipping else 1)
             if attempt.cut is not None or (attempt.converged and attempt.error <= 2.0 * self.tol * (T - self.t)):
                 break
+            first = None
             self.stats["rejected steps"] += 1
             self.h = (T - self.t) * (0.5 if not attempt.converged else self._factor(attempt))
         else:
@@ -475,20 +531,22 @@ class _Run:
         settled = np.zeros(self.system.n, bool)  # stuck at t and still stuck, without an event, after a sweep
         self._ahead_rows(attempt, settled)
         while attempt.sweeps < MAX_SWEEPS and not attempt.converged:
-            X, V = attempt.X.copy(), attempt.V.copy()
+            before = attempt.XV.copy()
             residual = self._sweep(attempt, slipping, settled, floor)
             if attempt.cut is not None:
                 break  # redone to end at the event (_land)
-            delta = times[1] - times[0]
-            change = max(float(np.abs(attempt.X - X).max()), float(np.abs(attempt.V - V).max()) * delta)
+            change = float((np.abs(attempt.XV - before) * attempt.change_scale).max())
             attempt.sweeps += 1
             # a hold that had an event is swept before the attempt converges (the cubic predictor
             # can make the first sweep's change tiny on a short step)
             unswept = attempt.sweeps == 1 and (~slipping & ~settled).any()
             attempt.converged = change <= floor and not unswept
-            attempt.error = self._estimate(attempt, residual, slipping)
-            if attempt.error > 4.0 * self.tol * (T - self.t):
-                break  # rejected whatever the sweeps give
+            # the error estimate after the first sweep (an attempt far off is rejected there) and the last (those
+            # between would be overwritten)
+            if attempt.sweeps == 1 or attempt.converged or attempt.sweeps == MAX_SWEEPS:
+                attempt.error = self._estimate(attempt, residual, slipping)
+                if attempt.error > 4.0 * self.tol * (T - self.t):
+                    break  # rejected whatever the sweeps give
         self.stats["sweeps"] += attempt.sweeps
         attempt.end = self.blocks.end()
         ahead = self.ahead.on.nonzero()[0]
@@ -503,27 +561,26 @@ class _Run:
         event) once over ``attempt``; return the force residuals (:meth:`_forces`) of the waveforms before it.
         Jacobi: every block's forces from the waveforms before the sweep. A block whose forces did not change is not
         stepped again (:meth:`_unchanged`)."""
-        start, rate, f_start, residual = self._forces(attempt)
-        # a stuck block: the force at each cell's start, held
-        start, rate = np.where(slipping[:, None], start, f_start), np.where(slipping[:, None], rate, 0.0)
-        used = np.concatenate([start, start + rate * attempt.widths], axis=1)
-        lines = np.concatenate([used, self.K @ attempt.X[:, -1:]], axis=1)  # and the force at T
+        lines, rate, residual = self._forces(attempt, slipping)
+        used, held_force = lines[:, :-1], lines[:, 0]  # the force at each cell's start and end; a stuck block's at t
         # a stuck block's force is steady where it stays within steady_force of the one it holds
-        holds = np.where(self.ahead.on, self.ahead.force, f_start[:, 0])
+        holds = np.where(self.ahead.on, self.ahead.force, held_force)
         steady = np.abs(lines - holds[:, None]).max(axis=1) <= self.steady_force
         for i in (self.ahead.on & ~steady).nonzero()[0].tolist():
             self._bring_back(i, attempt)
             settled[i] = False
-        swept = ~settled & (slipping | (attempt.sweeps > 0))
-        unchanged = self._unchanged(attempt, used, floor)
-        self.stats["sweeps of a block skipped"] += int(np.count_nonzero(unchanged & swept))
-        # a block stuck at t in the first sweep: its motion does not depend on the force (stepped again only after
-        # an event)
-        held = (~settled & ~swept).nonzero()[0]
-        if held.size:
-            self._hold_blocks(held, attempt, f_start[:, 0], settled, steady)
-        starts, rates = start.tolist(), rate.tolist()
-        for i in (swept & ~unchanged).nonzero()[0].tolist():
+        if attempt.sweeps == 0:  # no block was stepped in the attempt yet
+            # a block stuck at t: its motion does not depend on the force (stepped again only after an event)
+            held = (~settled & ~slipping).nonzero()[0]
+            if held.size:
+                self._hold_blocks(held, attempt, held_force, settled, steady)
+            stepped = ~settled & slipping
+        else:
+            swept = ~settled
+            stepped = swept & ~self._unchanged(attempt, used, floor)
+            self.stats["sweeps of a block skipped"] += int(np.count_nonzero(swept)) - int(np.count_nonzero(stepped))
+        starts, rates = lines[:, :attempt.cells].tolist(), rate.tolist()
+        for i in stepped.nonzero()[0].tolist():
             self.blocks.restore(i)
             self._sweep_block(i, attempt, starts[i], rates[i])
             attempt.forces[i] = used[i]
@@ -567,7 +624,7 @@ class _Run:
         False (its FMU moved)."""
         self.blocks.restore(i)
         t1 = min(max(attempt.T, self.t + self.ahead_length), self.t_end)
-        if not self._extend_line(i, self.t, t1, force, self.end[4][i]):
+        if not self._extend_line(i, self.t, t1, force, self.end[4][i], self.t, force):
             return False
         self.ahead.begin(i, self.t, force, (self.x[i], self.spring[i], self.margin[i]),
                          [column[i] for column in self.end])
@@ -599,18 +656,35 @@ class _Run:
         if ahead.until[i] < t1 or t1 >= self.t_end:
             return False  # its line ends at an event, or at the run's end
         t2 = min(max(attempt.T, t1 + self.ahead_length), self.t_end)
-        return self._extend_line(i, t1, t2, None, ahead.end[i, 4]) and ahead.until[i] >= attempt.T
+        return (self._extend_line(i, t1, t2, None, ahead.end[i, 4], float(ahead.t0[i]), float(ahead.force[i]))
+                and ahead.until[i] >= attempt.T)
 
-    def _extend_line(self, i, t0, t1, force, n_events):
+    def _extend_line(self, i, t0, t1, force, n_events, saved_at, held):
         """Step block ``i`` from ``t0`` to ``t1`` (s) in one ``doStep`` under ``force`` held (N; None: the force it
-        holds), ``n_events`` its event count at ``t0``: False if that passed an event it did not return early at
-        (its FMU beyond it), else True, its line ending where the step ended (:meth:`_end_line`)."""
+        holds, ``held``), ``n_events`` its event count at ``t0`` and at ``saved_at``, where its FMU state was saved:
+        True, its line ending where the step ended (:meth:`_end_line`), or at its breakaway where the step passed it
+        without returning early (:meth:`_before_breakaway`); False if that fails (its FMU beyond the event)."""
         t_e = self.blocks.step(i, t0, t1 - t0, force, 0.0)
         if t_e is None and self.blocks.n_events(i) != n_events:
-            return False
+            t_e = self._before_breakaway(i, t0, n_events, saved_at, held)
+            if t_e is None:
+                return False
         self._end_line(i, t1 if t_e is None else t_e, t_e)
         self.stats["stuck blocks stepped ahead"] += 1
         return True
+
+    def _before_breakaway(self, i, t0, n_events, saved_at, held):
+        """Block ``i``, whose step from ``t0`` (s) passed its breakaway (FMI 2: no early return; its event count was
+        ``n_events``), back at its state saved at ``saved_at`` and stepped under ``held`` (N) to ``EVENT_TOL`` before
+        the breakaway's time its step showed, as FMI 3's early return would leave it (the slip after the breakaway not
+        integrated again at every attempt until it): that time, or None where the step showed more than the one event
+        or that time is not after ``t0`` (its FMU then beyond the event)."""
+        t_b = self.blocks.ends[i][2] - EVENT_TOL  # its t_last_event
+        if self.blocks.n_events(i) != n_events + 1 or t_b <= t0:
+            return None
+        self.blocks.restore(i)
+        self.blocks.step(i, saved_at, t_b - saved_at, held, 0.0)
+        return t_b if self.blocks.n_events(i) == n_events else None
 
     def _end_line(self, i, t1, t_e):
         """Block ``i``'s line (stepped ahead) ends at ``t1`` (s), where its last step ended (at ``t_e``: returned early
@@ -625,9 +699,10 @@ class _Run:
     def _fill_ahead(self, blocks, attempt):
         """The rows of ``attempt`` of ``blocks`` (an index array of blocks stepped ahead) on their lines."""
         ahead = self.ahead
-        share = (attempt.times[None, 1:] - ahead.t0[blocks, None]) / (ahead.t1 - ahead.t0)[blocks, None]
-        start, end = ahead.lines[blocks, :, :1], ahead.lines[blocks, :, 1:]
-        on_line = start + share[:, None, :] * (end - start)  # (blocks, x spring z_slip, cell ends)
+        t0, lines = ahead.t0[blocks], ahead.lines[blocks]
+        share = (attempt.times[1:] - t0[:, None]) / (ahead.t1[blocks] - t0)[:, None]
+        start = lines[:, :, :1]
+        on_line = start + share[:, None, :] * (lines[:, :, 1:] - start)  # (blocks, x spring z_slip, cell ends)
         attempt.X[blocks, 1:] = on_line[:, 0]
         attempt.V[blocks, 1:], attempt.friction[blocks, 1:] = ahead.v[blocks, None], ahead.friction[blocks, None]
         attempt.spring[blocks], attempt.ahead_z_slip[blocks] = on_line[:, 1, -1], on_line[:, 2, -1]
@@ -684,26 +759,23 @@ class _Run:
         change = np.abs(forces - attempt.forces).max(axis=1)
         return change * (attempt.T - self.t) ** 2 / self.M <= 0.1 * floor
 
-    def _forces(self, attempt):
-        """Per block and cell (arrays ``(N, cells)``): the line ``F_ext = start + rate (s - t_cell)`` (N, N/s) that
-        carries the interpolated coupling force's impulse and first moment about the cell's end, the force at the
-        cell's start (N, a stuck block's) and the residual ``int (F - line) (T_cell - s)^2 ds`` (N s^3)."""
-        X, V, delta = attempt.X, attempt.V, float(attempt.widths[0])
-        x_nodes = hermite(_GAUSS_HERMITE, X[:, :-1, None], V[:, :-1, None], X[:, 1:, None], V[:, 1:, None], delta)
-        F = np.einsum("ij,jkq->ikq", self.K, x_nodes)  # (N, cells, 3)
-        delta3 = delta ** 3
-        impulse = delta * F @ _GAUSS_W
-        moment = delta ** 2 * F @ _GAUSS_W1
-        rate = (6.0 * impulse * delta - 12.0 * moment) / delta3
-        start = impulse / delta - 0.5 * rate * delta
-        second = delta3 * F @ _GAUSS_W2
-        residual = second - (start * delta3 / 3.0 + rate * delta ** 4 / 12.0)
-        return start, rate, self.K @ X[:, :-1], residual
+    def _forces(self, attempt, slipping):
+        """``(lines, rate, residual)``, arrays ``(N, cells)`` but for ``lines``: per block, ``F_ext`` at each cell's
+        start, at each cell's end and at ``T`` (N; ``2 cells + 1`` columns): a ``slipping`` block's on the line
+        ``F_ext = start + rate (s - t_cell)`` (N, N/s) that carries the interpolated coupling force's impulse and first
+        moment about the cell's end, a stuck block's held from the cell's start (its ``rate`` 0); and the residual
+        ``int (F - line) (T_cell - s)^2 ds`` (N s^3) of the line (:func:`force_map`)."""
+        c = attempt.cells
+        F = (self.K @ attempt.XV) @ attempt.force_columns
+        lines = np.where(slipping[:, None], F[:, :2 * c + 1], F[:, 2 * c + 1:4 * c + 2])
+        return lines, np.where(slipping[:, None], F[:, 4 * c + 2:5 * c + 2], 0.0), F[:, 5 * c + 2:]
 
     def _estimate(self, attempt, residual, slipping):
         """The step's error estimate (m): per slipping block, the velocity error of its cells' force residuals
         (``lambda^2 / 2M`` times the residual, ``lambda^2 = omega^2 + (dF_friction/dv / M)^2``) over ``lambda``,
-        summed over the cells; the largest of any block."""
+        summed over the cells; the largest of any block (0 if none slips)."""
+        if not slipping.any():
+            return 0.0
         dv = np.abs(attempt.V[:, 1:] - attempt.V[:, :-1])
         dF = attempt.friction[:, 1:] - attempt.friction[:, :-1]
         gamma = np.where(dv > 1e-12, np.abs(dF) / np.maximum(dv, 1e-12), 0.0)
@@ -714,7 +786,7 @@ class _Run:
     def _accept(self, attempt):
         """Make ``attempt`` the new communication point; record its events."""
         before, end = self.end, attempt.end
-        events, complete = step_events(end[2], before[3], end[3], before[4], end[4])
+        events, complete = step_events(*(column.tolist() for column in (end[2], before[3], end[3], before[4], end[4])))
         self.events += events
         self.complete = self.complete and complete
         self.t, self.end, self.margin = attempt.T, end, self._held_margin(attempt)
@@ -728,15 +800,17 @@ class _Run:
         output derivative, with the coupling force's rate ``K v`` in place of the ``rate`` (N/s) its force was last
         set with; 0 while stuck."""
         jerk = np.zeros(self.system.n)
-        for i in np.flatnonzero(self.end[3] != 0):
+        for i in (self.end[3] != 0).nonzero()[0].tolist():
             jerk[i] = self.blocks.jerk(i) + (self.K[i] @ self.v - rate[i]) / self.M[i]
         return jerk
 
     def _held_margin(self, attempt):
         """Each block's ``z_slip`` (N) at the step's end with the true coupling force there (the FMU's is with the
-        force it held over the last cell); meaningful for the blocks stuck at ``t``."""
-        kx = -attempt.spring
-        return attempt.end[0] + np.abs(kx - attempt.held) - np.abs(kx - self.K @ attempt.X[:, -1])
+        force it held over the last cell); meaningful for the blocks stuck at ``t``. Worked out once per attempt."""
+        if attempt.margin is None:
+            kx = -attempt.spring
+            attempt.margin = attempt.end[0] + np.abs(kx - attempt.held) - np.abs(kx - self.K @ attempt.X[:, -1])
+        return attempt.margin
 
     def _crossing(self, attempt):
         """``(block, t_e)`` of the first event in ``attempt``, None if none: a block's own (``n_events`` moved; ``t_e``
@@ -747,9 +821,9 @@ class _Run:
             return attempt.cut[1], attempt.cut[0]
         moved = attempt.end[4] != self.end[4]
         found = [(attempt.end[2][i] if attempt.end[4][i] == self.end[4][i] + 1 else 0.5 * (self.t + attempt.T),
-                  int(i), True) for i in np.flatnonzero(moved)]
+                  int(i), True) for i in moved.nonzero()[0].tolist()]
         margin = self._held_margin(attempt)
-        for i in np.flatnonzero((self.end[3] == 0) & ~moved & (margin < 0.0)):
+        for i in ((self.end[3] == 0) & ~moved & (margin < 0.0)).nonzero()[0].tolist():
             share = self.margin[i] / max(self.margin[i] - margin[i], 1e-300)
             found.append((self.t + min(max(share, 0.0), 1.0) * (attempt.T - self.t), int(i), False))
         if not found:
@@ -765,6 +839,36 @@ class _Run:
         if mode != 0:
             return float(mode * (self.end if attempt is None else attempt.end)[1][block])
         return float(self.margin[block] if attempt is None else self._held_margin(attempt)[block])
+
+    def _margin_zero(self, attempt, block):
+        """Where the true margin of ``block`` (stuck at ``t``) first falls below zero in ``attempt`` (s): its FMU's
+        ``z_slip`` (under the force it held) on the line between its values at ``t`` and ``T``, corrected as in
+        :meth:`_held_margin` with ``kappa x`` and the coupling force of the positions' cubic Hermite waveforms;
+        located by the Illinois method in the first cell whose end has it negative. None if no cell end has it
+        negative before ``T``'s or at ``T``."""
+        held, margin_t, z_end = attempt.held[block], self.margin[block], attempt.end[0][block]
+        X, V, delta = attempt.X, attempt.V, attempt.delta
+
+        def margin(k, u):  # at the share u of cell k
+            h00, h10, h01, h11 = hermite_basis(u)
+            x = h00 * X[:, k] + h10 * delta * V[:, k] + h01 * X[:, k + 1] + h11 * delta * V[:, k + 1]
+            kx, share = self.kappa[block] * x[block], (k + u) / attempt.cells
+            return margin_t + share * (z_end - margin_t) + abs(kx - held) - abs(kx - float(self.K[block] @ x))
+
+        for k in range(attempt.cells):
+            lo, hi, m_lo, m_hi, side = 0.0, 1.0, margin(k, 0.0), margin(k, 1.0), 0
+            if m_hi < 0.0 <= m_lo:
+                break
+        else:
+            return None
+        for _ in range(ZERO_ITERATIONS):
+            u = min(max((lo * m_hi - hi * m_lo) / (m_hi - m_lo), lo), hi)
+            m = margin(k, u)
+            if m < 0.0:
+                hi, m_hi, m_lo, side = u, m, (m_lo * 0.5 if side == 1 else m_lo), 1
+            else:
+                lo, m_lo, m_hi, side = u, m, (m_hi * 0.5 if side == -1 else m_hi), -1
+        return attempt.cell_times[k] + 0.5 * (lo + hi) * delta
 
     def _bracket(self, lo_attempt, attempt, crossing):
         """``(psi_lo, psi_hi, rate)``: the indicator of the crossing's block at the end of ``lo_attempt`` (None:
@@ -783,18 +887,28 @@ class _Run:
         event comes first (:meth:`_bracket`; a redo that shows another block's event first brackets that one)."""
         lo_attempt, lo, hi, side = None, self.t, attempt.T, 0
         psi_lo, psi_hi, rate = self._bracket(None, attempt, crossing)
+        zero = self._margin_zero(attempt, crossing[0]) if crossing[1] is None else None
+        # a breakaway's first two redos: just before and just after where the attempt's waveforms put it
+        guesses = [] if zero is None else [zero - 0.4 * EVENT_TOL, zero + 0.4 * EVENT_TOL]
         for _ in range(MAX_REDOS):
             own = crossing[1]
             if attempt.T == hi and hi - (lo if own is None else own) <= EVENT_TOL:
+                self.breaking = crossing[0] if own is None else None
                 return attempt
             if hi - lo <= EVENT_TOL:  # the event's far side (a step before it would end on a stale mode)
                 T = hi if hi > lo else lo + 0.5 * EVENT_TOL
+            elif own is not None and own >= lo:  # half the tolerance past the block's own event, where it lands
+                T = min(max(own + 0.5 * EVENT_TOL, lo + 0.25 * EVENT_TOL), hi - 0.25 * EVENT_TOL)
+            elif guesses and lo < guesses[0] < hi:
+                T = guesses.pop(0)
             else:
                 T = min(max((lo * psi_hi - hi * psi_lo) / (psi_hi - psi_lo), lo + 0.25 * EVENT_TOL),
                         hi - 0.25 * EVENT_TOL)
             attempt = self._attempt(T, CELLS if np.any(self.end[3] != 0) else 1)
             self.stats["event redos"] += 1
             found = self._crossing(attempt)
+            if found is not None:  # the zero is before T: the guess after it is no use
+                guesses.clear()
             if found is None:
                 lo_attempt, lo, psi_lo = attempt, T, max(self._indicator(attempt, crossing[0]), 1e-300)
                 psi_hi, side = (psi_hi * 0.5 if side == -1 else psi_hi), -1
