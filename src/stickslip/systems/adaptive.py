@@ -61,6 +61,7 @@ from ctypes import byref, c_bool, c_double, c_int, c_uint, c_void_p
 
 import numpy as np
 
+from ..core.rootfind import brent
 from ..fmu.variables import RATE_INPUT
 from ..hosts.fmpy_host import WARNING, FmuCallError, FMUError, log_mark
 from ..hosts.interrupts import check as check_interrupts
@@ -72,7 +73,6 @@ CELLS = 4  # cells per communication step while a block slips (1 while all are s
 STEPS_PER_PERIOD = 8  # longest step: this fraction of the shortest free period
 MAX_SWEEPS = 12
 MAX_REDOS = 60
-ZERO_ITERATIONS = 12  # Illinois steps on a breakaway's margin along an attempt's waveforms (the first redo's time)
 AHEAD_STEPS = 8  # a block stuck under a steady force is stepped ahead by this many longest steps
 STEADY_FORCE = 1e-13  # of a block's force scale (kappa times the chain's length scale): a force this close is steady
 BLOCK_RTOL_FACTOR = 1e-4  # each block's solver.rtol: at most this times the master's rtol (and >= 1e-14)
@@ -844,8 +844,8 @@ class _Run:
         """Where the true margin of ``block`` (stuck at ``t``) first falls below zero in ``attempt`` (s): its FMU's
         ``z_slip`` (under the force it held) on the line between its values at ``t`` and ``T``, corrected as in
         :meth:`_held_margin` with ``kappa x`` and the coupling force of the positions' cubic Hermite waveforms;
-        located by the Illinois method in the first cell whose end has it negative. None if no cell end has it
-        negative before ``T``'s or at ``T``."""
+        located by Brent's method, to a tenth of ``EVENT_TOL``, in the first cell whose end has it negative. None if
+        no cell end has it negative before ``T``'s or at ``T``."""
         held, margin_t, z_end = attempt.held[block], self.margin[block], attempt.end[0][block]
         X, V, delta = attempt.X, attempt.V, attempt.delta
 
@@ -856,19 +856,13 @@ class _Run:
             return margin_t + share * (z_end - margin_t) + abs(kx - held) - abs(kx - float(self.K[block] @ x))
 
         for k in range(attempt.cells):
-            lo, hi, m_lo, m_hi, side = 0.0, 1.0, margin(k, 0.0), margin(k, 1.0), 0
-            if m_hi < 0.0 <= m_lo:
+            m_start, m_end = margin(k, 0.0), margin(k, 1.0)
+            if m_end < 0.0 <= m_start:
                 break
         else:
             return None
-        for _ in range(ZERO_ITERATIONS):
-            u = min(max((lo * m_hi - hi * m_lo) / (m_hi - m_lo), lo), hi)
-            m = margin(k, u)
-            if m < 0.0:
-                hi, m_hi, m_lo, side = u, m, (m_lo * 0.5 if side == 1 else m_lo), 1
-            else:
-                lo, m_lo, m_hi, side = u, m, (m_hi * 0.5 if side == -1 else m_hi), -1
-        return attempt.cell_times[k] + 0.5 * (lo + hi) * delta
+        u = brent(lambda u: margin(k, u), 0.0, 1.0, m_start, m_end, xtol=0.1 * EVENT_TOL / delta)
+        return attempt.cell_times[k] + u * delta
 
     def _bracket(self, lo_attempt, attempt, crossing):
         """``(psi_lo, psi_hi, rate)``: the indicator of the crossing's block at the end of ``lo_attempt`` (None:
