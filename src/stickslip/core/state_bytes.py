@@ -60,7 +60,6 @@ _PLAN_CODES = {saved_state.REAL: "d", saved_state.TIME_END: "e", saved_state.COU
                saved_state.MODE: "b", saved_state.OPTIONAL_REAL: "o", saved_state.OPTIONAL_STEP: "s"}
 
 
-
 class Fields:
     """A row of fields ``(name, kind)`` of :mod:`.saved_state`'s kinds (no lists), packed as one struct."""
 
