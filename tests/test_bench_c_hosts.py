@@ -176,7 +176,8 @@ def _made_up_results():
                                                     for clock in ("wall", "cpu")},
                                         "c_host_ms": {clock: {"ours": 120.0, "without": 100.0, "first": 500.0,
                                                               "ratio": 1.2} for clock in ("wall", "cpu")}}},
-            "states": {"C host": {"FMI 2": dict(zip(STATE_CALLS, (0.5, 1.0, 0.75, 1.25, 20.0, 40.0)))}}}
+            "states": {"C host": {"FMI 2": dict(zip(STATE_CALLS, (0.5, 1.0, 0.75, 1.25, 20.0, 40.0))),
+                                  STATE_FLOOR: dict(zip(STATE_CALLS, (0.01, 0.02, 0.01, 0.015, 0.05, 0.03)))}}}
 
 
 def test_report_states_the_load_and_the_ratios_of_the_same_run(tmp_path):
@@ -190,6 +191,8 @@ def test_report_states_the_load_and_the_ratios_of_the_same_run(tmp_path):
     assert "| C host | 2 / 2 | 8 / 8 | 2.5 / 2.5 | 4 / 4 | 1.12 / 1.12 | 3.5, 1.5 |" in report
     # each FMU-state call over the doStep of 0.5 µs
     assert "| C host | FMI 2 | 0.5 | 2 (1 µs) | 1.5 (0.75 µs) | 2.5 (1.25 µs) | 40 (20 µs) | 80 (40 µs) |" in report
+    assert "| C host | C floor, FMI 2 | 0.01 | 2 (0.02 µs) | 1 (0.01 µs) | 1.5 (0.015 µs) | 5 (0.05 µs) | 3 (0.03 µs) |" \
+        in report  # the floor FMU's row, over its own doStep
     paths = write(tmp_path / "out", results)
     assert json.loads(paths[0].read_text()) == results and paths[2].stat().st_size > 0
 
