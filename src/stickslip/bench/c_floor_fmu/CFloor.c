@@ -138,6 +138,7 @@ EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state)
 EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state)
 {
     (void)c;
+    if (state == NULL) return fmi2Error;
     free(*state);
     *state = NULL;
     return fmi2OK;
@@ -146,6 +147,7 @@ EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state)
 EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate state, size_t *size)
 {
     (void)c, (void)state;
+    if (size == NULL) return fmi2Error;
     *size = STATE_BYTES;
     return fmi2OK;
 }
