@@ -11,6 +11,8 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Slave, fmi2Error
 
 from stickslip.bench import c_hosts, dymola_peer, fmus
 from stickslip.bench.c_floor import ensure_c_floor_fmu
@@ -19,6 +21,7 @@ from stickslip.bench.matched_error import OUR_RTOLS, loosest_rtol
 from stickslip.bench.process_timing import ChildFailed, Timings, slope, startup, timed_child
 from stickslip.bench.scenes import SCENES
 from stickslip.bench.state_costs import CALLS as STATE_CALLS
+from stickslip.bench.state_costs import FLOOR as STATE_FLOOR
 from stickslip.cli.bench import add_c_hosts_parser
 from stickslip.hosts.c_host import run_host
 
@@ -35,6 +38,31 @@ def test_c_floor_is_a_valid_fmu_whose_output_stays_and_whose_input_holds(c_floor
     result = fmpy.simulate_fmu(str(c_floor), stop_time=1.0, output_interval=0.1, start_values={"u": 2.5},
                                output=["x", "u"], validate=True)  # FMPy checks the model description
     assert len(result) == 11 and np.all(result["x"] == 0.0) and np.all(result["u"] == 2.5)
+
+
+def test_c_floor_states_restore_its_variables_and_refuse_bytes_of_another_size(c_floor, tmp_path):
+    folder = c_hosts.extract(c_floor, tmp_path)
+    description = fmpy.read_model_description(str(folder))
+    assert description.coSimulation.canGetAndSetFMUstate and description.coSimulation.canSerializeFMUstate
+    fmu = FMU2Slave(guid=description.guid, unzipDirectory=str(folder), modelIdentifier="CFloor")
+    fmu.instantiate()
+    fmu.setReal([1], [2.5])
+    state = fmu.getFMUstate()
+    fmu.setReal([1], [-4.0])
+    fmu.setFMUstate(state)
+    assert fmu.getReal([1]) == [2.5]
+    data = fmu.serializeFMUstate(state)
+    assert len(data) == 614  # a serialized state of SpringBlockFriction.fmu where state_costs measures it
+    fmu.setReal([1], [-4.0])
+    copy = fmu.deSerializeFMUstate(data)
+    fmu.setFMUstate(copy)
+    assert fmu.getReal([1]) == [2.5] and fmu.serializeFMUstate(copy) == data
+    with pytest.raises(FMICallException, match="fmi2DeSerializeFMUstate") as refused:
+        fmu.deSerializeFMUstate(data[:-1])
+    assert refused.value.status == fmi2Error
+    for saved in (state, copy):
+        fmu.freeFMUstate(saved)
+    fmu.freeInstance()
 
 
 def test_c_floor_runs_in_our_c_host(c_floor, host, tmp_path):
@@ -148,7 +176,8 @@ def _made_up_results():
                                                     for clock in ("wall", "cpu")},
                                         "c_host_ms": {clock: {"ours": 120.0, "without": 100.0, "first": 500.0,
                                                               "ratio": 1.2} for clock in ("wall", "cpu")}}},
-            "states": {"C host": {"FMI 2": dict(zip(STATE_CALLS, (0.5, 1.0, 0.75, 1.25, 20.0, 40.0)))}}}
+            "states": {"C host": {"FMI 2": dict(zip(STATE_CALLS, (0.5, 1.0, 0.75, 1.25, 20.0, 40.0))),
+                                  STATE_FLOOR: dict(zip(STATE_CALLS, (0.01, 0.02, 0.01, 0.015, 0.05, 0.03)))}}}
 
 
 def test_report_states_the_load_and_the_ratios_of_the_same_run(tmp_path):
@@ -162,6 +191,8 @@ def test_report_states_the_load_and_the_ratios_of_the_same_run(tmp_path):
     assert "| C host | 2 / 2 | 8 / 8 | 2.5 / 2.5 | 4 / 4 | 1.12 / 1.12 | 3.5, 1.5 |" in report
     # each FMU-state call over the doStep of 0.5 µs
     assert "| C host | FMI 2 | 0.5 | 2 (1 µs) | 1.5 (0.75 µs) | 2.5 (1.25 µs) | 40 (20 µs) | 80 (40 µs) |" in report
+    assert "| C host | C floor, FMI 2 | 0.01 | 2 (0.02 µs) | 1 (0.01 µs) | 1.5 (0.015 µs) | 5 (0.05 µs) | 3 (0.03 µs) |" \
+        in report  # the floor FMU's row, over its own doStep
     paths = write(tmp_path / "out", results)
     assert json.loads(paths[0].read_text()) == results and paths[2].stat().st_size > 0
 
@@ -191,6 +222,6 @@ def test_bench_c_hosts_without_its_inputs_measures_ours_and_the_floors(tmp_path,
     assert "## One-step `simulate_fmu` of the .fmu file" in (tmp_path / "out" / "c-hosts.md").read_text()
     states = results["states"]  # every FMU-state call measured in both hosts, for both FMI versions
     assert {(host, version) for host in states for version in states[host]} == {
-        (host, version) for host in ("C host", "FMPy") for version in ("FMI 2", "FMI 3")}
+        (host, version) for host in ("C host", "FMPy") for version in ("FMI 2", "FMI 3", STATE_FLOOR)}
     assert all(set(costs) == set(STATE_CALLS) and min(costs.values()) > 0
                for versions in states.values() for costs in versions.values())

@@ -1,5 +1,6 @@
 """The compiled floor: ``CFloor.fmu``, an FMI 2.0 co-simulation FMU in C that does nothing
-(``c_floor_fmu/CFloor.c``: one output ``x``, one input ``u``, an empty ``fmi2DoStep``).
+(``c_floor_fmu/CFloor.c``: one output ``x``, one input ``u``, an empty ``fmi2DoStep``; FMU states that are copies of
+the two variables, serialized as many bytes as a state of the block FMU).
 
 Built with the machine's C compiler (``$CC``, default ``cc``) into the benchmark's build folder: what a
 host pays per call when the FMU itself costs nothing, the physical floor of an FMI call.

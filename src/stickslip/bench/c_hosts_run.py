@@ -2,8 +2,8 @@
 benchmarks/README.md): the C-host family (:mod:`.c_hosts`) with ours at the peer's error, the FMPy family
 against the peer (:mod:`.matched_error`), the ``.fmu`` file against DOP853 and against the floor
 (:mod:`.fmu_file_runs`), each block FMU against the same FMU without its carried CPython (:mod:`.carried_cost`), the
-FMU states beside a step in the C hosts and FMPy, both FMI versions (:mod:`.state_costs`). The result is one
-JSON-ready dict; :mod:`.c_hosts_report` writes it out.
+FMU states beside a step in the C hosts and FMPy, both FMI versions and the C floor (:mod:`.state_costs`). The result
+is one JSON-ready dict; :mod:`.c_hosts_report` writes it out.
 """
 
 import datetime
@@ -57,9 +57,9 @@ def run_all(inputs, steps, repeats, progress=print, state_rounds=state_costs.ROU
         if peer is not None:
             meta["peer_mismatches"] = dymola_peer.mismatches(inputs.peer, scene)
         out["matched"], ours = _match_in_hosts(hosts, peer, inputs.fmu, scene, progress)
-        subjects = [ours, *([peer] if peer else []),
-                    c_hosts.Subject("PythonFMU floor", inputs.python_floor),
-                    c_hosts.Subject("C floor", ensure_c_floor_fmu(inputs.build_dir)), *_reference_floors(inputs)]
+        c_floor = ensure_c_floor_fmu(inputs.build_dir)
+        subjects = [ours, *([peer] if peer else []), c_hosts.Subject("PythonFMU floor", inputs.python_floor),
+                    c_hosts.Subject("C floor", c_floor), *_reference_floors(inputs)]
         out["hosts"] = {host.name: c_hosts.measure(host, subjects, STEP, steps, repeats, progress) for host in hosts}
     if peer is not None:
         out["fmpy"] = fmpy_family(inputs.peer, peer, inputs.fmu, scene, repeats, progress)
@@ -68,7 +68,7 @@ def run_all(inputs, steps, repeats, progress=print, state_rounds=state_costs.ROU
     out["one_step"] = one_step(inputs.fmu, inputs.python_floor, 3 * repeats, progress)
     if inputs.carried_python:
         out["carried_python"] = carried_cost.measure(*_block_fmus(inputs), inputs.build_dir, 3 * repeats, progress)
-    out["states"] = state_costs.measure(*_block_fmus(inputs), state_rounds, progress)
+    out["states"] = state_costs.measure(*_block_fmus(inputs), state_rounds, progress, floor=c_floor)
     meta["load_end"] = _load()
     return out
 

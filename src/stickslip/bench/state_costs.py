@@ -7,7 +7,8 @@ The scene is msl-pendulum (the block slips under a Stribeck law, its slip integr
 :data:`REPEATS` times, CPU time per call the median over the repeats (the C host's ``state_costs`` in
 ``host_common.h``; :func:`fmpy_costs` does the same through FMPy's ``FMU2Slave``/``FMU3Slave``). Serialization takes
 a state of its own in each call (the loader keeps the bytes of the state serialized last); deserialization takes the
-bytes of one state again and again (nothing is kept between those calls).
+bytes of one state again and again (nothing is kept between those calls). The compiled floor FMU (:mod:`.c_floor`),
+whose states are copies of its two variables, measured the same way, gives the hosts' own part of each call.
 """
 
 import statistics
@@ -29,24 +30,30 @@ STEP = 1e-3  # s: the doStep the costs are measured against
 WARM = 0.1  # s: run before measuring (100 steps)
 REPEATS = 5
 ROUNDS = 1000  # calls per block (bench-c-hosts --state-rounds)
+#: the row of the compiled floor FMU, whose state calls cost next to nothing (a copy of two floats; serialized, 614
+#: bytes as our FMI 2 FMU's state here): what a host's own part of each call costs as a multiple of its doStep
+FLOOR = "C floor, FMI 2"
 #: the calls measured, in the C host's order and labels (FMI 2 names; FMI 3's are the same calls)
 CALLS = ("doStep", "GetFMUstate+FreeFMUstate", "SetFMUstate", "SetFMUstate+doStep",
          "SerializedFMUstateSize+SerializeFMUstate", "DeSerializeFMUstate+FreeFMUstate")
 
 
-def measure(fmus, hosts, rounds, progress=print):
-    """``{host: {"FMI 2"|"FMI 3": {call: µs per call}}}`` for ``fmus`` (``{fmi version: FMU file}``) in the C hosts
-    ``hosts`` (``{fmi version: executable}``) and in FMPy."""
+def measure(fmus, hosts, rounds, progress=print, floor=None):
+    """``{host: {"FMI 2"|"FMI 3"|FLOOR: {call: µs per call}}}`` for ``fmus`` (``{fmi version: FMU file}``) in the C
+    hosts ``hosts`` (``{fmi version: executable}``) and in FMPy; ``floor``: the compiled floor FMU (:mod:`.c_floor`),
+    then measured too (in the FMI 2 host, from its start values), as row :data:`FLOOR`."""
     scene = SCENES[SCENE]
     start = scene.start_values(scene.sweep.comm_rtol)
+    subjects = [(f"FMI {version}", fmu, hosts[version], start) for version, fmu in fmus.items()]
+    if floor is not None:
+        subjects.append((FLOOR, floor, hosts[2], {}))
     out = {"C host": {}, "FMPy": {}}
     with tempfile.TemporaryDirectory() as work:
-        for version, fmu in fmus.items():
-            label = f"FMI {version}"
+        for number, (label, fmu, host, start_values) in enumerate(subjects):
             progress(f"FMU states, {label}: C host and FMPy, {rounds} calls per block")
-            folder = extract(fmu, Path(work) / label.replace(" ", ""))
-            out["C host"][label] = c_host_costs(hosts[version], folder, start, rounds)
-            out["FMPy"][label] = fmpy_costs(folder, start, rounds)
+            folder = extract(fmu, Path(work) / f"fmu{number}")
+            out["C host"][label] = c_host_costs(host, folder, start_values, rounds)
+            out["FMPy"][label] = fmpy_costs(folder, start_values, rounds)
     return out
 
 
@@ -148,7 +155,8 @@ def markdown_lines(results):
     it."""
     lines = [f"## FMU states beside a doStep of {STEP * 1e3:g} ms ({SCENE}, slipping, after {WARM:g} s)", "",
              "CPU time per call (median of the blocks); each FMU-state call as a ratio to the doStep of the same "
-             "instance in the same run.", "",
+             f"instance in the same run. {FLOOR}: the compiled floor FMU (its state a copy of its two variables, "
+             "serialized as many bytes as ours), what the host's own part of each call costs.", "",
              "| host | FMU | doStep (µs) | " + " | ".join(f"{call} / doStep" for call in CALLS[1:]) + " |",
              "|---|---|---|" + "---|" * (len(CALLS) - 1)]
     for host, versions in results.items():

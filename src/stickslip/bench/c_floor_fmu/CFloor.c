@@ -1,7 +1,8 @@
 /* CFloor: a compiled FMI 2.0 co-simulation FMU that does nothing, the physical floor of an FMI call.
  * One output x (value reference 0) and one input u (1), both Real and held as set (start 0);
  * fmi2DoStep returns at once. Every other function an importer may look up exists and succeeds
- * where it makes sense; saved states and derivatives are not supported (fmi2Error).
+ * where it makes sense; derivatives are not supported (fmi2Error). FMU states are copies of the variables,
+ * serialized as STATE_BYTES bytes (the variables, then zeros).
  * Self-contained: the FMI 2 types are declared here, no headers of the standard are needed. */
 #include <stddef.h>
 #include <stdlib.h>
@@ -30,6 +31,12 @@ typedef struct {
 } fmi2CallbackFunctions;
 
 enum { N_REALS = 2 }; /* x, u */
+
+/* The size of a serialized state (bytes): that of a serialized state of SpringBlockFriction.fmu (FMI 2) where the
+ * FMU-state benchmark measures it (bench/state_costs.py: msl-pendulum after 0.1 s in steps of 1 ms, slipping, its
+ * segment a Runge-Kutta step; measured 614 bytes with FMPy's serializeFMUstate, docs/hosts.md#fmu-states), so that
+ * an importer's work with the bytes (a buffer made, filled and copied) is the same as with that FMU. */
+#define STATE_BYTES 614
 
 typedef struct {
     fmi2Real reals[N_REALS];
@@ -111,41 +118,61 @@ NO_VARIABLES(fmi2SetBoolean, const fmi2Boolean v[])
 NO_VARIABLES(fmi2GetString, fmi2String v[])
 NO_VARIABLES(fmi2SetString, const fmi2String v[])
 
+/* FMU states that cost next to nothing: a state is a malloc'd copy of the variables, set by copying it back */
 EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state)
 {
-    (void)c, (void)state;
-    return fmi2Error;
+    Instance *copy = malloc(sizeof(Instance));
+    if (copy == NULL) return fmi2Error;
+    *copy = *(const Instance *)c;
+    *state = copy;
+    return fmi2OK;
 }
 
 EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state)
 {
-    (void)c, (void)state;
-    return fmi2Error;
+    if (state == NULL) return fmi2Error;
+    *(Instance *)c = *(const Instance *)state;
+    return fmi2OK;
 }
 
 EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state)
 {
-    (void)c, (void)state;
-    return fmi2Error;
+    (void)c;
+    if (state == NULL) return fmi2Error;
+    free(*state);
+    *state = NULL;
+    return fmi2OK;
 }
 
 EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate state, size_t *size)
 {
-    (void)c, (void)state, (void)size;
-    return fmi2Error;
+    (void)c, (void)state;
+    if (size == NULL) return fmi2Error;
+    *size = STATE_BYTES;
+    return fmi2OK;
 }
 
+/* the variables, then zeros up to STATE_BYTES */
 EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size)
 {
-    (void)c, (void)state, (void)bytes, (void)size;
-    return fmi2Error;
+    (void)c;
+    if (state == NULL || size != STATE_BYTES) return fmi2Error;
+    memcpy(bytes, state, sizeof(Instance));
+    memset(bytes + sizeof(Instance), 0, STATE_BYTES - sizeof(Instance));
+    return fmi2OK;
 }
 
+/* bytes of any other size than STATE_BYTES are no state of this FMU: fmi2Error */
 EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size_t size,
                                           fmi2FMUstate *state)
 {
-    (void)c, (void)bytes, (void)size, (void)state;
-    return fmi2Error;
+    (void)c;
+    if (size != STATE_BYTES) return fmi2Error;
+    Instance *copy = malloc(sizeof(Instance));
+    if (copy == NULL) return fmi2Error;
+    memcpy(copy, bytes, sizeof(Instance));
+    *state = copy;
+    return fmi2OK;
 }
 
 EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference unknowns[], size_t n_u,
