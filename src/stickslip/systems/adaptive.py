@@ -185,6 +185,13 @@ def force_columns(cells, delta):
     return force_map(cells) * rows[:, None] * np.array([1.0, 1.0 / delta, delta ** 3])[column_kinds], rows
 
 
+def true_margin(z_slip, kx, held, force):
+    """A stuck block's ``z_slip`` (N) with the coupling force ``force`` (N) in place of the force ``held`` (N) its FMU
+    computed it with, ``kx`` (N) its spring's force ``kappa x``: the static margin's ``|kx - F_ext|`` taken anew
+    (scalars or arrays alike)."""
+    return z_slip + abs(kx - held) - abs(kx - force)
+
+
 def coupling_matrix(system):
     """``K`` (N/m) with ``F_ext = K x`` (SPEC section 5)."""
     n = system.n
@@ -808,8 +815,7 @@ class _Run:
         """Each block's ``z_slip`` (N) at the step's end with the true coupling force there (the FMU's is with the
         force it held over the last cell); meaningful for the blocks stuck at ``t``. Worked out once per attempt."""
         if attempt.margin is None:
-            kx = -attempt.spring
-            attempt.margin = attempt.end[0] + np.abs(kx - attempt.held) - np.abs(kx - self.K @ attempt.X[:, -1])
+            attempt.margin = true_margin(attempt.end[0], -attempt.spring, attempt.held, self.K @ attempt.X[:, -1])
         return attempt.margin
 
     def _crossing(self, attempt):
@@ -852,8 +858,9 @@ class _Run:
         def margin(k, u):  # at the share u of cell k
             h00, h10, h01, h11 = hermite_basis(u)
             x = h00 * X[:, k] + h10 * delta * V[:, k] + h01 * X[:, k + 1] + h11 * delta * V[:, k + 1]
-            kx, share = self.kappa[block] * x[block], (k + u) / attempt.cells
-            return margin_t + share * (z_end - margin_t) + abs(kx - held) - abs(kx - float(self.K[block] @ x))
+            share = (k + u) / attempt.cells
+            return true_margin(margin_t + share * (z_end - margin_t), self.kappa[block] * x[block], held,
+                               float(self.K[block] @ x))
 
         for k in range(attempt.cells):
             m_start, m_end = margin(k, 0.0), margin(k, 1.0)

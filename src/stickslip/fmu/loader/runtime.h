@@ -180,7 +180,7 @@ int sbf_log_wanted(const sbf_log_filter *filter, int status, const char *categor
 #define SBF_STATE_GOT(Status, error, name, forward, params, args)                                                 \
     SBF_EXPORT Status name params                                                    \
     {                                                                                                             \
-        SBF_STATE_FAST(error, sbf_state_get, args)                                                           \
+        SBF_STATE_FAST(error, sbf_state_get, args)                                                                \
         return forward(c SBF_FORWARD_ARGS args);                                                                  \
     }
 /* In an FMU-state function: return what the bound slave answers (`answer`, a sbf_state_* function of fast_path.h,
