@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..hosts.interrupts import check as check_interrupts
+from ..hosts.interrupts import Interrupted, check as check_interrupts
 from .statistics import STATISTICS_JSON
 
 #: a worker's exit status after Ctrl-C (128 + SIGINT)
@@ -172,7 +172,7 @@ def run_ensemble(n, members, stop_time, out, *, rtol=1e-10, output_interval=None
             executor.map(run_member, tasks, desc=f"{len(tasks)} chains", unit="chain")
     except KeyboardInterrupt:
         finish_ensemble(run, time.perf_counter() - start)
-        raise KeyboardInterrupt(f"{len(run.finished)} of {len(run.members)} chains finished, their files and the "
+        raise Interrupted(f"{len(run.finished)} of {len(run.members)} chains finished, their files and the "
                                 f"merged catalogue in {out}; the others hold what they wrote") from None
     return finish_ensemble(run, time.perf_counter() - start)
 

@@ -25,7 +25,8 @@ def main(argv=None):
             interrupts.check()  # a Ctrl-C that a library swallowed and nothing checked for since
             return code
     except KeyboardInterrupt as exc:  # Ctrl-C: one line, the shell's status for SIGINT
-        print(f"{_command(argv)}: interrupted" + (f" ({exc})" if str(exc) else ""), file=sys.stderr)
+        said = str(exc) if type(exc) is not KeyboardInterrupt else ""  # an Interrupted's account of what was kept
+        print(f"{_command(argv)}: interrupted" + (f" ({said})" if said else ""), file=sys.stderr)
         return INTERRUPTED
     except Exception as exc:
         if not _raised_by_ctrl_c(exc):

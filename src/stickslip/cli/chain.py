@@ -115,6 +115,7 @@ def interval_option(text):
 
 def _chain(args):
     from ..chain.folder_run import FolderRun, run_into_folder, slipping_at_start, summarise_folder
+    from ..hosts.interrupts import Interrupted
     from ..hosts.progress import TimeProgress
     from ..hosts.run_limits import output_folder
 
@@ -130,7 +131,7 @@ def _chain(args):
                                   progress=step)
         except KeyboardInterrupt:
             kept = ", ".join(p.name for p in FolderRun(out, None, None, 0).files)
-            raise KeyboardInterrupt(f"at t = {progress.reached:.6g} s; kept what was written in {out}: {kept}") \
+            raise Interrupted(f"at t = {progress.reached:.6g} s; kept what was written in {out}: {kept}") \
                 from None
     settings = {"system": system.name, "stop_time": stop_time, "output_interval": interval, "rtol": args.rtol,
                 "v_drive": system.v_drive, "block_events": run.grouper.n_block_events,

@@ -19,6 +19,11 @@ import threading
 _count = 0  # SIGINTs received within counting()
 
 
+class Interrupted(KeyboardInterrupt):
+    """The KeyboardInterrupt of a Ctrl-C that ended a command's work, saying what the work kept (its message, which
+    the command line prints; a plain KeyboardInterrupt's text, which Python may fill with its own, is not printed)."""
+
+
 def interrupted():
     """Whether a SIGINT arrived within :func:`counting`."""
     return _count > 0

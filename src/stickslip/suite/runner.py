@@ -134,7 +134,7 @@ def run_suite(paths, out_dir, jobs=2, fmu_path=None, interface=None):
     try:
         outcomes = _run_all(scenarios, fmu_path, out_dir, interface, jobs, progress.update)
     except KeyboardInterrupt:
-        raise KeyboardInterrupt(f"{progress.n} of {len(scenarios)} scenarios finished, no report written") from None
+        raise interrupts.Interrupted(f"{progress.n} of {len(scenarios)} scenarios finished, no report written") from None
     finally:
         progress.close()
     result = SuiteResult(tuple(outcomes), time.perf_counter() - start)
